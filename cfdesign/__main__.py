@@ -1,0 +1,7 @@
+"""``python -m cfdesign``: the same as the ``cfdesign`` command."""
+
+import sys
+
+from .cli import main
+
+sys.exit(main())

@@ -1,0 +1,133 @@
+"""Numeric side of a filter with numbers for its gains: python-control models and responses.
+
+No plotting here (see :mod:`cfdesign.plot`) and no sympy: the observer hands over its band
+polynomials as float coefficient arrays (:meth:`Observer.band_coefficients`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
+
+__all__ = ["transfer_functions", "FrequencyResponse", "frequency_response", "default_frequencies"]
+
+
+def transfer_functions(observer) -> dict:
+    """``{sensor: control.TransferFunction}`` of every band, plus ``'sum'``.
+
+    Continuous bands are in ``s``; discrete ones carry ``dt`` = the sample time (s).  The
+    ``'sum'`` entry is the exact sum reduced by the symbolic proof (``1`` when the filter is
+    complementary), not a numerically added model of inflated order.
+    """
+    import control
+
+    dt = float(observer.sample_time) if observer.discrete else 0
+    out = {name: control.tf(num, den, dt) for name, (num, den) in observer.band_coefficients().items()}
+    out["sum"] = control.tf(*observer.sum_coefficients(), dt)
+    return out
+
+
+def _band_poles(coefficients, dt):
+    roots = np.concatenate([np.roots(den) for _, den in coefficients.values()])
+    if dt:
+        roots = np.log(roots[np.abs(roots) > 0].astype(complex)) / dt
+    mags = np.abs(roots[np.abs(roots) > 0])
+    return mags
+
+
+def default_frequencies(coefficients, dt=None, points: int = 800) -> np.ndarray:
+    """A log grid (rad/s) two decades either side of the pole magnitudes, capped at Nyquist."""
+    mags = _band_poles(coefficients, dt)
+    lo, hi = (mags.min(), mags.max()) if mags.size else (1.0, 1.0)
+    lo, hi = lo / 100, hi * 100
+    if dt:
+        hi = np.pi / dt
+        lo = min(lo, hi / 1e4)
+    return np.logspace(np.log10(lo), np.log10(hi), points)
+
+
+@dataclass(frozen=True)
+class FrequencyResponse:
+    """Complex responses of every band on a frequency grid.
+
+    Attributes
+    ----------
+    omega : ndarray
+        Frequencies in rad/s.
+    bands : dict
+        ``{sensor: complex ndarray}`` band responses ``T_i(j w)`` or ``T_i(e^{j w dt})``.
+    dt : float or None
+        Sample time in seconds (discrete) or None (continuous).
+    coefficients : dict
+        ``{sensor: (num, den)}`` band polynomials (highest power first).
+    """
+
+    omega: np.ndarray
+    bands: dict
+    dt: float | None
+    coefficients: dict
+
+    @property
+    def total(self) -> np.ndarray:
+        """Sum of the band responses, computed numerically (1 for a complementary filter)."""
+        return np.sum(list(self.bands.values()), axis=0)
+
+    def magnitude_db(self, name: str) -> np.ndarray:
+        resp = self.total if name == "sum" else self.bands[name]
+        with np.errstate(divide="ignore"):
+            return 20 * np.log10(np.abs(resp))
+
+    def phase_deg(self, name: str) -> np.ndarray:
+        resp = self.total if name == "sum" else self.bands[name]
+        return np.degrees(np.unwrap(np.angle(resp)))
+
+    def dominant_order(self) -> list:
+        """Band names ordered by the frequency at which each band peaks (low-pass first)."""
+        peak = {k: self.omega[np.argmax(np.abs(v))] for k, v in self.bands.items()}
+        return sorted(peak, key=lambda k: (peak[k], k))
+
+    def crossovers(self) -> list:
+        """``[(band_a, band_b, w)]``: where adjacent bands have equal magnitude (rad/s).
+
+        Bands are taken in :meth:`dominant_order`; for each neighbouring pair the first
+        sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method
+        on the exact band polynomials.
+        """
+        order = self.dominant_order()
+        found = []
+        for a, b in pairwise(order):
+            w = self._equal_magnitude(a, b)
+            if w is not None:
+                found.append((a, b, w))
+        return found
+
+    def _log_ratio(self, a, b, w):
+        x = np.exp(1j * w * self.dt) if self.dt else 1j * w
+        (na, da), (nb, db) = self.coefficients[a], self.coefficients[b]
+        return (np.log(np.abs(np.polyval(na, x) / np.polyval(da, x)))
+                - np.log(np.abs(np.polyval(nb, x) / np.polyval(db, x))))
+
+    def _equal_magnitude(self, a, b):
+        from scipy.optimize import brentq
+
+        with np.errstate(divide="ignore"):
+            d = np.log(np.abs(self.bands[a])) - np.log(np.abs(self.bands[b]))
+        idx = np.flatnonzero(np.isfinite(d[:-1]) & np.isfinite(d[1:]) & (np.sign(d[:-1]) != np.sign(d[1:])))
+        if not idx.size:
+            return None
+        i = idx[0]
+        return float(brentq(lambda w: self._log_ratio(a, b, w), self.omega[i], self.omega[i + 1], xtol=1e-14))
+
+
+def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResponse:
+    """Evaluate every band of a numeric observer on ``omega`` (rad/s; default: automatic grid)."""
+    coefficients = observer.band_coefficients()
+    dt = float(observer.sample_time) if observer.discrete else None
+    if omega is None:
+        omega = default_frequencies(coefficients, dt, points)
+    omega = np.asarray(omega, dtype=float)
+    x = np.exp(1j * omega * dt) if dt else 1j * omega
+    bands = {name: np.polyval(num, x) / np.polyval(den, x) for name, (num, den) in coefficients.items()}
+    return FrequencyResponse(omega, bands, dt, coefficients)

@@ -1,0 +1,65 @@
+"""One exception family for cfdesign.
+
+Every error a user can cause (a bad spec, an unknown structure, a gain that is missing,
+a Riccati problem with no stabilising solution) is a :class:`CfdesignError`.  The CLI
+catches this family and prints its message on one line; anything else is a bug and keeps
+its traceback.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "CfdesignError",
+    "SpecError",
+    "StructureError",
+    "GainError",
+    "ProofError",
+    "RiccatiError",
+    "NotStabilisableError",
+    "NotDetectableError",
+    "NoStabilisingSolutionError",
+    "AccuracyError",
+]
+
+
+class CfdesignError(Exception):
+    """Base class of every error cfdesign raises on purpose."""
+
+    #: exit status the CLI uses for this kind of error
+    exit_code = 2
+
+
+class SpecError(CfdesignError, ValueError):
+    """A specification (sensor, filter, design file) is invalid; the message names the field."""
+
+
+class StructureError(CfdesignError, ValueError):
+    """An observer structure is malformed (matrix shapes, sensor ports, unknown structure name)."""
+
+
+class GainError(CfdesignError, ValueError):
+    """Gains or parameters given for a filter are missing, unknown or not numbers."""
+
+
+class ProofError(CfdesignError):
+    """A complementarity proof could not be carried out (not: the proof failed)."""
+
+
+class RiccatiError(CfdesignError, ValueError):
+    """A Riccati equation is ill-posed or its solution could not be trusted."""
+
+
+class NotStabilisableError(RiccatiError):
+    """The pair (A, B) has an unstable mode that the input cannot reach (PBH test)."""
+
+
+class NotDetectableError(RiccatiError):
+    """The pair (A, C) has an unstable mode that the outputs cannot see (PBH test)."""
+
+
+class NoStabilisingSolutionError(RiccatiError):
+    """The Riccati equation has no stabilising solution (e.g. a mode on the stability boundary)."""
+
+
+class AccuracyError(RiccatiError):
+    """A solution was computed but failed the residual or stability check after refinement."""

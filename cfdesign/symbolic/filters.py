@@ -1,0 +1,190 @@
+"""The named complementary filters of the seeds, as small constructors on the engine.
+
+Each returns an :class:`~cfdesign.symbolic.observer.Observer` with the paper's symbol
+names, so its bands can be compared with the printed equations of seed 001.
+
+Where seed 001's printed transfer functions do not follow from its own state-space model,
+cfdesign derives from the model (MATH.md §4-5) and offers the printed versions separately
+(:func:`ckf3_printed`, :func:`dckf3_printed`), named as such:
+
+* CKF³: eqs. (15)-(17) have the denominator ``(1 + k12) s^2 + (k11 + k22) s + k21``; the
+  model of eqs. (10)-(14) gives ``s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21`` and other
+  numerators.  Both sets sum to one; the printed one belongs to the block diagram of the
+  paper's Fig. 3, not to eqs. (10)-(14).
+* DCKF³: eq. (29) is the gyro band, eq. (30) the odometry band, and eq. (31) times
+  ``(1 - z^-1)/(T z^-1)`` the compass band; the paper's F-labels are mixed up, the sum and
+  the denominator eq. (32) are right (:func:`dckf3` reproduces eq. (32) exactly).
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from ..errors import StructureError
+from .observer import Observer, Sensor, T, s, z, zoh_chain
+
+__all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "ckf3_printed", "dckf3_printed",
+           "eq32_denominator", "STRUCTURES", "structure"]
+
+#: names of the derivatives of the common quantity, by order (sensor names of cfn)
+DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk", "snap", "crackle", "pop")
+
+
+def _chain(m: int, discrete: bool):
+    """``(F, B)`` of an ``m``-state integrator chain driven by the ``m``-th derivative."""
+    if discrete:
+        return zoh_chain(m)
+    F = sp.Matrix(m, m, lambda i, j: 1 if j == i + 1 else 0)
+    B = sp.Matrix(m, 1, lambda i, _: 1 if i == m - 1 else 0)
+    return F, B
+
+
+def _domain(discrete: bool) -> dict:
+    return {"domain": "z", "sample_time": T} if discrete else {"domain": "s"}
+
+
+def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
+    """Two-sensor complementary filter: an angle sensor and a rate sensor (MATH.md §2).
+
+    ``order=1``: state ``[angle]``, ``T_angle = k/(s + k)``, ``T_rate = s/(s + k)``.
+    ``order=2`` (gyro-bias estimation): state ``[angle, rate correction]`` with
+    ``F = [[0, 1], [0, 0]]``, ``B = [1, 0]^T``, ``K = [k1, k2]^T``;
+    ``T_angle = (k1 s + k2)/(s^2 + k1 s + k2)``, ``T_rate = s^2/(s^2 + k1 s + k2)``.
+    The rate correction is minus the estimated gyro bias.  ``discrete=True`` gives the
+    ZOH model with sample time ``T`` and predictor-form gains.
+    """
+    sensors = [Sensor.input("rate", "rate"), Sensor.measurement("angle", "angle", 0)]
+    if order == 1:
+        F, B = _chain(1, discrete)
+        K = sp.Matrix([[sp.Symbol("k")]])
+    elif order == 2:
+        F = sp.Matrix([[1, T], [0, 1]]) if discrete else sp.Matrix([[0, 1], [0, 0]])
+        B = sp.Matrix([T, 0]) if discrete else sp.Matrix([1, 0])
+        K = sp.Matrix(sp.symbols("k1 k2"))
+    else:
+        raise StructureError(f"cf2 order must be 1 or 2, got {order!r}")
+    return Observer(F, B, sp.Matrix([[1] + [0] * (order - 1)]), K, sensors,
+                    name=f"cf2 (order {order})", **_domain(discrete))
+
+
+def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
+    """n-band complementary filter: sensors of the quantity and its first ``n - 1`` derivatives.
+
+    State ``[psi, psi', ..., psi^(n-2)]``; the ``(n-1)``-th derivative drives the chain,
+    the ``n - 1`` lower ones are measured (``H = I``).  The sparse gain (``full=False``,
+    the CF³ pattern of seed 001 eq. (13)) has the last row ``[k_{n-1}, ..., k1]`` and gives
+
+        den = s^(n-1) + k1 s^(n-2) + ... + k_(n-1),
+        T_j = k_(n-1-j) s^j / den  (j < n - 1),   T_(n-1) = s^(n-1) / den.
+
+    ``full=True`` uses a full gain ``k{i}{j}`` (``cfn(3, full=True)`` is the CKF³).
+    Sensor names: position, velocity, acceleration, jerk, snap, crackle, pop.
+    """
+    if not isinstance(n, int) or isinstance(n, bool) or not 2 <= n <= len(DERIVATIVE_NAMES):
+        raise StructureError(f"cfn needs 2 <= n <= {len(DERIVATIVE_NAMES)} bands, got {n!r}")
+    m = n - 1
+    F, B = _chain(m, discrete)
+    if full:
+        K = sp.Matrix(m, m, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
+    else:
+        K = sp.Matrix(m, m, lambda i, j: sp.Symbol(f"k{m - j}") if i == m - 1 else 0)
+    sensors = [Sensor.input(DERIVATIVE_NAMES[m], m)]
+    sensors += [Sensor.measurement(DERIVATIVE_NAMES[j], j, j) for j in reversed(range(m))]
+    label = f"cfn({n}{', full' if full else ''})"
+    return Observer(F, B, sp.eye(m), K, sensors, name=label, **_domain(discrete))
+
+
+def cf3(*, discrete: bool = False) -> Observer:
+    """CF³ of seed 001 eqs. (4)-(13): sparse gain ``K = [[0, 0], [k2, k1]]``.
+
+    ``T_acceleration = s^2/den`` (high-pass), ``T_velocity = k1 s/den`` (band-pass),
+    ``T_position = k2/den`` (low-pass), ``den = s^2 + k1 s + k2``.
+    """
+    obs = cfn(3, discrete=discrete)
+    obs.name = "cf3"
+    return obs
+
+
+def ckf3() -> Observer:
+    """CKF³ of seed 001 eqs. (10)-(14) with the full gain ``[[k11, k12], [k21, k22]]``.
+
+    Derived from the model (MATH.md §4), not the printed eqs. (15)-(17):
+
+        den   = s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21
+        T_acc = (1 - k12) s^2 / den,  T_vel = (k12 s + k22) s / den,
+        T_pos = (k11 s + k11 k22 + k21 - k12 k21) / den.
+    """
+    obs = cfn(3, full=True)
+    obs.name = "ckf3"
+    return obs
+
+
+def dckf3() -> Observer:
+    """DCKF³ of seed 001 Fig. 6 / eqs. (25)-(27): gyro rate input, compass and odometry angles.
+
+    ``F = [[1, T], [0, 1]]``, ``B = [T, 0]^T``, ``H = [[1, 0], [1, 0]]``, full predictor
+    gain ``K = [[k11, k12], [k21, k22]]``; the second state is a rate (bias) correction.
+    Bands (MATH.md §5), ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21 + T k22``
+    (eq. (32) times ``z^2``):
+
+        T_gyro = (z - 1)^2/den,  T_compass = (k11 (z - 1) + T k21)/den,
+        T_odometry = (k12 (z - 1) + T k22)/den.
+    """
+    K = sp.Matrix(2, 2, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0),
+               Sensor.measurement("odometry", "angle", 1)]
+    return Observer(sp.Matrix([[1, T], [0, 1]]), sp.Matrix([T, 0]), sp.Matrix([[1, 0], [1, 0]]),
+                    K, sensors, domain="z", sample_time=T, name="dckf3")
+
+
+def ckf3_printed() -> dict:
+    """Seed 001 eqs. (15)-(17) as printed, turned into bands ``T_1 = F_1 s^2`` etc. (eq. (19)).
+
+    These are NOT the bands of the model of eqs. (10)-(14) (see :func:`ckf3`); they sum to
+    one too and are offered only for comparison with the paper.
+    """
+    k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
+    den = (1 + k12) * s**2 + (k11 + k22) * s + k21
+    return {"acceleration": s**2 / den, "velocity": (k12 * s + k22) * s / den,
+            "position": (k11 * s + k21) / den}
+
+
+def eq32_denominator():
+    """``den(z)`` exactly as printed in seed 001 eq. (32), in powers of ``z^-1``."""
+    k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
+    return (1 - k12 - k11 + T * k21 + T * k22) * z**-2 + (k11 + k12 - 2) * z**-1 + 1
+
+
+def dckf3_printed() -> dict:
+    """Seed 001 eqs. (29)-(31) as printed, keyed by the sensor each one really belongs to.
+
+    Keys: ``'gyro'`` is eq. (29) (printed as psi_hat/psi), ``'odometry'`` is eq. (30),
+    ``'compass'`` is eq. (31) (printed as psi_hat/omega) times ``(1 - z^-1)/(T z^-1)``.
+    """
+    k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
+    den = eq32_denominator()
+    f29 = (z**-2 - 2 * z**-1 + 1) / den
+    f30 = ((-k12 + T * k22) * z**-2 + k12 * z**-1) / den
+    f31 = ((-T * k11 + T**2 * k21) * z**-3 + T * k11 * z**-2) / ((1 - z**-1) * den)
+    return {"gyro": f29, "compass": f31 * (1 - z**-1) / (T * z**-1), "odometry": f30}
+
+
+#: structures the CLI and the design files know by name
+STRUCTURES = {"cf2": cf2, "cf3": cf3, "ckf3": ckf3, "dckf3": dckf3, "cfn": cfn}
+
+
+def structure(name: str, *, order: int | None = None, bands: int | None = None) -> Observer:
+    """Build a named structure; ``order`` applies to cf2, ``bands`` to cfn."""
+    if name not in STRUCTURES:
+        raise StructureError(f"unknown structure {name!r}; choose one of {', '.join(STRUCTURES)}")
+    if order is not None and name != "cf2":
+        raise StructureError(f"--order applies to cf2 only, not {name}")
+    if bands is not None and name != "cfn":
+        raise StructureError(f"--bands applies to cfn only, not {name}")
+    if name == "cf2":
+        return cf2(1 if order is None else order)
+    if name == "cfn":
+        if bands is None:
+            raise StructureError("cfn needs the number of bands (--bands N)")
+        return cfn(bands)
+    return STRUCTURES[name]()

@@ -1,0 +1,494 @@
+"""The symbolic engine: a linear observer of a kinematic chain -> band transfer functions.
+
+Every filter in cfdesign is an observer (MATH.md §1)
+
+.. math::
+
+    \\dot{\\hat x} = F\\hat x + B u + K (y - H \\hat x)                 \\quad (s)
+
+    \\hat x[k+1] = F\\hat x[k] + B u[k] + K (y[k] - H \\hat x[k])     \\quad (z,\\ predictor)
+
+where ``u`` stacks the readings of the "derivative" sensors (gyro rate, accelerometer) and
+``y`` the readings of the sensors measured against the state.  The estimate of the common
+quantity (angle, position) is :math:`\\hat\\psi = C\\hat x` with ``C = [1, 0, ..., 0]``.
+
+Each sensor reads the common quantity through a known relation: an angle sensor reads
+``psi``, a rate sensor ``s psi`` and an accelerometer ``s**2 psi`` (continuous), or their
+sampled counterparts (discrete, see :func:`discrete_relation`).  The *band* of a sensor is
+the transfer function from the common quantity, routed through that sensor, to the
+estimate: ``T_i = G_i * D_i`` with ``G_i`` the transfer from the sensor's reading to the
+estimate and ``D_i`` the relation.  If the relations are those the model implies, the
+estimation error is autonomous and the bands sum to one for ANY gain (seed 001 eq. (1),
+eq. (34)); :meth:`Observer.proof` checks it exactly with the gains left symbolic.
+
+This package is the only one in cfdesign that imports sympy.
+"""
+
+from __future__ import annotations
+
+import keyword
+import math
+import numbers
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import cached_property
+
+import numpy as np
+import sympy as sp
+
+from ..errors import GainError, ProofError, StructureError
+
+__all__ = [
+    "QUANTITY_ORDERS",
+    "Sensor",
+    "Observer",
+    "discrete_relation",
+    "s",
+    "z",
+    "T",
+]
+
+#: Laplace variable
+s = sp.Symbol("s")
+#: z-transform variable
+z = sp.Symbol("z")
+#: sample time in seconds (kept symbolic unless substituted)
+T = sp.Symbol("T", positive=True)
+
+#: names accepted for what a sensor measures, as the derivative order of the common quantity
+QUANTITY_ORDERS = {
+    "angle": 0,
+    "position": 0,
+    "rate": 1,
+    "velocity": 1,
+    "acceleration": 2,
+    "jerk": 3,
+}
+
+
+def _order_of(measures) -> int:
+    if isinstance(measures, bool):
+        raise StructureError(f"sensor 'measures' must be a quantity name or an order, got {measures!r}")
+    if isinstance(measures, numbers.Integral):
+        if measures < 0:
+            raise StructureError(f"sensor derivative order must be >= 0, got {measures}")
+        return int(measures)
+    if isinstance(measures, str) and measures in QUANTITY_ORDERS:
+        return QUANTITY_ORDERS[measures]
+    known = ", ".join(sorted(QUANTITY_ORDERS))
+    raise StructureError(f"unknown sensor quantity {measures!r}; expected one of {known} or an integer order")
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """How one sensor enters the observer and how it relates to the common quantity.
+
+    Parameters
+    ----------
+    name : str
+        A Python/C identifier (it reaches generated C code), unique within the observer.
+    order : int
+        Derivative order of the common quantity the sensor reads: 0 angle/position,
+        1 rate/velocity, 2 acceleration.
+    role : {'input', 'measurement'}
+        ``'input'``: the reading drives the model through column ``index`` of ``B``;
+        ``'measurement'``: it is compared with row ``index`` of ``H x``.
+    index : int
+        Column of ``B`` or row of ``H``.
+    relation : sympy expression, optional
+        Explicit transfer ``D(var)`` with ``reading = D * quantity``.  By default it is
+        ``s**order`` (continuous) or :func:`discrete_relation` (discrete).
+    """
+
+    name: str
+    order: int
+    role: str
+    index: int
+    relation: object = None
+
+    def __post_init__(self):
+        if not (isinstance(self.name, str) and self.name.isidentifier() and not keyword.iskeyword(self.name)):
+            raise StructureError(f"sensor name {self.name!r} is not a valid identifier")
+        if self.role not in ("input", "measurement"):
+            raise StructureError(f"sensor {self.name!r}: role must be 'input' or 'measurement', got {self.role!r}")
+        object.__setattr__(self, "order", _order_of(self.order))
+        if not isinstance(self.index, numbers.Integral) or self.index < 0:
+            raise StructureError(f"sensor {self.name!r}: index must be a non-negative integer, got {self.index!r}")
+
+    @classmethod
+    def input(cls, name: str, measures, column: int = 0, relation=None) -> Sensor:
+        """A sensor whose reading is the model input (column ``column`` of ``B``)."""
+        return cls(name, measures, "input", column, relation)
+
+    @classmethod
+    def measurement(cls, name: str, measures, row: int, relation=None) -> Sensor:
+        """A sensor compared with row ``row`` of ``H x``."""
+        return cls(name, measures, "measurement", row, relation)
+
+
+def discrete_relation(order: int, chain_order: int, sample_time=T):
+    """Sampled relation ``reading = D(z) * quantity`` for a ZOH kinematic chain.
+
+    The chain ``psi^(chain_order) = w`` with ``w`` held constant over each sample time
+    (zero-order hold, the assumption of seed 001 Sec. IV) gives exact discrete transfers
+    ``G_j(z)`` from ``w`` to the sampled ``j``-th derivative; the relation of a sensor of
+    order ``j`` is ``D_j = G_j / G_0``.  For ``chain_order = 1`` this is ``(z - 1)/T``
+    (the differentiator implied by ``x[k+1] = x[k] + T u[k]``, MATH.md §1); for
+    ``chain_order = 2`` the rate relation is ``2 (z - 1) / (T (z + 1))`` and the
+    acceleration relation ``2 (z - 1)**2 / (T**2 (z + 1))``.
+    """
+    if not 0 <= order <= chain_order:
+        raise StructureError(f"relation of order {order} needs 0 <= order <= chain order {chain_order}")
+    if order == 0:
+        return sp.Integer(1)
+    Fd, Bd = zoh_chain(chain_order, sample_time)
+    g = _chain_transfers(Fd, Bd)
+    return sp.factor(sp.cancel(g[order] / g[0]))
+
+
+def zoh_chain(m: int, sample_time=T):
+    """Exact ZOH discretisation of an ``m``-state integrator chain driven at the top.
+
+    State ``[psi, psi', ..., psi^(m-1)]``, input ``psi^(m)`` held over ``T``:
+    ``F[i, j] = T**(j-i)/(j-i)!`` for ``j >= i`` and ``B[i] = T**(m-i)/(m-i)!``.
+    """
+    F = sp.Matrix(m, m, lambda i, j: sample_time ** (j - i) / sp.factorial(j - i) if j >= i else 0)
+    B = sp.Matrix(m, 1, lambda i, _: sample_time ** (m - i) / sp.factorial(m - i))
+    return F, B
+
+
+def _chain_transfers(Fd, Bd):
+    """Transfers from the held top derivative to each sampled state (and 1 for the input)."""
+    m = Fd.shape[0]
+    M = z * sp.eye(m) - Fd
+    adj, det = M.adjugate(method="berkowitz"), M.det(method="berkowitz")
+    col = adj * Bd
+    return [sp.cancel(col[i] / det) for i in range(m)] + [sp.Integer(1)]
+
+
+def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
+    try:
+        M = sp.Matrix(value)
+    except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
+        raise StructureError(f"{name} is not a matrix: {exc}") from None
+    if M.shape == (0, 0) and rows:
+        M = sp.zeros(rows, cols or 0)
+    if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
+        raise StructureError(f"{name} must be {rows}x{cols}, got {M.shape[0]}x{M.shape[1]}")
+    return M
+
+
+def exact_number(value, name: str = "value"):
+    """An exact sympy number from a Python number (floats by their decimal repr).
+
+    Strings are not accepted: parse user text with :func:`parse_number` first, which
+    never evaluates it.
+    """
+    if isinstance(value, sp.Basic):
+        if not value.is_number or not value.is_real:
+            raise GainError(f"{name} must be a real number, got {value}")
+        return value
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise GainError(f"{name} must be a real number, got {value!r}")
+    if isinstance(value, numbers.Integral):
+        return sp.Integer(int(value))
+    if not math.isfinite(float(value)):
+        raise GainError(f"{name} must be finite, got {value!r}")
+    fr = Fraction(repr(float(value))) if isinstance(value, float) else Fraction(value)
+    return sp.Rational(fr.numerator, fr.denominator)
+
+
+def parse_number(text: str, name: str = "value"):
+    """Parse ``'2'``, ``'0.5'``, ``'1e-3'`` or ``'1/3'`` exactly, without evaluating code."""
+    try:
+        fr = Fraction(text.strip())
+    except (ValueError, ZeroDivisionError):
+        raise GainError(f"{name} must be a number, got {text!r}") from None
+    return sp.Rational(fr.numerator, fr.denominator)
+
+
+class Observer:
+    """A linear observer of a kinematic chain and its complementary bands.
+
+    Parameters
+    ----------
+    F, B, H, K : array_like (sympy or numeric entries)
+        State matrix (n x n), input matrix (n x p), measurement matrix (m x n) and gain
+        (n x m).  Symbols in them (gains ``k1``, ..., sample time ``T``) stay symbolic.
+    sensors : sequence of Sensor
+        One sensor per column of ``B`` and per row of ``H``.
+    domain : {'s', 'z'}
+        Continuous (Laplace variable ``s``) or discrete (``z``, sample time ``T``).
+    sample_time : sympy symbol or positive number, optional
+        Discrete only; defaults to the symbol ``T``.
+    gain_form : {'predictor', 'filter'}
+        Discrete only.  ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the
+        estimate is ``C x`` (seed 001 eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
+        ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
+    name : str
+        Label used in reports.
+
+    Notes
+    -----
+    For sensor ``i`` with state-space route ``(A, B_i, C_o, D_i)`` the band is
+    ``T_i = (C_o adj(vI - A) B_i + D_i det(vI - A)) / det(vI - A) * rel_i(v)``.
+    """
+
+    def __init__(self, F, B, H, K, sensors, *, domain="s", sample_time=None,
+                 gain_form="predictor", name="observer", output=None):
+        F = _matrix("F", F)
+        n = F.shape[0]
+        if F.shape != (n, n) or n == 0:
+            raise StructureError(f"F must be square and non-empty, got {F.shape[0]}x{F.shape[1]}")
+        B = _matrix("B", B, n)
+        H = _matrix("H", H, None, n)
+        K = _matrix("K", K, n, H.shape[0])
+        if domain not in ("s", "z"):
+            raise StructureError(f"domain must be 's' (continuous) or 'z' (discrete), got {domain!r}")
+        if domain == "z":
+            sample_time = T if sample_time is None else sample_time
+            if not isinstance(sample_time, sp.Symbol):
+                sample_time = exact_number(sample_time, "sample time T")
+                if sample_time <= 0:
+                    raise GainError(f"sample time T must be positive, got {sample_time}")
+            if gain_form not in ("predictor", "filter"):
+                raise StructureError(f"gain_form must be 'predictor' or 'filter', got {gain_form!r}")
+        else:
+            if sample_time is not None:
+                raise StructureError("a continuous observer has no sample time")
+            gain_form = "continuous"
+        self.F, self.B, self.H, self.K = F, B, H, K
+        self.domain, self.sample_time, self.gain_form, self.name = domain, sample_time, gain_form, name
+        self.variable = s if domain == "s" else z
+        self.output = _matrix("output", output if output is not None else [[1] + [0] * (n - 1)], 1, n)
+        self.sensors = self._check_sensors(tuple(sensors))
+
+    # ------------------------------------------------------------------ structure
+    def _check_sensors(self, sensors):
+        names = [x.name for x in sensors]
+        dup = {x for x in names if names.count(x) > 1}
+        if dup:
+            raise StructureError(f"duplicate sensor name(s): {', '.join(sorted(dup))}")
+        for role, count, what in (("input", self.B.shape[1], "column of B"),
+                                  ("measurement", self.H.shape[0], "row of H")):
+            idx = sorted(x.index for x in sensors if x.role == role)
+            if idx != list(range(count)):
+                raise StructureError(f"every {what} needs exactly one {role} sensor "
+                                     f"(have {count}, sensors use {idx})")
+        return sensors
+
+    @property
+    def n_states(self) -> int:
+        return self.F.shape[0]
+
+    @property
+    def discrete(self) -> bool:
+        return self.domain == "z"
+
+    @cached_property
+    def chain_order(self) -> int:
+        """Order of the kinematic chain: the highest derivative any sensor reads."""
+        return max(x.order for x in self.sensors)
+
+    @cached_property
+    def parameters(self) -> tuple[sp.Symbol, ...]:
+        """Free symbols other than ``s``/``z``: the gains, then the sample time if symbolic."""
+        free = set().union(*(M.free_symbols for M in (self.F, self.B, self.H, self.K)))
+        free.discard(T)
+        free.discard(self.sample_time)
+        ordered = sorted(free, key=lambda x: x.name)
+        if self.discrete and isinstance(self.sample_time, sp.Symbol):
+            ordered.append(self.sample_time)
+        return tuple(ordered)
+
+    @property
+    def gains(self) -> tuple[str, ...]:
+        """Names of the symbolic gains still to be given numbers."""
+        return tuple(p.name for p in self.parameters if p is not T)
+
+    def symbol(self, name: str) -> sp.Symbol:
+        """The sympy symbol of parameter ``name`` (a gain or ``'T'``)."""
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        known = ", ".join(map(str, self.parameters)) or "none"
+        raise GainError(f"{self.name} has no parameter {name!r} (parameters: {known})")
+
+    def relation(self, sensor: Sensor):
+        """``D(v)`` with ``reading = D * quantity`` for ``sensor`` (see :class:`Sensor`)."""
+        if sensor.relation is not None:
+            if not isinstance(sensor.relation, sp.Basic):
+                raise StructureError(f"sensor {sensor.name!r}: relation must be a sympy expression "
+                                     f"(text is never evaluated), got {type(sensor.relation).__name__}")
+            return sensor.relation
+        if not self.discrete:
+            return s ** sensor.order
+        return discrete_relation(sensor.order, self.chain_order, self.sample_time)
+
+    # ------------------------------------------------------------------ the algebra
+    @cached_property
+    def _routes(self):
+        """Closed-loop A, output C_o, and per sensor (B_i, D_i): the state-space routes."""
+        F, B, H, K, C = self.F, self.B, self.H, self.K, self.output
+        if self.gain_form == "filter":
+            IKH = sp.eye(self.n_states) - K * H
+            A, Co, Bz, Dz = F * IKH, C * IKH, F * K, C * K
+        else:
+            A, Co, Bz, Dz = F - K * H, C, K, sp.zeros(1, K.shape[1])
+        routes = {}
+        for x in self.sensors:
+            if x.role == "input":
+                routes[x.name] = (B[:, x.index], sp.Integer(0))
+            else:
+                routes[x.name] = (Bz[:, x.index], Dz[0, x.index])
+        return A, Co, routes
+
+    @cached_property
+    def characteristic_polynomial(self):
+        """``det(vI - A_cl)``, expanded: the common denominator of every band."""
+        return sp.expand(self._resolvent[1])
+
+    @cached_property
+    def _resolvent(self):
+        A, _, _ = self._routes
+        M = self.variable * sp.eye(self.n_states) - A
+        return M.adjugate(method="berkowitz"), M.det(method="berkowitz")
+
+    @cached_property
+    def bands(self) -> dict:
+        """Band transfer functions ``{sensor name: T_i(v)}`` against the common quantity."""
+        _, Co, routes = self._routes
+        adj, det = self._resolvent
+        v = self.variable
+        out = {}
+        for x in self.sensors:
+            Bi, Di = routes[x.name]
+            num = sp.expand((Co * adj * Bi)[0, 0] + Di * det)
+            rel_num, rel_den = sp.fraction(sp.cancel(self.relation(x)))
+            num, den = sp.fraction(sp.cancel(num * rel_num / (sp.expand(det) * rel_den)))
+            lead = sp.Poly(den, v).LC()
+            if lead.is_number:
+                num, den = sp.expand(num / lead), sp.expand(den / lead)
+            out[x.name] = _display(num, v) / sp.collect(sp.expand(den), v)
+        return out
+
+    def band_fraction(self, name: str):
+        """``(numerator, denominator)`` of one band as expanded polynomials in the variable."""
+        num, den = sp.fraction(sp.cancel(self.bands[self._band_name(name)]))
+        return sp.expand(num), sp.expand(den)
+
+    def _band_name(self, name):
+        if name not in self.bands:
+            raise StructureError(f"{self.name} has no sensor {name!r} (sensors: {', '.join(self.bands)})")
+        return name
+
+    def proof(self):
+        """Exact complementarity proof: ``sum_i T_i(v) - 1`` reduced to canonical form.
+
+        ``sympy.cancel`` brings a rational function to the unique form ``p/q`` with
+        coprime expanded polynomials, so the residual is the zero expression exactly when
+        the identity holds for every value of ``v`` and of the symbolic gains.
+        """
+        from .proof import prove
+
+        return prove(self)
+
+    # ------------------------------------------------------------------ poles and zeros
+    def poles(self) -> list:
+        """Roots of the characteristic polynomial, repeated by multiplicity."""
+        return _roots(self.characteristic_polynomial, self.variable, f"poles of {self.name}")
+
+    def zeros(self) -> dict:
+        """``{sensor name: roots of its band numerator}``, repeated by multiplicity."""
+        return {name: _roots(self.band_fraction(name)[0], self.variable, f"zeros of band {name!r}")
+                for name in self.bands}
+
+    # ------------------------------------------------------------------ numbers
+    def subs(self, values: dict | None = None, /, **kwargs) -> Observer:
+        """A copy with numbers for some or all parameters (gains by name, ``T`` for the sample time).
+
+        Values are taken exactly: ``0.1`` becomes ``1/10`` so that a proof on the result is
+        still exact.  Unknown names and non-numbers raise :class:`GainError`.
+        """
+        values = {**(values or {}), **kwargs}
+        params = {p.name: p for p in self.parameters}
+        unknown = sorted(set(values) - set(params))
+        if unknown:
+            raise GainError(f"{self.name} has no parameter(s) {', '.join(unknown)} "
+                            f"(parameters: {', '.join(params) or 'none'})")
+        mapping = {params[k]: exact_number(v, k) for k, v in values.items()}
+        sample_time = self.sample_time
+        if self.discrete and sample_time in mapping:
+            if mapping[sample_time] <= 0:
+                raise GainError(f"sample time T must be positive, got {values['T']}")
+            sample_time = mapping[sample_time]
+        new = Observer(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)),
+                       [Sensor(x.name, x.order, x.role, x.index,
+                               None if x.relation is None else x.relation.subs(mapping))
+                        for x in self.sensors],
+                       domain=self.domain, sample_time=sample_time if self.discrete else None,
+                       gain_form=self.gain_form if self.discrete else "predictor",
+                       name=self.name, output=self.output.subs(mapping))
+        return new
+
+    def with_gains(self, values: dict | None = None, /, **kwargs) -> Observer:
+        """Like :meth:`subs` but every parameter must be given: the result is fully numeric."""
+        values = {**(values or {}), **kwargs}
+        missing = [p.name for p in self.parameters if p.name not in values]
+        if missing:
+            raise GainError(f"{self.name} needs a value for {', '.join(missing)}")
+        return self.subs(values)
+
+    @property
+    def is_numeric(self) -> bool:
+        return not self.parameters
+
+    def band_coefficients(self) -> dict:
+        """``{name: (num, den)}`` as float arrays, highest power first (numeric observers only)."""
+        if not self.is_numeric:
+            raise GainError(f"{self.name} still has symbolic parameters "
+                            f"{', '.join(p.name for p in self.parameters)}: substitute numbers first")
+        return {name: _coefficients(self.bands[name], self.variable) for name in self.bands}
+
+    def sum_coefficients(self) -> tuple:
+        """``(num, den)`` float arrays of the exact sum of the bands (``([1.], [1.])`` if complementary)."""
+        self.band_coefficients()  # same numeric-only check
+        return _coefficients(self.proof().total, self.variable)
+
+    def __repr__(self):
+        kind = "continuous" if not self.discrete else f"discrete, T={self.sample_time}, {self.gain_form} gains"
+        sensors = ", ".join(f"{x.name}({x.role}, order {x.order})" for x in self.sensors)
+        return f"<Observer {self.name}: {kind}; sensors {sensors}>"
+
+    def _repr_latex_(self):
+        rows = r" \\ ".join(rf"T_{{\mathrm{{{k}}}}}({self.variable}) &= {sp.latex(v)}" for k, v in self.bands.items())
+        return rf"$\begin{{aligned}}{rows}\end{{aligned}}$"
+
+
+def _coefficients(expr, var):
+    """Float coefficient arrays ``(num, den)``, highest power first, of a rational function."""
+    num, den = (sp.Poly(p, var) for p in sp.fraction(sp.cancel(expr)))
+    lead = den.LC()
+    return tuple(np.array([float(c / lead) for c in p.all_coeffs()]) for p in (num, den))
+
+
+def _display(num, var):
+    """A readable numerator: factored (shows the zeros) unless that adds a sign or a fraction."""
+    factored = sp.factor(num)
+    if factored.could_extract_minus_sign() or factored.as_coeff_Mul()[0] != 1:
+        return sp.collect(sp.expand(num), var)
+    return factored
+
+
+def _roots(poly_expr, var, what):
+    poly = sp.Poly(poly_expr, var)
+    if poly.degree() <= 0:
+        return []
+    if poly.free_symbols - {var} or not any(c.has(sp.Float) for c in poly.all_coeffs()):
+        found = sp.roots(poly)
+        if sum(found.values()) == poly.degree():
+            return [r for r, mult in found.items() for _ in range(mult)]
+        if poly.free_symbols - {var}:
+            raise ProofError(f"{what}: degree {poly.degree()} polynomial with symbolic coefficients "
+                             "has no closed-form roots; substitute numbers for the gains first")
+    return list(poly.nroots(n=15))

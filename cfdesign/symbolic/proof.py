@@ -1,0 +1,100 @@
+"""Exact complementarity proofs: the bands of an observer sum to one.
+
+Continuous (seed 001 eq. (1)): ``sum_i T_i(s) = 1``; discrete (seed 001 eq. (34)):
+``sum_i T_i(z) = 1``.  The proof reduces ``sum_i T_i - 1`` with ``sympy.cancel``, which
+returns the canonical ``p/q`` form (``p`` and ``q`` coprime, expanded): the identity holds
+for every value of the variable and of every symbolic gain exactly when ``p`` is the zero
+polynomial.  No floating point is involved; numeric gains are kept as exact rationals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+__all__ = ["Proof", "prove"]
+
+
+@dataclass(frozen=True)
+class Proof:
+    """The outcome of a complementarity proof.
+
+    Attributes
+    ----------
+    structure : str
+        Name of the observer proved.
+    variable : sympy.Symbol
+        ``s`` (continuous) or ``z`` (discrete).
+    bands : dict
+        ``{sensor: T_i}`` as derived by the engine.
+    total : sympy expression
+        ``sum_i T_i`` in canonical form (``1`` when the proof holds).
+    residual : sympy expression
+        ``sum_i T_i - 1`` in canonical form (``0`` when the proof holds).
+    parameters : tuple
+        Symbols left free (the identity holds for all their values).
+    """
+
+    structure: str
+    variable: sp.Symbol
+    bands: dict
+    total: object
+    residual: object
+    parameters: tuple
+
+    @property
+    def holds(self) -> bool:
+        """True when ``sum_i T_i - 1`` is identically zero."""
+        return self.residual == 0
+
+    @property
+    def verdict(self) -> str:
+        free = ", ".join(map(str, (self.variable, *self.parameters)))
+        if self.holds:
+            return f"HOLDS: the bands sum to 1 identically in {free}"
+        return f"FAILS: the bands sum to {self.total}, not 1"
+
+    def text(self) -> str:
+        """Plain-text rendering: every band, the sum, the residual and the verdict."""
+        v = self.variable
+        width = max(len(k) for k in self.bands) + len(f"T_({v})")
+        lines = [f"Complementarity proof for {self.structure} (variable {v})"]
+        lines += [f"  {f'T_{k}({v})':<{width}} = {expr}" for k, expr in self.bands.items()]
+        lines += [f"  {'sum':<{width}} = {self.total}",
+                  f"  {'sum - 1':<{width}} = {self.residual}",
+                  f"  {self.verdict}"]
+        return "\n".join(lines)
+
+    def latex(self) -> str:
+        """LaTeX (``aligned``) rendering of the bands, their sum and the residual."""
+        v = sp.latex(self.variable)
+        rows = [rf"T_{{\mathrm{{{k}}}}}({v}) &= {sp.latex(e)}" for k, e in self.bands.items()]
+        terms = " + ".join(rf"T_{{\mathrm{{{k}}}}}" for k in self.bands)
+        rows.append(rf"{terms} - 1 &= {sp.latex(self.residual)}")
+        return r"\begin{aligned}" + r" \\ ".join(rows) + r"\end{aligned}"
+
+    def to_dict(self) -> dict:
+        """JSON-ready form: ``variable``, ``bands`` (strings), ``sum``, ``residual``, ``holds``."""
+        return {
+            "structure": self.structure,
+            "variable": str(self.variable),
+            "bands": {k: str(e) for k, e in self.bands.items()},
+            "sum": str(self.total),
+            "residual": str(self.residual),
+            "holds": self.holds,
+        }
+
+    def __str__(self):
+        return self.text()
+
+    def _repr_latex_(self):
+        return f"$${self.latex()}$$"
+
+
+def prove(observer) -> Proof:
+    """Prove (or refute) ``sum_i T_i = 1`` for ``observer`` exactly (MATH.md §1)."""
+    bands = observer.bands
+    total = sp.cancel(sp.together(sum(bands.values())))
+    residual = sp.cancel(sp.together(total - 1))
+    return Proof(observer.name, observer.variable, dict(bands), total, residual, observer.parameters)

@@ -1,0 +1,78 @@
+"""The cfdesign command: outputs, exit codes, one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from cfdesign.cli import main, parse_gains
+
+
+def run(*args, cwd=None):
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", *args], capture_output=True, text=True, cwd=cwd)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def test_prove_json_keys_and_exit_zero(capsys):
+    assert main(["prove", "dckf3", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["variable"] == "z" and data["holds"] is True and data["sum"] == "1"
+    assert set(data["bands"]) == {"gyro", "compass", "odometry"}
+
+
+@pytest.mark.parametrize("argv", [["cf2"], ["cf2", "--order", "2"], ["cf3"], ["ckf3"], ["cfn", "--bands", "5"]])
+def test_prove_text(argv, capsys):
+    assert main(["prove", *argv]) == 0
+    out = capsys.readouterr().out
+    assert "HOLDS" in out and "sum - 1" in out
+
+
+def test_prove_failing_structure_exits_one(monkeypatch, capsys):
+    import sympy as sp
+
+    from cfdesign import Observer, symbolic
+    from cfdesign.symbolic.observer import T
+
+    def broken():
+        d = symbolic.dckf3()
+        return Observer(d.F, sp.Matrix([T / 2, 0]), d.H, d.K, d.sensors, domain="z", name="broken")
+
+    monkeypatch.setitem(symbolic.STRUCTURES, "dckf3", broken)
+    assert main(["prove", "dckf3", "--json"]) == 1
+    assert json.loads(capsys.readouterr().out)["holds"] is False
+
+
+def test_bode_writes_png(tmp_path):
+    out = tmp_path / "b.png"
+    code, _, stderr = run("bode", "dckf3", "--gains", "k11=0.3,k12=0.2,k21=0.01,k22=0.02",
+                               "--sample-time", "0.2", "-o", str(out))
+    assert code == 0, stderr
+    assert out.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("args, message", [
+    (["prove", "cf9"], "unknown structure"),
+    (["bode", "cf3", "--gains", "k1=2", "-o", "x.png"], "needs a value for gain(s) k2"),
+    (["bode", "cf3", "--gains", "k1=2,k2=1,k9=3", "-o", "x.png"], "no gain(s) k9"),
+    (["bode", "cf3", "--gains", "k1=2,k2=abc", "-o", "x.png"], "must be a number"),
+    (["bode", "cf3", "--gains", "k1=2,k2=__import__('os')", "-o", "x.png"], "must be a number"),
+    (["bode", "cf3", "--gains", "k1=2,k2=1", "--sample-time", "0.1", "-o", "x.png"], "continuous"),
+    (["bode", "dckf3", "--gains", "k11=1,k12=1,k21=1,k22=1", "--sample-time", "0", "-o", "x.png"], "positive"),
+    (["bode", "dckf3", "--gains", "k11=1,k12=1,k21=1,k22=1", "--sample-time", "-0.1", "-o", "x.png"], "positive"),
+    (["bode", "dckf3", "--gains", "k11=1,k12=1,k21=1,k22=1", "-o", "x.png"], "--sample-time"),
+    (["bode", "cf3", "--gains", "k1=2,k2=nan", "-o", "x.png"], "must be a number"),
+    (["prove"], "required"),
+])
+def test_user_errors_one_line_no_traceback(args, message, tmp_path):
+    code, _, stderr = run(*args, cwd=tmp_path)
+    assert code == 2
+    assert stderr.count("\n") == 1 and "Traceback" not in stderr
+    assert message in stderr
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_parse_gains_exact():
+    from sympy import Rational
+
+    assert parse_gains("k1=0.1, k2=1/3") == {"k1": Rational(1, 10), "k2": Rational(1, 3)}

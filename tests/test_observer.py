@@ -1,0 +1,147 @@
+"""The engine itself: failing proofs, gain forms, substitution, errors, time-domain check."""
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy import signal
+
+import cfdesign
+from cfdesign import Observer, Sensor
+from cfdesign.symbolic.observer import T, discrete_relation, z
+
+DCKF3_GAINS = dict(k11=0.3, k12=0.2, k21=0.01, k22=0.02, T=0.2)
+
+
+def test_inconsistent_observer_fails_the_proof():
+    """B = [T/2, 0] does not match a rate sensor integrated over T: the proof must fail."""
+    good = cfdesign.dckf3()
+    bad = Observer(good.F, sp.Matrix([T / 2, 0]), good.H, good.K, good.sensors,
+                   domain="z", name="dckf3 with wrong B")
+    proof = bad.proof()
+    assert proof.holds is False
+    assert proof.residual != 0
+    assert "FAILS" in proof.text()
+    assert proof.to_dict()["holds"] is False
+
+
+def test_wrong_declared_relation_fails_the_proof():
+    """Declaring the gyro an angle sensor (order 0) breaks complementarity of CF3's model."""
+    good = cfdesign.cf3()
+    sensors = [Sensor.input("acceleration", "velocity"), *good.sensors[1:]]
+    assert not Observer(good.F, good.B, good.H, good.K, sensors).proof().holds
+
+
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+def test_discrete_gain_forms_both_complementary(form):
+    d = cfdesign.dckf3()
+    obs = Observer(d.F, d.B, d.H, d.K, d.sensors, domain="z", gain_form=form)
+    assert obs.proof().holds
+
+
+def test_filter_form_is_predictor_form_with_gain_F_K_up_to_the_update():
+    """x-[k+1] = F x+ + B u with x+ = x- + K(y - H x-) has the predictor gain F K (MATH.md §5)."""
+    d = cfdesign.dckf3()
+    filt = Observer(d.F, d.B, d.H, d.K, d.sensors, domain="z", gain_form="filter")
+    pred = Observer(d.F, d.B, d.H, d.F * d.K, d.sensors, domain="z")
+    assert sp.expand(filt.characteristic_polynomial - pred.characteristic_polynomial) == 0
+
+
+def test_discrete_relation_zoh_chain():
+    assert sp.simplify(discrete_relation(1, 1) - (z - 1) / T) == 0
+    assert sp.simplify(discrete_relation(1, 2) - 2 * (z - 1) / (T * (z + 1))) == 0
+    assert sp.simplify(discrete_relation(2, 2) - 2 * (z - 1) ** 2 / (T**2 * (z + 1))) == 0
+
+
+def test_seed004_position_chain_is_complementary():
+    """State [p, v, b_a], accelerometer input, GPS position (MATH.md §6)."""
+    F = sp.Matrix([[1, T, -T**2 / 2], [0, 1, -T], [0, 0, 1]])
+    B = sp.Matrix([T**2 / 2, T, 0])
+    K = sp.Matrix(sp.symbols("kp kv kb"))
+    obs = Observer(F, B, sp.Matrix([[1, 0, 0]]), K,
+                   [Sensor.input("accelerometer", "acceleration"), Sensor.measurement("gps", "position", 0)],
+                   domain="z")
+    assert obs.proof().holds
+
+
+def test_subs_is_exact_and_checked():
+    num = cfdesign.dckf3().with_gains(DCKF3_GAINS)
+    assert num.is_numeric and num.sample_time == sp.Rational(1, 5)
+    assert num.proof().holds
+    with pytest.raises(cfdesign.GainError, match="k33"):
+        cfdesign.dckf3().subs(k33=1)
+    with pytest.raises(cfdesign.GainError, match="needs a value for k22"):
+        cfdesign.dckf3().with_gains(k11=1, k12=1, k21=1, T=1)
+    with pytest.raises(cfdesign.GainError, match="positive"):
+        cfdesign.dckf3().subs(T=0)
+    with pytest.raises(cfdesign.GainError, match="finite"):
+        cfdesign.cf3().subs(k1=float("nan"))
+    with pytest.raises(cfdesign.GainError, match="real number"):
+        cfdesign.cf3().subs(k1="2")
+
+
+def test_partial_substitution_keeps_proof_symbolic():
+    obs = cfdesign.dckf3().subs(T=0.1)
+    assert [p.name for p in obs.parameters] == ["k11", "k12", "k21", "k22"]
+    assert obs.proof().holds
+
+
+def test_structure_errors_name_the_problem():
+    c = cfdesign.cf3()
+    with pytest.raises(cfdesign.StructureError, match="K must be 2x2"):
+        Observer(c.F, c.B, c.H, sp.ones(2, 3), c.sensors)
+    with pytest.raises(cfdesign.StructureError, match="row of H"):
+        Observer(c.F, c.B, c.H, c.K, c.sensors[:2])
+    with pytest.raises(cfdesign.StructureError, match="duplicate"):
+        Observer(c.F, c.B, c.H, c.K, [c.sensors[0], Sensor.measurement("acceleration", 1, 1),
+                                     c.sensors[2]])
+    with pytest.raises(cfdesign.StructureError, match="identifier"):
+        Sensor.input("gyro rate", "rate")
+    with pytest.raises(cfdesign.StructureError, match="unknown sensor quantity"):
+        Sensor.input("gyro", "spin")
+    with pytest.raises(cfdesign.StructureError, match="never evaluated"):
+        _ = Observer(c.F, c.B, c.H, c.K, [Sensor.input("acceleration", 2, relation="s**2"), *c.sensors[1:]]).bands
+    with pytest.raises(cfdesign.StructureError, match="unknown structure"):
+        cfdesign.structure("cf4")
+
+
+def test_numeric_poles_and_band_coefficients():
+    num = cfdesign.dckf3().with_gains(DCKF3_GAINS)
+    den = [1, 0.3 + 0.2 - 2, 1 - 0.3 - 0.2 + 0.2 * 0.01 + 0.2 * 0.02]
+    assert np.allclose(sorted(complex(p).real for p in num.poles()), sorted(np.roots(den).real))
+    coeffs = num.band_coefficients()
+    assert np.allclose(coeffs["compass"][0], [0.3, -0.3 + 0.2 * 0.01])
+    assert np.allclose(coeffs["compass"][1], den)
+    with pytest.raises(cfdesign.GainError, match="symbolic parameters"):
+        cfdesign.dckf3().band_coefficients()
+
+
+def test_poles_of_quintic_need_numbers():
+    with pytest.raises(cfdesign.ProofError, match="substitute numbers"):
+        cfdesign.cfn(6).poles()
+    num = cfdesign.cfn(6).with_gains(k1=5, k2=10, k3=10, k4=5, k5=1)  # (s + 1)^5
+    assert np.allclose([complex(p) for p in num.poles()], -1, atol=1e-2)
+
+
+def test_time_domain_run_equals_band_filters():
+    """Run the predictor recursion of DCKF3 on exact sensor signals: estimate == truth,
+    and each sensor alone through lfilter(band) sums to the same estimate."""
+    g = DCKF3_GAINS
+    Tn = g["T"]
+    F = np.array([[1, Tn], [0, 1]])
+    B = np.array([Tn, 0])
+    H = np.array([[1, 0], [1, 0]])
+    K = np.array([[g["k11"], g["k12"]], [g["k21"], g["k22"]]])
+    t = np.arange(2000) * Tn
+    psi = np.sin(0.3 * t) + 0.5 * np.sin(1.7 * t + 1)
+    omega = np.diff(psi) / Tn  # the rate that integrates exactly to psi over one step
+    x = np.array([psi[0], 0.0])
+    est = np.empty(len(omega))
+    for k in range(len(omega)):
+        est[k] = x[0]
+        x = F @ x + B * omega[k] + K @ (np.array([psi[k], psi[k]]) - H @ x)
+    assert np.max(np.abs(est[-500:] - psi[:-1][-500:])) < 1e-9
+    coeffs = cfdesign.dckf3().with_gains(g).band_coefficients()
+    parts = 0
+    for num, den in coeffs.values():  # powers of z -> powers of z^-1: pad the numerator
+        parts = parts + signal.lfilter(np.r_[np.zeros(len(den) - len(num)), num], den, psi)
+    assert np.max(np.abs(parts[-500:] - psi[-500:])) < 1e-9
