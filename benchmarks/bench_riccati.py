@@ -1,0 +1,219 @@
+"""Accuracy and speed of cfdesign.riccati beside scipy and the naive recursion.
+
+Run by hand from the repository root:  python benchmarks/bench_riccati.py
+
+1. every CAREX/DAREX case of ../shared/data/riccati: relative error of X (against X_ref, the
+   closed form of CAREX 4.1, or a 50-digit mpmath Newton solution for n <= 6 started from
+   scipy's X, so independent of ours), ours and
+   scipy's, the relative residuals, times, and a pass/fail verdict with the rules of
+   tests/test_riccati.py;
+2. the fast-sampling estimator DARE (double integrator at Ts = 1e-4) against mpmath;
+3. periodic_dare for (period 50, 3 states) and (period 1000, 9 states) beside the naive
+   recursion iterated to convergence, both measured in this run.
+
+Prints figures only; no assertions on time.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+import timeit
+import warnings
+from pathlib import Path
+
+import numpy as np
+import scipy
+import scipy.linalg as sla
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+from test_periodic_dare import GPS_R, naive_recursion, position_model  # noqa: E402
+from test_riccati import (  # noqa: E402
+    ARE,
+    SCIPY_WRONG,
+    SKIP_REASON,
+    _relres,
+    _stable,
+    mp_newton,
+    reference,
+    scipy_solution,
+)
+
+from cfdesign.errors import CfdesignError  # noqa: E402
+from cfdesign.riccati import care, dare, periodic_dare  # noqa: E402
+
+
+def best_time(fn, repeat=5):
+    """Best wall time of one call, in seconds."""
+    number = max(1, int(0.05 / max(timeit.timeit(fn, number=1), 1e-6)))
+    return min(timeit.repeat(fn, number=number, repeat=repeat)) / number
+
+
+def rel(X, ref):
+    return float(np.linalg.norm(X - ref) / np.linalg.norm(ref))
+
+
+def fmt(x):
+    return "-" if x is None else f"{x:.1e}"
+
+
+# ---------------------------------------------------------------------------------------
+# 1. the benchmark set
+# ---------------------------------------------------------------------------------------
+def run_case(c):
+    """One row of the table: (ours, scipy, verdict) figures for one case."""
+    solve = care if c["kind"] == "care" else dare
+    args = (c["A"], c["B"], c["Q"], c["R"], c["S"], c["E"])
+    row = {"name": c["name"], "kind": c["kind"], "n": c["A"].shape[0], "expect": c["expect"]}
+    X_scipy = scipy_solution(c)
+    row["t_scipy"] = best_time(lambda: scipy_solution(c), repeat=3)
+    try:
+        sol = solve(*args)
+        row["t_ours"] = best_time(lambda: solve(*args), repeat=3)
+        row["outcome"] = "marginal" if sol.marginal else "solved"
+    except CfdesignError as exc:
+        sol, row["outcome"], row["t_ours"] = None, f"raised {type(exc).__name__}", None
+    row["scipy_outcome"] = "raised" if X_scipy is None else "solved"
+    if c["expect"] == "no_stabilizing_solution":
+        row["pass"] = sol is None
+        return row
+    if c["expect"] == "marginal":
+        row["pass"] = sol is None or sol.marginal
+        return row
+    start = X_scipy if X_scipy is not None else (sol.X if sol is not None else None)
+    ref, row["ref"] = reference(c, start) if sol is not None else (None, "none")
+    row["err"] = rel(sol.X, ref) if sol is not None and ref is not None else None
+    row["err_scipy"] = rel(X_scipy, ref) if X_scipy is not None and ref is not None else None
+    if row["ref"] == "X_ref" and row["n"] <= 6:  # is the published X exact for the float data?
+        hp = mp_newton(c["kind"], c["A"], c["B"], c["Q"], c["R"], start, c["S"], c["E"], iters=8)
+        row["xref_vs_hp"], row["err_hp"] = rel(ref, hp), rel(sol.X, hp)
+    row["res"] = _relres(c, sol.X) if sol is not None else None
+    row["res_scipy"] = _relres(c, X_scipy) if X_scipy is not None else None
+    ok = sol is not None and not sol.marginal and _stable(c, sol.X)
+    if ok and row["err"] is not None:
+        tol = 1e-8 if c["name"] in SCIPY_WRONG else max(1e-10, (row["err_scipy"] or np.inf) * (1 + 1e-6))
+        ok = row["err"] <= tol
+    elif ok:
+        ok = row["res"] <= max(1e-13, 10 * (row["res_scipy"] or 0))
+    row["pass"] = ok
+    return row
+
+
+def bench_cases():
+    print("1. CAREX / DAREX benchmark set (relative errors of X; residuals in plain double)")
+    if ARE is None:
+        print(f"   skipped: {SKIP_REASON}\n")
+        return
+    head = (f"{'case':22s} {'kind':4s} {'n':>3s} {'expect':8s} {'ref':11s} {'err ours':>9s} {'err scipy':>9s} "
+            f"{'res ours':>9s} {'res scipy':>9s} {'ms ours':>8s} {'ms scipy':>8s}  verdict")
+    print(head)
+    print("-" * len(head))
+    rows = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for c in ARE.CASES:
+            r = run_case(c)
+            rows.append(r)
+            t_ours = "-" if r["t_ours"] is None else f"{1e3 * r['t_ours']:.1f}"
+            verdict = ("PASS" if r["pass"] else "FAIL") + ("" if r["outcome"] == "solved" else f" ({r['outcome']})")
+            print(f"{r['name']:22s} {r['kind']:4s} {r['n']:3d} {r['expect'][:8]:8s} {r.get('ref', '-'):11s} "
+                  f"{fmt(r.get('err')):>9s} {fmt(r.get('err_scipy')):>9s} {fmt(r.get('res')):>9s} "
+                  f"{fmt(r.get('res_scipy')):>9s} {t_ours:>8s} {1e3 * r['t_scipy']:8.1f}  {verdict}")
+    with_ref = [r for r in rows if r.get("err") is not None]
+    worst = max(with_ref, key=lambda r: r["err"])
+    worst_s = max((r for r in with_ref if r["err_scipy"] is not None), key=lambda r: r["err_scipy"])
+    better = sum(r["err"] < r["err_scipy"] for r in with_ref if r["err_scipy"] is not None)
+    equal = sum(r["err"] == r["err_scipy"] for r in with_ref if r["err_scipy"] is not None)
+    print(f"\n   cases passed: {sum(r['pass'] for r in rows)}/{len(rows)}")
+    print(f"   cases with a reference: {len(with_ref)}; ours more accurate on {better}, equal on {equal}, "
+          f"less accurate on {len(with_ref) - better - equal}")
+    print(f"   worst relative error: ours {worst['err']:.1e} ({worst['name']}), "
+          f"scipy {worst_s['err_scipy']:.1e} ({worst_s['name']})")
+    for r in rows:
+        if r.get("xref_vs_hp", 0) > 1e-14:
+            print(f"   note: X_ref of {r['name']} is {r['xref_vs_hp']:.1e} from the 50-digit solution of the "
+                  f"float data; ours is {r['err_hp']:.1e} from it")
+    for name in sorted(SCIPY_WRONG):
+        r = next(r for r in rows if r["name"] == name)
+        print(f"   {name}: ours {fmt(r['err'])}, scipy {fmt(r['err_scipy'])}")
+    print()
+
+
+# ---------------------------------------------------------------------------------------
+# 2. fast sampling
+# ---------------------------------------------------------------------------------------
+def bench_fast_sampling():
+    print("2. Fast sampling: estimator DARE of the double integrator, Ts = 1e-4, C = [1, 0]")
+    print(f"{'q':>8s} {'R':>8s} {'err ours':>9s} {'err scipy':>9s} {'ms ours':>8s} {'ms scipy':>8s}")
+    T = 1e-4
+    A, C = np.array([[1.0, T], [0.0, 1.0]]), np.array([[1.0, 0.0]])
+    for q, r in [(1e-6, 1e-2), (1e-6, 1.0), (1e-6, 100.0), (1e-9, 1.0), (1e-12, 1.0)]:
+        Q, R = q * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]]), np.array([[r]])
+        sol = dare(A.T, C.T, Q, R)
+        X_scipy = sla.solve_discrete_are(A.T, C.T, Q, R)
+        ref = mp_newton("dare", A.T, C.T, Q, R, X_scipy, iters=8)
+        t_ours = best_time(lambda Q=Q, R=R: dare(A.T, C.T, Q, R))
+        t_scipy = best_time(lambda Q=Q, R=R: sla.solve_discrete_are(A.T, C.T, Q, R))
+        print(f"{q:8.0e} {r:8.0e} {rel(sol.X, ref):9.1e} {rel(X_scipy, ref):9.1e} "
+              f"{1e3 * t_ours:8.2f} {1e3 * t_scipy:8.2f}")
+    print()
+
+
+# ---------------------------------------------------------------------------------------
+# 3. periodic DARE
+# ---------------------------------------------------------------------------------------
+def periodic_problem(period, axes):
+    """Seed 004 position filter on `axes` axes, IMU at `period` Hz, GPS (10 m^2) at 1 Hz, phase 0."""
+    F1, Q1 = position_model(1.0 / period)
+    F, Q = np.kron(np.eye(axes), F1), np.kron(np.eye(axes), Q1)
+    H = np.kron(np.eye(axes), np.array([[1.0, 0.0, 0.0]]))
+    C = [H] + [np.zeros((0, 3 * axes))] * (period - 1)
+    R = [GPS_R[0, 0] * np.eye(axes)] + [np.zeros((0, 0))] * (period - 1)
+    return F, C, Q, R
+
+
+def bench_periodic():
+    print("3. Periodic DARE (filter form) against the naive recursion iterated to convergence")
+    print(f"{'period':>6s} {'n':>3s} {'ms ours':>9s} {'ms naive':>10s} {'speed-up':>9s} {'periods':>8s} "
+          f"{'max |mu|':>9s} {'residual':>9s} {'ours vs naive':>13s}")
+    for period, axes in [(50, 1), (1000, 3)]:
+        F, C, Q, R = periodic_problem(period, axes)
+        sol = periodic_dare(F, C, Q, R)
+        t_ours = best_time(lambda F=F, C=C, Q=Q, R=R: periodic_dare(F, C, Q, R))
+        start = time.perf_counter()
+        ref = naive_recursion(F, C, Q, R, tol=1e-14)
+        t_naive = time.perf_counter() - start
+        periods = count_periods(F, C, Q, R, tol=1e-14)
+        err = max(rel(P, Pr) for P, Pr in zip(sol.P, ref, strict=True))
+        print(f"{period:6d} {3 * axes:3d} {1e3 * t_ours:9.2f} {1e3 * t_naive:10.1f} {t_naive / t_ours:8.0f}x "
+              f"{periods:8d} {np.max(np.abs(sol.monodromy_multipliers)):9.4f} {sol.residual:9.1e} {err:13.1e}")
+    print()
+
+
+def count_periods(F, C, Q, R, tol):
+    """Periods the naive recursion needs (same stopping rule as naive_recursion)."""
+    n = F.shape[0]
+    P, periods = np.zeros((n, n)), 0
+    while True:
+        start, periods = P, periods + 1
+        P = naive_period(F, C, Q, R, P)
+        if np.linalg.norm(P - start) <= tol * np.linalg.norm(P):
+            return periods
+
+
+def naive_period(F, C, Q, R, P):
+    for Ck, Rk in zip(C, R, strict=True):
+        if Ck.shape[0]:
+            P = P - P @ Ck.T @ np.linalg.solve(Ck @ P @ Ck.T + Rk, Ck @ P)
+        P = F @ P @ F.T + Q
+        P = 0.5 * (P + P.T)
+    return P
+
+
+if __name__ == "__main__":
+    print(f"numpy {np.__version__}, scipy {scipy.__version__}\n")
+    bench_cases()
+    bench_fast_sampling()
+    bench_periodic()

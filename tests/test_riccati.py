@@ -1,0 +1,422 @@
+"""Tests of cfdesign.riccati: CARE / DARE on the CAREX/DAREX benchmark set, high-precision
+references (mpmath), data validation and the Kalman estimator helpers."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import sys
+import warnings
+from pathlib import Path
+
+import mpmath as mp
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from cfdesign.errors import (
+    CfdesignError,
+    NoStabilisingSolutionError,
+    NotDetectableError,
+    NotStabilisableError,
+    RiccatiError,
+)
+from cfdesign.riccati import care, dare, kalman_continuous, kalman_discrete
+
+CASES_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "riccati"
+SCIPY_WRONG = {"carex_2_6", "carex_2_8", "carex_4_1"}  # scipy 1.17.1 is inaccurate on these
+
+
+def _load_cases():
+    path = CASES_DIR / "are_cases.py"
+    if not path.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location("are_cases", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("are_cases", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+ARE = _load_cases()
+SKIP_REASON = f"Riccati benchmark cases not found at {CASES_DIR} (shared/data/riccati beside the checkout)"
+CASE_NAMES = ([c["name"] for c in ARE.CASES] if ARE is not None
+              else [pytest.param(None, marks=pytest.mark.skip(reason=SKIP_REASON))])
+
+
+def _case(name):
+    if ARE is None:
+        pytest.skip(SKIP_REASON)
+    return ARE.get_case(name)
+
+
+def _args(c):
+    return c["A"], c["B"], c["Q"], c["R"], c["S"], c["E"]
+
+
+def _rel(X, ref):
+    return float(np.linalg.norm(X - ref) / np.linalg.norm(ref))
+
+
+def _relres(c, X):
+    """Relative residual in plain double precision (scale: roughly the size of the terms)."""
+    res = ARE.care_residual(c, X) if c["kind"] == "care" else ARE.dare_residual(c, X)
+    A, E = c["A"], c["E"] if c["E"] is not None else np.eye(c["A"].shape[0])
+    lin = 2 * np.linalg.norm(A.conj().T @ X @ E) if c["kind"] == "care" else (
+        np.linalg.norm(A.conj().T @ X @ A) + np.linalg.norm(E.conj().T @ X @ E))
+    return float(np.linalg.norm(res) / (lin + np.linalg.norm(c["Q"]) + np.linalg.norm(res - c["Q"])))
+
+
+def _stable(c, X):
+    lam = ARE.closed_loop_eigs(c, X)
+    return bool(np.all(lam.real < 0) if c["kind"] == "care" else np.all(np.abs(lam) < 1))
+
+
+# ---------------------------------------------------------------------------------------
+# high-precision references
+# ---------------------------------------------------------------------------------------
+def mp_newton(kind, A, B, Q, R, X0, S=None, E=None, iters=8, dps=50):
+    """Newton (Kleinman / Hewer) in mpmath from X0 on the exact float data.
+
+    Each step solves, through its Kronecker form, Ac'X E + E'X Ac + W = 0 (CARE) or
+    Ac'X Ac - E'X E + W = 0 (DARE) with W = Q - S K - K'S' + K'R K and Ac = A - B K.
+    """
+    n, m = np.shape(B)
+    S = np.zeros((n, m)) if S is None else S
+    E = np.eye(n) if E is None else E
+    with mp.workdps(dps):
+        A, B, Q, R, S, E, X = (mp.matrix(np.asarray(M).tolist()) for M in (A, B, Q, R, S, E, X0))
+        for _ in range(iters):
+            if kind == "care":
+                K = mp.inverse(R) * (B.H * X * E + S.H)
+            else:
+                K = mp.inverse(R + B.H * X * B) * (B.H * X * A + S.H)
+            Ac = A - B * K
+            W = Q - S * K - K.H * S.H + K.H * R * K
+            L, R2 = (Ac, E) if kind == "care" else (Ac, Ac)
+            M, v = mp.matrix(n * n, n * n), mp.matrix(n * n, 1)
+            for i in range(n):
+                for j in range(n):
+                    v[i * n + j] = -W[i, j]
+                    for k in range(n):
+                        for col in range(n):
+                            first = mp.conj(L[k, i]) * R2[col, j]
+                            second = mp.conj(E[k, i]) * (Ac[col, j] if kind == "care" else -E[col, j])
+                            M[i * n + j, k * n + col] = first + second
+            x = mp.lu_solve(M, v)
+            X = mp.matrix([[x[i * n + j] for j in range(n)] for i in range(n)])
+        return np.array(X.tolist(), dtype=complex if np.iscomplexobj(X0) else float)
+
+
+def butterworth_chain_solution(n, dps=50):
+    """Exact CARE solution of CAREX 4.1 (integrator chain, Q = e1 e1', R = 1).
+
+    The optimal closed loop has the Butterworth polynomial of order n as characteristic
+    polynomial, so the last column of X is its coefficient vector; A'X + XA - kk' + Q = 0
+    with A the shift then gives X row by row.
+    """
+    with mp.workdps(dps):
+        g = mp.pi / (2 * n)
+        coef = [mp.mpf(1)]
+        for j in range(1, n):
+            coef.append(coef[-1] * mp.cos((j - 1) * g) / mp.sin(j * g))
+        X = mp.matrix(n, n)
+        for i in range(n):
+            X[i, n - 1] = coef[i]
+            for j in range(1, n):
+                X[i, j - 1] = coef[i] * coef[j] - (X[i - 1, j] if i else 0)
+        return np.array(X.tolist(), dtype=float)
+
+
+# ---------------------------------------------------------------------------------------
+# the benchmark set
+# ---------------------------------------------------------------------------------------
+def reference(c, X0):
+    """X_ref; else the closed form (CAREX 4.1); else a 50-digit Newton solution from X0 (n <= 6).
+
+    Kleinman's / Hewer's Newton iteration converges to the stabilising solution from any
+    stabilising starting gain, so X0 (scipy's solution) only needs to be stabilising.
+    """
+    if c["X_ref"] is not None:
+        return c["X_ref"], "X_ref"
+    if c["name"] == "carex_4_1":
+        return butterworth_chain_solution(c["A"].shape[0]), "closed form"
+    if c["A"].shape[0] <= 6:
+        return mp_newton(c["kind"], c["A"], c["B"], c["Q"], c["R"], X0, c["S"], c["E"], iters=8), "mpmath"
+    return None, "none"
+
+
+def scipy_solution(c):
+    solver = sla.solve_continuous_are if c["kind"] == "care" else sla.solve_discrete_are
+    try:
+        return solver(c["A"], c["B"], c["Q"], c["R"], e=c["E"], s=c["S"])
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+
+
+@pytest.mark.parametrize("name", CASE_NAMES)
+def test_benchmark_case(name):
+    c = _case(name)
+    solve = care if c["kind"] == "care" else dare
+    if c["expect"] == "no_stabilizing_solution":
+        with pytest.raises(CfdesignError, match="stabilising"):
+            solve(*_args(c))
+        return
+    if c["expect"] == "marginal":
+        try:
+            with pytest.warns(RuntimeWarning, match="marginal"):
+                sol = solve(*_args(c))
+        except CfdesignError as exc:
+            assert "marginal" in str(exc)
+            return
+        assert sol.marginal and any("marginal" in w for w in sol.warnings)
+        return
+    sol = solve(*_args(c))
+    assert not sol.marginal and sol.stability_margin > 0 and sol.relative_residual <= 1e-13
+    assert _stable(c, sol.X)
+    assert np.allclose(sol.X, sol.X.conj().T, rtol=0, atol=1e-14 * np.abs(sol.X).max())
+    X_scipy = scipy_solution(c)
+    ref, _ = reference(c, X_scipy if X_scipy is not None else sol.X)
+    if ref is None:  # n > 6 without a published solution: residual at least as small as scipy's
+        assert _relres(c, sol.X) <= max(1e-13, 10 * _relres(c, X_scipy) if X_scipy is not None else 0)
+        return
+    err, err_scipy = _rel(sol.X, ref), _rel(X_scipy, ref) if X_scipy is not None else np.inf
+    if name in SCIPY_WRONG:
+        assert err_scipy > 1e-8 and err <= 1e-8
+    else:
+        assert err <= max(1e-10, err_scipy * (1 + 1e-6)), (err, err_scipy)
+
+
+def test_carex_2_8_against_mpmath():
+    """Closed-loop margin 5e-13: scipy's X is off by 5e-4, ours must match a 50-digit reference."""
+    c = _case("carex_2_8")
+    sol = care(*_args(c))
+    X_scipy = sla.solve_continuous_are(c["A"], c["B"], c["Q"], c["R"])
+    ref = mp_newton("care", c["A"], c["B"], c["Q"], c["R"], X_scipy)
+    assert _rel(X_scipy, ref) > 1e-6  # the case is hard for a backward-stable solver
+    assert _rel(sol.X, ref) <= 1e-10
+    assert not sol.marginal and 4e-13 < sol.stability_margin < 6e-13
+
+
+def test_carex_4_1_against_closed_form():
+    c = _case("carex_4_1")
+    ref = butterworth_chain_solution(c["A"].shape[0])
+    sol = care(*_args(c))
+    assert _rel(sla.solve_continuous_are(c["A"], c["B"], c["Q"], c["R"]), ref) > 1e-8
+    assert _rel(sol.X, ref) <= 1e-10
+
+
+def test_butterworth_reference_solves_care():
+    n = 6
+    X = butterworth_chain_solution(n)
+    A, B = np.eye(n, k=1), np.eye(n)[:, -1:]
+    Q = np.zeros((n, n))
+    Q[0, 0] = 1
+    res = A.T @ X + X @ A - X @ B @ B.T @ X + Q
+    assert np.linalg.norm(res) <= 1e-12 * np.linalg.norm(X) ** 2
+    assert _rel(care(A, B, Q, 1).X, X) <= 1e-13
+
+
+# ---------------------------------------------------------------------------------------
+# fast sampling: the discrete double-integrator estimator at Ts = 1e-4
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("q", "r"), [(1e-6, 1e-2), (1e-6, 100.0), (1e-9, 1.0)])
+def test_fast_sampling_dare_against_mpmath(q, r):
+    T = 1e-4
+    A = np.array([[1.0, T], [0.0, 1.0]])
+    C = np.array([[1.0, 0.0]])
+    Q = q * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
+    R = np.array([[r]])
+    sol = dare(A.T, C.T, Q, R)
+    X_scipy = sla.solve_discrete_are(A.T, C.T, Q, R)
+    ref = mp_newton("dare", A.T, C.T, Q, R, X_scipy, iters=6)
+    err, err_scipy = _rel(sol.X, ref), _rel(X_scipy, ref)
+    assert err <= 1e-12
+    assert err <= err_scipy
+    assert sol.forward_error <= 1e-12 and 0 < sol.stability_margin < 1e-2
+
+
+# ---------------------------------------------------------------------------------------
+# results and gains
+# ---------------------------------------------------------------------------------------
+def test_gain_and_closed_loop_match_their_definitions():
+    rng = np.random.default_rng(1)
+    A, B, S = rng.normal(size=(4, 4)), rng.normal(size=(4, 2)), 0.1 * rng.normal(size=(4, 2))
+    E = np.eye(4) + 0.1 * rng.normal(size=(4, 4))
+    Q, R = np.eye(4), np.diag([1.0, 2.0])
+    sc = care(A, B, Q, R, S, E)
+    assert np.allclose(sc.K, np.linalg.solve(R, B.T @ sc.X @ E + S.T), rtol=1e-12, atol=1e-12)
+    assert np.allclose(np.sort_complex(sc.closed_loop_eigenvalues),
+                       np.sort_complex(sla.eigvals(A - B @ sc.K, E)), atol=1e-10)
+    sd = dare(A / 3, B, Q, R, S, E)
+    assert np.allclose(sd.K, np.linalg.solve(R + B.T @ sd.X @ B, B.T @ sd.X @ A / 3 + S.T), rtol=1e-12, atol=1e-12)
+    assert sd.kind == "dare" and sc.kind == "care" and sd.method == "schur"
+    assert sd.condition > 1 and sd.forward_error < 1e-14 and sd.warnings == ()
+
+
+def test_result_is_frozen_and_read_only():
+    sol = care([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], np.eye(2), 1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sol.X = None
+    with pytest.raises(ValueError):
+        sol.X[0, 0] = 1.0
+    assert np.allclose(sol.X, [[np.sqrt(3), 1], [1, np.sqrt(3)]])
+
+
+def test_complex_hermitian_solution():
+    A = np.array([[1j, 1.0], [0.0, -1.0]])
+    B = np.array([[0.0], [1.0]])
+    sol = care(A, B, np.eye(2), 1)
+    res = A.conj().T @ sol.X + sol.X @ A - sol.X @ B @ B.T @ sol.X + np.eye(2)
+    assert np.linalg.norm(res) <= 1e-13 * np.linalg.norm(sol.X)
+    assert np.array_equal(sol.X, sol.X.conj().T)
+    assert np.all(sol.closed_loop_eigenvalues.real < 0)
+
+
+def test_fallbacks_when_scipy_fails(monkeypatch):
+    """Matrix sign function (CARE) and doubling (DARE) take over when scipy raises."""
+    def broken(*args, **kwargs):
+        raise np.linalg.LinAlgError("disabled for the test")
+
+    monkeypatch.setattr(sla, "solve_continuous_are", broken)
+    monkeypatch.setattr(sla, "solve_discrete_are", broken)
+    A, B = np.array([[1.0, 1.0], [0.0, 1.0]]), np.array([[0.0], [1.0]])
+    sc = care(A, B, np.eye(2), 1)
+    sd = dare(A, B, np.eye(2), 1)
+    assert (sc.method, sd.method) == ("sign", "doubling")
+    assert sc.relative_residual < 1e-14 and sd.relative_residual < 1e-14
+    assert sc.stability_margin > 0 and sd.stability_margin > 0
+
+
+# ---------------------------------------------------------------------------------------
+# data errors
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"Q": np.eye(2)}, r"Q must be 3x3 \(got 2x2\)"),
+        ({"Q": np.ones((2, 3))}, r"Q must be 3x3 \(got 2x3\)"),
+        ({"B": np.ones((2, 1))}, r"B must be 3x1 \(got 2x1\)"),
+        ({"R": np.eye(2)}, r"R must be 1x1 \(got 2x2\)"),
+        ({"S": np.ones((3, 2))}, r"S must be 3x1 \(got 3x2\)"),
+        ({"E": np.eye(2)}, r"E must be 3x3 \(got 2x2\)"),
+        ({"A": np.ones((3, 2))}, r"A must be 3x3 \(got 3x2\)"),
+        ({"A": np.diag([np.nan, -1.0, -2.0])}, "A contains NaN or Inf"),
+        ({"Q": np.array([[1, 0.5, 0], [0, 1, 0], [0, 0, 1.0]])}, "Q must be symmetric"),
+        ({"R": [[0.0]]}, "R must be nonsingular"),
+        ({"E": np.diag([1.0, 1.0, 0.0])}, "E must be nonsingular"),
+    ],
+)
+def test_invalid_data_is_named(kwargs, message):
+    data = {"A": -np.eye(3), "B": np.ones((3, 1)), "Q": np.eye(3), "R": [[1.0]], "S": None, "E": None}
+    data.update(kwargs)
+    with pytest.raises(RiccatiError, match=message):
+        care(**data)
+
+
+def test_unstabilisable_mode_is_named():
+    A, B = np.diag([1.0, -2.0]), np.array([[0.0], [1.0]])
+    with pytest.raises(NotStabilisableError, match=r"mode at s = 1\.0 is unstable and not reachable from B"):
+        care(A, B, np.eye(2), 1)
+    with pytest.raises(NotStabilisableError, match=r"mode at z = 1\.5 is unstable and not reachable from B"):
+        dare(np.diag([1.5, 0.5]), B, np.eye(2), 1)
+    with pytest.raises(NotStabilisableError, match="on the imaginary axis"):
+        care([[0.0, 1.0], [-1.0, 0.0]], [[0.0], [0.0]], np.eye(2), 1)
+
+
+def test_nearly_unstabilisable_is_not_rejected():
+    """B = [1e-8, 0]: stabilisable, only ill-conditioned (CAREX 2.1 with eps = 1e-8)."""
+    sol = care(np.diag([1.0, -2.0]), [[1e-8], [0.0]], np.ones((2, 2)), 1)
+    assert sol.stability_margin > 0.5
+
+
+def test_unobservable_boundary_mode_is_named():
+    with pytest.raises(NotDetectableError, match=r"mode at s = 0\.0 is on the imaginary axis and not observable"):
+        care([[0.0]], [[1.0]], [[0.0]], [[1.0]])
+
+
+def test_unobservable_unstable_mode_still_has_a_stabilising_solution():
+    """A = 1, Q = 0: X = 2 stabilises (X = 0 does not); detectability is not required."""
+    sol = care([[1.0]], [[1.0]], [[0.0]], [[1.0]])
+    assert np.allclose(sol.X, 2.0) and np.allclose(sol.closed_loop_eigenvalues, -1.0)
+
+
+def test_no_stabilising_solution_raises():
+    """Indefinite Q with Hamiltonian eigenvalues on the axis and no stabilising solution."""
+    A, B = np.array([[0.0, 1.0], [-1.0, 0.0]]), np.array([[0.0], [1.0]])
+    with pytest.raises(NoStabilisingSolutionError, match="pencil has an eigenvalue on the stability boundary"):
+        care(A, B, -10 * np.eye(2), 1)
+
+
+def test_marginal_solution_is_flagged():
+    """CAREX 2.5 (eps = 0): X = [[2, 1], [1, 1]] leaves closed-loop eigenvalues at +/- i."""
+    A, B = np.array([[3.0, 1.0], [4.0, 2.0]]), np.ones((2, 1))
+    Q = np.array([[-11.0, -5.0], [-5.0, -2.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sol = care(A, B, Q, 1)
+    assert sol.marginal and abs(sol.stability_margin) < 1e-6
+    assert np.allclose(sol.X, [[2.0, 1.0], [1.0, 1.0]], atol=1e-6)
+
+
+# ---------------------------------------------------------------------------------------
+# estimator helpers
+# ---------------------------------------------------------------------------------------
+def _dckf3():
+    """DCKF^3 of seed 001 eqs. (25)-(28): angle + rate correction, compass and odometry."""
+    T = 0.2
+    F = np.array([[1.0, T], [0.0, 1.0]])
+    H = np.array([[1.0, 0.0], [1.0, 0.0]])
+    return F, H, np.diag([1e-4, 1e-5]), np.diag([2e-3, 4e-3])
+
+
+def test_kalman_discrete_names_both_gain_forms():
+    F, H, Q, R = _dckf3()
+    g = kalman_discrete(F, H, Q, R)
+    P = g.P
+    innov = H @ P @ H.T + R
+    assert np.allclose(g.K_filter, P @ H.T @ np.linalg.inv(innov), rtol=1e-12)
+    assert np.allclose(g.K_predictor, F @ g.K_filter, rtol=1e-12)
+    assert np.allclose(g.P_filtered, (np.eye(2) - g.K_filter @ H) @ P, rtol=1e-12)
+    rhs = F @ P @ F.T + Q - F @ P @ H.T @ np.linalg.solve(innov, H @ P @ F.T)
+    assert np.linalg.norm(P - rhs) <= 1e-13 * np.linalg.norm(P)
+    assert _rel(P, sla.solve_discrete_are(F.T, H.T, Q, R)) <= 1e-12
+    assert np.all(np.abs(g.closed_loop_eigenvalues) < 1)
+    assert np.allclose(np.sort_complex(g.closed_loop_eigenvalues),
+                       np.sort_complex(np.linalg.eigvals(F - g.K_predictor @ H)))
+
+
+def test_kalman_discrete_matches_the_filter_recursion():
+    """Independent check: run the covariance recursion of the Kalman filter to steady state."""
+    F, H, Q, R = _dckf3()
+    g = kalman_discrete(F, H, Q, R)
+    P = np.eye(2)
+    for _ in range(3000):
+        K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+        P = F @ (P - K @ H @ P) @ F.T + Q
+    assert _rel(P, g.P) <= 1e-10
+    assert _rel(K, g.K_filter) <= 1e-9
+
+
+def test_kalman_continuous():
+    F = np.array([[0.0, 1.0], [0.0, 0.0]])
+    H = np.array([[1.0, 0.0]])
+    Q, R = np.diag([0.0, 1.0]), np.array([[1.0]])
+    g = kalman_continuous(F, H, Q, R)
+    P = g.P
+    assert np.allclose(P, [[np.sqrt(2), 1.0], [1.0, np.sqrt(2)]], rtol=1e-14)
+    assert np.allclose(g.K, P @ H.T @ np.linalg.inv(R), rtol=1e-14)
+    res = F @ P + P @ F.T - P @ H.T @ np.linalg.solve(R, H @ P) + Q
+    assert np.linalg.norm(res) <= 1e-14
+    assert np.all(g.closed_loop_eigenvalues.real < 0)
+
+
+def test_estimator_errors_speak_estimation():
+    with pytest.raises(NotDetectableError, match=r"mode at z = 1\.2 is unstable and not observable from H"):
+        kalman_discrete(np.diag([1.2, 0.5]), [[0.0, 1.0]], np.eye(2), 1)
+    with pytest.raises(NotStabilisableError, match="not excited by the process noise Q"):
+        kalman_discrete([[1.0, -0.01], [0.0, 1.0]], [[1.0, 0.0]], np.diag([1e-3, 0.0]), 1)
+    with pytest.raises(RiccatiError, match=r"R .* must be positive definite"):
+        kalman_discrete(np.eye(2) * 0.5, [[1.0, 0.0]], np.eye(2), [[0.0]])
+    with pytest.raises(RiccatiError, match=r"Q .* must be positive semidefinite"):
+        kalman_continuous(-np.eye(2), [[1.0, 0.0]], -np.eye(2), 1)
