@@ -88,6 +88,51 @@ def cmd_bode(args) -> int:
     return 0
 
 
+def cmd_design(args) -> int:
+    from .design import design, designed_observer
+    from .spec import example_path, load_spec
+
+    spec = load_spec(args.spec if args.spec else example_path(args.example))
+    table = design(spec)
+    fig = None
+    if args.bode:
+        from .plot import bode_plot
+
+        fig = bode_plot(designed_observer(spec, table))
+    print(_summary(table))
+    if args.output:  # everything is computed before anything is written
+        table.save(args.output)
+        print(f"wrote {args.output}")
+    if fig is not None:
+        _save_figure(fig, args.bode)
+        print(f"wrote {args.bode}")
+    return 0
+
+
+def _summary(table) -> str:
+    kind = (f"discrete, T = {table.sample_time_s:g} s, {table.gain_form} gains"
+            if table.domain == "z" else "continuous")
+    lines = [f"{table.name}: {table.structure} ({kind})"]
+    if table.period > 1:
+        lines.append(f"  multirate: period {table.period} steps; measurements per phase: "
+                     + ", ".join(f"{k}:{'+'.join(m)}" for k, m in enumerate(table.measured) if m))
+        for k, K in enumerate(table.K):
+            if table.measured[k]:
+                lines.append(f"  K[{k}] = {K.ravel().tolist()}")
+    else:
+        lines.append("  gains: " + ", ".join(f"{name} = {value:.6g}" for name, value in table.gains.items()))
+    lines.append(f"  predicted steady-state std of the estimate: {table.predicted_std:.6g}")
+    c = table.checks
+    roots = c.get("poles", c.get("monodromy_multipliers"))
+    what = "poles" if "poles" in c else "monodromy multipliers"
+    lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
+    lines.append(f"  complementary (exact proof): {c['complementary']}; stable: {c['stable']}")
+    solver = table.provenance["solver"]
+    residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
+    lines.append(f"  solver: {solver['method']}{residual}")
+    return "\n".join(lines)
+
+
 def _save_figure(fig, path):
     import matplotlib.pyplot as plt
 
@@ -121,6 +166,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
     p.add_argument("-o", "--output", required=True, help="PNG (or PDF/SVG) file to write")
     p.set_defaults(run=cmd_bode)
+
+    p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
+    p.add_argument("spec", nargs="?", help="design file (TOML); omitted: the built-in example")
+    p.add_argument("--example", default="robot-heading",
+                   help="built-in example when no file is given: robot-heading (default), cf3, ckf3, position")
+    p.add_argument("-o", "--output", help="write the gain table (JSON) here")
+    p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
+    p.set_defaults(run=cmd_design)
     return parser
 
 

@@ -19,6 +19,7 @@ __all__ = [
     "NotDetectableError",
     "NoStabilisingSolutionError",
     "AccuracyError",
+    "GainTableError",
 ]
 
 
@@ -63,3 +64,7 @@ class NoStabilisingSolutionError(RiccatiError):
 
 class AccuracyError(RiccatiError):
     """A solution was computed but failed the residual or stability check after refinement."""
+
+
+class GainTableError(CfdesignError):
+    """A gain table file cannot be read, is malformed, or fails its schema."""

@@ -21,26 +21,25 @@ from __future__ import annotations
 import sympy as sp
 
 from ..errors import StructureError
-from .observer import Observer, Sensor, T, s, z, zoh_chain
+from .observer import Observer, Sensor, T, integrator_chain, s, z, zoh
 
-__all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "ckf3_printed", "dckf3_printed",
+__all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "position", "ckf3_printed", "dckf3_printed",
            "eq32_denominator", "STRUCTURES", "structure"]
 
 #: names of the derivatives of the common quantity, by order (sensor names of cfn)
 DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk", "snap", "crackle", "pop")
 
 
-def _chain(m: int, discrete: bool):
-    """``(F, B)`` of an ``m``-state integrator chain driven by the ``m``-th derivative."""
-    if discrete:
-        return zoh_chain(m)
-    F = sp.Matrix(m, m, lambda i, j: 1 if j == i + 1 else 0)
-    B = sp.Matrix(m, 1, lambda i, _: 1 if i == m - 1 else 0)
-    return F, B
+def _observer(Fc, Bc, H, K, sensors, name, discrete):
+    """Observer of the continuous model ``(Fc, Bc)``, or of its exact ZOH model in ``z``."""
+    if not discrete:
+        return Observer(Fc, Bc, H, K, sensors, name=name)
+    F, B = zoh(Fc, Bc)
+    return Observer(F, B, H, K, sensors, domain="z", sample_time=T, name=name, continuous=(Fc, Bc))
 
 
-def _domain(discrete: bool) -> dict:
-    return {"domain": "z", "sample_time": T} if discrete else {"domain": "s"}
+#: rate-gyro model with a rate-correction state: psi' = u + c, c' = 0 (c = -gyro bias)
+_BIASED_RATE = (sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([1, 0]))
 
 
 def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
@@ -53,18 +52,15 @@ def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
     The rate correction is minus the estimated gyro bias.  ``discrete=True`` gives the
     ZOH model with sample time ``T`` and predictor-form gains.
     """
-    sensors = [Sensor.input("rate", "rate"), Sensor.measurement("angle", "angle", 0)]
     if order == 1:
-        F, B = _chain(1, discrete)
-        K = sp.Matrix([[sp.Symbol("k")]])
+        (Fc, Bc), K = integrator_chain(1), sp.Matrix([[sp.Symbol("k")]])
     elif order == 2:
-        F = sp.Matrix([[1, T], [0, 1]]) if discrete else sp.Matrix([[0, 1], [0, 0]])
-        B = sp.Matrix([T, 0]) if discrete else sp.Matrix([1, 0])
-        K = sp.Matrix(sp.symbols("k1 k2"))
+        (Fc, Bc), K = _BIASED_RATE, sp.Matrix(sp.symbols("k1 k2"))
     else:
         raise StructureError(f"cf2 order must be 1 or 2, got {order!r}")
-    return Observer(F, B, sp.Matrix([[1] + [0] * (order - 1)]), K, sensors,
-                    name=f"cf2 (order {order})", **_domain(discrete))
+    sensors = [Sensor.input("rate", "rate", bias_state=1 if order == 2 else None),
+               Sensor.measurement("angle", "angle", 0)]
+    return _observer(Fc, Bc, sp.Matrix([[1] + [0] * (order - 1)]), K, sensors, f"cf2 (order {order})", discrete)
 
 
 def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
@@ -83,7 +79,6 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     if not isinstance(n, int) or isinstance(n, bool) or not 2 <= n <= len(DERIVATIVE_NAMES):
         raise StructureError(f"cfn needs 2 <= n <= {len(DERIVATIVE_NAMES)} bands, got {n!r}")
     m = n - 1
-    F, B = _chain(m, discrete)
     if full:
         K = sp.Matrix(m, m, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
     else:
@@ -91,7 +86,7 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     sensors = [Sensor.input(DERIVATIVE_NAMES[m], m)]
     sensors += [Sensor.measurement(DERIVATIVE_NAMES[j], j, j) for j in reversed(range(m))]
     label = f"cfn({n}{', full' if full else ''})"
-    return Observer(F, B, sp.eye(m), K, sensors, name=label, **_domain(discrete))
+    return _observer(*integrator_chain(m), sp.eye(m), K, sensors, label, discrete)
 
 
 def cf3(*, discrete: bool = False) -> Observer:
@@ -131,10 +126,23 @@ def dckf3() -> Observer:
         T_odometry = (k12 (z - 1) + T k22)/den.
     """
     K = sp.Matrix(2, 2, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
-    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0),
+    sensors = [Sensor.input("gyro", "rate", bias_state=1), Sensor.measurement("compass", "angle", 0),
                Sensor.measurement("odometry", "angle", 1)]
-    return Observer(sp.Matrix([[1, T], [0, 1]]), sp.Matrix([T, 0]), sp.Matrix([[1, 0], [1, 0]]),
-                    K, sensors, domain="z", sample_time=T, name="dckf3")
+    return _observer(*_BIASED_RATE, sp.Matrix([[1, 0], [1, 0]]), K, sensors, "dckf3", discrete=True)
+
+
+def position(*, discrete: bool = True) -> Observer:
+    """Position filter of seed 004 Sec. 3, one axis: state ``[p, v, b_a]`` (MATH.md §6).
+
+    Continuous model ``p' = v``, ``v' = u - b_a``, ``b_a' = 0`` with ``u`` the accelerometer
+    (Earth frame, gravity removed) and ``b_a`` its bias; GPS measures ``p``.  Its ZOH model is
+    ``F = [[1, T, -T^2/2], [0, 1, -T], [0, 0, 1]]``, ``B = [T^2/2, T, 0]^T``, ``H = [1, 0, 0]``,
+    gain ``K = [k1, k2, k3]^T`` (one per phase when multirate).
+    """
+    Fc = sp.Matrix([[0, 1, 0], [0, 0, -1], [0, 0, 0]])
+    sensors = [Sensor.input("accelerometer", "acceleration", bias_state=2), Sensor.measurement("gps", "position", 0)]
+    return _observer(Fc, sp.Matrix([0, 1, 0]), sp.Matrix([[1, 0, 0]]), sp.Matrix(sp.symbols("k1 k2 k3")),
+                     sensors, "position", discrete)
 
 
 def ckf3_printed() -> dict:
@@ -170,7 +178,7 @@ def dckf3_printed() -> dict:
 
 
 #: structures the CLI and the design files know by name
-STRUCTURES = {"cf2": cf2, "cf3": cf3, "ckf3": ckf3, "dckf3": dckf3, "cfn": cfn}
+STRUCTURES = {"cf2": cf2, "cf3": cf3, "ckf3": ckf3, "dckf3": dckf3, "cfn": cfn, "position": position}
 
 
 def structure(name: str, *, order: int | None = None, bands: int | None = None) -> Observer:

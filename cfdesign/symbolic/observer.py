@@ -43,6 +43,9 @@ __all__ = [
     "Sensor",
     "Observer",
     "discrete_relation",
+    "integrator_chain",
+    "zoh",
+    "zoh_chain",
     "s",
     "z",
     "T",
@@ -98,6 +101,9 @@ class Sensor:
     relation : sympy expression, optional
         Explicit transfer ``D(var)`` with ``reading = D * quantity``.  By default it is
         ``s**order`` (continuous) or :func:`discrete_relation` (discrete).
+    bias_state : int, optional
+        Input sensors only: the state that estimates this sensor's bias (its correction),
+        where the design puts the bias random walk.
     """
 
     name: str
@@ -105,6 +111,7 @@ class Sensor:
     role: str
     index: int
     relation: object = None
+    bias_state: int | None = None
 
     def __post_init__(self):
         if not (isinstance(self.name, str) and self.name.isidentifier() and not keyword.iskeyword(self.name)):
@@ -114,11 +121,13 @@ class Sensor:
         object.__setattr__(self, "order", _order_of(self.order))
         if not isinstance(self.index, numbers.Integral) or self.index < 0:
             raise StructureError(f"sensor {self.name!r}: index must be a non-negative integer, got {self.index!r}")
+        if self.bias_state is not None and self.role != "input":
+            raise StructureError(f"sensor {self.name!r}: only input sensors have a bias state")
 
     @classmethod
-    def input(cls, name: str, measures, column: int = 0, relation=None) -> Sensor:
+    def input(cls, name: str, measures, column: int = 0, relation=None, bias_state=None) -> Sensor:
         """A sensor whose reading is the model input (column ``column`` of ``B``)."""
-        return cls(name, measures, "input", column, relation)
+        return cls(name, measures, "input", column, relation, bias_state)
 
     @classmethod
     def measurement(cls, name: str, measures, row: int, relation=None) -> Sensor:
@@ -146,15 +155,27 @@ def discrete_relation(order: int, chain_order: int, sample_time=T):
     return sp.factor(sp.cancel(g[order] / g[0]))
 
 
-def zoh_chain(m: int, sample_time=T):
-    """Exact ZOH discretisation of an ``m``-state integrator chain driven at the top.
-
-    State ``[psi, psi', ..., psi^(m-1)]``, input ``psi^(m)`` held over ``T``:
-    ``F[i, j] = T**(j-i)/(j-i)!`` for ``j >= i`` and ``B[i] = T**(m-i)/(m-i)!``.
-    """
-    F = sp.Matrix(m, m, lambda i, j: sample_time ** (j - i) / sp.factorial(j - i) if j >= i else 0)
-    B = sp.Matrix(m, 1, lambda i, _: sample_time ** (m - i) / sp.factorial(m - i))
+def integrator_chain(m: int):
+    """Continuous ``(F, B)`` of ``m`` integrators in a row, driven by the ``m``-th derivative."""
+    F = sp.Matrix(m, m, lambda i, j: 1 if j == i + 1 else 0)
+    B = sp.Matrix(m, 1, lambda i, _: 1 if i == m - 1 else 0)
     return F, B
+
+
+def zoh(Fc, Bc, sample_time=T):
+    """Exact zero-order-hold discretisation: ``F = e^{Fc T}``, ``B = int_0^T e^{Fc t} dt Bc``.
+
+    For the kinematic chains here ``Fc`` is nilpotent, so both are polynomials in ``T``.
+    """
+    tau = sp.Dummy("tau", nonnegative=True)
+    Phi = sp.simplify((Fc * tau).exp())
+    B = (Phi * Bc).applyfunc(lambda e: sp.integrate(e, (tau, 0, sample_time)))
+    return sp.simplify(Phi.subs(tau, sample_time)), sp.simplify(B)
+
+
+def zoh_chain(m: int, sample_time=T):
+    """ZOH model of an ``m``-state chain: ``F[i, j] = T**(j-i)/(j-i)!``, ``B[i] = T**(m-i)/(m-i)!``."""
+    return zoh(*integrator_chain(m), sample_time)
 
 
 def _chain_transfers(Fd, Bd):
@@ -227,6 +248,9 @@ class Observer:
         ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
     name : str
         Label used in reports.
+    continuous : (Fc, Bc), optional
+        Discrete observers built by ZOH from a continuous chain keep it here; the design
+        uses it for exact (Van Loan) noise discretisation.  Continuous observers: ``(F, B)``.
 
     Notes
     -----
@@ -235,7 +259,7 @@ class Observer:
     """
 
     def __init__(self, F, B, H, K, sensors, *, domain="s", sample_time=None,
-                 gain_form="predictor", name="observer", output=None):
+                 gain_form="predictor", name="observer", output=None, continuous=None):
         F = _matrix("F", F)
         n = F.shape[0]
         if F.shape != (n, n) or n == 0:
@@ -262,6 +286,11 @@ class Observer:
         self.variable = s if domain == "s" else z
         self.output = _matrix("output", output if output is not None else [[1] + [0] * (n - 1)], 1, n)
         self.sensors = self._check_sensors(tuple(sensors))
+        if domain == "s":
+            continuous = (F, B)
+        elif continuous is not None:
+            continuous = (_matrix("Fc", continuous[0], n, n), _matrix("Bc", continuous[1], n, B.shape[1]))
+        self.continuous = continuous
 
     # ------------------------------------------------------------------ structure
     def _check_sensors(self, sensors):
@@ -269,6 +298,9 @@ class Observer:
         dup = {x for x in names if names.count(x) > 1}
         if dup:
             raise StructureError(f"duplicate sensor name(s): {', '.join(sorted(dup))}")
+        for x in sensors:
+            if x.bias_state is not None and x.bias_state >= self.n_states:
+                raise StructureError(f"sensor {x.name!r}: bias_state {x.bias_state} is not a state index")
         for role, count, what in (("input", self.B.shape[1], "column of B"),
                                   ("measurement", self.H.shape[0], "row of H")):
             idx = sorted(x.index for x in sensors if x.role == role)
@@ -424,11 +456,12 @@ class Observer:
             sample_time = mapping[sample_time]
         new = Observer(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)),
                        [Sensor(x.name, x.order, x.role, x.index,
-                               None if x.relation is None else x.relation.subs(mapping))
+                               None if x.relation is None else x.relation.subs(mapping), x.bias_state)
                         for x in self.sensors],
                        domain=self.domain, sample_time=sample_time if self.discrete else None,
                        gain_form=self.gain_form if self.discrete else "predictor",
-                       name=self.name, output=self.output.subs(mapping))
+                       name=self.name, output=self.output.subs(mapping),
+                       continuous=self.continuous if self.discrete else None)
         return new
 
     def with_gains(self, values: dict | None = None, /, **kwargs) -> Observer:
@@ -438,6 +471,35 @@ class Observer:
         if missing:
             raise GainError(f"{self.name} needs a value for {', '.join(missing)}")
         return self.subs(values)
+
+    def gain_pattern(self) -> list:
+        """``K`` as nested lists: the gain's name where an entry is a free symbol, else a float."""
+        return [[e.name if isinstance(e, sp.Symbol) else float(e) for e in self.K.row(i)]
+                for i in range(self.K.rows)]
+
+    def numeric_model(self, sample_time=None) -> dict:
+        """Float arrays ``F, B, H`` (sample time substituted) and the continuous ``Fc, Bc``."""
+        mapping = {}
+        if self.discrete and isinstance(self.sample_time, sp.Symbol):
+            if sample_time is None:
+                raise GainError(f"{self.name} is discrete: give the sample time")
+            mapping[self.sample_time] = exact_number(sample_time, "sample time")
+        out = {k: M.subs(mapping) for k, M in (("F", self.F), ("B", self.B), ("H", self.H))}
+        if self.continuous is not None:
+            out["Fc"], out["Bc"] = self.continuous
+        try:
+            return {k: np.array(M.evalf(17), dtype=float) for k, M in out.items()}
+        except TypeError:
+            raise GainError(f"{self.name}: the model still has free parameters") from None
+
+    def with_gain_matrix(self, K, gain_form: str | None = None, sample_time=None) -> Observer:
+        """A numeric copy with gain matrix ``K`` (numbers), optionally another discrete gain form."""
+        obs = self.subs(T=sample_time) if sample_time is not None and self.discrete else self
+        K = sp.Matrix([[exact_number(v, f"K[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(K)])
+        return Observer(obs.F, obs.B, obs.H, K, obs.sensors, domain=obs.domain,
+                        sample_time=obs.sample_time if obs.discrete else None,
+                        gain_form=gain_form or (obs.gain_form if obs.discrete else "predictor"),
+                        name=obs.name, output=obs.output, continuous=obs.continuous if obs.discrete else None)
 
     @property
     def is_numeric(self) -> bool:

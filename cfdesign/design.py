@@ -1,0 +1,373 @@
+"""From a specification to optimal gains: structure -> noise model -> Riccati -> GainTable.
+
+The data flow of DESIGN.md: the symbolic structure gives ``F, B, H`` and the gain pattern;
+the sensors' noise gives ``Q`` and ``R``; the Riccati equation (CARE, DARE, or the periodic
+DARE when the sensors run at different rates) gives the optimal gains; the exact proof and a
+stability check are attached to the resulting :class:`~cfdesign.gains.GainTable`.
+
+Noise model (continuous time, then Van Loan for discrete designs; units in
+:mod:`cfdesign.noise`): the white noise of an input sensor enters through its column ``b``
+of ``Bc`` as ``Qc += b q b^T``; a random-walk bias enters the sensor's bias state as
+``Qc[i, i] += q_bias``.  A measurement sensor contributes ``R_ii``: its per-sample variance
+(discrete) or its PSD (continuous).
+
+Gain patterns: a structure whose gain matrix is full (CKF³, DCKF³, the position filter) gets
+the Kalman gain (seed 001 eqs. (23), (28); seed 004 Sec. 3).  A sparse pattern (CF³, seed
+001 eq. (13)) cannot express it; its free gains are chosen to minimise the steady-state error
+variance of the estimate, ``P[0, 0]`` of the Lyapunov equation for that gain - the best the
+structure can do, which the paper notes is not the optimum in general.
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from functools import reduce
+
+import numpy as np
+from scipy import linalg, optimize
+
+from . import __version__
+from .errors import CfdesignError, SpecError
+from .gains import GainTable
+from .noise import van_loan
+from .riccati import kalman_continuous, kalman_discrete, periodic_dare
+from .spec import FilterSpec
+
+__all__ = ["design", "Schedule", "multirate_schedule", "build_structure", "noise_covariances",
+           "designed_observer"]
+
+_RATE_RTOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Multirate phase schedule: base sample time, period, and every how many base steps each
+    measurement sensor reads (at phases ``k % every == 0``)."""
+
+    sample_time_s: float
+    period: int
+    every: dict
+
+    def measured(self, phase: int) -> list:
+        return [name for name, n in self.every.items() if phase % n == 0]
+
+
+def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None) -> Schedule:
+    """Base rate = the fastest sensor (or ``1/sample_time_s``); period = lcm of the rate ratios.
+
+    Input sensors drive the model every step and must run at the base rate.  Raises
+    :class:`SpecError` naming the sensor when a ratio is not an integer.
+    """
+    base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
+    every = {}
+    for name, rate in rates_hz.items():
+        ratio = base / rate
+        if abs(ratio - round(ratio)) > _RATE_RTOL * ratio or round(ratio) < 1:
+            raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not the base rate {base:g} Hz divided by an "
+                            f"integer (ratio {ratio:.6g})")
+        if name in inputs and round(ratio) != 1:
+            raise SpecError(f"sensors.{name}.rate_hz: input sensor {name} must run at the base rate {base:g} Hz, "
+                            f"not {rate:g} Hz")
+        if name not in inputs:
+            every[name] = round(ratio)
+    period = reduce(math.lcm, every.values(), 1)
+    return Schedule(1.0 / base, period, every)
+
+
+def build_structure(spec: FilterSpec):
+    """The symbolic observer the spec names, with its options; errors name the field."""
+    from .errors import StructureError
+    from .symbolic import STRUCTURES
+
+    if spec.structure not in STRUCTURES:
+        raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of {', '.join(STRUCTURES)}")
+    kwargs = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete}
+    allowed = {"cf2": {"order", "discrete"}, "cf3": {"discrete"}, "cfn": {"bands", "discrete"},
+               "position": {"discrete"}}.get(spec.structure, set())
+    for key, value in kwargs.items():
+        if value is not None and key not in allowed:
+            raise SpecError(f"{key}: does not apply to structure {spec.structure}")
+    if spec.structure == "cfn" and spec.bands is None:
+        raise SpecError("bands: missing field (cfn needs the number of bands)")
+    try:
+        obs = STRUCTURES[spec.structure](**{k: v for k, v in kwargs.items() if v is not None})
+    except StructureError as exc:
+        raise SpecError(f"structure {spec.structure}: {exc}") from None
+    _check_sensors(spec, obs)
+    return obs
+
+
+def _check_sensors(spec, obs):
+    names = {x.name for x in obs.sensors}
+    for x in spec.sensors:
+        if x.name not in names:
+            raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})")
+    from .symbolic.observer import QUANTITY_ORDERS
+
+    for s in obs.sensors:
+        given = spec.sensor(s.name)
+        if given.measures is not None:
+            order = QUANTITY_ORDERS.get(given.measures)
+            if order is None:
+                raise SpecError(f"sensors.{s.name}.measures: unknown sensor kind {given.measures!r} "
+                                f"(known: {', '.join(QUANTITY_ORDERS)})")
+            if order != s.order:
+                raise SpecError(f"sensors.{s.name}.measures: {obs.name} uses {s.name} as a sensor of derivative "
+                                f"order {s.order}, not {given.measures!r}")
+
+
+def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
+    """``(Qc, R)``: continuous process PSD over the states, and the measurement covariance
+    (per-sample variances for discrete designs, PSDs for continuous ones)."""
+    n = model["Fc"].shape[0]
+    Qc = np.zeros((n, n))
+    R = np.zeros((model["H"].shape[0],) * 2)
+    for s in obs.sensors:
+        x = spec.sensor(s.name)
+        if s.role == "input":
+            b = model["Bc"][:, s.index]
+            Qc += np.outer(b, b) * x.noise.psd(x.rate_hz)
+            if s.bias_state is not None:
+                if x.bias.psd == 0 and spec.gains is None:
+                    raise SpecError(f"sensors.{s.name}.bias: {obs.name} estimates the {s.name} bias, which needs "
+                                    "model = 'random_walk' with a density (a constant bias gives the bias state no "
+                                    "process noise, so no stabilising optimal gain exists)")
+                Qc[s.bias_state, s.bias_state] += x.bias.psd
+        else:
+            R[s.index, s.index] = x.noise.variance(x.rate_hz) if discrete else x.noise.psd(x.rate_hz)
+            if R[s.index, s.index] == 0:
+                raise SpecError(f"sensors.{s.name}.noise: zero measurement noise makes R singular; "
+                                "give a positive std or density")
+    return Qc, R
+
+
+def design(spec: FilterSpec) -> GainTable:
+    """Optimal gains for ``spec``: see the module docstring for the noise model and patterns."""
+    obs = build_structure(spec)
+    inputs = [s.name for s in obs.sensors if s.role == "input"]
+    rates = {s.name: spec.sensor(s.name).rate_hz for s in obs.sensors}
+    if obs.discrete:
+        schedule = multirate_schedule(rates, inputs, spec.sample_time_s)
+        model = obs.numeric_model(schedule.sample_time_s)
+    else:
+        if spec.gain_form == "filter":
+            raise SpecError("gain_form: 'filter' applies to discrete filters only")
+        schedule, model = None, obs.numeric_model()
+    Qc, R = noise_covariances(obs, spec, model, obs.discrete)
+    if obs.discrete:
+        Fd, Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)
+        assert np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12), "symbolic and numeric ZOH disagree"
+        result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, spec.gains)
+    else:
+        Q = Qc
+        result = _continuous_gains(obs, model, Q, R, spec.gains)
+    return _table(spec, obs, model, Q, R, schedule, result)
+
+
+# ---------------------------------------------------------------------------- gains
+def _full_pattern(obs) -> bool:
+    names = [e for row in obs.gain_pattern() for e in row]
+    return all(isinstance(e, str) for e in names) and len(set(names)) == len(names)
+
+
+def _continuous_gains(obs, model, Q, R, fixed=None):
+    F, H = model["F"], model["H"]
+    if fixed is not None:
+        return _fixed_gains(obs, F, H, Q, R, "continuous", fixed)
+    if _full_pattern(obs):
+        sol = kalman_continuous(F, H, Q, R)
+        return {"K": [sol.K], "P": [sol.P], "P_filtered": [sol.P], "solver": _solver_info(sol.solution)}
+    return _sparse_gains(obs, F, H, Q, R, "continuous")
+
+
+def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None):
+    F, H = model["F"], model["H"]
+    key = "K_filter" if form == "filter" else "K_predictor"
+    if fixed is not None:
+        if schedule.period != 1:
+            raise SpecError("gains: fixed gains apply to single-rate filters only")
+        return _fixed_gains(obs, F, H, Q, R, form, fixed)
+    if schedule.period == 1:
+        if _full_pattern(obs):
+            sol = kalman_discrete(F, H, Q, R)
+            return {"K": [getattr(sol, key)], "P": [sol.P], "P_filtered": [sol.P_filtered],
+                    "solver": _solver_info(sol.solution)}
+        return _sparse_gains(obs, F, H, Q, R, form)
+    if not _full_pattern(obs):
+        raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
+    names = [s.name for s in sorted((s for s in obs.sensors if s.role == "measurement"), key=lambda s: s.index)]
+    rows = [[i for i, nm in enumerate(names) if nm in schedule.measured(k)] for k in range(schedule.period)]
+    sol = periodic_dare(F, [H[r, :] for r in rows], Q, [R[np.ix_(r, r)] for r in rows])
+    K = []
+    for r, Kk in zip(rows, getattr(sol, key), strict=True):
+        full = np.zeros((F.shape[0], H.shape[0]))
+        full[:, r] = Kk
+        K.append(full)
+    return {"K": K, "P": list(sol.P), "P_filtered": list(sol.P_filtered),
+            "solver": {"method": "periodic_dare", "residual": float(sol.residual),
+                       "monodromy_multipliers": _pairs(sol.monodromy_multipliers)}}
+
+
+def _solver_info(sol) -> dict:
+    return {"method": f"{sol.kind} ({sol.method})", "residual": float(sol.residual),
+            "relative_residual": float(sol.relative_residual), "condition": float(sol.condition),
+            "refinement_steps": int(sol.refinement_steps)}
+
+
+def _closed_loop(F, H, K, form):
+    return F @ (np.eye(len(F)) - K @ H) if form == "filter" else F - K @ H
+
+
+def _error_covariance(F, H, K, Q, R, form):
+    """Steady-state error covariance for a fixed gain (a-priori for discrete forms)."""
+    A = _closed_loop(F, H, K, form)
+    if form == "continuous":
+        return linalg.solve_continuous_lyapunov(A, -(Q + K @ R @ K.T))
+    G = F @ K if form == "filter" else K
+    return linalg.solve_discrete_lyapunov(A, Q + G @ R @ G.T)
+
+
+def _stable(eigs, form) -> bool:
+    return bool(np.all(eigs.real < 0)) if form == "continuous" else bool(np.all(np.abs(eigs) < 1))
+
+
+def _pattern_gain(pattern, free, values):
+    lookup = dict(zip(free, values, strict=True))
+    return np.array([[lookup[e] if isinstance(e, str) else e for e in row] for row in pattern])
+
+
+def _free_names(pattern):
+    return sorted({e for row in pattern for e in row if isinstance(e, str)})
+
+
+def _kalman_gain(F, H, Q, R, form):
+    if form == "continuous":
+        sol = kalman_continuous(F, H, Q, R)
+        return sol.K, sol.P
+    sol = kalman_discrete(F, H, Q, R)
+    return (sol.K_filter if form == "filter" else sol.K_predictor), sol.P
+
+
+def _gain_result(K, F, H, Q, R, form, solver):
+    """Error covariances of a fixed gain, beside the Kalman optimum for comparison."""
+    P = _error_covariance(F, H, K, Q, R, form)
+    P_filtered = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + R, H @ P) if form == "filter" else P
+    P_opt = _kalman_gain(F, H, Q, R, form)[1]
+    solver = {**solver, "kalman_predicted_variance": float(P_opt[0, 0]), "predicted_variance": float(P[0, 0])}
+    return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
+
+
+def _fixed_gains(obs, F, H, Q, R, form, fixed):
+    """Gains given in the spec: check names and stability, predict the error (Lyapunov)."""
+    pattern = obs.gain_pattern()
+    free = _free_names(pattern)
+    missing, extra = sorted(set(free) - set(fixed)), sorted(set(fixed) - set(free))
+    if missing or extra:
+        what = f"missing {', '.join(missing)}" if missing else f"unknown {', '.join(extra)}"
+        raise SpecError(f"gains: {what} ({obs.name} has gains {', '.join(free)})")
+    K = _pattern_gain(pattern, free, [fixed[e] for e in free])
+    if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
+        raise SpecError(f"gains: the given gains do not stabilise {obs.name}")
+    return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"})
+
+
+def _sparse_gains(obs, F, H, Q, R, form):
+    """Minimise the estimate's error variance P[0, 0] over the free entries of the pattern."""
+    pattern = obs.gain_pattern()
+    free = _free_names(pattern)
+
+    def cost(values):
+        K = _pattern_gain(pattern, free, values)
+        if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
+            return np.inf
+        P = _error_covariance(F, H, K, Q, R, form)
+        return P[0, 0] if np.all(np.isfinite(P)) and P[0, 0] > 0 else np.inf
+
+    K_opt = _kalman_gain(F, H, Q, R, form)[0]
+    start = _sparse_start(obs, pattern, free, K_opt, cost)
+    best = optimize.minimize(cost, start, method="Nelder-Mead",
+                             options={"xatol": 1e-10, "fatol": 1e-16, "maxiter": 20000, "maxfev": 40000})
+    scale = 1e3 * max(1.0, np.abs(K_opt).max())
+    if not best.success or np.abs(best.x).max() > scale:
+        reached = ", ".join(f"{name} = {value:.3g}" for name, value in zip(free, best.x, strict=True))
+        raise SpecError(f"structure {obs.name}: its sparse gain pattern has no finite optimum for these noise "
+                        f"figures (the error variance keeps falling as the gains grow: {reached}); "
+                        "give hand-tuned gains in [gains] or use the full-gain structure")
+    return _gain_result(_pattern_gain(pattern, free, best.x), F, H, Q, R, form,
+                        {"method": "sparse gain: Nelder-Mead on the Lyapunov error variance P[0,0]",
+                         "iterations": int(best.nit)})
+
+
+def _sparse_start(obs, pattern, free, K_opt, cost):
+    """Start from the Kalman gain's entries at the free positions, else from ones."""
+    first = {}
+    for i, row in enumerate(pattern):
+        for j, e in enumerate(row):
+            if isinstance(e, str):
+                first.setdefault(e, K_opt[i, j])
+    for start in (np.array([first[e] for e in free]), np.ones(len(free)), 0.1 * np.ones(len(free))):
+        if np.isfinite(cost(start)):
+            return start
+    raise CfdesignError(f"{obs.name}: no stabilising gain with the structure's sparse pattern was found")
+
+
+# ---------------------------------------------------------------------------- table
+def _pairs(values) -> list:
+    return [[float(np.real(v)), float(np.imag(v))] for v in values]
+
+
+def _checks(obs, model, result, schedule, form):
+    F, H = model["F"], model["H"]
+    if schedule is not None and schedule.period > 1:
+        mult = np.array([complex(*p) for p in result["solver"]["monodromy_multipliers"]])
+        return {"complementary": obs.proof().holds, "complementary_note":
+                "proved with the gains symbolic, so it holds at every phase",
+                "monodromy_multipliers": _pairs(mult), "stable": bool(np.all(np.abs(mult) < 1))}
+    K = result["K"][0]
+    numeric = obs.with_gain_matrix(K, form if obs.discrete else None,
+                                   schedule.sample_time_s if schedule else None)
+    poles = np.linalg.eigvals(_closed_loop(F, H, K, form))
+    return {"complementary": numeric.proof().holds, "poles": _pairs(poles), "stable": _stable(poles, form)}
+
+
+def _table(spec, obs, model, Q, R, schedule, result) -> GainTable:
+    form = spec.gain_form if obs.discrete else "continuous"
+    checks = _checks(obs, model, result, schedule, form)
+    if not checks["stable"]:
+        raise CfdesignError(f"{spec.name}: the designed filter is not stable ({checks})")
+    gains = {}
+    if len(result["K"]) == 1:
+        for i, row in enumerate(obs.gain_pattern()):
+            for j, e in enumerate(row):
+                if isinstance(e, str):
+                    gains[e] = float(result["K"][0][i, j])
+    period = schedule.period if schedule else 1
+    return GainTable(
+        name=spec.name, structure=spec.structure, domain=obs.domain,
+        sample_time_s=schedule.sample_time_s if schedule else None, gain_form=form,
+        sensors=[{"name": s.name, "role": s.role, "index": s.index, "order": s.order,
+                  "rate_hz": spec.sensor(s.name).rate_hz} for s in obs.sensors],
+        F=model["F"], B=model["B"], H=model["H"], K=result["K"], P=result["P"],
+        P_filtered=result["P_filtered"],
+        measured=[schedule.measured(k) if schedule else [s.name for s in obs.sensors if s.role == "measurement"]
+                  for k in range(period)],
+        Q=Q, R=R, gains=gains,
+        options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
+                 if v is not None},
+        provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,
+                    "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                    "python": platform.python_version(), "solver": result["solver"]},
+        checks=checks,
+    )
+
+
+def designed_observer(spec: FilterSpec, table: GainTable):
+    """The symbolic structure of ``spec`` with the table's (single-rate) gains substituted."""
+    if table.period != 1:
+        raise CfdesignError(f"{table.name} is periodic (period {table.period}): its bands change with the phase")
+    obs = build_structure(spec)
+    form = table.gain_form if obs.discrete else None
+    return obs.with_gain_matrix(table.K[0], form, table.sample_time_s)

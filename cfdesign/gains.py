@@ -1,0 +1,160 @@
+"""GainTable: the designed filter as data - model, gains per phase, predicted error, provenance.
+
+A gain table holds everything needed to run the filter and to re-check it: the discrete (or
+continuous) model ``F, B, H``, the gain ``K[k]`` of every phase of the period in the named
+gain form, the predicted steady-state covariances, the sensors and how they enter, and where
+it came from (spec hash, toolkit version, solver residuals).  JSON floats are written with
+``repr`` precision, so a save/load round trip is exact.
+
+Gain forms (DESIGN.md conventions):
+
+* ``predictor``: ``x[k+1] = F x[k] + B u[k] + K[k] (y[k] - H x[k])``, estimate ``x[k]``;
+* ``filter``: ``x+[k] = x-[k] + K[k] (y[k] - H x-[k])``, ``x-[k+1] = F x+[k] + B u[k]``,
+  estimate ``x+[k]``;
+* ``continuous``: ``x' = F x + B u + K (y - H x)``.
+
+At a phase where a measurement sensor has no reading, its column of ``K[k]`` is exactly zero.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CfdesignError, GainTableError
+
+__all__ = ["GainTable", "load_gains", "FORMAT_VERSION"]
+
+#: version of the JSON layout written by :meth:`GainTable.save`
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class GainTable:
+    """A designed filter: model, per-phase gains and predicted errors.
+
+    Attributes
+    ----------
+    name, structure : str
+        Design name and structure (``dckf3``, ``position``, ...); ``options`` holds the
+        structure options (``order``, ``bands``, ``discrete``).
+    domain : {'s', 'z'}
+    sample_time_s : float or None
+        Base sample time (s); None for continuous filters.
+    gain_form : {'predictor', 'filter', 'continuous'}
+    sensors : list of dict
+        ``name``, ``role`` (input/measurement), ``index`` (column of B / row of H),
+        ``order`` (0 angle/position, 1 rate, 2 acceleration), ``rate_hz``.
+    F, B, H : ndarray
+        Model matrices (the discrete model for ``domain = 'z'``).
+    K : list of ndarray
+        Gain per phase, shape (n, m) each; ``len(K)`` is the period.
+    P : list of ndarray
+        Predicted (a-priori) steady-state error covariance per phase.
+    P_filtered : list of ndarray
+        A-posteriori covariance per phase (equal to ``P`` where nothing is measured).
+    measured : list of list of str
+        Measurement sensors with a reading at each phase.
+    gains : dict
+        ``{gain symbol: value}`` for single-rate tables (e.g. ``k11``); empty when periodic.
+    Q, R : ndarray
+        Process and measurement noise covariances used (per sample for discrete tables).
+    provenance : dict
+        ``spec_sha256``, ``cfdesign_version``, ``created_utc``, ``solver`` details.
+    checks : dict
+        ``complementary`` (exact proof verdict), ``poles`` or ``monodromy_multipliers``
+        (as ``[re, im]`` pairs) and ``stable``.
+    """
+
+    name: str
+    structure: str
+    domain: str
+    sample_time_s: float | None
+    gain_form: str
+    sensors: list
+    F: np.ndarray
+    B: np.ndarray
+    H: np.ndarray
+    K: list
+    P: list
+    P_filtered: list
+    measured: list
+    Q: np.ndarray
+    R: np.ndarray
+    gains: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+    checks: dict = field(default_factory=dict)
+
+    @property
+    def period(self) -> int:
+        return len(self.K)
+
+    @property
+    def predicted_std(self) -> float:
+        """Predicted steady-state standard deviation of the estimate (first state), worst phase.
+
+        Uses the covariance of the estimate the gain form outputs: a-priori for predictor
+        tables, a-posteriori for filter tables.
+        """
+        covs = self.P_filtered if self.gain_form == "filter" else self.P
+        return float(np.sqrt(max(c[0, 0] for c in covs)))
+
+    def sensor_names(self, role: str | None = None) -> list:
+        return [s["name"] for s in self.sensors if role is None or s["role"] == role]
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        for key in ("F", "B", "H", "Q", "R"):
+            d[key] = np.asarray(d[key]).tolist()
+        for key in ("K", "P", "P_filtered"):
+            d[key] = [np.asarray(m).tolist() for m in d[key]]
+        return {"format_version": FORMAT_VERSION, **d}
+
+    def save(self, path) -> Path:
+        """Write the table as JSON (full float precision); returns the path."""
+        path = Path(path)
+        text = json.dumps(self.to_dict(), indent=1, allow_nan=False)
+        try:
+            path.write_text(text + "\n")
+        except OSError as exc:
+            raise CfdesignError(f"cannot write {path}: {exc.strerror or exc}") from None
+        return path
+
+    @classmethod
+    def from_dict(cls, d: dict) -> GainTable:
+        if d.get("format_version") != FORMAT_VERSION:
+            raise GainTableError(f"unsupported gain table format_version {d.get('format_version')!r} "
+                                 f"(this cfdesign reads {FORMAT_VERSION})")
+        try:
+            kw = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
+            for key in ("F", "B", "H", "Q", "R"):
+                kw[key] = np.array(d[key], dtype=float)
+            for key in ("K", "P", "P_filtered"):
+                kw[key] = [np.array(m, dtype=float).reshape(_shape(key, kw, d)) for m in d[key]]
+            return cls(**kw)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise GainTableError(f"malformed gain table: {exc}") from None
+
+
+def _shape(key, kw, d):
+    n = len(d["F"])
+    return (n, len(d["H"])) if key == "K" else (n, n)
+
+
+def load_gains(path) -> GainTable:
+    """Read a gain table written by :meth:`GainTable.save`."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
+    except json.JSONDecodeError as exc:
+        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise GainTableError(f"{path}: a gain table is a JSON object")
+    return GainTable.from_dict(data)

@@ -1,0 +1,116 @@
+"""Sensor noise models -> process and measurement covariances.
+
+Units (SI inside, the sensor's own quantity ``u``: rad, rad/s, m, m/s^2, ...):
+
+* white noise as a continuous **density** ``nd`` in ``u/sqrt(Hz)``: two-sided power
+  spectral density ``q = nd**2`` in ``u^2/Hz`` (= ``u^2 s``);
+* white noise as a per-sample **standard deviation** ``sigma`` in ``u`` at the sensor's
+  sample rate ``f``: the two are tied by ``sigma**2 = q * f`` (``q = sigma**2 * T``), the
+  convention of a sampled white noise whose samples are averages over ``T = 1/f``;
+* bias as a **random walk** with density ``bd`` in ``u/sqrt(s)`` (rate of change of the bias
+  is white with PSD ``bd**2``), or a **constant** ``value`` in ``u`` (not a noise: it only
+  enters simulations, and a filter cannot learn it without a random-walk model).
+
+Continuous process noise ``Qc`` becomes the exact discrete covariance for sample time ``T``
+with Van Loan's method (C. F. Van Loan, "Computing integrals involving the matrix
+exponential", IEEE TAC 23(3), 1978):
+
+.. math:: Q_d = \\int_0^T e^{F\\tau} Q_c e^{F^T\\tau} d\\tau,\\qquad
+          \\exp\\left(\\begin{bmatrix}-F & Q_c\\\\ 0 & F^T\\end{bmatrix}T\\right)
+          = \\begin{bmatrix}\\cdot & F_d^{-1}Q_d\\\\ 0 & F_d^T\\end{bmatrix}.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from .errors import SpecError
+
+__all__ = ["WhiteNoise", "Bias", "van_loan", "zoh"]
+
+
+def _positive(value, field, allow_zero=True):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{field} must be a number, got {value!r}")
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        kind = "non-negative" if allow_zero else "positive"
+        raise SpecError(f"{field} must be a finite {kind} number, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class WhiteNoise:
+    """White measurement or input noise: a density (u/sqrt(Hz)) or a per-sample std (u).
+
+    Give exactly one of ``density`` and ``std``; ``field`` names the spec field in errors.
+    """
+
+    density: float | None = None
+    std: float | None = None
+    field: str = "noise"
+
+    def __post_init__(self):
+        if (self.density is None) == (self.std is None):
+            raise SpecError(f"{self.field}: give exactly one of 'density' (u/sqrt(Hz)) and 'std' (u per sample)")
+        if self.density is not None:
+            _positive(self.density, f"{self.field}.density")
+        else:
+            _positive(self.std, f"{self.field}.std")
+
+    def psd(self, rate_hz: float) -> float:
+        """Continuous PSD ``q`` (u^2/Hz): ``density**2`` or ``std**2 / rate_hz``."""
+        return self.density**2 if self.density is not None else self.std**2 / rate_hz
+
+    def variance(self, rate_hz: float) -> float:
+        """Per-sample variance at ``rate_hz`` (u^2): ``std**2`` or ``density**2 * rate_hz``."""
+        return self.std**2 if self.std is not None else self.density**2 * rate_hz
+
+
+@dataclass(frozen=True)
+class Bias:
+    """Sensor bias: ``model='random_walk'`` with ``density`` (u/sqrt(s)) or ``'constant'`` ``value`` (u)."""
+
+    model: str = "constant"
+    density: float = 0.0
+    value: float = 0.0
+    field: str = "bias"
+
+    def __post_init__(self):
+        if self.model not in ("constant", "random_walk"):
+            raise SpecError(f"{self.field}.model must be 'constant' or 'random_walk', got {self.model!r}")
+        _positive(self.density, f"{self.field}.density")
+        if isinstance(self.value, bool) or not isinstance(self.value, (int, float)) or not math.isfinite(self.value):
+            raise SpecError(f"{self.field}.value must be a finite number, got {self.value!r}")
+        if self.model == "random_walk" and self.density == 0:
+            raise SpecError(f"{self.field}: a random-walk bias needs a positive density (u/sqrt(s))")
+
+    @property
+    def psd(self) -> float:
+        """PSD of the bias rate of change (u^2/s); 0 for a constant bias."""
+        return self.density**2 if self.model == "random_walk" else 0.0
+
+
+def van_loan(F, Qc, T: float):
+    """Exact discretisation ``(Fd, Qd)`` of ``x' = F x + w``, ``E[w w^T] = Qc delta`` over ``T`` s."""
+    F, Qc = np.atleast_2d(F).astype(float), np.atleast_2d(Qc).astype(float)
+    n = F.shape[0]
+    M = np.zeros((2 * n, 2 * n))
+    M[:n, :n], M[:n, n:], M[n:, n:] = -F, Qc, F.T
+    E = expm(M * T)
+    Fd = E[n:, n:].T
+    Qd = Fd @ E[:n, n:]
+    return Fd, (Qd + Qd.T) / 2
+
+
+def zoh(F, B, T: float):
+    """Zero-order-hold discretisation ``(Fd, Bd)``: ``Fd = e^{FT}``, ``Bd = int_0^T e^{F t} dt B``."""
+    F, B = np.atleast_2d(F).astype(float), np.asarray(B, dtype=float).reshape(len(F), -1)
+    n, p = B.shape
+    M = np.zeros((n + p, n + p))
+    M[:n, :n], M[:n, n:] = F, B
+    E = expm(M * T)
+    return E[:n, :n], E[:n, n:]

@@ -1,0 +1,224 @@
+"""Filter design specifications: sensors, noise, rates; TOML design files.
+
+A design file names a structure and describes each of its sensors::
+
+    name = "robot heading"
+    structure = "dckf3"            # cf2, cf3, ckf3, dckf3, cfn, position
+    gain_form = "predictor"        # discrete: predictor | filter
+    # sample_time_s = 0.2          # default: 1 / the fastest sensor's rate
+    # discrete = true              # cf2, cf3, cfn: continuous unless true
+    # order = 2                    # cf2 only;  bands = 4  # cfn only
+    # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones
+    # k1 = 12.6
+
+    [sensors.gyro]
+    measures = "rate"              # optional check against the structure
+    rate_hz = 5.0
+    noise = { std = 0.0447 }       # u per sample, or { density = ... } in u/sqrt(Hz)
+    bias = { model = "random_walk", density = 1e-4 }   # u/sqrt(s); or constant, value
+
+Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
+design file is only ever read as TOML data: nothing in it is evaluated.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import SpecError
+from .noise import Bias, WhiteNoise
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["SensorSpec", "FilterSpec", "load_spec", "parse_spec", "example_path", "EXAMPLES"]
+
+EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
+#: built-in example design files, by short name
+EXAMPLES = {
+    "robot-heading": "robot_heading_dckf3.toml",
+    "cf3": "cf3_continuous.toml",
+    "ckf3": "ckf3_continuous.toml",
+    "position": "position_imu_gps.toml",
+}
+_TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
+             "description", "gains"}
+_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias"}
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One sensor: its name (as in the structure), rate (Hz), white noise and bias."""
+
+    name: str
+    rate_hz: float
+    noise: WhiteNoise
+    bias: Bias
+    measures: str | None = None
+
+
+@dataclass(frozen=True)
+class FilterSpec:
+    """A whole design: structure, options, gain form and sensors; ``sha256`` of the source text."""
+
+    name: str
+    structure: str
+    sensors: tuple
+    gain_form: str = "predictor"
+    sample_time_s: float | None = None
+    discrete: bool | None = None
+    order: int | None = None
+    bands: int | None = None
+    sha256: str = ""
+    description: str = ""
+    gains: dict | None = None
+
+    def sensor(self, name: str) -> SensorSpec:
+        for x in self.sensors:
+            if x.name == name:
+                return x
+        raise SpecError(f"sensors.{name}: missing (the structure {self.structure} needs it)")
+
+
+def example_path(name: str = "robot-heading") -> Path:
+    """Path of a built-in example design file (``robot-heading``, ``cf3``, ``ckf3``, ``position``)."""
+    if name not in EXAMPLES:
+        raise SpecError(f"no built-in example {name!r}; choose one of {', '.join(EXAMPLES)}")
+    return EXAMPLES_DIR / EXAMPLES[name]
+
+
+def load_spec(path) -> FilterSpec:
+    """Read and validate a TOML design file; errors name the file and the field."""
+    path = Path(path)
+    try:
+        text = path.read_bytes()
+    except OSError as exc:
+        raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
+    try:
+        data = tomllib.loads(text.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpecError(f"{path}: malformed TOML: {exc}") from None
+    try:
+        return parse_spec(data, sha256=hashlib.sha256(text).hexdigest())
+    except SpecError as exc:
+        raise SpecError(f"{path}: {exc}") from None
+
+
+def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
+    """Validate a design given as a dict (the parsed TOML)."""
+    if not isinstance(data, dict):
+        raise SpecError("a design must be a table")
+    _no_unknown(data, _TOP_KEYS, "")
+    structure = _text(data, "structure", required=True)
+    sensors = data.get("sensors")
+    if not isinstance(sensors, dict) or not sensors:
+        raise SpecError("sensors: missing field (one [sensors.NAME] table per sensor)")
+    return FilterSpec(
+        name=_text(data, "name") or structure,
+        structure=structure,
+        sensors=tuple(_sensor(name, body) for name, body in sensors.items()),
+        gain_form=_choice(data, "gain_form", ("predictor", "filter"), "predictor"),
+        sample_time_s=_number(data, "sample_time_s", "sample_time_s", positive=True),
+        discrete=_flag(data, "discrete"),
+        order=_integer(data, "order"),
+        bands=_integer(data, "bands"),
+        sha256=sha256,
+        description=_text(data, "description") or "",
+        gains=_gains(data.get("gains")),
+    )
+
+
+def _gains(table):
+    """Optional fixed gains ``{name: value}`` (hand-tuned filters); validated, never evaluated."""
+    if table is None:
+        return None
+    if not isinstance(table, dict) or not table:
+        raise SpecError("gains must be a table of name = number")
+    return {name: _number(table, name, f"gains.{name}", signed=True) for name in table}
+
+
+def _sensor(name, body) -> SensorSpec:
+    field = f"sensors.{name}"
+    if not name.isidentifier():
+        raise SpecError(f"{field}: sensor names must be identifiers (letters, digits, _)")
+    if not isinstance(body, dict):
+        raise SpecError(f"{field} must be a table")
+    _no_unknown(body, _SENSOR_KEYS, field + ".")
+    rate = _number(body, "rate_hz", f"{field}.rate_hz", positive=True, required=True)
+    noise = body.get("noise")
+    if not isinstance(noise, dict):
+        raise SpecError(f"{field}.noise: missing field (a table with 'std' or 'density')")
+    _no_unknown(noise, {"std", "density"}, f"{field}.noise.")
+    white = WhiteNoise(density=_number(noise, "density", f"{field}.noise.density"),
+                       std=_number(noise, "std", f"{field}.noise.std"), field=f"{field}.noise")
+    bias = body.get("bias", {})
+    if not isinstance(bias, dict):
+        raise SpecError(f"{field}.bias must be a table")
+    _no_unknown(bias, {"model", "density", "value"}, f"{field}.bias.")
+    bias_spec = Bias(model=_choice(bias, "model", ("constant", "random_walk"), "constant", f"{field}.bias.model"),
+                     density=_number(bias, "density", f"{field}.bias.density") or 0.0,
+                     value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
+                     field=f"{field}.bias")
+    return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"))
+
+
+def _no_unknown(table, allowed, prefix):
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise SpecError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
+
+
+def _text(table, key, required=False, field=None):
+    value = table.get(key)
+    if value is None:
+        if required:
+            raise SpecError(f"{field or key}: missing field")
+        return None
+    if not isinstance(value, str):
+        raise SpecError(f"{field or key} must be a string, got {value!r}")
+    return value
+
+
+def _choice(table, key, allowed, default, field=None):
+    value = table.get(key, default)
+    if value not in allowed:
+        raise SpecError(f"{field or key} must be one of {', '.join(allowed)}, got {value!r}")
+    return value
+
+
+def _flag(table, key):
+    value = table.get(key)
+    if value is not None and not isinstance(value, bool):
+        raise SpecError(f"{key} must be true or false, got {value!r}")
+    return value
+
+
+def _integer(table, key):
+    value = table.get(key)
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+        raise SpecError(f"{key} must be an integer, got {value!r}")
+    return value
+
+
+def _number(table, key, field, positive=False, required=False, signed=False):
+    value = table.get(key)
+    if value is None:
+        if required:
+            raise SpecError(f"{field}: missing field")
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"{field} must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise SpecError(f"{field} must be finite, got {value}")
+    if positive and value <= 0:
+        raise SpecError(f"{field} must be positive, got {value:g}")
+    if not signed and value < 0:
+        raise SpecError(f"{field} must not be negative, got {value:g}")
+    return value

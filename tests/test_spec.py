@@ -1,0 +1,78 @@
+"""Design files: every built-in example loads; bad files give one clear line naming the field."""
+
+import subprocess
+import sys
+
+import pytest
+
+from cfdesign.errors import SpecError
+from cfdesign.spec import EXAMPLES, example_path, load_spec
+
+GOOD = """
+structure = "dckf3"
+[sensors.gyro]
+rate_hz = 5.0
+noise = { std = 0.05 }
+bias = { model = "random_walk", density = 1e-3 }
+[sensors.compass]
+rate_hz = 5.0
+noise = { std = 0.04 }
+[sensors.odometry]
+rate_hz = 5.0
+noise = { std = 0.01 }
+"""
+
+
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_examples_load(name):
+    spec = load_spec(example_path(name))
+    assert spec.sensors and spec.sha256
+
+
+BAD = [
+    (GOOD.replace("std = 0.04", "std = -0.04"), "sensors.compass.noise.std"),
+    (GOOD.replace("std = 0.04", "std = nan"), "sensors.compass.noise.std must be finite"),
+    (GOOD.replace("[sensors.compass]", "[sensors.compass]\nmeasures = \"spin\""), "sensors.compass.measures"),
+    (GOOD.replace("[sensors.compass]", "[sensors.compass]\nmeasures = \"rate\""), "sensors.compass.measures"),
+    (GOOD.replace("rate_hz = 5.0\nnoise = { std = 0.01 }", "rate_hz = 1.7\nnoise = { std = 0.01 }"),
+     "sensors.odometry.rate_hz"),
+    (GOOD.replace('structure = "dckf3"', ""), "structure: missing field"),
+    (GOOD.replace("noise = { std = 0.04 }", ""), "sensors.compass.noise: missing field"),
+    (GOOD.replace("[sensors.odometry]\nrate_hz = 5.0\n", "[sensors.odometry]\n"), "sensors.odometry.rate_hz: missing"),
+    (GOOD + "\n[sensors.baro]\nrate_hz = 5.0\nnoise = { std = 1.0 }\n", "sensors.baro"),
+    (GOOD.replace("dckf3", "dckf9"), "unknown structure"),
+    (GOOD.replace("std = 0.05", "std = '__import__(\"os\").system(\"touch pwned\")'"), "must be a number"),
+    (GOOD.replace("[sensors.gyro]", "[sensors.gyro"), "malformed TOML"),
+    (GOOD.replace('model = "random_walk", density = 1e-3', 'model = "constant", value = 0.01'),
+     "sensors.gyro.bias"),
+    (GOOD.replace("std = 0.04", "std = 0.0"), "sensors.compass.noise: zero measurement noise"),
+    (GOOD.replace("rate_hz = 5.0\nnoise = { std = 0.04 }", "rate_hz = 5.0\nnoise = { std = 0.04 }\ncolour = 1"),
+     "sensors.compass.colour: unknown field"),
+    (GOOD.replace('structure = "dckf3"', 'structure = "dckf3"\norder = 2'), "order: does not apply"),
+]
+
+
+@pytest.mark.parametrize("text, field", BAD, ids=[f"bad{i}" for i in range(len(BAD))])
+def test_bad_design_files_one_line_exit_2_nothing_written(text, field, tmp_path):
+    spec = tmp_path / "bad.toml"
+    spec.write_text(text)
+    out = tmp_path / "gains.json"
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", str(spec), "-o", str(out)],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert field in proc.stderr
+    assert not out.exists() and not (tmp_path / "pwned").exists()
+
+
+def test_missing_file():
+    with pytest.raises(SpecError, match="cannot read design file"):
+        load_spec("/nonexistent/design.toml")
+
+
+def test_cli_design_default_example_writes_table_and_bode(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", "-o", "g.json", "--bode", "b.png"],
+                          capture_output=True, text=True, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "dckf3" in proc.stdout and "complementary (exact proof): True" in proc.stdout
+    assert (tmp_path / "g.json").stat().st_size > 500 and (tmp_path / "b.png").stat().st_size > 10_000
