@@ -4,42 +4,45 @@ The symbolic engine (:mod:`cfdesign.symbolic`) turns a linear observer of a kine
 (F, B, H, K) into the band transfer function of every sensor and proves exactly that the
 bands sum to one.  The named filters of the source papers are small constructors on it.
 :func:`design` turns a sensor specification into optimal gains (CARE, DARE, periodic DARE)
-and a :class:`GainTable`.
+and a :class:`GainTable`; :mod:`cfdesign.runtime` runs one.
+
+The public names below are loaded on first use, so that ``import cfdesign.runtime`` (the
+part that runs on a robot) never imports sympy.
 """
+
+from importlib import import_module
+
+from .errors import CfdesignError, GainError, ProofError, RiccatiError, SpecError, StructureError
 
 __version__ = "0.1.0"
 
-from . import riccati
-from .analysis import FrequencyResponse, frequency_response, transfer_functions
-from .design import design, multirate_schedule
-from .errors import CfdesignError, GainError, ProofError, RiccatiError, SpecError, StructureError
-from .gains import GainTable, load_gains
-from .plot import bode_plot
-from .spec import FilterSpec, SensorSpec, example_path, load_spec, parse_spec
-from .symbolic import (
-                       STRUCTURES,
-                       Observer,
-                       Proof,
-                       Sensor,
-                       cf2,
-                       cf3,
-                       cfn,
-                       ckf3,
-                       ckf3_printed,
-                       dckf3,
-                       dckf3_printed,
-                       eq32_denominator,
-                       position,
-                       prove,
-                       structure,
-)
+_LAZY = {
+    "cfdesign.symbolic": ["Observer", "Sensor", "Proof", "prove", "structure", "STRUCTURES", "cf2", "cf3", "ckf3",
+                          "dckf3", "cfn", "position", "ckf3_printed", "dckf3_printed", "eq32_denominator"],
+    "cfdesign.analysis": ["transfer_functions", "frequency_response", "FrequencyResponse"],
+    "cfdesign.plot": ["bode_plot"],
+    "cfdesign.spec": ["FilterSpec", "SensorSpec", "load_spec", "parse_spec", "example_path"],
+    "cfdesign.gains": ["GainTable", "load_gains"],
+    "cfdesign.designer": ["design", "multirate_schedule"],
+    "cfdesign.runtime": ["Runtime"],
+}
+_WHERE = {name: module for module, names in _LAZY.items() for name in names}
+_MODULES = {"riccati", "runtime", "symbolic", "analysis", "plot", "noise", "spec", "gains", "designer", "testing"}
 
-__all__ = [
-    "__version__",
-    "CfdesignError", "SpecError", "StructureError", "GainError", "ProofError", "RiccatiError",
-    "Observer", "Sensor", "Proof", "prove", "structure", "STRUCTURES",
-    "cf2", "cf3", "ckf3", "dckf3", "cfn", "position", "ckf3_printed", "dckf3_printed", "eq32_denominator",
-    "transfer_functions", "frequency_response", "FrequencyResponse", "bode_plot",
-    "FilterSpec", "SensorSpec", "load_spec", "parse_spec", "example_path",
-    "GainTable", "load_gains", "design", "multirate_schedule", "riccati",
-]
+__all__ = ["__version__", "CfdesignError", "SpecError", "StructureError", "GainError", "ProofError",
+           "RiccatiError", *_WHERE, *sorted(_MODULES)]
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        value = getattr(import_module(_WHERE[name]), name)
+    elif name in _MODULES:
+        value = import_module(f"cfdesign.{name}")
+    else:
+        raise AttributeError(f"module 'cfdesign' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(__all__)

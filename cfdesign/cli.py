@@ -89,7 +89,7 @@ def cmd_bode(args) -> int:
 
 
 def cmd_design(args) -> int:
-    from .design import design, designed_observer
+    from .designer import design, designed_observer
     from .spec import example_path, load_spec
 
     spec = load_spec(args.spec if args.spec else example_path(args.example))

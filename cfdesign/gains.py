@@ -60,6 +60,9 @@ class GainTable:
         Measurement sensors with a reading at each phase.
     gains : dict
         ``{gain symbol: value}`` for single-rate tables (e.g. ``k11``); empty when periodic.
+    wrap_angle : bool
+        The quantity is an angle on a circle (a heading): runtimes wrap the innovations of
+        angle sensors and the estimate to (-pi, pi].
     Q, R : ndarray
         Process and measurement noise covariances used (per sample for discrete tables).
     provenance : dict
@@ -85,6 +88,7 @@ class GainTable:
     Q: np.ndarray
     R: np.ndarray
     gains: dict = field(default_factory=dict)
+    wrap_angle: bool = False
     options: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     checks: dict = field(default_factory=dict)

@@ -6,6 +6,7 @@ A design file names a structure and describes each of its sensors::
     structure = "dckf3"            # cf2, cf3, ckf3, dckf3, cfn, position
     gain_form = "predictor"        # discrete: predictor | filter
     # sample_time_s = 0.2          # default: 1 / the fastest sensor's rate
+    # wrap_angle = true            # a heading: angle readings and the estimate live in (-pi, pi]
     # discrete = true              # cf2, cf3, cfn: continuous unless true
     # order = 2                    # cf2 only;  bands = 4  # cfn only
     # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones
@@ -48,7 +49,7 @@ EXAMPLES = {
     "position": "position_imu_gps.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
-             "description", "gains"}
+             "description", "gains", "wrap_angle"}
 _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias"}
 
 
@@ -78,6 +79,7 @@ class FilterSpec:
     sha256: str = ""
     description: str = ""
     gains: dict | None = None
+    wrap_angle: bool = False
 
     def sensor(self, name: str) -> SensorSpec:
         for x in self.sensors:
@@ -131,6 +133,7 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
         sha256=sha256,
         description=_text(data, "description") or "",
         gains=_gains(data.get("gains")),
+        wrap_angle=bool(_flag(data, "wrap_angle")),
     )
 
 

@@ -5,7 +5,7 @@ import pytest
 from scipy import linalg
 
 import cfdesign
-from cfdesign.design import design, designed_observer, multirate_schedule
+from cfdesign.designer import design, designed_observer, multirate_schedule
 from cfdesign.errors import SpecError
 from cfdesign.gains import load_gains
 from cfdesign.spec import example_path, load_spec, parse_spec
@@ -83,7 +83,7 @@ def test_sparse_discrete_cf2_optimum_is_a_local_minimum_and_no_better_than_kalma
         "velocity": {"rate_hz": 50.0, "noise": {"std": 0.3}},
         "position": {"rate_hz": 50.0, "noise": {"std": 0.05}}}}
     table = design(parse_spec(data))
-    from cfdesign.design import _error_covariance
+    from cfdesign.designer import _error_covariance
 
     F, H, Q, R = table.F, table.H, table.Q, table.R
     best = table.P[0][0, 0]

@@ -354,7 +354,7 @@ def _table(spec, obs, model, Q, R, schedule, result) -> GainTable:
         P_filtered=result["P_filtered"],
         measured=[schedule.measured(k) if schedule else [s.name for s in obs.sensors if s.role == "measurement"]
                   for k in range(period)],
-        Q=Q, R=R, gains=gains,
+        Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
         options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
                  if v is not None},
         provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,

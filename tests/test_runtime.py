@@ -1,0 +1,155 @@
+"""Python runtime: streaming equals batch, save/restore, missing readings, wrap-around."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import cfdesign
+from cfdesign.errors import CfdesignError
+from cfdesign.runtime import Runtime, wrap
+
+
+@pytest.fixture(scope="module")
+def heading():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+
+
+@pytest.fixture(scope="module")
+def position():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+
+
+def readings(table, N, seed=0, amplitude=0.3):
+    rng = np.random.default_rng(seed)
+    t = np.arange(N)
+    return {s["name"]: amplitude * rng.normal(size=N) + np.sin(0.002 * t) for s in table.sensors}
+
+
+def stream(table, data, x0=None):
+    rt = Runtime(table, x0=x0)
+    names = list(data)
+    N = len(data[names[0]])
+    return np.array([rt.step(**{n: data[n][k] for n in names}) for k in range(N)]), rt
+
+
+def test_runtime_does_not_import_sympy_or_scipy():
+    code = ("import sys, cfdesign.runtime, cfdesign.gains; "
+            "assert 'sympy' not in sys.modules and 'scipy' not in sys.modules, sorted(sys.modules)")
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("name", ["heading", "position"])
+def test_batch_equals_streaming(name, request):
+    table = request.getfixturevalue(name)
+    data = readings(table, 3000)
+    x0 = np.full(table.F.shape[0], 0.1)
+    est_stream, rt_stream = stream(table, data, x0)
+    rt = Runtime(table, x0=x0)
+    est = rt.run(data)
+    assert np.max(np.abs(est - est_stream)) < 1e-9
+    assert np.max(np.abs(rt.x - rt_stream.x)) < 1e-9 and rt.phase == rt_stream.phase
+    est2, xs = Runtime(table, x0=x0).run(data, states=True)  # the blocked path
+    assert np.max(np.abs(est2 - est_stream)) < 1e-9 and xs.shape == (3000, table.F.shape[0])
+
+
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+def test_filter_form_runs_the_measurement_update(form):
+    spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    import dataclasses
+
+    table = cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False))
+    data = readings(table, 500)
+    est_stream, _ = stream(table, data)
+    assert np.max(np.abs(Runtime(table).run(data) - est_stream)) < 1e-10
+    # one step by hand
+    rt = Runtime(table)
+    x = np.array([0.3, -0.01])
+    rt.x = x.copy()
+    est = rt.step(gyro=0.1, compass=0.5, odometry=0.45)
+    innov = np.array([0.5, 0.45]) - table.H @ x
+    K = table.K[0]
+    if form == "filter":
+        post = x + K @ innov
+        assert est == pytest.approx(post[0]) and np.allclose(rt.x, table.F @ post + table.B[:, 0] * 0.1)
+    else:
+        assert est == pytest.approx(x[0]) and np.allclose(rt.x, table.F @ x + table.B[:, 0] * 0.1 + K @ innov)
+
+
+def test_split_run_with_restore_equals_one_run(position):
+    data = readings(position, 2000)
+    whole = Runtime(position).run(data)
+    first = Runtime(position)
+    a = first.run({k: v[:777] for k, v in data.items()})
+    saved = first.state()
+    second = Runtime(position)
+    second.restore(saved)
+    b = second.run({k: v[777:] for k, v in data.items()})
+    assert np.max(np.abs(np.concatenate([a, b]) - whole)) < 1e-9
+
+
+def test_missing_readings_skip_the_update_and_hold_the_input(heading):
+    data = readings(heading, 400)
+    data["compass"][::3] = np.nan
+    data["gyro"][5] = np.nan
+    est, rt = stream(heading, data)
+    assert np.all(np.isfinite(est))
+    batch = Runtime(heading).run(data)  # NaN -> the general loop
+    assert np.max(np.abs(batch - est)) < 1e-12
+    # a step with no compass and no odometry is pure prediction
+    rt2 = Runtime(heading)
+    rt2.x = np.array([0.2, 0.01])
+    rt2.step(gyro=0.5)
+    assert np.allclose(rt2.x, heading.F @ [0.2, 0.01] + heading.B[:, 0] * 0.5)
+
+
+def test_multirate_readings_between_fixes_have_no_effect(position):
+    data = readings(position, 200)
+    a = Runtime(position).run(data)
+    data["gps"][np.arange(200) % 50 != 0] = 1e6  # garbage at phases with zero gain
+    b = Runtime(position).run(data)
+    assert np.array_equal(a, b) or np.max(np.abs(a - b)) < 1e-9
+
+
+def test_heading_crossing_pi_does_not_jolt(heading):
+    N = 3000
+    truth = wrap(np.linspace(2.5, 4.0, N))  # crosses +pi -> -pi
+    T = heading.sample_time_s
+    rate = np.gradient(np.unwrap(truth), T)
+    data = {"gyro": rate, "compass": truth, "odometry": truth}
+    x0 = [truth[0], 0.0]
+    for est in (stream(heading, data, x0)[0], Runtime(heading, x0=x0).run(data)):
+        err = wrap(est - truth)
+        assert np.max(np.abs(err)) < 1e-3
+        assert np.all((est > -np.pi) & (est <= np.pi))
+
+
+def test_ten_million_samples_stay_bounded(heading):
+    rng = np.random.default_rng(1)
+    N = 10_000_000
+    rt = Runtime(heading)
+    worst = 0.0
+    for _ in range(10):  # streamed in blocks of one million, state carried
+        n = N // 10
+        data = {"gyro": 0.05 * rng.standard_normal(n), "compass": 0.05 * rng.standard_normal(n),
+                "odometry": 0.002 * rng.standard_normal(n)}
+        est = rt.run(data)
+        assert np.all(np.isfinite(est))
+        worst = max(worst, np.abs(est).max())
+    assert worst < 1.0 and np.all(np.isfinite(rt.x))
+
+
+def test_bad_inputs(heading):
+    rt = Runtime(heading)
+    with pytest.raises(CfdesignError, match="unknown sensor"):
+        rt.step(gyro=1.0, baro=2.0)
+    with pytest.raises(CfdesignError, match="no readings for odometry"):
+        rt.run({"gyro": [1.0], "compass": [1.0]})
+    with pytest.raises(CfdesignError, match="differ in length"):
+        rt.run({"gyro": [1.0, 2.0], "compass": [1.0], "odometry": [1.0]})
+    with pytest.raises(CfdesignError, match="state does not fit"):
+        rt.restore({"x": [1.0], "phase": 0, "u_last": [0.0]})
+    continuous = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("ckf3")))
+    with pytest.raises(CfdesignError, match="continuous-time"):
+        Runtime(continuous)
