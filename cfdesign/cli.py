@@ -133,6 +133,71 @@ def _summary(table) -> str:
     return "\n".join(lines)
 
 
+def cmd_export(args) -> int:
+    from .gains import load_gains
+
+    table = load_gains(args.table)
+    if args.format == "json":
+        table.save(args.output)
+        written = [args.output]
+    elif args.format == "csv":
+        from .export import write_gain_csv
+
+        written = [write_gain_csv(table, args.output)]
+    else:
+        from .codegen import write_c
+
+        written = write_c(table, args.output, prefix=args.prefix, precision=args.precision)
+    for path in written:
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_verify(args) -> int:
+    from .gains import load_gains
+    from .spec import load_spec
+    from .verify import verify_table
+
+    table = load_gains(args.table)
+    spec = load_spec(args.spec) if args.spec else None
+    checks = verify_table(table, spec, args.rtol)
+    for check in checks:
+        print(check.line())
+    failed = [c for c in checks if not c.ok]
+    print(f"{table.name}: {len(checks) - len(failed)} of {len(checks)} checks hold")
+    return 1 if failed else 0
+
+
+def cmd_run(args) -> int:
+    from .export import read_readings, write_estimates
+    from .gains import load_gains
+    from .runtime import Runtime
+
+    table = load_gains(args.table)
+    runtime = Runtime(table)
+    time, readings = read_readings(args.data, runtime.inputs + runtime.measurements)
+    est, states = _run_blocks(runtime, readings)
+    write_estimates(args.output, time, est, states)
+    print(f"wrote {args.output} ({len(est)} samples)")
+    return 0
+
+
+def _run_blocks(runtime, readings, block=100_000):
+    """Run in blocks (state carried) with a progress bar on long inputs."""
+    import numpy as np
+    from tqdm import tqdm
+
+    N = len(next(iter(readings.values()))) if readings else 0
+    est, states = np.empty(N), np.empty((N, runtime.n))
+    with tqdm(total=N, unit="sample", disable=None if N > block else True, file=sys.stderr) as bar:
+        for start in range(0, N, block):
+            part = {k: v[start:start + block] for k, v in readings.items()}
+            e, x = runtime.run(part, states=True)
+            est[start:start + len(e)], states[start:start + len(e)] = e, x
+            bar.update(len(e))
+    return est, states
+
+
 def _save_figure(fig, path):
     import matplotlib.pyplot as plt
 
@@ -174,6 +239,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
     p.set_defaults(run=cmd_design)
+
+    p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
+    p.add_argument("table", help="gain table (JSON) from cfdesign design")
+    p.add_argument("--format", choices=["json", "csv", "c"], required=True)
+    p.add_argument("-o", "--output", required=True, help="file (json, csv) or directory (c)")
+    p.add_argument("--precision", choices=["double", "float"], default="double", help="C only: real type")
+    p.add_argument("--prefix", help="C only: identifier prefix of the generated code")
+    p.set_defaults(run=cmd_export)
+
+    p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
+    p.add_argument("table", help="gain table (JSON)")
+    p.add_argument("--spec", help="design file the table should come from")
+    p.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance for the gain comparison")
+    p.set_defaults(run=cmd_verify)
+
+    p = sub.add_parser("run", help="run a gain table on a CSV log of sensor readings")
+    p.add_argument("table", help="gain table (JSON)")
+    p.add_argument("data", help="CSV with one column per sensor (named as in the table) and an optional time")
+    p.add_argument("-o", "--output", required=True, help="CSV of estimates to write")
+    p.set_defaults(run=cmd_run)
     return parser
 
 

@@ -26,10 +26,64 @@ import numpy as np
 
 from .errors import CfdesignError, GainTableError
 
-__all__ = ["GainTable", "load_gains", "FORMAT_VERSION"]
+__all__ = ["GainTable", "load_gains", "validate", "schema", "FORMAT_VERSION"]
 
 #: version of the JSON layout written by :meth:`GainTable.save`
 FORMAT_VERSION = 1
+SCHEMA_PATH = Path(__file__).resolve().parent / "schemas" / f"gaintable-{FORMAT_VERSION}.schema.json"
+
+
+def schema() -> dict:
+    """The JSON Schema (draft 2020-12) of the gain table format."""
+    return json.loads(SCHEMA_PATH.read_text())
+
+
+def validate(data: dict, source: str = "gain table"):
+    """Check a parsed gain table against the schema and its shape rules; raise GainTableError.
+
+    The schema fixes the fields and types; the shapes (``F`` n x n, ``B`` n x p, ``H`` m x n,
+    ``K[k]`` n x m, one ``measured`` list per phase) are checked here, naming the field.
+    """
+    import jsonschema
+
+    if isinstance(data, dict) and data.get("format_version") not in (None, FORMAT_VERSION):
+        raise GainTableError(f"{source}: unsupported format_version {data.get('format_version')!r} "
+                             f"(this cfdesign reads {FORMAT_VERSION})")
+    try:
+        jsonschema.validate(data, schema())
+    except jsonschema.ValidationError as exc:
+        where = "/".join(map(str, exc.absolute_path)) or "(top level)"
+        raise GainTableError(f"{source}: schema violation at {where}: {exc.message}") from None
+    _check_shapes(data, source)
+
+
+def _check_shapes(d, source):
+    n = len(d["F"])
+    m, p = len(d["H"]), len(d["B"][0]) if d["B"] else 0
+    expect = {"F": (n, n), "B": (n, p), "H": (m, n), "Q": (n, n), "R": (m, m)}
+    for key, shape in expect.items():
+        _shape_of(d[key], shape, f"{source}: {key}")
+    for key, shape in (("K", (n, m)), ("P", (n, n)), ("P_filtered", (n, n))):
+        if len(d[key]) != len(d["K"]):
+            raise GainTableError(f"{source}: {key} has {len(d[key])} phases, K has {len(d['K'])}")
+        for k, M in enumerate(d[key]):
+            _shape_of(M, shape, f"{source}: {key}[{k}]")
+    if len(d["measured"]) != len(d["K"]):
+        raise GainTableError(f"{source}: measured has {len(d['measured'])} phases, K has {len(d['K'])}")
+    roles = {"input": p, "measurement": m}
+    for role, count in roles.items():
+        idx = sorted(s["index"] for s in d["sensors"] if s["role"] == role)
+        if idx != list(range(count)):
+            raise GainTableError(f"{source}: sensors: {role} indices {idx} do not match the {count} "
+                                 f"{'columns of B' if role == 'input' else 'rows of H'}")
+
+
+def _shape_of(M, shape, what):
+    rows = len(M)
+    cols = {len(r) for r in M}
+    if rows != shape[0] or (rows and cols != {shape[1]}):
+        got = f"{rows}x{'/'.join(map(str, sorted(cols))) or 0}"
+        raise GainTableError(f"{what} must be {shape[0]}x{shape[1]}, got {got}")
 
 
 @dataclass(frozen=True)
@@ -130,22 +184,21 @@ class GainTable:
         return path
 
     @classmethod
-    def from_dict(cls, d: dict) -> GainTable:
-        if d.get("format_version") != FORMAT_VERSION:
-            raise GainTableError(f"unsupported gain table format_version {d.get('format_version')!r} "
-                                 f"(this cfdesign reads {FORMAT_VERSION})")
+    def from_dict(cls, d: dict, source: str = "gain table") -> GainTable:
+        """Build a table from its JSON form after validating it (:func:`validate`)."""
+        validate(d, source)
         try:
             kw = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
             for key in ("F", "B", "H", "Q", "R"):
                 kw[key] = np.array(d[key], dtype=float)
             for key in ("K", "P", "P_filtered"):
-                kw[key] = [np.array(m, dtype=float).reshape(_shape(key, kw, d)) for m in d[key]]
+                kw[key] = [np.array(m, dtype=float).reshape(_shape(key, d)) for m in d[key]]
             return cls(**kw)
         except (KeyError, TypeError, ValueError) as exc:
-            raise GainTableError(f"malformed gain table: {exc}") from None
+            raise GainTableError(f"{source}: malformed gain table: {exc}") from None
 
 
-def _shape(key, kw, d):
+def _shape(key, d):
     n = len(d["F"])
     return (n, len(d["H"])) if key == "K" else (n, n)
 
@@ -157,8 +210,6 @@ def load_gains(path) -> GainTable:
         data = json.loads(path.read_text())
     except OSError as exc:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
-    except json.JSONDecodeError as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise GainTableError(f"{path}: not valid JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise GainTableError(f"{path}: a gain table is a JSON object")
-    return GainTable.from_dict(data)
+    return GainTable.from_dict(data, str(path))
