@@ -129,5 +129,11 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
         omega = default_frequencies(coefficients, dt, points)
     omega = np.asarray(omega, dtype=float)
     x = np.exp(1j * omega * dt) if dt else 1j * omega
-    bands = {name: np.polyval(num, x) / np.polyval(den, x) for name, (num, den) in coefficients.items()}
+    with np.errstate(all="ignore"):
+        bands = {name: np.polyval(num, x) / np.polyval(den, x) for name, (num, den) in coefficients.items()}
+    if not all(np.all(np.isfinite(b)) for b in bands.values()):
+        from .errors import GainError
+
+        raise GainError(f"{observer.name}: the band responses overflow double precision on the frequency grid "
+                        "(gains too large, or a pole on the grid)")
     return FrequencyResponse(omega, bands, dt, coefficients)

@@ -9,9 +9,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from . import __version__
-from .errors import CfdesignError, GainError
+from .errors import CfdesignError, GainError, SpecError
 
 __all__ = ["main", "parse_gains"]
 
@@ -89,24 +90,58 @@ def cmd_bode(args) -> int:
 
 
 def cmd_design(args) -> int:
-    from .designer import design, designed_observer
+    from .designer import design
     from .spec import example_path, load_spec
 
-    spec = load_spec(args.spec if args.spec else example_path(args.example))
-    table = design(spec)
-    fig = None
-    if args.bode:
-        from .plot import bode_plot
-
-        fig = bode_plot(designed_observer(spec, table))
+    if args.spec and args.example:
+        raise CfdesignError("give a design file or --example, not both")
+    path = args.spec or example_path(args.example or "robot-heading")
+    spec = load_spec(path)
+    try:
+        table = design(spec)
+    except SpecError as exc:
+        raise SpecError(f"{path}: {exc}") from None
+    image = _bode_png(spec, table, args.bode) if args.bode else None
     print(_summary(table))
-    if args.output:  # everything is computed before anything is written
-        table.save(args.output)
-        print(f"wrote {args.output}")
-    if fig is not None:
-        _save_figure(fig, args.bode)
-        print(f"wrote {args.bode}")
+    written = []
+    try:  # everything is computed before anything is written; a failed write removes the rest
+        if args.output:
+            written.append(table.save(args.output))
+        if image is not None:
+            written.append(_write_bytes(args.bode, image))
+    except CfdesignError:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
+    for path in written:
+        print(f"wrote {path}")
     return 0
+
+
+def _bode_png(spec, table, target) -> bytes:
+    """The Bode plot of a designed single-rate filter, rendered in memory."""
+    import io
+
+    from .designer import designed_observer
+    from .plot import bode_plot
+
+    if table.period != 1:
+        raise CfdesignError(f"{table.name} is multirate (period {table.period}): its bands change with the phase, "
+                            "so there is no single Bode plot; leave out --bode")
+    fig = bode_plot(designed_observer(spec, table))
+    buffer = io.BytesIO()
+    fmt = Path(target).suffix.lstrip(".").lower() or "png"
+    _save_figure(fig, buffer, fmt)
+    return buffer.getvalue()
+
+
+def _write_bytes(path, data: bytes) -> Path:
+    path = Path(path)
+    try:
+        path.write_bytes(data)
+    except OSError as exc:
+        raise CfdesignError(f"cannot write {path}: {exc.strerror or exc}") from None
+    return path
 
 
 def _summary(table) -> str:
@@ -120,7 +155,7 @@ def _summary(table) -> str:
             if table.measured[k]:
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
     else:
-        lines.append("  gains: " + ", ".join(f"{name} = {value:.6g}" for name, value in table.gains.items()))
+        lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
     lines.append(f"  predicted steady-state std of the estimate: {table.predicted_std:.6g}")
     c = table.checks
     roots = c.get("poles", c.get("monodromy_multipliers"))
@@ -198,19 +233,19 @@ def _run_blocks(runtime, readings, block=100_000):
     return est, states
 
 
-def _save_figure(fig, path):
+def _save_figure(fig, target, fmt=None):
     import matplotlib.pyplot as plt
 
     try:
-        fig.savefig(path, dpi=120)
+        fig.savefig(target, dpi=120, format=fmt)
     except (OSError, ValueError) as exc:
-        raise CfdesignError(f"cannot write {path}: {exc}") from None
+        raise CfdesignError(f"cannot write {target}: {exc}") from None
     finally:
         plt.close(fig)
 
 
 def _add_structure(p):
-    p.add_argument("structure", help="cf2, cf3, ckf3, dckf3 or cfn")
+    p.add_argument("structure", help="cf2, cf3, ckf3, dckf3, cfn or position")
     p.add_argument("--order", type=int, help="cf2 only: 1 (angle + rate) or 2 (with gyro-bias state)")
     p.add_argument("--bands", type=int, help="cfn only: number of bands/sensors n (2..7)")
 
@@ -234,8 +269,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
     p.add_argument("spec", nargs="?", help="design file (TOML); omitted: the built-in example")
-    p.add_argument("--example", default="robot-heading",
-                   help="built-in example when no file is given: robot-heading (default), cf3, ckf3, position")
+    p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), cf3, ckf3, "
+                                      "position")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
     p.set_defaults(run=cmd_design)

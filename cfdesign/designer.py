@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import platform
+import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import reduce
@@ -40,6 +41,8 @@ __all__ = ["design", "Schedule", "multirate_schedule", "build_structure", "noise
            "designed_observer"]
 
 _RATE_RTOL = 1e-9
+#: largest multirate period (base steps) a design may have
+MAX_PERIOD = 10_000
 
 
 @dataclass(frozen=True)
@@ -74,28 +77,31 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
         if name not in inputs:
             every[name] = round(ratio)
     period = reduce(math.lcm, every.values(), 1)
+    if period > MAX_PERIOD:
+        raise SpecError(f"sensors: the rates give a period of {period} base steps (more than {MAX_PERIOD}); "
+                        "choose rates with a smaller common multiple")
     return Schedule(1.0 / base, period, every)
 
 
 def build_structure(spec: FilterSpec):
     """The symbolic observer the spec names, with its options; errors name the field."""
     from .errors import StructureError
-    from .symbolic import STRUCTURES
+    from .symbolic.filters import STRUCTURE_OPTIONS, STRUCTURES, structure
 
     if spec.structure not in STRUCTURES:
         raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of {', '.join(STRUCTURES)}")
-    kwargs = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete}
-    allowed = {"cf2": {"order", "discrete"}, "cf3": {"discrete"}, "cfn": {"bands", "discrete"},
-               "position": {"discrete"}}.get(spec.structure, set())
-    for key, value in kwargs.items():
-        if value is not None and key not in allowed:
+    options = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete}
+    for key, value in options.items():
+        if value is not None and key not in STRUCTURE_OPTIONS[spec.structure]:
             raise SpecError(f"{key}: does not apply to structure {spec.structure}")
     if spec.structure == "cfn" and spec.bands is None:
         raise SpecError("bands: missing field (cfn needs the number of bands)")
     try:
-        obs = STRUCTURES[spec.structure](**{k: v for k, v in kwargs.items() if v is not None})
+        obs = structure(spec.structure, **options)
     except StructureError as exc:
         raise SpecError(f"structure {spec.structure}: {exc}") from None
+    if spec.sample_time_s is not None and not obs.discrete:
+        raise SpecError(f"sample_time_s: {obs.name} is continuous (set discrete = true where the structure allows)")
     _check_sensors(spec, obs)
     return obs
 
@@ -130,17 +136,26 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
         if s.role == "input":
             b = model["Bc"][:, s.index]
             Qc += np.outer(b, b) * x.noise.psd(x.rate_hz)
+            if s.bias_state is None and x.bias.model == "random_walk":
+                raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}; "
+                                "choose a structure that estimates it (e.g. cf2 order 2, dckf3, position)")
             if s.bias_state is not None:
                 if x.bias.psd == 0 and spec.gains is None:
                     raise SpecError(f"sensors.{s.name}.bias: {obs.name} estimates the {s.name} bias, which needs "
                                     "model = 'random_walk' with a density (a constant bias gives the bias state no "
                                     "process noise, so no stabilising optimal gain exists)")
                 Qc[s.bias_state, s.bias_state] += x.bias.psd
+        elif x.bias.model == "random_walk":
+            raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}, so a "
+                            "random-walk bias there cannot be designed for (a constant bias is allowed: it "
+                            "only enters simulations)")
         else:
             R[s.index, s.index] = x.noise.variance(x.rate_hz) if discrete else x.noise.psd(x.rate_hz)
             if R[s.index, s.index] == 0:
                 raise SpecError(f"sensors.{s.name}.noise: zero measurement noise makes R singular; "
                                 "give a positive std or density")
+    if not (np.all(np.isfinite(Qc)) and np.all(np.isfinite(R))):
+        raise SpecError("sensors: a noise or bias figure is too large to square in floating point")
     return Qc, R
 
 
@@ -159,7 +174,8 @@ def design(spec: FilterSpec) -> GainTable:
     Qc, R = noise_covariances(obs, spec, model, obs.discrete)
     if obs.discrete:
         Fd, Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)
-        assert np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12), "symbolic and numeric ZOH disagree"
+        if not np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12):
+            raise CfdesignError(f"{obs.name}: symbolic and numeric ZOH models disagree (a bug, please report it)")
         result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, spec.gains)
     else:
         Q = Qc
@@ -251,12 +267,26 @@ def _kalman_gain(F, H, Q, R, form):
     return (sol.K_filter if form == "filter" else sol.K_predictor), sol.P
 
 
-def _gain_result(K, F, H, Q, R, form, solver):
-    """Error covariances of a fixed gain, beside the Kalman optimum for comparison."""
+def _filtered(P, H, K, R):
+    """A-posteriori covariance of ``x+ = x- + K (y - H x-)`` for ANY gain (Joseph form)."""
+    IKH = np.eye(len(P)) - K @ H
+    return IKH @ P @ IKH.T + K @ R @ K.T
+
+
+def _output_covariance(F, H, K, Q, R, form):
+    """Covariance of the estimate the gain form outputs (a-posteriori for the filter form)."""
     P = _error_covariance(F, H, K, Q, R, form)
-    P_filtered = P - P @ H.T @ np.linalg.solve(H @ P @ H.T + R, H @ P) if form == "filter" else P
-    P_opt = _kalman_gain(F, H, Q, R, form)[1]
-    solver = {**solver, "kalman_predicted_variance": float(P_opt[0, 0]), "predicted_variance": float(P[0, 0])}
+    return _filtered(P, H, K, R) if form == "filter" else P
+
+
+def _gain_result(K, F, H, Q, R, form, solver, optimum):
+    """Error covariances of a fixed gain, beside the Kalman optimum ``(K_opt, P_opt)`` for comparison."""
+    P = _error_covariance(F, H, K, Q, R, form)
+    P_filtered = _filtered(P, H, K, R) if form == "filter" else P
+    K_opt, P_opt = optimum
+    out = _filtered(P_opt, H, K_opt, R) if form == "filter" else P_opt
+    mine = P_filtered if form == "filter" else P
+    solver = {**solver, "kalman_predicted_variance": float(out[0, 0]), "predicted_variance": float(mine[0, 0])}
     return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
 
 
@@ -271,11 +301,12 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed):
     K = _pattern_gain(pattern, free, [fixed[e] for e in free])
     if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
         raise SpecError(f"gains: the given gains do not stabilise {obs.name}")
-    return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"})
+    return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"},
+                        _kalman_gain(F, H, Q, R, form))
 
 
 def _sparse_gains(obs, F, H, Q, R, form):
-    """Minimise the estimate's error variance P[0, 0] over the free entries of the pattern."""
+    """Minimise the error variance of the estimate over the free entries of the pattern."""
     pattern = obs.gain_pattern()
     free = _free_names(pattern)
 
@@ -283,22 +314,31 @@ def _sparse_gains(obs, F, H, Q, R, form):
         K = _pattern_gain(pattern, free, values)
         if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
             return np.inf
-        P = _error_covariance(F, H, K, Q, R, form)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", linalg.LinAlgWarning)
+            try:
+                P = _output_covariance(F, H, K, Q, R, form)
+            except (linalg.LinAlgWarning, np.linalg.LinAlgError):
+                return np.inf  # too close to the stability boundary to evaluate
         return P[0, 0] if np.all(np.isfinite(P)) and P[0, 0] > 0 else np.inf
 
-    K_opt = _kalman_gain(F, H, Q, R, form)[0]
+    optimum = _kalman_gain(F, H, Q, R, form)
+    K_opt = optimum[0]
     start = _sparse_start(obs, pattern, free, K_opt, cost)
     best = optimize.minimize(cost, start, method="Nelder-Mead",
                              options={"xatol": 1e-10, "fatol": 1e-16, "maxiter": 20000, "maxfev": 40000})
     scale = 1e3 * max(1.0, np.abs(K_opt).max())
-    if not best.success or np.abs(best.x).max() > scale:
+    if not best.success and np.abs(best.x).max() <= scale:
+        raise SpecError(f"structure {obs.name}: the search for its best sparse gain did not converge "
+                        f"({best.message}); give hand-tuned gains in [gains] or use the full-gain structure")
+    if np.abs(best.x).max() > scale:
         reached = ", ".join(f"{name} = {value:.3g}" for name, value in zip(free, best.x, strict=True))
         raise SpecError(f"structure {obs.name}: its sparse gain pattern has no finite optimum for these noise "
                         f"figures (the error variance keeps falling as the gains grow: {reached}); "
                         "give hand-tuned gains in [gains] or use the full-gain structure")
     return _gain_result(_pattern_gain(pattern, free, best.x), F, H, Q, R, form,
-                        {"method": "sparse gain: Nelder-Mead on the Lyapunov error variance P[0,0]",
-                         "iterations": int(best.nit)})
+                        {"method": "sparse gain: Nelder-Mead on the Lyapunov error variance of the estimate",
+                         "iterations": int(best.nit)}, optimum)
 
 
 def _sparse_start(obs, pattern, free, K_opt, cost):
@@ -337,7 +377,10 @@ def _table(spec, obs, model, Q, R, schedule, result) -> GainTable:
     form = spec.gain_form if obs.discrete else "continuous"
     checks = _checks(obs, model, result, schedule, form)
     if not checks["stable"]:
-        raise CfdesignError(f"{spec.name}: the designed filter is not stable ({checks})")
+        roots = checks.get("poles", checks.get("monodromy_multipliers"))
+        worst = max(abs(complex(*r)) if obs.discrete else complex(*r).real for r in roots)
+        raise CfdesignError(f"{spec.name}: the designed filter is not stable (worst pole "
+                            f"{'magnitude' if obs.discrete else 'real part'} {worst:.6g})")
     gains = {}
     if len(result["K"]) == 1:
         for i, row in enumerate(obs.gain_pattern()):

@@ -99,7 +99,7 @@ def _identity_residual(bands) -> float:
         common = common if _same_poly(common, d) else np.polymul(common, d)
     total, scale = -common, np.abs(common).max()
     for num, d in bands.values():
-        q, r = np.polydiv(common, d)
+        q, _r = np.polydiv(common, d)
         term = np.polymul(num, q)
         total = np.polyadd(total, term)
         scale = max(scale, np.abs(term).max())
@@ -173,7 +173,7 @@ def _same_design(table, spec, rtol) -> list:
 
 def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
     """All checks for ``table`` (and ``spec`` when given), as a list of :class:`Check`."""
-    checks = _complementarity(table) + [_stability(table)]
+    checks = [*_complementarity(table), _stability(table)]
     if spec is not None:
         checks += _same_design(table, spec, rtol)
     return checks

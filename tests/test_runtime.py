@@ -93,7 +93,7 @@ def test_missing_readings_skip_the_update_and_hold_the_input(heading):
     data = readings(heading, 400)
     data["compass"][::3] = np.nan
     data["gyro"][5] = np.nan
-    est, rt = stream(heading, data)
+    est, _rt = stream(heading, data)
     assert np.all(np.isfinite(est))
     batch = Runtime(heading).run(data)  # NaN -> the general loop
     assert np.max(np.abs(batch - est)) < 1e-12

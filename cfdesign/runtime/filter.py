@@ -245,9 +245,7 @@ class Runtime:
         p = len(self.inputs)
         out = list(cols)
         for i in np.flatnonzero(self._wrap_rows):
-            col = out[p + i]
-            if np.abs(np.diff(col)).max(initial=0.0) > np.pi:
-                col = np.unwrap(col)
+            col = _unwrap(out[p + i])
             shift = 2 * np.pi * np.round((col[0] - (self.H @ self.x)[i]) / (2 * np.pi))
             out[p + i] = col - shift if shift else col
         return out
@@ -306,6 +304,17 @@ class _LtiBands:
             if est.min() <= -np.pi or est.max() > np.pi:
                 est = wrap(est)
         return est
+
+
+def _unwrap(col):
+    """``np.unwrap`` for sparse jumps: only the samples after a jump of more than pi move."""
+    d = np.diff(col)
+    jumps = np.flatnonzero(np.abs(d) > np.pi)
+    if not jumps.size:
+        return col
+    steps = np.zeros(len(col))
+    steps[jumps + 1] = -2 * np.pi * np.round(d[jumps] / (2 * np.pi))
+    return col + np.cumsum(steps)
 
 
 def _boundary_states(Phi, C, x0):

@@ -24,7 +24,7 @@ from ..errors import StructureError
 from .observer import Observer, Sensor, T, integrator_chain, s, z, zoh
 
 __all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "position", "ckf3_printed", "dckf3_printed",
-           "eq32_denominator", "STRUCTURES", "structure"]
+           "eq32_denominator", "STRUCTURES", "STRUCTURE_OPTIONS", "structure"]
 
 #: names of the derivatives of the common quantity, by order (sensor names of cfn)
 DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk", "snap", "crackle", "pop")
@@ -181,18 +181,25 @@ def dckf3_printed() -> dict:
 STRUCTURES = {"cf2": cf2, "cf3": cf3, "ckf3": ckf3, "dckf3": dckf3, "cfn": cfn, "position": position}
 
 
-def structure(name: str, *, order: int | None = None, bands: int | None = None) -> Observer:
-    """Build a named structure; ``order`` applies to cf2, ``bands`` to cfn."""
+#: the options each named structure takes (``bands`` is cfn's ``n``)
+STRUCTURE_OPTIONS = {"cf2": ("order", "discrete"), "cf3": ("discrete",), "ckf3": (), "dckf3": (),
+                     "cfn": ("bands", "full", "discrete"), "position": ("discrete",)}
+
+
+def structure(name: str, **options) -> Observer:
+    """Build a named structure with its options (None means the default).
+
+    ``order``: cf2 (1 or 2); ``bands`` and ``full``: cfn; ``discrete``: cf2, cf3, cfn, position.
+    """
     if name not in STRUCTURES:
         raise StructureError(f"unknown structure {name!r}; choose one of {', '.join(STRUCTURES)}")
-    if order is not None and name != "cf2":
-        raise StructureError(f"--order applies to cf2 only, not {name}")
-    if bands is not None and name != "cfn":
-        raise StructureError(f"--bands applies to cfn only, not {name}")
-    if name == "cf2":
-        return cf2(1 if order is None else order)
+    given = {key: value for key, value in options.items() if value is not None}
+    for key in given:
+        if key not in STRUCTURE_OPTIONS[name]:
+            allowed = ", ".join(STRUCTURE_OPTIONS[name]) or "none"
+            raise StructureError(f"option {key!r} does not apply to {name} (its options: {allowed})")
     if name == "cfn":
-        if bands is None:
-            raise StructureError("cfn needs the number of bands (--bands N)")
-        return cfn(bands)
-    return STRUCTURES[name]()
+        if "bands" not in given:
+            raise StructureError("cfn needs the number of bands (bands / --bands N)")
+        given["n"] = given.pop("bands")
+    return STRUCTURES[name](**given)

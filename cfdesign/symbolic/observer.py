@@ -168,9 +168,13 @@ def zoh(Fc, Bc, sample_time=T):
     For the kinematic chains here ``Fc`` is nilpotent, so both are polynomials in ``T``.
     """
     tau = sp.Dummy("tau", nonnegative=True)
-    Phi = sp.simplify((Fc * tau).exp())
-    B = (Phi * Bc).applyfunc(lambda e: sp.integrate(e, (tau, 0, sample_time)))
-    return sp.simplify(Phi.subs(tau, sample_time)), sp.simplify(B)
+    n = Fc.shape[0]
+    if (Fc**n).is_zero_matrix:  # nilpotent: the exponential series stops after n terms
+        Phi = sum(((Fc * tau) ** k / sp.factorial(k) for k in range(1, n)), sp.eye(n))
+    else:
+        Phi = sp.simplify((Fc * tau).exp())
+    B = (Phi * Bc).applyfunc(lambda e: sp.integrate(sp.expand(e), (tau, 0, sample_time)))
+    return Phi.subs(tau, sample_time).applyfunc(sp.expand), B.applyfunc(sp.expand)
 
 
 def zoh_chain(m: int, sample_time=T):
@@ -223,8 +227,13 @@ def parse_number(text: str, name: str = "value"):
     """Parse ``'2'``, ``'0.5'``, ``'1e-3'`` or ``'1/3'`` exactly, without evaluating code."""
     try:
         fr = Fraction(text.strip())
+        finite = math.isfinite(float(fr))
     except (ValueError, ZeroDivisionError):
         raise GainError(f"{name} must be a number, got {text!r}") from None
+    except OverflowError:
+        finite = False
+    if not finite:
+        raise GainError(f"{name} must be a finite double-precision number, got {text!r}")
     return sp.Rational(fr.numerator, fr.denominator)
 
 
@@ -326,17 +335,21 @@ class Observer:
     def parameters(self) -> tuple[sp.Symbol, ...]:
         """Free symbols other than ``s``/``z``: the gains, then the sample time if symbolic."""
         free = set().union(*(M.free_symbols for M in (self.F, self.B, self.H, self.K)))
-        free.discard(T)
-        free.discard(self.sample_time)
+        if self.discrete:
+            free.discard(self.sample_time)
         ordered = sorted(free, key=lambda x: x.name)
         if self.discrete and isinstance(self.sample_time, sp.Symbol):
             ordered.append(self.sample_time)
         return tuple(ordered)
 
     @property
+    def _sample_time_symbol(self):
+        return self.sample_time if self.discrete and isinstance(self.sample_time, sp.Symbol) else None
+
+    @property
     def gains(self) -> tuple[str, ...]:
         """Names of the symbolic gains still to be given numbers."""
-        return tuple(p.name for p in self.parameters if p is not T)
+        return tuple(p.name for p in self.parameters if p is not self._sample_time_symbol)
 
     def symbol(self, name: str) -> sp.Symbol:
         """The sympy symbol of parameter ``name`` (a gain or ``'T'``)."""
@@ -450,19 +463,24 @@ class Observer:
                             f"(parameters: {', '.join(params) or 'none'})")
         mapping = {params[k]: exact_number(v, k) for k, v in values.items()}
         sample_time = self.sample_time
-        if self.discrete and sample_time in mapping:
-            if mapping[sample_time] <= 0:
-                raise GainError(f"sample time T must be positive, got {values['T']}")
-            sample_time = mapping[sample_time]
-        new = Observer(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)),
-                       [Sensor(x.name, x.order, x.role, x.index,
-                               None if x.relation is None else x.relation.subs(mapping), x.bias_state)
-                        for x in self.sensors],
-                       domain=self.domain, sample_time=sample_time if self.discrete else None,
-                       gain_form=self.gain_form if self.discrete else "predictor",
-                       name=self.name, output=self.output.subs(mapping),
-                       continuous=self.continuous if self.discrete else None)
-        return new
+        if self._sample_time_symbol in mapping:
+            sample_time = mapping[self._sample_time_symbol]
+            if sample_time <= 0:
+                raise GainError(f"sample time {self._sample_time_symbol} must be positive, got {sample_time}")
+        sensors = [Sensor(x.name, x.order, x.role, x.index,
+                          None if x.relation is None else x.relation.subs(mapping), x.bias_state)
+                   for x in self.sensors]
+        return self._replace(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)), sensors=sensors,
+                             sample_time=sample_time, output=self.output.subs(mapping))
+
+    def _replace(self, F, B, H, K, *, sensors=None, sample_time=None, gain_form=None, output=None) -> Observer:
+        """A new observer with the given matrices, keeping everything not given."""
+        return Observer(F, B, H, K, self.sensors if sensors is None else sensors, domain=self.domain,
+                        sample_time=(sample_time if sample_time is not None else self.sample_time)
+                        if self.discrete else None,
+                        gain_form=gain_form or (self.gain_form if self.discrete else "predictor"),
+                        name=self.name, output=self.output if output is None else output,
+                        continuous=self.continuous if self.discrete else None)
 
     def with_gains(self, values: dict | None = None, /, **kwargs) -> Observer:
         """Like :meth:`subs` but every parameter must be given: the result is fully numeric."""
@@ -494,12 +512,11 @@ class Observer:
 
     def with_gain_matrix(self, K, gain_form: str | None = None, sample_time=None) -> Observer:
         """A numeric copy with gain matrix ``K`` (numbers), optionally another discrete gain form."""
-        obs = self.subs(T=sample_time) if sample_time is not None and self.discrete else self
+        obs = self
+        if sample_time is not None and self._sample_time_symbol is not None:
+            obs = self.subs({self._sample_time_symbol.name: sample_time})
         K = sp.Matrix([[exact_number(v, f"K[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(K)])
-        return Observer(obs.F, obs.B, obs.H, K, obs.sensors, domain=obs.domain,
-                        sample_time=obs.sample_time if obs.discrete else None,
-                        gain_form=gain_form or (obs.gain_form if obs.discrete else "predictor"),
-                        name=obs.name, output=obs.output, continuous=obs.continuous if obs.discrete else None)
+        return obs._replace(obs.F, obs.B, obs.H, K, gain_form=gain_form)
 
     @property
     def is_numeric(self) -> bool:
@@ -531,7 +548,10 @@ def _coefficients(expr, var):
     """Float coefficient arrays ``(num, den)``, highest power first, of a rational function."""
     num, den = (sp.Poly(p, var) for p in sp.fraction(sp.cancel(expr)))
     lead = den.LC()
-    return tuple(np.array([float(c / lead) for c in p.all_coeffs()]) for p in (num, den))
+    out = tuple(np.array([float(c / lead) for c in p.all_coeffs()]) for p in (num, den))
+    if not all(np.all(np.isfinite(c)) for c in out):
+        raise GainError("the gains give band coefficients that overflow double precision")
+    return out
 
 
 def _display(num, var):

@@ -1,0 +1,254 @@
+"""Render a discrete gain table as a portable C99 filter (see :mod:`cfdesign.codegen`)."""
+
+from __future__ import annotations
+
+import math
+import re
+from importlib import resources
+from pathlib import Path
+from string import Template
+
+import numpy as np
+
+from .. import __version__
+from ..errors import CfdesignError
+
+__all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
+
+#: the reserved words of ISO C99 (6.4.1)
+C99_KEYWORDS = frozenset("""
+    auto break case char const continue default do double else enum extern float for goto if
+    inline int long register restrict return short signed sizeof static struct switch typedef
+    union unsigned void volatile while _Bool _Complex _Imaginary
+""".split())
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+#: precision -> (C type, fmod function, literal suffix)
+_PRECISIONS = {"double": ("double", "fmod", ""), "float": ("float", "fmodf", "f")}
+#: generated files, in the order returned: (template, what the file holds)
+_FILES = (("gains.h", "the gain table as C99 constants"),
+          ("filter.h", "the filter's state and functions"),
+          ("filter.c", "the filter step (C99, libm only, no allocation)"))
+_ORDER_NAMES = {0: "angle/position", 1: "rate", 2: "acceleration"}
+
+
+def write_c(table, directory, *, prefix=None, precision="double") -> list[Path]:
+    """Write the table as C99 source: ``<prefix>_gains.h``, ``<prefix>_filter.h``, ``<prefix>_filter.c``.
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table in ``predictor`` or ``filter`` gain form.
+    directory : str or Path
+        Output folder (created if missing); existing files of the same names are replaced.
+    prefix : str, optional
+        Prefix of every C name (files, types, functions, macros upper-cased); default from the
+        table's structure (e.g. ``dckf3``), else its name.  Must be a C identifier.
+    precision : {'double', 'float'}
+        The C arithmetic type.
+
+    Returns
+    -------
+    list of Path
+        The three files written.
+
+    Raises
+    ------
+    CfdesignError
+        The table cannot run (continuous), a name is not a C identifier, a value is not finite,
+        or the files cannot be written.
+    """
+    texts = render_c(table, prefix=prefix, precision=precision)
+    directory = Path(directory)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        paths = [directory / name for name in texts]
+        for path in paths:
+            path.write_text(texts[path.name])
+    except OSError as exc:
+        raise CfdesignError(f"cannot write C code to {directory}: {exc.strerror or exc}") from None
+    return paths
+
+
+def render_c(table, *, prefix=None, precision="double") -> dict:
+    """The generated C files as ``{file name: text}`` without writing them (see :func:`write_c`)."""
+    fields = _fields(table, prefix, precision)
+    out = {}
+    for stem, what in _FILES:
+        name = f"{fields['prefix']}_{stem}"
+        header = _template("header").substitute(fields, file=name, what=what)
+        out[name] = _template(stem).substitute(fields, header=header)
+    return out
+
+
+def check_c_identifier(name, what: str) -> str:
+    """Return ``name`` if it can start a C identifier, else raise CfdesignError naming ``what``.
+
+    Rejected: anything outside ``[A-Za-z_][A-Za-z0-9_]*``, C99 keywords and names the C
+    standard reserves (a leading double underscore, or underscore and capital letter).
+    """
+    if not isinstance(name, str) or not _IDENTIFIER.match(name):
+        problem = "is not a C identifier (letters, digits and _, not starting with a digit)"
+    elif name in C99_KEYWORDS:
+        problem = "is a C99 keyword"
+    elif name.startswith("__") or re.match(r"_[A-Z]", name):
+        problem = "is reserved in C (leading __ or _ and a capital letter)"
+    else:
+        return name
+    raise CfdesignError(f"{what} {name!r} {problem}; C code needs a valid C identifier")
+
+
+# ---------------------------------------------------------------------- checks
+def _check_runnable(table):
+    if table.domain != "z" or table.gain_form not in ("predictor", "filter"):
+        raise CfdesignError(f"{table.name} is a continuous-time table ({table.gain_form} gains); C code runs "
+                            "discrete tables in predictor or filter form (design it with discrete = true)")
+
+
+def _default_prefix(table) -> str:
+    for text in (table.structure, table.name):
+        slug = re.sub(r"[^a-z0-9]+", "_", str(text).lower()).strip("_")
+        if slug and not slug[0].isdigit() and slug not in C99_KEYWORDS:
+            return slug
+    return "cf"
+
+
+def _sensors(table) -> list:
+    """Sensors by role and index, names checked; each role's indices must be 0, 1, ..."""
+    sensors = sorted(table.sensors, key=lambda s: (s["role"] != "input", s["index"]))
+    for s in sensors:
+        check_c_identifier(s["name"], f"{table.name}: sensor")
+    for role, count in (("input", table.B.shape[1]), ("measurement", table.H.shape[0])):
+        if [s["index"] for s in sensors if s["role"] == role] != list(range(count)):
+            raise CfdesignError(f"{table.name}: {role} sensor indices must be 0..{count - 1} (one per "
+                                f"{'column of B' if role == 'input' else 'row of H'})")
+    macros = [s["name"].upper() for s in sensors]
+    if len(set(macros)) < len(macros):
+        raise CfdesignError(f"{table.name}: sensor names {', '.join(s['name'] for s in sensors)} clash once "
+                            "upper-cased for the C macros; rename one")
+    return sensors
+
+
+# ---------------------------------------------------------------------- rendering
+def _fields(table, prefix, precision) -> dict:
+    """Every substitution of the templates."""
+    _check_runnable(table)
+    if precision not in _PRECISIONS:
+        raise CfdesignError(f"precision must be 'double' or 'float', got {precision!r}")
+    prefix = check_c_identifier(_default_prefix(table) if prefix is None else prefix, "C prefix")
+    real, fmod, suffix = _PRECISIONS[precision]
+    sensors = _sensors(table)
+    n, p, m = table.F.shape[0], table.B.shape[1], table.H.shape[0]
+    shapes = {"F": (n, n), "B": (n, max(p, 1)), "H": (max(m, 1), n), "K": (table.period, n, max(m, 1))}
+    arrays = {key: _initializer(_padded(getattr(table, key), shape, f"{table.name}: {key}"), suffix)
+              for key, shape in shapes.items()}
+    return {
+        **_provenance(table), **arrays, **_step_code(table, prefix), "prefix": prefix, "PREFIX": prefix.upper(),
+        "real": real, "fmod": fmod, "n": n, "p": p, "m": m, "p_alloc": max(p, 1), "m_alloc": max(m, 1),
+        "period": table.period, "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
+        "filter_form": int(table.gain_form == "filter"), "wrap_angle": int(bool(table.wrap_angle)),
+        "measured": _initializer(np.array([int(np.any(k != 0)) for k in table.K]), ""),
+        "sensor_macros": _sensor_macros(sensors, prefix),
+        "pi": _literal(math.pi, suffix, "pi"), "two_pi": _literal(2 * math.pi, suffix, "2 pi"),
+    }
+
+
+def _step_code(table, prefix) -> dict:
+    """The products of the step written out as C statements (see ``templates/filter.c.in``)."""
+    F, B, H, K = (np.asarray(a, dtype=float) for a in (table.F, table.B, table.H, table.K))
+    n, p, m = F.shape[0], B.shape[1], H.shape[0]
+    x, e, u = ([f"{name}[{j}]" for j in range(k)] for name, k in (("x", n), ("e", m), ("s->u_last", p)))
+    predictor, used = table.gain_form == "predictor", K.any(axis=0)  # K entries non-zero at some phase
+    return {"innovations": _lines(_innovations(table, prefix, H, x), 2),
+            "corrections": _lines([f"c[{r}] = {_sum('K', r, used[r], e)};" for r in range(n)], 2),
+            "update": _lines(_updates(prefix, F, B, x, u, predictor), 1),
+            "update_comment": "x = F x + B u + K (y - H x)" if predictor else "x = F x+ + B u"}
+
+
+def _innovations(table, prefix, H, x) -> list:
+    """``e[i] = y[i] - (H x)[i]``, wrapped for the angle sensors of angle tables; 0 if missing."""
+    angle = {s["index"] for s in table.sensors if s["role"] == "measurement" and s["order"] == 0}
+    out = []
+    for i, row in enumerate(H):
+        diff = f"y[{i}] - ({_sum(prefix + '_H', i, row, x)})"
+        value = f"{prefix}_wrap({diff}, 1)" if table.wrap_angle and i in angle else diff
+        out.append(f"e[{i}] = isnan(y[{i}]) ? 0 : {value};")
+    return out
+
+
+def _updates(prefix, F, B, x, u, predictor) -> list:
+    """``next = (F x) + (B u) [+ c]`` row by row, in the runtime's order; a zero ``B u`` left out."""
+    out = []
+    for r in range(len(F)):
+        terms = [f"({_sum(prefix + '_F', r, F[r], x)})"]
+        if B[r].any():
+            terms.append(f"({_sum(prefix + '_B', r, B[r], u)})")
+        out.append(f"next[{r}] = {' + '.join(terms + [f'c[{r}]'] * predictor)};")
+    return out
+
+
+def _sum(matrix, row, coefficients, terms) -> str:
+    """``matrix[row][j] * terms[j] + ...`` over the non-zero coefficients, in order; ``0`` if none."""
+    parts = [f"{matrix}[{row}][{j}] * {t}" for j, t in enumerate(terms) if coefficients[j]]
+    return " + ".join(parts) or "0"
+
+
+def _lines(statements, depth) -> str:
+    return "\n".join("    " * depth + s for s in statements)
+
+
+def _provenance(table) -> dict:
+    prov = table.provenance or {}
+    solver = prov.get("solver") or {}
+    fields = {"table_name": table.name, "structure": table.structure, "gain_form": table.gain_form,
+              "spec_sha256": prov.get("spec_sha256", "unknown"), "table_version": prov.get("cfdesign_version", "?"),
+              "created_utc": prov.get("created_utc", "unknown"), "generator_version": __version__,
+              "solver": solver.get("method", "unknown") if isinstance(solver, dict) else solver}
+    return {key: _comment_text(value) for key, value in fields.items()}
+
+
+def _comment_text(value) -> str:
+    """Text safe inside a C block comment: printable ASCII on one line, no comment delimiters."""
+    text = "".join(c if " " <= c <= "~" else "?" for c in str(value))
+    return text.replace("*/", "* /").replace("/*", "/ *")
+
+
+def _sensor_macros(sensors, prefix) -> str:
+    lines = []
+    for s in sensors:
+        kind = "U" if s["role"] == "input" else "Y"
+        note = f"{s['role']}, order {s['order']} ({_ORDER_NAMES.get(s['order'], '?')}), {s['rate_hz']:g} Hz"
+        lines.append(f"#define {prefix.upper()}_{kind}_{s['name'].upper()} {s['index']}  /* {s['name']}: {note} */")
+    return "\n".join(lines)
+
+
+def _padded(values, shape, what):
+    """``values`` as a float array of ``shape``, zero-padded where a dimension is empty."""
+    a = np.asarray(values, dtype=float)
+    if not np.isfinite(a).all():
+        raise CfdesignError(f"{what} has a value that is not finite; C code needs finite numbers")
+    out = np.zeros(shape)
+    out[tuple(slice(0, k) for k in a.shape)] = a
+    return out
+
+
+def _literal(value, suffix, what) -> str:
+    """A C floating constant with the value's full precision (``repr``: shortest round trip)."""
+    value = float(value)
+    if not math.isfinite(value):
+        raise CfdesignError(f"{what} is not finite; C code needs finite numbers")
+    return repr(value) + suffix
+
+
+def _initializer(a, suffix, depth=0) -> str:
+    """A brace initializer of a (nested) array, one innermost row per line."""
+    if a.ndim == 1:
+        items = [str(int(v)) if a.dtype.kind in "iub" else _literal(v, suffix, "value") for v in a]
+        return "{" + ", ".join(items) + "}"
+    sep = ",\n" + "    " * (depth + 1)
+    rows = sep.join(_initializer(row, suffix, depth + 1) for row in a)
+    return "{" + "\n" + "    " * (depth + 1) + rows + "\n" + "    " * depth + "}"
+
+
+def _template(stem) -> Template:
+    return Template((resources.files(__package__) / "templates" / f"{stem}.in").read_text())

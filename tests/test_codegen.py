@@ -1,0 +1,201 @@
+"""Generated C99 filter: agrees with the Python runtime, refuses what C cannot take, and
+matches the committed copy in tests/fixtures/codegen_dckf3/.
+
+After an intended change to the generated code, regenerate the committed copy with::
+
+    CFDESIGN_REGENERATE=1 python -m pytest tests/test_codegen.py -k committed
+
+and review the diff.
+"""
+
+import dataclasses
+import difflib
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+from string import Template
+
+import numpy as np
+import pytest
+
+import cfdesign
+from cfdesign.codegen import render_c, write_c
+from cfdesign.errors import CfdesignError
+from cfdesign.runtime import Runtime, wrap
+
+FIXTURES = Path(__file__).parent / "fixtures"
+COMMITTED = FIXTURES / "codegen_dckf3"
+CC = shutil.which("cc")
+CFLAGS = ["-std=c99", "-pedantic", "-O2", "-Wall", "-Wextra", "-Werror"]
+N = 100_000
+#: float precision: max |C - Python| <= FLOAT_BOUND * max |estimate| (as cfdesign.codegen documents)
+FLOAT_BOUND = {"robot-heading": 2e-6, "position": 1e-4}
+
+needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler: 'cc' is not on PATH, the generated C is not compiled")
+
+
+@pytest.fixture(scope="module")
+def tables():
+    return {name: cfdesign.design(cfdesign.load_spec(cfdesign.example_path(name)))
+            for name in ("robot-heading", "position")}
+
+
+@pytest.fixture(scope="module")
+def reference(tables):
+    """``{name: (readings, Python runtime estimates)}`` on the shared test signal."""
+    out = {}
+    for name, table in tables.items():
+        data = readings(table)
+        out[name] = data, Runtime(table).run(data)
+    return out
+
+
+def readings(table, seed=1):
+    """A slow sinusoid (its derivatives for rate/acceleration sensors) plus noise, 2 % NaN.
+
+    The heading swings over +-4 rad, so it crosses +-pi; angle readings are wrapped.
+    """
+    rng = np.random.default_rng(seed)
+    amplitude, period_s = (4.0, 2000.0) if table.wrap_angle else (50.0, 100.0)
+    w = 2 * np.pi / period_s
+    t = np.arange(N) * table.sample_time_s
+    truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
+    data = {}
+    for s in table.sensors:
+        values = truth[s["order"]] + 0.05 * rng.normal(size=N)
+        if table.wrap_angle and s["order"] == 0:
+            values = wrap(values)
+        values[rng.random(N) < 0.02] = np.nan
+        data[s["name"]] = values
+    return data
+
+
+def run_c(table, data, folder, precision):
+    """Generate, compile with the driver fixture, run on ``data``; the C estimates."""
+    prefix = write_c(table, folder, precision=precision)[0].name.removesuffix("_gains.h")
+    driver = folder / "driver.c"
+    template = Template((FIXTURES / "codegen_driver.c.in").read_text())
+    driver.write_text(template.substitute(prefix=prefix, PREFIX=prefix.upper()))
+    exe = folder / "driver"
+    build = subprocess.run([CC, *CFLAGS, "-o", str(exe), str(driver), str(folder / f"{prefix}_filter.c"), "-lm"],
+                           capture_output=True, text=True)
+    assert build.returncode == 0, f"generated C does not compile:\n{build.stderr}"
+    rt = Runtime(table)
+    rows = np.column_stack([data[name] for name in rt.inputs + rt.measurements]).astype(np.float64)
+    rows.tofile(folder / "in.bin")
+    subprocess.run([str(exe), str(folder / "in.bin"), str(folder / "out.bin")], check=True)
+    return np.fromfile(folder / "out.bin", dtype=np.float64)
+
+
+def difference(table, c, py):
+    """Max |C - Python|; headings modulo 2 pi (+pi and -pi are the same heading)."""
+    diff = c - py
+    return float(np.max(np.abs(wrap(diff) if table.wrap_angle else diff)))
+
+
+# ---------------------------------------------------------------------- agreement
+@needs_cc
+@pytest.mark.parametrize("name", ["robot-heading", "position"])
+@pytest.mark.parametrize("precision", ["double", "float"])
+def test_c_agrees_with_python_runtime(name, precision, tables, reference, tmp_path):
+    table = tables[name]
+    data, py = reference[name]
+    if table.wrap_angle:  # the test signal really crosses +-pi
+        assert np.any(np.abs(np.diff(py)) > np.pi)
+    c = run_c(table, data, tmp_path, precision)
+    assert c.shape == py.shape and np.isfinite(c).all()
+    bound = 1e-12 if precision == "double" else FLOAT_BOUND[name] * np.max(np.abs(py))
+    assert difference(table, c, py) <= bound
+
+
+@needs_cc
+def test_filter_form_angle_table_agrees(tables, tmp_path):
+    """Filter gains with heading wrap (the examples cover predictor + wrap and filter, no wrap)."""
+    spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    table = cfdesign.design(dataclasses.replace(spec, gain_form="filter"))
+    data = {k: v[:20_000] for k, v in readings(table).items()}
+    c = run_c(table, data, tmp_path, "double")
+    assert difference(table, c, Runtime(table).run(data)) <= 1e-12
+
+
+# ---------------------------------------------------------------------- refusals
+@pytest.mark.parametrize("bad", ["2gyro", "gyro rate", "gyro-1", "", "while", "int", "_Bool", "__gyro", "_Gyro",
+                                 "gyrö"])
+def test_sensor_name_must_be_c_identifier(bad, tables):
+    table = tables["robot-heading"]
+    sensors = [{**s, "name": bad} if s["name"] == "gyro" else s for s in table.sensors]
+    with pytest.raises(CfdesignError, match=f"sensor {re.escape(repr(bad))}"):
+        render_c(dataclasses.replace(table, sensors=sensors))
+
+
+def test_sensor_names_clashing_upper_case_are_refused(tables):
+    table = tables["robot-heading"]
+    sensors = [{**s, "name": "Compass"} if s["name"] == "odometry" else s for s in table.sensors]
+    with pytest.raises(CfdesignError, match="clash"):
+        render_c(dataclasses.replace(table, sensors=sensors))
+
+
+@pytest.mark.parametrize("bad", ["static", "1filter", "my-filter", "__cf"])
+def test_prefix_must_be_c_identifier(bad, tables, tmp_path):
+    with pytest.raises(CfdesignError, match="C prefix"):
+        write_c(tables["position"], tmp_path, prefix=bad)
+
+
+def test_continuous_table_is_refused(tmp_path):
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("ckf3")))
+    with pytest.raises(CfdesignError, match="continuous"):
+        write_c(table, tmp_path)
+    assert not list(tmp_path.iterdir())
+
+
+def test_bad_precision_and_unwritable_folder(tables, tmp_path):
+    with pytest.raises(CfdesignError, match="precision"):
+        render_c(tables["position"], precision="half")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(CfdesignError, match="cannot write"):
+        write_c(tables["position"], blocker / "c")
+
+
+def test_table_name_cannot_end_the_comment(tables):
+    table = dataclasses.replace(tables["position"], name="evil */ int x; /*\nmore")
+    header = render_c(table)["position_gains.h"]
+    assert " * source table : evil * / int x; / *?more\n" in header
+    assert header.count("*/") == header.count("/*")
+
+
+def test_prefix_and_files(tables, tmp_path):
+    paths = write_c(tables["position"], tmp_path / "out", prefix="imu_gps", precision="float")
+    assert [p.name for p in paths] == ["imu_gps_gains.h", "imu_gps_filter.h", "imu_gps_filter.c"]
+    header = paths[1].read_text()
+    assert "typedef float imu_gps_real;" in header and "imu_gps_step(imu_gps_state *s" in header
+    assert "#define IMU_GPS_Y_GPS 0" in paths[0].read_text()
+
+
+# ---------------------------------------------------------------------- committed copy
+_FLOAT = re.compile(r"(?<![\w.])-?(?:\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)f?")
+
+
+def normalised(text):
+    """Text without the created line and version numbers, floats replaced by ``#``; the floats."""
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(" * created"))
+    text = re.sub(r"cfdesign \d+\.\d+\.\d+\S*", "cfdesign <version>", text)
+    return _FLOAT.sub("#", text), [float(m.rstrip("f")) for m in _FLOAT.findall(text)]
+
+
+def test_generated_code_matches_committed_copy(tables):
+    files = render_c(tables["robot-heading"])
+    if os.environ.get("CFDESIGN_REGENERATE"):
+        COMMITTED.mkdir(parents=True, exist_ok=True)
+        for name, text in files.items():
+            (COMMITTED / name).write_text(text)
+    regenerate = "CFDESIGN_REGENERATE=1 python -m pytest tests/test_codegen.py -k committed"
+    assert sorted(files) == sorted(p.name for p in COMMITTED.iterdir()), f"regenerate with: {regenerate}"
+    for name, text in files.items():
+        (got, got_numbers), (want, want_numbers) = normalised(text), normalised((COMMITTED / name).read_text())
+        diff = "\n".join(difflib.unified_diff(want.splitlines(), got.splitlines(), "committed", "generated",
+                                              lineterm=""))
+        assert got == want, f"{name} differs from the committed copy ({regenerate}):\n{diff}"
+        np.testing.assert_allclose(got_numbers, want_numbers, rtol=1e-9, atol=1e-15, err_msg=name)
