@@ -144,3 +144,60 @@ def test_designed_observer_is_the_symbolic_structure_with_gains():
     spec = load_spec(example_path("ckf3"))
     obs = designed_observer(spec, design(spec))
     assert obs.is_numeric and obs.proof().holds
+
+
+def test_cfn_design_file():
+    sensors = {n: {"rate_hz": 50.0, "noise": {"std": 0.1}} for n in ("position", "velocity", "acceleration")}
+    table = design(parse_spec({"structure": "cfn", "bands": 3, "discrete": True, "sensors": sensors,
+                               "gains": {"k1": 2.0, "k2": 1.0}}))
+    assert table.checks["stable"] and table.gains == {"k1": 2.0, "k2": 1.0}
+
+
+def test_fixed_filter_gain_covariance_matches_iterated_recursion():
+    """Joseph form: iterate P- -> P+ = (I-KH)P-(I-KH)' + KRK' -> F P+ F' + Q for a NON-optimal K."""
+    spec = dckf3_spec(gain_form="filter", gains={"k11": 0.3, "k12": 0.2, "k21": 0.01, "k22": 0.02})
+    table = design(spec)
+    F, H, Q, R, K = table.F, table.H, table.Q, table.R, table.K[0]
+    I_KH = np.eye(2) - K @ H
+    P = np.eye(2)
+    for _ in range(20000):
+        Pp = I_KH @ P @ I_KH.T + K @ R @ K.T
+        P = F @ Pp @ F.T + Q
+    assert np.allclose(table.P[0], P, rtol=1e-9)
+    assert np.allclose(table.P_filtered[0], Pp, rtol=1e-9)
+    assert table.predicted_std == pytest.approx(np.sqrt(Pp[0, 0]), rel=1e-9)
+    # and the optimum is better
+    assert table.provenance["solver"]["kalman_predicted_variance"] < Pp[0, 0]
+
+
+def test_periodic_gains_every_phase_match_the_iterated_recursion():
+    table = design(load_spec(example_path("position")))
+    F, H, Q, R = table.F, table.H, table.Q, table.R
+    P = np.eye(3)
+    for _ in range(1500):  # whole periods (error shrinks by ~0.968 per period), GPS at phase 0
+        for k in range(50):
+            if k == 0:
+                Kf = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+                P = (np.eye(3) - Kf @ H) @ P
+            P = F @ P @ F.T + Q
+    for k in range(50):
+        scale = np.abs(table.P[k]).max()
+        assert np.abs(table.P[k] - P).max() <= 1e-10 * scale, k
+        if k == 0:
+            Kf = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
+            assert np.allclose(table.K[0], Kf, rtol=1e-10, atol=0)
+            P = (np.eye(3) - Kf @ H) @ P
+        P = F @ P @ F.T + Q
+
+
+def test_unmodelled_biases_and_huge_periods_are_refused():
+    data = {"structure": "dckf3", "sensors": {
+        "gyro": {"rate_hz": 5.0, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-3}},
+        "compass": {"rate_hz": 5.0, "noise": {"std": 0.04}},
+        "odometry": {"rate_hz": 5.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-3}}}}
+    with pytest.raises(SpecError, match=r"sensors\.odometry\.bias"):
+        design(parse_spec(data))
+    data["sensors"]["odometry"]["bias"] = {"model": "constant", "value": 0.01}  # simulation only: allowed
+    design(parse_spec(data))
+    with pytest.raises(SpecError, match="period"):
+        multirate_schedule({"imu": 100.0, "a": 100.0 / 101, "b": 100.0 / 103}, inputs=["imu"])

@@ -145,3 +145,21 @@ def test_time_domain_run_equals_band_filters():
     for num, den in coeffs.values():  # powers of z -> powers of z^-1: pad the numerator
         parts = parts + signal.lfilter(np.r_[np.zeros(len(den) - len(num)), num], den, psi)
     assert np.max(np.abs(parts[-500:] - psi[-500:])) < 1e-9
+
+
+def test_continuous_observer_may_use_a_symbol_named_T():
+    tau = sp.Symbol("T", positive=True)  # the same symbol the discrete filters use
+    obs = Observer([[-1 / tau]], [[1]], [[1]], [[sp.Symbol("k")]],
+                   [Sensor.input("rate", "rate"), Sensor.measurement("angle", "angle", 0)])
+    assert {p.name for p in obs.parameters} == {"k", "T"}
+    assert not obs.with_gains(k=1, T=2).parameters
+
+
+def test_design_with_bad_bode_path_writes_nothing(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "g.json"
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", "-o", str(out), "--bode",
+                           str(tmp_path / "missing" / "b.png")], capture_output=True, text=True)
+    assert proc.returncode == 2 and not out.exists()
