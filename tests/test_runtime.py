@@ -153,3 +153,13 @@ def test_bad_inputs(heading):
     continuous = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("ckf3")))
     with pytest.raises(CfdesignError, match="continuous-time"):
         Runtime(continuous)
+
+
+@pytest.mark.parametrize("crossings", [1, 3, 50])
+def test_sparse_unwrap_equals_numpy(crossings):
+    from cfdesign.runtime.filter import _unwrap
+
+    rng = np.random.default_rng(crossings)
+    angle = np.cumsum(rng.normal(0, 0.05, 20000)) + np.linspace(0, 2 * np.pi * crossings, 20000)
+    wrapped = wrap(angle)
+    assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)

@@ -302,7 +302,9 @@ class _LtiBands:
         if rt.table.wrap_angle:
             rt.x[0] = _wrap_scalar(rt.x[0])
             if est.min() <= -np.pi or est.max() > np.pi:
-                est = wrap(est)
+                np.subtract(np.pi, est, out=est)  # wrap in place: pi - mod(pi - a, 2 pi)
+                np.mod(est, 2 * np.pi, out=est)
+                np.subtract(np.pi, est, out=est)
         return est
 
 
@@ -312,9 +314,14 @@ def _unwrap(col):
     jumps = np.flatnonzero(np.abs(d) > np.pi)
     if not jumps.size:
         return col
-    steps = np.zeros(len(col))
-    steps[jumps + 1] = -2 * np.pi * np.round(d[jumps] / (2 * np.pi))
-    return col + np.cumsum(steps)
+    shifts = -2 * np.pi * np.round(d[jumps] / (2 * np.pi))
+    if jumps.size > 3:
+        edges = np.concatenate([[0], jumps + 1, [len(col)]])
+        return col + np.repeat(np.concatenate([[0.0], np.cumsum(shifts)]), np.diff(edges))
+    col = col.copy()
+    for j, shift in zip(jumps, shifts, strict=True):  # a few jumps: shift each tail in place
+        col[j + 1:] += shift
+    return col
 
 
 def _boundary_states(Phi, C, x0):
