@@ -161,6 +161,14 @@ class GainTable:
         covs = self.P_filtered if self.gain_form == "filter" else self.P
         return float(np.sqrt(max(c[0, 0] for c in covs)))
 
+    def phase_model(self, phase: int) -> tuple:
+        """``(F, B, H_k, K_k)`` of one phase: ``H_k`` keeps the rows of the sensors measured at
+        that phase and ``K_k`` their gain columns (the per-phase view of a multirate table)."""
+        k = phase % self.period
+        names = [s["name"] for s in sorted(self.sensors, key=lambda s: s["index"]) if s["role"] == "measurement"]
+        rows = [i for i, name in enumerate(names) if name in self.measured[k]]
+        return self.F, self.B, self.H[rows, :], self.K[k][:, rows]
+
     def sensor_names(self, role: str | None = None) -> list:
         return [s["name"] for s in self.sensors if role is None or s["role"] == role]
 

@@ -103,6 +103,7 @@ def test_multirate_position_filter_gains_zero_between_fixes():
         else:
             assert table.measured[k] == [] and np.all(K == 0)
     assert table.checks["stable"] and table.checks["complementary"]
+    assert table.phase_model(0)[2].shape == (1, 3) and table.phase_model(1)[2].shape == (0, 3)
     # lifted check: P[0] solves the DARE of (F^N, H, sum F^i Q F^iT, R) (MATH.md §6)
     F, H, Q, R = table.F, table.H, table.Q, table.R
     FN = np.linalg.matrix_power(F, 50)
