@@ -27,7 +27,8 @@ _LAZY = {
     "cfdesign.runtime": ["Runtime"],
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
-_MODULES = {"riccati", "runtime", "symbolic", "analysis", "plot", "noise", "spec", "gains", "designer", "testing"}
+_MODULES = {"riccati", "runtime", "symbolic", "analysis", "plot", "noise", "spec", "gains", "designer", "testing",
+            "sim", "reproduce", "verify", "codegen", "export"}
 
 __all__ = ["__version__", "CfdesignError", "SpecError", "StructureError", "GainError", "ProofError",
            "RiccatiError", *_WHERE, *sorted(_MODULES)]

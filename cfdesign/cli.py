@@ -294,6 +294,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("data", help="CSV with one column per sensor (named as in the table) and an optional time")
     p.add_argument("-o", "--output", required=True, help="CSV of estimates to write")
     p.set_defaults(run=cmd_run)
+
+    from .reproduce import add_parser as add_reproduce
+
+    add_reproduce(sub)
     return parser
 
 

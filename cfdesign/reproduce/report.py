@@ -1,0 +1,98 @@
+"""Our Monte-Carlo numbers beside a paper's: mean, confidence interval, ratio, agreement."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..sim.metrics import mean_ci
+
+__all__ = ["Comparison", "RATIO_RANGE", "format_table", "order_disagreements"]
+
+#: ratios ours/paper outside this range are explained, not hidden
+RATIO_RANGE = (1 / 3, 3.0)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One row: its label cells, our per-run values, the paper's value and a note."""
+
+    cells: tuple
+    values: tuple
+    paper: float
+    note: str = ""
+    confidence: float = 0.95
+
+    @property
+    def stats(self) -> tuple:
+        """``(mean, low, high)``: mean over the runs and its Student-t interval, clipped at 0.
+
+        The values are mean squares: a t-interval of a few skewed values can reach below
+        zero, which says only that the interval is wide.
+        """
+        mean, low, high = mean_ci(self.values, self.confidence)
+        return mean, max(low, 0.0), high
+
+    @property
+    def mean(self) -> float:
+        return self.stats[0]
+
+    @property
+    def ratio(self) -> float:
+        """Ours over the paper's."""
+        return self.mean / self.paper
+
+    @property
+    def in_range(self) -> bool:
+        return RATIO_RANGE[0] <= self.ratio <= RATIO_RANGE[1]
+
+    def to_dict(self, names) -> dict:
+        mean, low, high = self.stats
+        return {**dict(zip(names, self.cells, strict=True)), "mse": mean,
+                "ci": [_finite(low), _finite(high)], "confidence": self.confidence,
+                "paper": self.paper, "ratio": self.ratio, "ratio_in_range": self.in_range,
+                "runs": list(self.values), "note": self.note}
+
+
+def _finite(x):
+    return None if math.isnan(x) else x
+
+
+def _ci_text(low, high) -> str:
+    return "-" if math.isnan(low) else f"[{low:.2e}, {high:.2e}]"
+
+
+def format_table(title: str, headers, rows) -> str:
+    """A plain-text table: label columns, then ours, its CI, the paper's value and the ratio.
+
+    Rows whose ratio lies outside :data:`RATIO_RANGE` are flagged ``*`` and their notes are
+    printed under the table.
+    """
+    conf = f"{rows[0].confidence:.0%} CI" if rows else "CI"
+    head = [*headers, "MSE ours", conf, "paper", "ours/paper"]
+    body = []
+    for row in rows:
+        mean, low, high = row.stats
+        flag = "" if row.in_range else " *"
+        body.append([*row.cells, f"{mean:.2e}", _ci_text(low, high), f"{row.paper:.2e}", f"{row.ratio:.3g}{flag}"])
+    widths = [max(len(str(r[i])) for r in [head, *body]) for i in range(len(head))]
+    lines = [title, "  ".join(h.ljust(w) for h, w in zip(head, widths, strict=True))]
+    lines += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths, strict=True)) for r in body]
+    notes = [f"  * {' / '.join(r.cells)}: {r.note}" for r in rows if not r.in_range and r.note]
+    return "\n".join(lines + notes)
+
+
+def order_disagreements(ours, paper, tie: float = 0.05) -> list:
+    """Index pairs ``(i, j)`` that the paper orders one way and we the other.
+
+    Pairs whose paper values lie within ``tie`` (relative) of each other are ties in the
+    paper's rounding and constrain nothing.
+    """
+    bad = []
+    for i in range(len(paper)):
+        for j in range(i + 1, len(paper)):
+            if abs(paper[i] - paper[j]) <= tie * max(paper[i], paper[j]):
+                continue
+            if (ours[i] < ours[j]) != (paper[i] < paper[j]):
+                bad.append((i, j))
+    return bad

@@ -1,0 +1,113 @@
+"""Band assignments as observers: which sensor drives the filter and which are measured.
+
+A complementary filter's bands are fixed by how each sensor enters the observer
+(MATH.md §1-§5), so an assignment "low-pass X, band-pass Y, high-pass Z" (seed 001 Tables
+I and II) is a structure:
+
+* **high-pass** - the *input*: the sensor's rate drives ``x[k+1] = F x + B u``, with a
+  rate-correction state that absorbs its rate bias.  Its band is ``(z - 1)^2/den``: no DC,
+  no ramp, so a constant rate bias (odometry's drift) cannot reach the estimate.
+* **low-pass** - a heading *measurement* with a path to the rate-correction state: it
+  carries the estimate's DC (its band's DC gain is 1).
+* **band-pass** - a second heading measurement whose innovation does not reach the
+  rate-correction state: the gain entry ``k22`` of the DCKF³ is held at zero, and its band
+  ``k12 (z - 1)/den`` has no DC.
+
+Two sensors (Table I): ``cf2(order=2, discrete=True)`` with the high-pass sensor as its
+rate input and the low-pass sensor as its angle; its Kalman gain is optimal.  Three sensors
+(Table II): the DCKF³ of seed 001 eqs. (25)-(27) with ``k22 = 0``: the gains are the best
+this band assignment allows (the designer's rule for sparse gain patterns: minimum
+steady-state error variance ``P[0, 0]``), the CF³ of the paper.  Sensors are renamed after
+the physical sensor in each port; a heading sensor in the input port is fed its
+differenced heading, a gyro in a measurement port its dead-reckoned heading
+(:mod:`cfdesign.sim.signals`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+__all__ = ["banded_observer", "design_observer"]
+
+
+def _renamed(observer, names: dict, label: str):
+    """The same observer with its sensors renamed ``{old: new}``."""
+    from ..symbolic import Observer
+
+    sensors = [replace(s, name=names[s.name]) for s in observer.sensors]
+    return Observer(observer.F, observer.B, observer.H, observer.K, sensors, domain=observer.domain,
+                    sample_time=observer.sample_time, gain_form=observer.gain_form, name=label,
+                    continuous=observer.continuous)
+
+
+def banded_observer(low: str, high: str, band: str | None = None):
+    """The discrete observer that puts ``low``, ``band`` and ``high`` in those bands.
+
+    Two sensors: ``cf2(order=2, discrete=True)`` with ports ``rate <- high``, ``angle <- low``;
+    bands ``T_high = (z - 1)^2/den``, ``T_low = (k1 (z - 1) + T k2)/den`` (MATH.md §2).
+    Three sensors: the DCKF³ of seed 001 eqs. (25)-(27) with ``k22 = 0``, ports
+    ``gyro <- high``, ``compass <- low``, ``odometry <- band``; with eq. (32)'s denominator
+    ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21``:
+
+        T_high = (z - 1)^2/den,  T_low = (k11 (z - 1) + T k21)/den,  T_band = k12 (z - 1)/den.
+
+    Parameters
+    ----------
+    low, high : str
+        Sensor names (identifiers) in the low-pass band (a heading measurement) and the
+        high-pass band (the rate input, with a bias state).
+    band : str, optional
+        Sensor in the band-pass band (a heading measurement with no path to the bias state).
+
+    Returns
+    -------
+    Observer
+        Discrete (``z``, sample time ``T`` symbolic), predictor gain form, gains symbolic.
+    """
+    from ..symbolic import cf2, dckf3
+
+    if band is None:
+        return _renamed(cf2(order=2, discrete=True), {"rate": high, "angle": low}, f"cf2: LP {low}, HP {high}")
+    return _renamed(dckf3().subs(k22=0), {"gyro": high, "compass": low, "odometry": band},
+                    f"cf3: LP {low}, BP {band}, HP {high}")
+
+
+def design_observer(spec, observer):
+    """:func:`cfdesign.design` for an observer built on the engine rather than named in ``spec``.
+
+    The same path as the designer - sensor checks, multirate schedule, noise covariances,
+    Van Loan, DARE (seed 001 eq. (28), predictor form of eq. (25)) or, for a sparse gain
+    pattern, the gains minimising the steady-state ``P[0, 0]``, exact checks - with
+    ``observer`` in place of ``build_structure(spec)``.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+        Sensors named as the observer's; ``structure`` is only a label here.
+    observer : Observer
+        Discrete, with symbolic gains.
+
+    Returns
+    -------
+    GainTable
+
+    Notes
+    -----
+    Interim: it calls the designer's private steps until the designer accepts an observer
+    (``design(spec, observer=...)``).
+    """
+    from .. import designer
+    from ..errors import SpecError
+    from ..noise import van_loan
+
+    if not observer.discrete:
+        raise SpecError(f"{observer.name}: only discrete observers are designed here")
+    designer._check_sensors(spec, observer)
+    inputs = [s.name for s in observer.sensors if s.role == "input"]
+    rates = {s.name: spec.sensor(s.name).rate_hz for s in observer.sensors}
+    schedule = designer.multirate_schedule(rates, inputs, spec.sample_time_s)
+    model = observer.numeric_model(schedule.sample_time_s)
+    Qc, R = designer.noise_covariances(observer, spec, model, True)
+    Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)[1]
+    result = designer._discrete_gains(observer, model, Q, R, schedule, spec.gain_form, spec.gains)
+    return designer._table(spec, observer, model, Q, R, schedule, result)

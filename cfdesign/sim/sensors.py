@@ -1,0 +1,201 @@
+"""Sensor models: turn a :class:`~cfdesign.sim.trajectory.Trajectory` into readings.
+
+The noise and bias of a model are the objects a design file builds
+(:class:`cfdesign.noise.WhiteNoise`, :class:`cfdesign.noise.Bias`), read with the same
+conventions (:mod:`cfdesign.noise`), so a simulation can generate exactly the noise a
+design assumed:
+
+* a **rate sensor** (gyro) reads the *mean* rate over each sample interval - the
+  delta-angle of an integrating gyro divided by ``T``, the zero-order-hold input of seed 001
+  eq. (25) - plus its bias and white noise.  White noise of per-sample standard deviation
+  ``sigma`` at ``f`` Hz is the average over ``1/f`` s of a white noise of PSD
+  ``sigma**2 / f``; a random-walk bias of density ``d`` is integrated exactly over each
+  interval (mean ``b_k + I_k/T`` with ``Var I_k = d^2 T^3/3``, ``Cov(I_k, b_(k+1) - b_k) =
+  d^2 T^2/2``), which is the Van Loan discretisation the designer uses;
+* a **heading sensor** (compass, odometry heading) samples the heading at each sample time,
+  plus an offset (constant or random walk), a drift (a constant rate error integrated, as
+  odometry's), a heading-dependent magnetic perturbation and white noise; its readings are
+  wrapped to (-pi, pi].
+
+Sensors slower than the trajectory read every ``n``-th sample (``n`` an integer); the other
+samples, and dropped readings, are NaN - the runtime's "missing" (cfdesign.runtime).  Every
+random draw comes from the generator passed in: :func:`simulate` gives each sensor its own
+stream, seeded by the run's seed and the sensor's name.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from ..noise import Bias, WhiteNoise
+from ..runtime import wrap
+from .trajectory import Trajectory
+
+__all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate"]
+
+
+@dataclass(frozen=True)
+class MagneticPerturbation:
+    """Heading-dependent compass error ``amplitude_rad * sin(harmonic * psi + phase_rad)`` (rad).
+
+    ``harmonic = 1`` is a hard-iron-like error, ``2`` a soft-iron-like one.  Seed 001 Sec. V-A:
+    ``20 sin(psi)`` (read as degrees, see :mod:`cfdesign.sim.seed001`).
+    """
+
+    amplitude_rad: float
+    harmonic: int = 1
+    phase_rad: float = 0.0
+
+    def __call__(self, heading_rad):
+        return self.amplitude_rad * np.sin(self.harmonic * np.asarray(heading_rad) + self.phase_rad)
+
+
+#: defaults: no white noise, no bias
+_NO_NOISE = WhiteNoise(std=0.0)
+_NO_BIAS = Bias()
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Sensor:
+    """What every sensor model has: white noise, bias, rate and dropouts."""
+
+    noise: WhiteNoise = _NO_NOISE
+    bias: Bias = _NO_BIAS
+    rate_hz: float | None = None
+    dropout: float = 0.0
+
+    def every(self, dt_s: float) -> int:
+        """Trajectory samples per reading; the sensor rate must divide the trajectory rate."""
+        if self.rate_hz is None:
+            return 1
+        ratio = 1.0 / (dt_s * self.rate_hz) if self.rate_hz > 0 else 0.0
+        if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
+            raise SpecError(f"rate_hz: {self.rate_hz:g} Hz is not the trajectory rate {1 / dt_s:g} Hz divided by an "
+                            "integer")
+        return round(ratio)
+
+    def sensor_rate_hz(self, dt_s: float) -> float:
+        return 1.0 / (dt_s * self.every(dt_s))
+
+    def _keep(self, values, every, rng):
+        """NaN where the sensor does not read (off its rate) or the reading is dropped."""
+        if not 0.0 <= self.dropout < 1.0:
+            raise SpecError(f"dropout: a probability in [0, 1) is needed, got {self.dropout!r}")
+        out = np.full(len(values), np.nan)
+        out[::every] = values[::every]
+        if self.dropout:
+            out[rng.random(len(out)) < self.dropout] = np.nan
+        return out
+
+
+def _bias_path(bias: Bias, steps: int, dt_s: float, rng):
+    """Bias at the ``steps + 1`` sample times and its mean over each of the ``steps`` intervals.
+
+    A constant bias is ``bias.value``; a random walk starts at ``bias.value`` and is drawn
+    exactly with its within-interval integral (module docstring).
+    """
+    if bias.model == "constant":
+        return np.full(steps + 1, bias.value), np.full(steps, bias.value)
+    q = bias.psd
+    increments = math.sqrt(q * dt_s) * rng.normal(size=steps)
+    integrals = 0.5 * dt_s * increments + math.sqrt(q * dt_s**3 / 12) * rng.normal(size=steps)
+    at_samples = bias.value + np.concatenate([[0.0], np.cumsum(increments)])
+    return at_samples, at_samples[:-1] + integrals / dt_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class RateSensor(_Sensor):
+    """A rate gyro (or any rate sensor): mean rate over each interval + bias + white noise (rad/s).
+
+    Parameters
+    ----------
+    noise : WhiteNoise
+        Per-sample std (rad/s) at ``rate_hz``, or a density (rad/s/sqrt(Hz)).
+    bias : Bias
+        Constant ``value`` (rad/s) or a random walk (density rad/s/sqrt(s), starting at ``value``).
+    rate_hz : float, optional
+        Sensor rate; default the trajectory's.  A slower sensor averages over its own interval.
+    dropout : float
+        Probability that a reading is missing (NaN).
+    """
+
+    def read(self, trajectory: Trajectory, rng) -> np.ndarray:
+        """Readings over the ``N`` intervals, shape (N,); NaN where missing."""
+        dt, steps = trajectory.dt_s, trajectory.steps
+        every = self.every(dt)
+        white = math.sqrt(self.noise.psd(self.sensor_rate_hz(dt)) / dt) * rng.normal(size=steps)
+        mean = trajectory.rate_rad_s + _bias_path(self.bias, steps, dt, rng)[1] + white
+        if every > 1:  # the mean over each of the sensor's own intervals, at its first sample
+            whole = steps // every * every
+            blocks = mean[:whole].reshape(-1, every).mean(axis=1)
+            mean = np.full(steps, np.nan)
+            mean[:whole:every] = blocks
+        return self._keep(mean, every, rng)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HeadingSensor(_Sensor):
+    """A heading sensor (compass, odometry): heading + offset + drift + perturbation + white noise.
+
+    Parameters
+    ----------
+    noise : WhiteNoise
+        Per-sample std (rad) at ``rate_hz``, or a density (rad/sqrt(Hz)).
+    bias : Bias
+        Offset: constant ``value`` (rad) or a random walk (rad/sqrt(s), starting at ``value``).
+    drift_rad_s : float
+        A constant rate error integrated into the heading (odometry's wheel-radius error).
+    perturbation : callable, optional
+        Heading-dependent error ``f(true heading)`` (rad), e.g. :class:`MagneticPerturbation`.
+    rate_hz, dropout
+        As for :class:`RateSensor`.
+    """
+
+    drift_rad_s: float = 0.0
+    perturbation: object = None
+
+    def read(self, trajectory: Trajectory, rng) -> np.ndarray:
+        """Readings at the ``N + 1`` sample times, wrapped to (-pi, pi], shape (N + 1,); NaN where missing."""
+        dt, steps = trajectory.dt_s, trajectory.steps
+        every = self.every(dt)
+        psi = trajectory.heading_rad
+        error = _bias_path(self.bias, steps, dt, rng)[0] + self.drift_rad_s * trajectory.t_s
+        if self.perturbation is not None:
+            error = error + self.perturbation(psi)
+        white = math.sqrt(self.noise.variance(self.sensor_rate_hz(dt))) * rng.normal(size=steps + 1)
+        return self._keep(wrap(psi + error + white), every, rng)
+
+
+def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
+    """Readings of every sensor for one run.
+
+    Each sensor draws from its own generator seeded by ``(seed, crc32(name))``: the same
+    seed gives the same readings, and adding or removing a sensor leaves the others' noise
+    unchanged.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+    sensors : dict
+        ``{name: RateSensor | HeadingSensor}``.
+    seed : int
+
+    Returns
+    -------
+    dict
+        ``{name: ndarray}``: shape (N,) for rate sensors (one reading per interval), (N + 1,)
+        for heading sensors (one per sample time); NaN where a reading is missing.
+    """
+    out = {}
+    for name, model in sensors.items():
+        rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
+        try:
+            out[name] = model.read(trajectory, rng)
+        except SpecError as exc:
+            raise SpecError(f"sensor {name}: {exc}") from None
+    return out
