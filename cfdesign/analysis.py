@@ -7,7 +7,6 @@ polynomials as float coefficient arrays (:meth:`Observer.band_coefficients`).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import pairwise
 
 import numpy as np
 
@@ -91,16 +90,18 @@ class FrequencyResponse:
     def crossovers(self) -> list:
         """``[(band_a, band_b, w)]``: where adjacent bands have equal magnitude (rad/s).
 
-        Bands are taken in :meth:`dominant_order`; for each neighbouring pair the first
-        sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method
-        on the exact band polynomials.
+        Bands are taken in :meth:`dominant_order`; each hands over to the next band that ever
+        reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).
+        The first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's
+        method on the exact band polynomials.
         """
         order = self.dominant_order()
-        found = []
-        for a, b in pairwise(order):
-            w = self._equal_magnitude(a, b)
+        found, current = [], order[0] if order else None
+        for b in order[1:]:
+            w = self._equal_magnitude(current, b)
             if w is not None:
-                found.append((a, b, w))
+                found.append((current, b, w))
+                current = b
         return found
 
     def _log_ratio(self, a, b, w):

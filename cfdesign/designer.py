@@ -100,10 +100,26 @@ def build_structure(spec: FilterSpec):
         obs = structure(spec.structure, **options)
     except StructureError as exc:
         raise SpecError(f"structure {spec.structure}: {exc}") from None
+    obs = _apply_ports(spec, obs)
     if spec.sample_time_s is not None and not obs.discrete:
         raise SpecError(f"sample_time_s: {obs.name} is continuous (set discrete = true where the structure allows)")
     _check_sensors(spec, obs)
     return obs
+
+
+def _apply_ports(spec, obs):
+    """Rename the structure's sensors after the physical sensors that play them (``port``)."""
+    ports = {x.port: x.name for x in spec.sensors if x.port is not None}
+    if not ports:
+        return obs
+    known = {s.name for s in obs.sensors}
+    for x in spec.sensors:
+        if x.port is not None and x.port not in known:
+            raise SpecError(f"sensors.{x.name}.port: {obs.name} has no sensor {x.port!r} "
+                            f"(it has {', '.join(sorted(known))})")
+    if len(ports) != sum(x.port is not None for x in spec.sensors):
+        raise SpecError("sensors: two sensors name the same port")
+    return obs.renamed(ports)
 
 
 def _check_sensors(spec, obs):
@@ -159,9 +175,19 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
     return Qc, R
 
 
-def design(spec: FilterSpec) -> GainTable:
-    """Optimal gains for ``spec``: see the module docstring for the noise model and patterns."""
-    obs = build_structure(spec)
+def design(spec: FilterSpec, observer=None) -> GainTable:
+    """Optimal gains for ``spec``: see the module docstring for the noise model and patterns.
+
+    ``observer`` (optional) replaces the structure the spec names: any observer built on the
+    engine, with symbolic gains and sensors named as in the spec.  A ``[gains]`` table that
+    gives only some of the gains fixes those and optimises the rest (a sparse pattern).
+    """
+    if observer is None:
+        obs = build_structure(spec)
+    else:
+        obs = observer
+        _check_sensors(spec, obs)
+    obs, fixed = _split_gains(obs, spec.gains)
     inputs = [s.name for s in obs.sensors if s.role == "input"]
     rates = {s.name: spec.sensor(s.name).rate_hz for s in obs.sensors}
     if obs.discrete:
@@ -176,11 +202,25 @@ def design(spec: FilterSpec) -> GainTable:
         Fd, Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)
         if not np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12):
             raise CfdesignError(f"{obs.name}: symbolic and numeric ZOH models disagree (a bug, please report it)")
-        result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, spec.gains)
+        result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, fixed)
     else:
         Q = Qc
-        result = _continuous_gains(obs, model, Q, R, spec.gains)
-    return _table(spec, obs, model, Q, R, schedule, result)
+        result = _continuous_gains(obs, model, Q, R, fixed)
+    return _table(spec, obs, model, Q, R, schedule, result, spec.gains)
+
+
+def _split_gains(obs, gains):
+    """``(observer, fixed)``: a partial ``[gains]`` is substituted (the rest stay free and are
+    optimised); a complete one is returned as the fixed gains."""
+    if not gains:
+        return obs, None
+    names = set(obs.gains)
+    unknown = sorted(set(gains) - names)
+    if unknown:
+        raise SpecError(f"gains: unknown {', '.join(unknown)} ({obs.name} has gains {', '.join(sorted(names))})")
+    if set(gains) == names:
+        return obs, gains
+    return obs.subs(gains), None
 
 
 # ---------------------------------------------------------------------------- gains
@@ -373,7 +413,7 @@ def _checks(obs, model, result, schedule, form):
     return {"complementary": numeric.proof().holds, "poles": _pairs(poles), "stable": _stable(poles, form)}
 
 
-def _table(spec, obs, model, Q, R, schedule, result) -> GainTable:
+def _table(spec, obs, model, Q, R, schedule, result, given=None) -> GainTable:
     form = spec.gain_form if obs.discrete else "continuous"
     checks = _checks(obs, model, result, schedule, form)
     if not checks["stable"]:
@@ -381,7 +421,7 @@ def _table(spec, obs, model, Q, R, schedule, result) -> GainTable:
         worst = max(abs(complex(*r)) if obs.discrete else complex(*r).real for r in roots)
         raise CfdesignError(f"{spec.name}: the designed filter is not stable (worst pole "
                             f"{'magnitude' if obs.discrete else 'real part'} {worst:.6g})")
-    gains = {}
+    gains = dict(given or {})
     if len(result["K"]) == 1:
         for i, row in enumerate(obs.gain_pattern()):
             for j, e in enumerate(row):

@@ -45,14 +45,17 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
         ax_ph.semilogx(f, resp.phase_deg(name), color=line.get_color())
     ax_mag.semilogx(f, resp.magnitude_db("sum"), "k--", lw=2, label="sum of bands")
     ax_ph.semilogx(f, resp.phase_deg("sum"), "k--", lw=2)
-    low = _finish_axes(ax_mag, ax_ph, resp, unit, title or _default_title(observer))
-    for a, b, w in resp.crossovers():
+    crossovers = resp.crossovers()
+    for a, b, w in crossovers:
         level = 20 * np.log10(abs(np.interp(w, resp.omega, np.abs(resp.bands[a]))))
         ax_mag.plot(w * scale, level, "o", color="0.3", ms=5)
         for ax in (ax_mag, ax_ph):
             ax.axvline(w * scale, color="0.5", ls=":", lw=1)
-        ax_mag.text(w * scale, low, f" {a}/{b} crossover: {w * scale:.3g} {unit}", rotation=90,
-                    fontsize=8, ha="right", va="bottom", color="0.25")
+        ax_ph.text(w * scale, 0.02, f" {a}/{b}: {w * scale:.3g} {unit}", rotation=90, fontsize=7,
+                   ha="right", va="bottom", color="0.25", transform=ax_ph.get_xaxis_transform())
+    if crossovers:
+        ax_mag.plot([], [], ":", color="0.5", marker="o", ms=4, label="crossover")
+    _finish_axes(ax_mag, ax_ph, resp, unit, title or _default_title(observer))
     fig.tight_layout()
     return fig
 
@@ -72,4 +75,3 @@ def _finish_axes(ax_mag, ax_ph, resp, unit, title):
     ax_ph.set_xlabel(f"frequency ({unit})" + (" - up to Nyquist" if resp.dt else ""))
     for ax in (ax_mag, ax_ph):
         ax.grid(True, which="both", alpha=0.3)
-    return low

@@ -9,14 +9,15 @@ A design file names a structure and describes each of its sensors::
     # wrap_angle = true            # a heading: angle readings and the estimate live in (-pi, pi]
     # discrete = true              # cf2, cf3, cfn: continuous unless true
     # order = 2                    # cf2 only;  bands = 4  # cfn only
-    # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones
-    # k1 = 12.6
+    # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones;
+    # k1 = 12.6                    # a subset fixes those gains and optimises the others
 
     [sensors.gyro]
     measures = "rate"              # optional check against the structure
     rate_hz = 5.0
     noise = { std = 0.0447 }       # u per sample, or { density = ... } in u/sqrt(Hz)
     bias = { model = "random_walk", density = 1e-4 }   # u/sqrt(s); or constant, value
+    # port = "compass"             # optional: the structure's sensor this one plays (default: its name)
 
 Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
 design file is only ever read as TOML data: nothing in it is evaluated.
@@ -44,13 +45,14 @@ EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
 #: built-in example design files, by short name
 EXAMPLES = {
     "robot-heading": "robot_heading_dckf3.toml",
+    "dckf3": "dckf3_fig6.toml",
     "cf3": "cf3_continuous.toml",
     "ckf3": "ckf3_continuous.toml",
     "position": "position_imu_gps.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
              "description", "gains", "wrap_angle"}
-_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias"}
+_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port"}
 
 
 @dataclass(frozen=True)
@@ -62,6 +64,7 @@ class SensorSpec:
     noise: WhiteNoise
     bias: Bias
     measures: str | None = None
+    port: str | None = None
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,7 @@ class FilterSpec:
 
 
 def example_path(name: str = "robot-heading") -> Path:
-    """Path of a built-in example design file (``robot-heading``, ``cf3``, ``ckf3``, ``position``)."""
+    """Path of a built-in example design file (``robot-heading``, ``dckf3``, ``cf3``, ``ckf3``, ``position``)."""
     if name not in EXAMPLES:
         raise SpecError(f"no built-in example {name!r}; choose one of {', '.join(EXAMPLES)}")
     return EXAMPLES_DIR / EXAMPLES[name]
@@ -168,7 +171,8 @@ def _sensor(name, body) -> SensorSpec:
                      density=_number(bias, "density", f"{field}.bias.density") or 0.0,
                      value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
                      field=f"{field}.bias")
-    return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"))
+    return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"),
+                      _text(body, "port", field=f"{field}.port"))
 
 
 def _no_unknown(table, allowed, prefix):

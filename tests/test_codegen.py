@@ -31,7 +31,7 @@ CC = shutil.which("cc")
 CFLAGS = ["-std=c99", "-pedantic", "-O2", "-Wall", "-Wextra", "-Werror"]
 N = 100_000
 #: float precision: max |C - Python| <= FLOAT_BOUND * max |estimate| (as cfdesign.codegen documents)
-FLOAT_BOUND = {"robot-heading": 2e-6, "position": 1e-4}
+FLOAT_BOUND = {"dckf3": 2e-6, "position": 1e-4}
 
 needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler: 'cc' is not on PATH, the generated C is not compiled")
 
@@ -39,7 +39,7 @@ needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler: 'cc' is not on 
 @pytest.fixture(scope="module")
 def tables():
     return {name: cfdesign.design(cfdesign.load_spec(cfdesign.example_path(name)))
-            for name in ("robot-heading", "position")}
+            for name in ("dckf3", "position")}
 
 
 @pytest.fixture(scope="module")
@@ -97,7 +97,7 @@ def difference(table, c, py):
 
 # ---------------------------------------------------------------------- agreement
 @needs_cc
-@pytest.mark.parametrize("name", ["robot-heading", "position"])
+@pytest.mark.parametrize("name", ["dckf3", "position"])
 @pytest.mark.parametrize("precision", ["double", "float"])
 def test_c_agrees_with_python_runtime(name, precision, tables, reference, tmp_path):
     table = tables[name]
@@ -113,7 +113,7 @@ def test_c_agrees_with_python_runtime(name, precision, tables, reference, tmp_pa
 @needs_cc
 def test_filter_form_angle_table_agrees(tables, tmp_path):
     """Filter gains with heading wrap (the examples cover predictor + wrap and filter, no wrap)."""
-    spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    spec = cfdesign.load_spec(cfdesign.example_path("dckf3"))
     table = cfdesign.design(dataclasses.replace(spec, gain_form="filter"))
     data = {k: v[:20_000] for k, v in readings(table).items()}
     c = run_c(table, data, tmp_path, "double")
@@ -124,14 +124,14 @@ def test_filter_form_angle_table_agrees(tables, tmp_path):
 @pytest.mark.parametrize("bad", ["2gyro", "gyro rate", "gyro-1", "", "while", "int", "_Bool", "__gyro", "_Gyro",
                                  "gyrö"])
 def test_sensor_name_must_be_c_identifier(bad, tables):
-    table = tables["robot-heading"]
+    table = tables["dckf3"]
     sensors = [{**s, "name": bad} if s["name"] == "gyro" else s for s in table.sensors]
     with pytest.raises(CfdesignError, match=f"sensor {re.escape(repr(bad))}"):
         render_c(dataclasses.replace(table, sensors=sensors))
 
 
 def test_sensor_names_clashing_upper_case_are_refused(tables):
-    table = tables["robot-heading"]
+    table = tables["dckf3"]
     sensors = [{**s, "name": "Compass"} if s["name"] == "odometry" else s for s in table.sensors]
     with pytest.raises(CfdesignError, match="clash"):
         render_c(dataclasses.replace(table, sensors=sensors))
@@ -186,7 +186,7 @@ def normalised(text):
 
 
 def test_generated_code_matches_committed_copy(tables):
-    files = render_c(tables["robot-heading"])
+    files = render_c(tables["dckf3"])
     if os.environ.get("CFDESIGN_REGENERATE"):
         COMMITTED.mkdir(parents=True, exist_ok=True)
         for name, text in files.items():

@@ -134,7 +134,7 @@ def test_gain_table_round_trip_is_exact(tmp_path):
 
 
 def test_provenance_names_spec_and_version():
-    spec = load_spec(example_path("robot-heading"))
+    spec = load_spec(example_path("dckf3"))
     table = design(spec)
     assert table.provenance["spec_sha256"] == spec.sha256 and len(spec.sha256) == 64
     assert table.provenance["cfdesign_version"] == cfdesign.__version__
@@ -202,3 +202,32 @@ def test_unmodelled_biases_and_huge_periods_are_refused():
     design(parse_spec(data))
     with pytest.raises(SpecError, match="period"):
         multirate_schedule({"imu": 100.0, "a": 100.0 / 101, "b": 100.0 / 103}, inputs=["imu"])
+
+
+def test_builtin_example_is_the_seed001_best_filter():
+    """`cfdesign design` designs Table II's best row (LP gyro, BP compass, HP odometry)."""
+    from cfdesign.reproduce.seed001 import TABLE_II, design_row
+
+    table = design(load_spec(example_path("robot-heading")))
+    best = design_row(TABLE_II[0])
+    assert (TABLE_II[0].low, TABLE_II[0].band, TABLE_II[0].high) == ("gyro", "compass", "odometry")
+    assert np.allclose(table.K[0], best.K[0], rtol=1e-9, atol=0)
+    assert table.gains["k22"] == 0.0 and table.checks["complementary"] and table.checks["stable"]
+    roles = {s["name"]: s["role"] for s in table.sensors}
+    assert roles == {"odometry_rate": "input", "gyro_heading": "measurement", "compass": "measurement"}
+
+
+def test_ports_and_partial_gains_are_checked():
+    base = {"structure": "dckf3", "sensors": {
+        "wheel": {"port": "gyro", "rate_hz": 5.0, "noise": {"std": 0.05},
+                  "bias": {"model": "random_walk", "density": 1e-3}},
+        "compass": {"rate_hz": 5.0, "noise": {"std": 0.04}},
+        "odometry": {"rate_hz": 5.0, "noise": {"std": 0.01}}}}
+    table = design(parse_spec({**base, "gains": {"k22": 0.0}}))
+    assert [s["name"] for s in table.sensors] == ["wheel", "compass", "odometry"]
+    assert table.K[0][1, 1] == 0.0 and table.gains["k22"] == 0.0
+    bad = {**base, "sensors": {**base["sensors"], "wheel": {**base["sensors"]["wheel"], "port": "spinner"}}}
+    with pytest.raises(SpecError, match=r"sensors\.wheel\.port"):
+        design(parse_spec(bad))
+    with pytest.raises(SpecError, match="gains: unknown k33"):
+        design(parse_spec({**base, "gains": {"k33": 0.0}}))

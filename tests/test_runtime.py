@@ -13,7 +13,7 @@ from cfdesign.runtime import Runtime, wrap
 
 @pytest.fixture(scope="module")
 def heading():
-    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3")))
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +56,7 @@ def test_batch_equals_streaming(name, request):
 
 @pytest.mark.parametrize("form", ["predictor", "filter"])
 def test_filter_form_runs_the_measurement_update(form):
-    spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    spec = cfdesign.load_spec(cfdesign.example_path("dckf3"))
     import dataclasses
 
     table = cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False))

@@ -14,7 +14,7 @@ from cfdesign.gains import load_gains, validate
 from cfdesign.testing import assert_complementary
 from cfdesign.verify import band_polynomials, verify_table
 
-EXAMPLES = ["robot-heading", "position", "ckf3", "cf3"]
+EXAMPLES = ["robot-heading", "dckf3", "position", "ckf3", "cf3"]
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,7 @@ def test_designed_tables_pass_every_check(name, tables):
 
 
 def test_numeric_bands_match_the_symbolic_engine(tables):
-    table = tables["robot-heading"]
+    table = tables["dckf3"]
     numeric, _ = band_polynomials(table)
     symbolic = cfdesign.dckf3().with_gains({**table.gains, "T": table.sample_time_s}).band_coefficients()
     z = np.exp(1j * np.linspace(0.01, 3.0, 30))
@@ -44,7 +44,7 @@ def test_numeric_bands_match_the_symbolic_engine(tables):
 
 
 def test_unstable_gain_fails(tables):
-    t = tables["robot-heading"]
+    t = tables["dckf3"]
     K = [k.copy() for k in t.K]
     K[0][1, 0] = 5.0
     failed = [c for c in verify_table(dataclasses.replace(t, K=K)) if not c.ok]
@@ -63,7 +63,7 @@ def test_unstable_periodic_gain_fails(tables):
 
 @pytest.mark.parametrize("matrix", ["F", "B"])
 def test_altered_model_breaks_the_sensor_relation(matrix, tables):
-    t = tables["robot-heading"]
+    t = tables["dckf3"]
     M = getattr(t, matrix).copy()
     M[0, 0] *= 1.01  # F: the angle integrator leaks; B: the gyro no longer integrates to the angle
     failed = [c.name for c in verify_table(dataclasses.replace(t, **{matrix: M})) if not c.ok]
@@ -71,16 +71,16 @@ def test_altered_model_breaks_the_sensor_relation(matrix, tables):
 
 
 def test_spec_mismatch_fails(tables, tmp_path):
-    spec = cfdesign.example_path("robot-heading")
+    spec = cfdesign.example_path("dckf3")
     other = tmp_path / "other.toml"
     other.write_text(spec.read_text().replace("std = 0.002 ", "std = 0.004 "))
-    failed = [c for c in verify_table(tables["robot-heading"], cfdesign.load_spec(other)) if not c.ok]
+    failed = [c for c in verify_table(tables["dckf3"], cfdesign.load_spec(other)) if not c.ok]
     assert failed and failed[0].name == "gains match the spec"
 
 
 def test_cli_verify_exit_codes(tables, tmp_path):
-    good = tables["robot-heading"].save(tmp_path / "good.json")
-    r = cli("verify", str(good), "--spec", str(cfdesign.example_path("robot-heading")))
+    good = tables["dckf3"].save(tmp_path / "good.json")
+    r = cli("verify", str(good), "--spec", str(cfdesign.example_path("dckf3")))
     assert r.returncode == 0 and "4 of 4 checks hold" in r.stdout
     data = json.loads(good.read_text())
     data["K"][0][1][0] = 5.0
@@ -129,7 +129,7 @@ def test_csv_export_has_every_gain(tables, tmp_path):
 
 
 def test_cli_run_matches_runtime_and_rejects_bad_csv(tables, tmp_path):
-    table = tables["robot-heading"]
+    table = tables["dckf3"]
     src = table.save(tmp_path / "g.json")
     rng = np.random.default_rng(3)
     N = 500

@@ -25,19 +25,7 @@ differenced heading, a gyro in a measurement port its dead-reckoned heading
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 __all__ = ["banded_observer", "design_observer"]
-
-
-def _renamed(observer, names: dict, label: str):
-    """The same observer with its sensors renamed ``{old: new}``."""
-    from ..symbolic import Observer
-
-    sensors = [replace(s, name=names[s.name]) for s in observer.sensors]
-    return Observer(observer.F, observer.B, observer.H, observer.K, sensors, domain=observer.domain,
-                    sample_time=observer.sample_time, gain_form=observer.gain_form, name=label,
-                    continuous=observer.continuous)
 
 
 def banded_observer(low: str, high: str, band: str | None = None):
@@ -67,9 +55,9 @@ def banded_observer(low: str, high: str, band: str | None = None):
     from ..symbolic import cf2, dckf3
 
     if band is None:
-        return _renamed(cf2(order=2, discrete=True), {"rate": high, "angle": low}, f"cf2: LP {low}, HP {high}")
-    return _renamed(dckf3().subs(k22=0), {"gyro": high, "compass": low, "odometry": band},
-                    f"cf3: LP {low}, BP {band}, HP {high}")
+        return cf2(order=2, discrete=True).renamed({"rate": high, "angle": low}, f"cf2: LP {low}, HP {high}")
+    return dckf3().subs(k22=0).renamed({"gyro": high, "compass": low, "odometry": band},
+                                       f"cf3: LP {low}, BP {band}, HP {high}")
 
 
 def design_observer(spec, observer):
@@ -91,23 +79,7 @@ def design_observer(spec, observer):
     -------
     GainTable
 
-    Notes
-    -----
-    Interim: it calls the designer's private steps until the designer accepts an observer
-    (``design(spec, observer=...)``).
     """
-    from .. import designer
-    from ..errors import SpecError
-    from ..noise import van_loan
+    from ..designer import design
 
-    if not observer.discrete:
-        raise SpecError(f"{observer.name}: only discrete observers are designed here")
-    designer._check_sensors(spec, observer)
-    inputs = [s.name for s in observer.sensors if s.role == "input"]
-    rates = {s.name: spec.sensor(s.name).rate_hz for s in observer.sensors}
-    schedule = designer.multirate_schedule(rates, inputs, spec.sample_time_s)
-    model = observer.numeric_model(schedule.sample_time_s)
-    Qc, R = designer.noise_covariances(observer, spec, model, True)
-    Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)[1]
-    result = designer._discrete_gains(observer, model, Q, R, schedule, spec.gain_form, spec.gains)
-    return designer._table(spec, observer, model, Q, R, schedule, result)
+    return design(spec, observer)

@@ -473,6 +473,17 @@ class Observer:
         return self._replace(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)), sensors=sensors,
                              sample_time=sample_time, output=self.output.subs(mapping))
 
+    def renamed(self, names: dict, name: str | None = None) -> Observer:
+        """The same observer with sensors renamed ``{old: new}`` (e.g. a physical sensor in a port)."""
+        unknown = sorted(set(names) - {x.name for x in self.sensors})
+        if unknown:
+            raise StructureError(f"{self.name} has no sensor(s) {', '.join(unknown)}")
+        sensors = [Sensor(names.get(x.name, x.name), x.order, x.role, x.index, x.relation, x.bias_state)
+                   for x in self.sensors]
+        obs = self._replace(self.F, self.B, self.H, self.K, sensors=sensors)
+        obs.name = name or self.name
+        return obs
+
     def _replace(self, F, B, H, K, *, sensors=None, sample_time=None, gain_form=None, output=None) -> Observer:
         """A new observer with the given matrices, keeping everything not given."""
         return Observer(F, B, H, K, self.sensors if sensors is None else sensors, domain=self.domain,
