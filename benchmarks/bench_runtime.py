@@ -38,6 +38,7 @@ from scipy.signal import lfilter
 import cfdesign
 from cfdesign.codegen import write_c
 from cfdesign.runtime import Runtime, wrap
+from cfdesign.sim.signals import sinusoid_readings
 
 EXAMPLES = {"dckf3": "robot heading (seed 001 Fig. 6 DCKF3)", "position": "position (multirate)"}
 BLOCK = 10_000
@@ -118,21 +119,8 @@ int main(int argc, char **argv)
 
 # ---------------------------------------------------------------------- data
 def readings(table, N, seed=0, amplitude=None):
-    """A slow sinusoid (its derivatives for rate/acceleration sensors) plus noise; angles wrapped.
-
-    The default amplitude is 4 rad for angle tables (the heading crosses +-pi) and 50 m else.
-    """
-    rng = np.random.default_rng(seed)
-    period_s = 2000.0 if table.wrap_angle else 100.0
-    amplitude = amplitude or (4.0 if table.wrap_angle else 50.0)
-    w = 2 * np.pi / period_s
-    t = np.arange(N) * table.sample_time_s
-    truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
-    data = {}
-    for s in table.sensors:
-        values = truth[s["order"]] + 0.05 * rng.normal(size=N)
-        data[s["name"]] = wrap(values) if table.wrap_angle and s["order"] == 0 else values
-    return data
+    """A slow sinusoid through every sensor plus noise (:func:`cfdesign.sim.sinusoid_readings`)."""
+    return sinusoid_readings(table, N, seed=seed, amplitude=amplitude)
 
 
 def columns(table, data) -> list:

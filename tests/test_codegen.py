@@ -24,6 +24,7 @@ import cfdesign
 from cfdesign.codegen import render_c, write_c
 from cfdesign.errors import CfdesignError
 from cfdesign.runtime import Runtime, wrap
+from cfdesign.sim.signals import sinusoid_readings
 
 FIXTURES = Path(__file__).parent / "fixtures"
 COMMITTED = FIXTURES / "codegen_dckf3"
@@ -53,23 +54,8 @@ def reference(tables):
 
 
 def readings(table, seed=1):
-    """A slow sinusoid (its derivatives for rate/acceleration sensors) plus noise, 2 % NaN.
-
-    The heading swings over +-4 rad, so it crosses +-pi; angle readings are wrapped.
-    """
-    rng = np.random.default_rng(seed)
-    amplitude, period_s = (4.0, 2000.0) if table.wrap_angle else (50.0, 100.0)
-    w = 2 * np.pi / period_s
-    t = np.arange(N) * table.sample_time_s
-    truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
-    data = {}
-    for s in table.sensors:
-        values = truth[s["order"]] + 0.05 * rng.normal(size=N)
-        if table.wrap_angle and s["order"] == 0:
-            values = wrap(values)
-        values[rng.random(N) < 0.02] = np.nan
-        data[s["name"]] = values
-    return data
+    """A slow sinusoid through every sensor plus noise, 2 % NaN; the heading crosses +-pi."""
+    return sinusoid_readings(table, N, seed=seed, missing=0.02)
 
 
 def run_c(table, data, folder, precision):

@@ -26,7 +26,7 @@ import numpy as np
 from ..noise import WhiteNoise
 from ..runtime import wrap
 
-__all__ = ["integrate_rate", "difference_heading", "integrated_noise", "differenced_noise"]
+__all__ = ["integrate_rate", "difference_heading", "integrated_noise", "differenced_noise", "sinusoid_readings"]
 
 
 def integrate_rate(rate, dt_s: float, start_rad: float) -> np.ndarray:
@@ -63,3 +63,29 @@ def differenced_noise(noise: WhiteNoise, rate_hz: float) -> WhiteNoise:
 def integrated_noise(noise: WhiteNoise, rate_hz: float) -> WhiteNoise:
     """White-noise stand-in for an integrated rate: its per-step increment ``sigma T`` (rad)."""
     return WhiteNoise(std=_std(noise, rate_hz) / rate_hz, field=noise.field)
+
+
+def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None = None,
+                      missing: float = 0.0) -> dict:
+    """Test readings for any gain table: a slow sinusoid through every sensor, plus noise.
+
+    Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration) plus
+    white noise of std 0.05; angle tables swing over +-4 rad (so the heading crosses +-pi,
+    readings wrapped), others over +-50 m.  A fraction ``missing`` of the samples is NaN.
+    Used by the runtime benchmark and the C-against-Python tests.
+    """
+    rng = np.random.default_rng(seed)
+    period_s = 2000.0 if table.wrap_angle else 100.0
+    amplitude = amplitude or (4.0 if table.wrap_angle else 50.0)
+    w = 2 * np.pi / period_s
+    t = np.arange(n) * table.sample_time_s
+    truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
+    data = {}
+    for s in table.sensors:
+        values = truth[s["order"]] + 0.05 * rng.normal(size=n)
+        if table.wrap_angle and s["order"] == 0:
+            values = wrap(values)
+        if missing:
+            values[rng.random(n) < missing] = np.nan
+        data[s["name"]] = values
+    return data
