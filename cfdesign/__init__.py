@@ -28,7 +28,7 @@ _LAZY = {
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 _MODULES = {"riccati", "runtime", "symbolic", "analysis", "plot", "noise", "spec", "gains", "designer", "testing",
-            "sim", "reproduce", "verify", "codegen", "export"}
+            "sim", "reproduce", "verify", "codegen", "export", "nav"}
 
 __all__ = ["__version__", "CfdesignError", "SpecError", "StructureError", "GainError", "ProofError",
            "RiccatiError", *_WHERE, *sorted(_MODULES)]

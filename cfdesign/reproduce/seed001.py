@@ -323,3 +323,30 @@ def reproduce(runs: int = 20, *, seed: int = 0, reading: Reading = READING, stra
                 bar.update()
     notes = {row: _note(row, tables[row], sc) for row in ROWS}
     return Reproduction(reading, seeds, straight_s, {r: tuple(v) for r, v in values.items()}, tables, notes)
+
+
+# ---------------------------------------------------------------------------- command line
+def add_arguments(parser):
+    """Options of ``cfdesign reproduce seed001``: ``--runs``, ``--seed``, ``--reading``, ``--json``."""
+    from ..sim.seed001 import READINGS
+
+    parser.add_argument("--runs", type=int, default=20, help="Monte-Carlo runs per row (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first run (runs use seed, seed+1, ...)")
+    parser.add_argument("--reading", choices=sorted(READINGS), default="std",
+                        help="read the paper's N(0, x) as a standard deviation (default) or a variance")
+    parser.add_argument("--json", action="store_true", help="print the numbers as JSON instead of the tables")
+    return parser
+
+
+def run(args) -> int:
+    """Run ``cfdesign reproduce seed001``: print the tables (or JSON); exit status 0.
+
+    Raises :class:`cfdesign.errors.SpecError` for a bad ``--runs``.
+    """
+    import json
+
+    from ..sim.seed001 import READINGS
+
+    result = reproduce(args.runs, seed=args.seed, reading=READINGS[args.reading], progress=not args.json)
+    print(json.dumps(result.to_dict(), indent=1) if args.json else result.text())
+    return 0

@@ -1,0 +1,119 @@
+"""Magneto-Pendular Sensor (MPS): attitude from gravity and the magnetic field, seed 004 Sec. 2.2.
+
+Frame: ENU (x east, y north, z up); angles are ZYX ``[yaw, pitch, roll]`` of the body
+relative to ENU (see :mod:`cfdesign.nav.quaternion`).  The accelerometer reads specific
+force, ``+g`` along up at rest, so seed 004 eq. (2) holds as printed:
+``a = (-g sin θ, g cos θ sin φ, g cos θ cos φ)``.
+
+Roll and pitch (seed 004 eq. (3))::
+
+    φ = atan2(a_y, a_z),   θ = atan2(-a_x, a_z / cos φ) = atan2(-a_x, sqrt(a_y² + a_z²))
+
+(both branches of eq. (3) equal ``sqrt(a_y² + a_z²)`` in the second argument; the hypot form
+needs no division).  Yaw from the tilt-compensated field ``m' = R_Y(θ) R_X(φ) m``: the paper
+writes ``ψ = atan2(-m'_y, m'_x) - α_dec`` for a north-east-down frame; in ENU the same
+construction reads ``ψ = atan2(m'_x, m'_y) - α_dec`` (yaw counter-clockwise from east,
+declination ``α_dec`` positive when magnetic north lies east of true north).
+
+Centripetal compensation (seed 004 Sec. 2.2): ``a_MPS = a - ω̂ × v_B`` with the unbiased
+rate ``ω̂`` and the body-frame velocity ``v_B``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import quaternion as quat
+
+__all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_compensated_field"]
+
+
+def centripetal_compensation(acc, rate, velocity_body):
+    """``a_MPS = a - ω̂ × v_B`` (m/s², seed 004 Sec. 2.2); arrays (..., 3) in the body frame."""
+    return np.asarray(acc, dtype=float) - np.cross(rate, velocity_body)
+
+
+def tilt_compensated_field(mag, pitch, roll):
+    """``m' = R_Y(θ) R_X(φ) m``: the field in the level frame that shares the body's heading."""
+    m = np.asarray(mag, dtype=float)
+    cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
+    y = cr * m[..., 1] - sr * m[..., 2]                     # R_X(φ) m, its z is z1
+    z1 = sr * m[..., 1] + cr * m[..., 2]
+    x = cp * m[..., 0] + sp * z1                           # then R_Y(θ)
+    z = -sp * m[..., 0] + cp * z1
+    return np.stack([x, y, z], axis=-1)
+
+
+def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=None):
+    """MPS attitude ``[yaw, pitch, roll]`` (rad, ZYX, body relative to ENU), seed 004 eqs. (2)-(3).
+
+    Parameters
+    ----------
+    acc : array_like (..., 3)
+        Specific force in the body frame (m/s²).
+    mag : array_like (..., 3), optional
+        Magnetic field in the body frame (any unit).  ``None``: yaw is NaN (unobserved).
+    declination_rad : float
+        Magnetic declination, positive east; subtracted from the magnetic heading.
+    rate, velocity_body : array_like (..., 3), optional
+        Unbiased body rate (rad/s) and body-frame velocity (m/s) for the centripetal
+        compensation ``a - ω̂ × v_B``; both or neither.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        ``[yaw, pitch, roll]``; yaw wrapped to ``(-pi, pi]``.  Rows whose field is zero or not
+        finite get a NaN yaw; rows with a non-finite acceleration are all NaN.
+    """
+    a = np.asarray(acc, dtype=float)
+    if velocity_body is not None and rate is not None:
+        a = centripetal_compensation(a, rate, velocity_body)
+    roll = np.arctan2(a[..., 1], a[..., 2])
+    pitch = np.arctan2(-a[..., 0], np.hypot(a[..., 1], a[..., 2]))
+    if mag is None:
+        yaw = np.full(roll.shape, np.nan)
+    else:
+        mp = tilt_compensated_field(mag, pitch, roll)
+        horizontal = np.hypot(mp[..., 0], mp[..., 1])
+        with np.errstate(invalid="ignore"):
+            yaw = np.where(horizontal > 0, quat.wrap_angle(np.arctan2(mp[..., 0], mp[..., 1]) - declination_rad),
+                           np.nan)
+    return np.stack([yaw, pitch, roll], axis=-1)
+
+
+def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
+    """Singularity-free MPS attitude: quaternion ``[w, x, y, z]``, body -> ENU (TRIAD-like).
+
+    Up is ``a/|a|``; east is ``m × up`` normalised; north is ``up × east``; the rotation
+    matrix has the ENU axes (in body coordinates) as its rows.  The magnetic frame is then
+    turned by ``-α_dec`` about up.  Gravity fixes roll and pitch; the field only the heading,
+    at any pitch (unlike the Euler form, which is singular at ``θ = ±90°``).  Without a
+    usable field (``None``, zero, or parallel to gravity) the heading is set to zero
+    (yaw-free tilt, the shortest rotation from up to ``a``).
+    """
+    a = np.asarray(acc, dtype=float)
+    up = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    east = None
+    if mag is not None:
+        east = np.cross(np.asarray(mag, dtype=float), up)
+        norm = np.linalg.norm(east, axis=-1, keepdims=True)
+        ok = norm > 1e-9 * np.maximum(np.linalg.norm(mag, axis=-1, keepdims=True), 1e-300)
+        east = np.where(ok, east / np.where(ok, norm, 1.0), np.nan)
+    tilt = _tilt_only(up)
+    if east is None:
+        return tilt
+    north = np.cross(up, east)
+    q = quat.from_matrix(np.stack([east, north, up], axis=-2))
+    q = quat.multiply(quat.from_rotation_vector(np.array([0.0, 0.0, -declination_rad])), q)
+    q = quat.normalize(q)
+    return np.where(np.isfinite(q).all(axis=-1, keepdims=True), q, tilt)
+
+
+def _tilt_only(up):
+    """Yaw-free quaternion turning the body's measured up ``up`` onto ENU up (shortest rotation)."""
+    # rotation body -> ENU maps up_body to e_z: axis up × e_z, angle acos(up_z)
+    w = 1.0 + up[..., 2]
+    q = np.stack([w, up[..., 1], -up[..., 0], np.zeros_like(w)], axis=-1)
+    flipped = w < 1e-9                      # upside down: any horizontal axis, take x
+    q = np.where(flipped[..., None], np.array([0.0, 1.0, 0.0, 0.0]), q)
+    return quat.normalize(q)

@@ -1,0 +1,215 @@
+"""Seed 004's multirate position filter, per ENU axis: state ``[p, v, b_a]``, IMU in, GPS fixes.
+
+Model (seed 004 Sec. 3; MATH.md §6): on each ENU axis, with the Earth-frame acceleration
+``u`` as the input and the accelerometer bias ``b`` as a slow random walk,
+
+.. math:: x = [p, v, b]^T,\\quad x[k+1] = F x^+[k] + B u[k],\\quad
+          F = \\begin{bmatrix}1 & T & -T^2/2\\\\ 0 & 1 & -T\\\\ 0 & 0 & 1\\end{bmatrix},\\quad
+          B = [T^2/2,\\ T,\\ 0]^T,
+
+and a GPS position fix ``y = p + n`` every ``N = imu_rate_hz / gps_rate_hz`` steps, applied
+in filter form ``x^+[k] = x[k] + K[k] (y[k] - H x[k])``, ``H = [1, 0, 0]``.  The gains
+``K[k]`` are the periodic-DARE Kalman gains of :func:`cfdesign.design` (structure
+``position``); they are exactly zero at the phases without a fix (seed 004 Sec. 3), so the
+filter runs open loop between fixes.  One gain table serves the three axes (seed 004:
+``K_iP = I_3 k_iP``), run by :class:`cfdesign.runtime.Runtime`.
+
+Input (seed 004 Fig. 3, gravity removal; frames as :mod:`cfdesign.nav.quaternion`):
+the accelerometer reads the specific force in the body frame, ``f_b = R_nb^T (a_n - g_n)``,
+so the Earth-frame acceleration is
+
+.. math:: u = R_{nb} f_b + g_n,\\qquad g_n = [0, 0, -9.80665]\\ \\mathrm{m/s^2}\\ \\text{(ENU)}.
+
+``f_b[k]`` is the mean over the interval ``[t_k, t_k+1]`` (an integrating accelerometer), so
+it is rotated by the attitude at the interval's midpoint, ``q[k] ⊕ q[k+1]`` normalised
+(the slerp midpoint).
+
+Bias frame: as in the paper, each axis estimates the bias of its own input, i.e. the
+accelerometer bias seen in ENU, ``b_n = R_nb b_body``, modelled as a slow random walk.
+While the vehicle holds its attitude ``b_n`` is constant and :attr:`PositionEstimate.accel_bias`
+converges to it; when the vehicle turns, a horizontal body bias turns with it and the
+filter tracks its slow part only.  (Carrying the estimate with the attitude,
+``b_n <- R[k+1] R[k]^T b_n``, looks exact but destabilises the bias loop once the turn rate
+approaches its bandwidth - a 19-s helix against GPS fixes of 3 m: it drifts.)
+
+GPS outages: a NaN fix skips the update (:mod:`cfdesign.runtime`), so the estimate coasts on
+the accelerometer and recovers with the next fixes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from . import quaternion as quat
+
+__all__ = ["GRAVITY_ENU", "PositionEstimate", "PositionFilter", "position_spec", "earth_acceleration"]
+
+#: gravity in ENU (m/s^2)
+GRAVITY_ENU = np.array([0.0, 0.0, -9.80665])
+
+
+@dataclass(frozen=True)
+class PositionEstimate:
+    """Filtered (a posteriori) estimates at the ``N`` IMU sample times.
+
+    Attributes
+    ----------
+    position : ndarray (N, 3)
+        ENU position (m).
+    velocity : ndarray (N, 3)
+        ENU velocity (m/s).
+    accel_bias : ndarray (N, 3)
+        Accelerometer bias as seen in ENU, ``R_nb b_body`` (m/s^2).
+    """
+
+    position: np.ndarray
+    velocity: np.ndarray
+    accel_bias: np.ndarray
+
+
+def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: float, accel_bias_density: float,
+                  gps_noise_std: float):
+    """Design specification of one axis (the ``position`` structure, filter gain form).
+
+    Parameters
+    ----------
+    imu_rate_hz, gps_rate_hz : float
+        Accelerometer and GPS rates (Hz); the GPS rate must divide the IMU rate.
+    accel_noise_std : float
+        Accelerometer white noise per sample (m/s^2) at ``imu_rate_hz``.
+    accel_bias_density : float
+        Random-walk density of the bias (m/s^2/sqrt(s)): larger tracks faster, smooths less.
+    gps_noise_std : float
+        GPS position noise per fix and axis (m).
+    """
+    from ..spec import parse_spec
+
+    return parse_spec({
+        "name": "position axis (seed 004)", "structure": "position", "gain_form": "filter",
+        "sensors": {"accelerometer": {"measures": "acceleration", "rate_hz": float(imu_rate_hz),
+                                      "noise": {"std": float(accel_noise_std)},
+                                      "bias": {"model": "random_walk", "density": float(accel_bias_density)}},
+                    "gps": {"measures": "position", "rate_hz": float(gps_rate_hz),
+                            "noise": {"std": float(gps_noise_std)}}}})
+
+
+def _midpoints(q) -> np.ndarray:
+    """Attitude at each interval's midpoint: normalised ``q[k] + s q[k+1]`` (``s`` = +-1 picks the
+    nearer sign); the last sample keeps ``q[N-1]``."""
+    mid = q.copy()
+    sign = np.sign(np.einsum("ki,ki->k", q[:-1], q[1:]))[:, None]
+    mid[:-1] = q[:-1] + np.where(sign == 0, 1.0, sign) * q[1:]
+    return mid / np.linalg.norm(mid, axis=1, keepdims=True)
+
+
+def earth_acceleration(acc_body, quat_nb) -> np.ndarray:
+    """``u = R_nb f_b + g_n`` (m/s^2, ENU) with each interval's midpoint attitude (module docstring)."""
+    return quat.rotate(_midpoints(np.asarray(quat_nb, dtype=float)), acc_body) + GRAVITY_ENU
+
+
+class PositionFilter:
+    """Seed 004's position complementary filter on three ENU axes, gains from :func:`cfdesign.design`.
+
+    Parameters
+    ----------
+    imu_rate_hz, gps_rate_hz : float
+        Rates (Hz); the GPS rate must divide the IMU rate (period ``imu/gps`` steps).
+    accel_noise_std : float
+        Accelerometer noise per sample (m/s^2).
+    accel_bias_density : float
+        Bias random-walk density (m/s^2/sqrt(s)), the designer's tuning knob for the bias gain.
+    gps_noise_std : float
+        GPS noise per fix and axis (m).
+
+    Attributes
+    ----------
+    table : GainTable
+        The designed periodic gain table shared by the three axes.
+    """
+
+    def __init__(self, imu_rate_hz: float = 50.0, gps_rate_hz: float = 1.0, *, accel_noise_std: float,
+                 accel_bias_density: float, gps_noise_std: float):
+        from ..designer import design
+
+        self.table = design(position_spec(imu_rate_hz, gps_rate_hz, accel_noise_std=accel_noise_std,
+                                          accel_bias_density=accel_bias_density, gps_noise_std=gps_noise_std))
+
+    @property
+    def fix_phases(self) -> list:
+        """Phases (steps modulo the period) at which the table expects a GPS fix."""
+        return [j for j, K in enumerate(self.table.K) if np.any(np.asarray(K) != 0)]
+
+    def run(self, acc_body, quat_nb, gps_enu, *, initial_position=None, initial_velocity=None,
+            initial_bias=None) -> PositionEstimate:
+        """Filter a whole record; sample 0 is phase 0 of the GPS schedule.
+
+        Parameters
+        ----------
+        acc_body : array_like (N, 3)
+            Specific force in the body frame (m/s^2), mean over ``[t_k, t_k+1]``; finite.
+        quat_nb : array_like (N, 4)
+            Attitude ``[w, x, y, z]`` body -> ENU at ``t_k`` (an estimate or the truth).
+        gps_enu : array_like (N, 3)
+            ENU position fixes (m); NaN rows where there is no fix (between fixes, outages).
+            Fixes may only fall on :attr:`fix_phases` (every ``imu/gps`` samples from 0).
+        initial_position : array_like (3,), optional
+            Default: the first fix in ``gps_enu``.
+        initial_velocity, initial_bias : array_like (3,), optional
+            ENU velocity (m/s) and bias seen in ENU (m/s^2); default zero.
+
+        Returns
+        -------
+        PositionEstimate
+        """
+        acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
+        u = earth_acceleration(acc, q)
+        runtimes = self._runtimes(gps, initial_position, initial_velocity, initial_bias)
+        position, after = self._loop(runtimes, u, gps)
+        post = self._posterior(after, u)
+        return PositionEstimate(position=position, velocity=post[:, :, 1].copy(), accel_bias=post[:, :, 2].copy())
+
+    def _checked(self, acc_body, quat_nb, gps_enu):
+        acc, q, gps = (np.asarray(a, dtype=float) for a in (acc_body, quat_nb, gps_enu))
+        N = len(acc)
+        for name, a, cols in (("acc_body", acc, 3), ("quat_nb", q, 4), ("gps_enu", gps, 3)):
+            if a.shape != (N, cols):
+                raise SpecError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
+        if N == 0 or not np.all(np.isfinite(acc)) or not np.all(np.isfinite(q)):
+            raise SpecError("acc_body and quat_nb must be non-empty and finite")
+        fixes = np.flatnonzero(np.isfinite(gps).any(axis=1))
+        stray = fixes[~np.isin(fixes % len(self.table.K), self.fix_phases)]
+        if stray.size:
+            raise SpecError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
+                            f"{self.fix_phases} of {len(self.table.K)}); resample the fixes onto the schedule")
+        return acc, q, gps
+
+    def _runtimes(self, gps, p0, v0, b0) -> list:
+        """One :class:`~cfdesign.runtime.Runtime` per ENU axis, started at ``[p0, v0, b0]``."""
+        from ..runtime import Runtime
+
+        if p0 is None:
+            rows = np.flatnonzero(np.isfinite(gps).all(axis=1))
+            p0 = gps[rows[0]] if rows.size else np.zeros(3)
+        v0 = np.zeros(3) if v0 is None else np.asarray(v0, dtype=float)
+        b0 = np.zeros(3) if b0 is None else np.asarray(b0, dtype=float)
+        x0 = np.column_stack([np.asarray(p0, dtype=float), v0, b0])
+        return [Runtime(self.table, x0=x0[i]) for i in range(3)]
+
+    @staticmethod
+    def _loop(runtimes, u, gps):
+        """Step the three axes; returns the filtered positions and the states after each step."""
+        N = len(u)
+        position, after = np.empty((N, 3)), np.empty((N, 3, 3))
+        for k in range(N):
+            for i, rt in enumerate(runtimes):
+                position[k, i] = rt.step(accelerometer=u[k, i], gps=gps[k, i])
+                after[k, i] = rt.x
+        return position, after
+
+    def _posterior(self, after, u):
+        """Filtered states ``x^+[k] = F^-1 (x[k+1] - B u[k])`` from the states after each step, (N, 3, 3)."""
+        F, B = np.asarray(self.table.F, dtype=float), np.asarray(self.table.B, dtype=float)[:, 0]
+        return np.einsum("ij,kaj->kai", np.linalg.inv(F), after - u[:, :, None] * B)

@@ -1,0 +1,118 @@
+"""Small quaternion helpers (numpy, vectorised over leading axes).
+
+Conventions used throughout :mod:`cfdesign.nav`:
+
+* quaternions are ``[w, x, y, z]`` (scalar first), Hamilton product;
+* an attitude quaternion ``q`` maps body (sensor) coordinates to the local level frame
+  **ENU** (x east, y north, z up): ``v_enu = q ⊗ v_body ⊗ conj(q)``;
+* Euler angles are ZYX ``[yaw, pitch, roll]`` of the body relative to ENU:
+  ``R = R_Z(yaw) R_Y(pitch) R_X(roll)`` (body -> ENU), yaw counter-clockwise from east.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["multiply", "conjugate", "normalize", "rotate", "from_rotation_vector", "from_euler",
+           "to_euler", "to_matrix", "from_matrix", "wrap_angle"]
+
+
+def wrap_angle(angle):
+    """Wrap an angle (rad, scalar or array) to ``(-pi, pi]``."""
+    out = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def multiply(p, q):
+    """Hamilton product ``p ⊗ q`` of ``[w, x, y, z]`` quaternions, broadcast over leading axes."""
+    p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack([pw * qw - px * qx - py * qy - pz * qz,
+                     pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw], axis=-1)
+
+
+def conjugate(q):
+    """Conjugate ``[w, -x, -y, -z]`` (the inverse of a unit quaternion)."""
+    out = np.array(q, dtype=float, copy=True)
+    out[..., 1:] *= -1
+    return out
+
+
+def normalize(q):
+    """Unit quaternion(s) with a non-negative scalar part (``q`` and ``-q`` are one rotation)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def rotate(q, v):
+    """Rotate vectors ``v`` (..., 3) by ``q``: ``q ⊗ [0, v] ⊗ conj(q)`` (body -> ENU for an attitude)."""
+    v = np.asarray(v, dtype=float)
+    return np.einsum("...ij,...j->...i", to_matrix(q), v)
+
+
+def from_rotation_vector(r):
+    """Quaternion ``exp(r / 2)`` of a rotation vector ``r`` (rad, axis times angle), (..., 3) -> (..., 4)."""
+    r = np.asarray(r, dtype=float)
+    angle = np.linalg.norm(r, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(x)/x with its series near 0, so that tiny rotations stay exact
+    scale = np.where(angle > 1e-8, np.sin(half) / np.where(angle > 1e-8, angle, 1.0), 0.5 - angle**2 / 48)
+    return np.concatenate([np.cos(half), scale * r], axis=-1)
+
+
+def from_euler(euler):
+    """ZYX Euler angles ``[yaw, pitch, roll]`` (rad, body relative to ENU) -> quaternion ``[w, x, y, z]``.
+
+    ``q = q_Z(yaw) ⊗ q_Y(pitch) ⊗ q_X(roll)``, i.e. ``R = R_Z R_Y R_X`` (seed 004 Sec. 2.2).
+    """
+    e = np.asarray(euler, dtype=float)
+    cy, sy = np.cos(e[..., 0] / 2), np.sin(e[..., 0] / 2)
+    cp, sp = np.cos(e[..., 1] / 2), np.sin(e[..., 1] / 2)
+    cr, sr = np.cos(e[..., 2] / 2), np.sin(e[..., 2] / 2)
+    return np.stack([cy * cp * cr + sy * sp * sr,
+                     cy * cp * sr - sy * sp * cr,
+                     cy * sp * cr + sy * cp * sr,
+                     sy * cp * cr - cy * sp * sr], axis=-1)
+
+
+def to_euler(q):
+    """Quaternion (body -> ENU) -> ZYX Euler angles ``[yaw, pitch, roll]`` (rad), yaw in ``(-pi, pi]``."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    pitch = np.arcsin(np.clip(2 * (w * y - x * z), -1.0, 1.0))
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    return np.stack([wrap_angle(yaw), pitch, roll], axis=-1)
+
+
+def to_matrix(q):
+    """Rotation matrix (..., 3, 3) of unit quaternion(s): ``v_enu = R v_body`` for an attitude."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=-2)
+
+
+def from_matrix(R):
+    """Unit quaternion(s) ``[w, x, y, z]`` (w >= 0) of rotation matrices (..., 3, 3), robust for any angle."""
+    R = np.asarray(R, dtype=float)
+    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
+    # squared components, each from the diagonal; signs from the skew part (Shepperd's method)
+    sq = np.stack([1 + tr, 1 + 2 * R[..., 0, 0] - tr, 1 + 2 * R[..., 1, 1] - tr, 1 + 2 * R[..., 2, 2] - tr], axis=-1)
+    best = np.argmax(sq, axis=-1)
+    a = np.sqrt(np.maximum(np.take_along_axis(sq, best[..., None], -1)[..., 0], 1e-300))
+    skew = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    sym = np.stack([R[..., 0, 1] + R[..., 1, 0], R[..., 0, 2] + R[..., 2, 0], R[..., 1, 2] + R[..., 2, 1]], -1)
+    rows = {0: (a, skew[..., 0] / a, skew[..., 1] / a, skew[..., 2] / a),
+            1: (skew[..., 0] / a, a, sym[..., 0] / a, sym[..., 1] / a),
+            2: (skew[..., 1] / a, sym[..., 0] / a, a, sym[..., 2] / a),
+            3: (skew[..., 2] / a, sym[..., 1] / a, sym[..., 2] / a, a)}
+    out = np.zeros((*R.shape[:-2], 4))
+    for k, comps in rows.items():
+        out = np.where((best == k)[..., None], np.stack(comps, axis=-1), out)
+    return normalize(0.5 * out)
