@@ -63,7 +63,7 @@ from ..nav.attitude import euler_rate_matrix_inverse
 from ..nav.position import GRAVITY_ENU
 from ..noise import Bias, WhiteNoise
 from .sensors import RateSensor, simulate
-from .trajectory import Trajectory, smooth_turn
+from .trajectory import SampledTimes, Trajectory, smooth_turn
 
 __all__ = ["GRAVITY_M_S2", "GRAVITY_ENU", "MG_M_S2", "BIAS_SIGNS", "MAGNETIC_FIELD_ENU_G", "ACCEL_BIAS_READINGS",
            "Manoeuvre", "HelicopterTrajectory", "helicopter_manoeuvre", "SensorErrors", "TABLE1", "ImuGpsReadings",
@@ -101,7 +101,7 @@ class Manoeuvre:
 
 
 @dataclass(frozen=True)
-class HelicopterTrajectory:
+class HelicopterTrajectory(SampledTimes):
     """Sampled truth at the ``N + 1`` IMU sample times (ENU, FLU body; module docstring).
 
     Attributes
@@ -126,15 +126,6 @@ class HelicopterTrajectory:
     specific_force_m_s2: np.ndarray
     mean_body_rate_rad_s: np.ndarray
     mean_specific_force_m_s2: np.ndarray
-
-    @property
-    def dt_s(self) -> float:
-        return float(self.t_s[1] - self.t_s[0])
-
-    @property
-    def steps(self) -> int:
-        """Number ``N`` of sample intervals."""
-        return len(self.t_s) - 1
 
 
 def _ramp(t, start, length):

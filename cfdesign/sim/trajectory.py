@@ -27,8 +27,24 @@ from ..runtime import wrap
 __all__ = ["Trajectory", "Segment", "smooth_turn", "from_segments", "rounded_square"]
 
 
+class SampledTimes:
+    """Sample time and step count of a record sampled at the times ``t_s`` (N + 1 of them)."""
+
+    t_s: np.ndarray
+
+    @property
+    def dt_s(self) -> float:
+        """Sample time (s)."""
+        return float(self.t_s[1] - self.t_s[0])
+
+    @property
+    def steps(self) -> int:
+        """Number ``N`` of sample intervals (one filter step each)."""
+        return len(self.t_s) - 1
+
+
 @dataclass(frozen=True)
-class Trajectory:
+class Trajectory(SampledTimes):
     """Sampled truth of a planar robot.
 
     Attributes
@@ -44,16 +60,6 @@ class Trajectory:
     t_s: np.ndarray
     heading_rad: np.ndarray
     speed_m_s: np.ndarray
-
-    @property
-    def dt_s(self) -> float:
-        """Sample time (s)."""
-        return float(self.t_s[1] - self.t_s[0])
-
-    @property
-    def steps(self) -> int:
-        """Number ``N`` of sample intervals (one filter step each)."""
-        return len(self.t_s) - 1
 
     @property
     def duration_s(self) -> float:
