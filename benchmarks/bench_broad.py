@@ -36,29 +36,14 @@ import numpy as np
 
 from cfdesign.nav import estimate_attitude
 from cfdesign.nav import quaternion as quat
+from cfdesign.nav.broad import broad_rmse, load_trial
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 ENU_FROM_NWU = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
 
 
-def load(path):
-    """One BROAD trial as a dict of arrays (``rate`` in Hz, ``movement`` boolean)."""
-    from scipy.io import loadmat
-    d = loadmat(path)
-    return {"gyr": np.ascontiguousarray(d["imu_gyr"]), "acc": np.ascontiguousarray(d["imu_acc"]),
-            "mag": np.ascontiguousarray(d["imu_mag"]), "ref": d["opt_quat"],
-            "movement": d["movement"].ravel().astype(bool), "rate": float(d["sampling_rate"].item())}
-
-
-def rmse(q_est, q_ref, movement):
-    """BROAD's total, heading and inclination RMSE (degrees) over movement phases."""
-    q_ref = q_ref / np.linalg.norm(q_ref, axis=1, keepdims=True)
-    e = quat.multiply(quat.normalize(q_est), quat.conjugate(q_ref))
-    e = e[movement & np.isfinite(e).all(axis=1)]
-    total = 2 * np.arccos(np.clip(np.abs(e[:, 0]), 0, 1))
-    heading = 2 * np.arctan(np.abs(e[:, 3] / e[:, 0]))
-    incl = 2 * np.arccos(np.clip(np.sqrt(e[:, 0] ** 2 + e[:, 3] ** 2), 0, 1))
-    return tuple(float(np.degrees(np.sqrt(np.mean(x ** 2)))) for x in (total, heading, incl))
+load = load_trial
+rmse = broad_rmse
 
 
 def initial_quaternion(d):
