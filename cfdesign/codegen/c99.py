@@ -102,7 +102,8 @@ def check_c_identifier(name, what: str) -> str:
 def _check_runnable(table):
     if table.domain != "z" or table.gain_form not in ("predictor", "filter"):
         raise CfdesignError(f"{table.name} is a continuous-time table ({table.gain_form} gains); C code runs "
-                            "discrete tables in predictor or filter form (design it with discrete = true)")
+                            "discrete tables in predictor or filter form (design a discrete structure: dckf3, "
+                            "position, or cf2/cf3/cfn with discrete = true)")
 
 
 def _default_prefix(table) -> str:

@@ -60,7 +60,7 @@ class Runtime:
     def __init__(self, table, x0=None):
         if table.domain != "z":
             raise CfdesignError(f"{table.name} is a continuous-time table; the runtime runs discrete tables "
-                                "(design it with discrete = true)")
+                                "(design a discrete structure: dckf3, position, or cf2/cf3/cfn with discrete = true)")
         self.table = table
         self.F, self.B, self.H = (np.array(m, dtype=float) for m in (table.F, table.B, table.H))
         self.K = [np.array(k, dtype=float) for k in table.K]
