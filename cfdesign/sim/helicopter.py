@@ -52,7 +52,6 @@ sample the truth at the sample times.
 from __future__ import annotations
 
 import math
-import zlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,9 +60,8 @@ from ..errors import SpecError
 from ..nav import quaternion as quat
 from ..nav.attitude import euler_rate_matrix_inverse
 from ..nav.position import GRAVITY_ENU
-from ..noise import Bias, WhiteNoise
-from .sensors import RateSensor, simulate
-from .trajectory import SampledTimes, Trajectory, smooth_turn
+from .sensors import RateSensor, cumulative_trapezoid, interval_mean_readings, noisy_samples
+from .trajectory import SampledTimes, smooth_turn
 
 __all__ = ["GRAVITY_M_S2", "GRAVITY_ENU", "MG_M_S2", "BIAS_SIGNS", "MAGNETIC_FIELD_ENU_G", "ACCEL_BIAS_READINGS",
            "Manoeuvre", "HelicopterTrajectory", "helicopter_manoeuvre", "SensorErrors", "TABLE1", "ImuGpsReadings",
@@ -183,12 +181,6 @@ def _fine_truth(t, m: Manoeuvre) -> dict:
             "force": np.einsum("kji,kj->ki", R, acc - GRAVITY_ENU)}
 
 
-def _cumulative(values, h):
-    """Cumulative trapezoidal integral along axis 0 from 0."""
-    steps = 0.5 * h * (values[1:] + values[:-1])
-    return np.concatenate([np.zeros((1, *values.shape[1:])), np.cumsum(steps, axis=0)])
-
-
 def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajectory:
     """The straight-then-helix manoeuvre of seed 004 Sec. 4 (Fig. 5), sampled at the IMU rate.
 
@@ -208,10 +200,10 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
     M = int(m.oversample)
     h = 1.0 / (m.rate_hz * M)
     fine = _fine_truth(np.arange(steps * M + 1) * h, m)
-    horizontal = _cumulative(fine["velocity"][:, :2], h)
+    horizontal = cumulative_trapezoid(fine["velocity"][:, :2], h)
     position = np.column_stack([horizontal, fine["z"]])
     every = slice(None, None, M)
-    mean = {k: np.diff(_cumulative(fine[k], h)[every], axis=0) * m.rate_hz for k in ("omega", "force")}
+    mean = {k: np.diff(cumulative_trapezoid(fine[k], h)[every], axis=0) * m.rate_hz for k in ("omega", "force")}
     return HelicopterTrajectory(
         t_s=np.arange(steps + 1) / m.rate_hz, position_m=position[every], velocity_m_s=fine["velocity"][every],
         acceleration_m_s2=fine["acceleration"][every], euler_rad=fine["euler"][every],
@@ -271,31 +263,6 @@ class ImuGpsReadings:
     gps_enu_m: np.ndarray
 
 
-def _interval_means(t_s, means, bias, noise_std, prefix, seed) -> np.ndarray:
-    """Per-axis :class:`RateSensor` readings of a signal whose interval means are ``means`` (N, 3).
-
-    Each axis is given to the sensor model as a :class:`~cfdesign.sim.trajectory.Trajectory`
-    whose "heading" is the signal's running integral, so the model's mean rate is the mean
-    of the signal over each interval.
-    """
-    dt = float(t_s[1] - t_s[0])
-    out = np.empty_like(means)
-    for i, axis in enumerate("xyz"):
-        integral = np.concatenate([[0.0], np.cumsum(means[:, i]) * dt])
-        sensor = RateSensor(noise=WhiteNoise(std=noise_std), bias=Bias(value=float(bias[i])))
-        name = f"{prefix}_{axis}"
-        out[:, i] = simulate(Trajectory(t_s, integral, np.zeros_like(t_s)), {name: sensor}, seed)[name]
-    return out
-
-
-def _sampled(truth, std, every, name, seed) -> np.ndarray:
-    """``truth`` plus white noise of std ``std`` at every ``every``-th sample, NaN elsewhere."""
-    rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
-    out = np.full(truth.shape, np.nan)
-    out[::every] = truth[::every] + std * rng.normal(size=truth[::every].shape)
-    return out
-
-
 def simulate_readings(trajectory: HelicopterTrajectory, seed: int, errors: SensorErrors = TABLE1,
                       field_enu_g=MAGNETIC_FIELD_ENU_G) -> ImuGpsReadings:
     """IMU, magnetometer and GPS readings of one run (module docstring), reproducible by ``seed``.
@@ -308,12 +275,12 @@ def simulate_readings(trajectory: HelicopterTrajectory, seed: int, errors: Senso
     R = quat.to_matrix(trajectory.quaternion)
     mag = np.einsum("kji,j->ki", R, np.asarray(field_enu_g, dtype=float))
     return ImuGpsReadings(
-        gyro_rad_s=_interval_means(t, trajectory.mean_body_rate_rad_s, errors.gyro_bias,
+        gyro_rad_s=interval_mean_readings(t, trajectory.mean_body_rate_rad_s, errors.gyro_bias,
                                    errors.gyro_noise_std_rad_s, "gyro", seed),
-        accel_m_s2=_interval_means(t, trajectory.mean_specific_force_m_s2, errors.accel_bias,
+        accel_m_s2=interval_mean_readings(t, trajectory.mean_specific_force_m_s2, errors.accel_bias,
                                    errors.accel_noise_std_m_s2, "accelerometer", seed),
-        mag_g=_sampled(mag, errors.mag_noise_std_g, 1, "magnetometer", seed),
-        gps_enu_m=_sampled(trajectory.position_m, errors.gps_noise_std_m, every, "gps", seed))
+        mag_g=noisy_samples(mag, errors.mag_noise_std_g, 1, "magnetometer", seed),
+        gps_enu_m=noisy_samples(trajectory.position_m, errors.gps_noise_std_m, every, "gps", seed))
 
 
 def declination_rad(field_enu_g=MAGNETIC_FIELD_ENU_G) -> float:

@@ -36,7 +36,8 @@ from ..noise import Bias, WhiteNoise
 from ..runtime import wrap
 from .trajectory import Trajectory
 
-__all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate"]
+__all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate", "cumulative_trapezoid",
+           "interval_mean_readings", "noisy_samples"]
 
 
 @dataclass(frozen=True)
@@ -198,4 +199,35 @@ def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
             out[name] = model.read(trajectory, rng)
         except SpecError as exc:
             raise SpecError(f"sensor {name}: {exc}") from None
+    return out
+
+
+def cumulative_trapezoid(values, h):
+    """Cumulative trapezoidal integral along axis 0 from 0."""
+    steps = 0.5 * h * (values[1:] + values[:-1])
+    return np.concatenate([np.zeros((1, *values.shape[1:])), np.cumsum(steps, axis=0)])
+
+
+def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndarray:
+    """Per-axis :class:`RateSensor` readings of a signal whose interval means are ``means`` (N, 3).
+
+    Each axis is given to the sensor model as a :class:`~cfdesign.sim.trajectory.Trajectory`
+    whose "heading" is the signal's running integral, so the model's mean rate is the mean
+    of the signal over each interval.
+    """
+    dt = float(t_s[1] - t_s[0])
+    out = np.empty_like(means)
+    for i, axis in enumerate("xyz"):
+        integral = np.concatenate([[0.0], np.cumsum(means[:, i]) * dt])
+        sensor = RateSensor(noise=WhiteNoise(std=noise_std), bias=Bias(value=float(bias[i])))
+        name = f"{prefix}_{axis}"
+        out[:, i] = simulate(Trajectory(t_s, integral, np.zeros_like(t_s)), {name: sensor}, seed)[name]
+    return out
+
+
+def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
+    """``truth`` plus white noise of std ``std`` at every ``every``-th sample, NaN elsewhere."""
+    rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
+    out = np.full(truth.shape, np.nan)
+    out[::every] = truth[::every] + std * rng.normal(size=truth[::every].shape)
     return out
