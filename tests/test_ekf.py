@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from cfdesign.errors import SpecError
 from cfdesign.nav import quaternion as quat
 from cfdesign.nav.ekf import N_STATES, PlanarEKF, StrapdownEKF, norm_observation, planar_step, strapdown_step
 from cfdesign.nav.mps import mps_quaternion
@@ -157,11 +158,11 @@ def test_strapdown_ekf_long_run_covariance_spd_with_outage():
 
 
 def test_strapdown_ekf_rejects_bad_rates_and_shapes():
-    with pytest.raises(ValueError):
+    with pytest.raises(SpecError):
         StrapdownEKF(50.0, gyro_noise_std=1e-3, accel_noise_std=1e-2, gyro_bias_density=1e-5,
                      accel_bias_density=1e-4, scale_density=1e-6, gps_pos_std=3.0, gps_vel_std=0.1,
                      triad_std=0.03, mag_rate_hz=7.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(SpecError):
         _strapdown(50.0).run(np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((9, 3)), np.zeros((9, 3)), None)
 
 

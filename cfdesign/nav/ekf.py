@@ -71,6 +71,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import SpecError
 from . import quaternion as quat
 from .mps import centripetal_compensation
 from .position import GRAVITY_ENU
@@ -264,7 +265,7 @@ class StrapdownEKF:
         mag_rate = float(rate_hz if mag_rate_hz is None else mag_rate_hz)
         self.mag_every = round(rate_hz / mag_rate)
         if self.mag_every < 1 or not math.isclose(self.mag_every * mag_rate, rate_hz, rel_tol=1e-9):
-            raise ValueError(f"mag_rate_hz {mag_rate:g} must divide rate_hz {rate_hz:g}")
+            raise SpecError(f"mag_rate_hz {mag_rate:g} must divide rate_hz {rate_hz:g}")
         self.mag_reference = np.asarray(mag_reference_enu, dtype=float)
         self.init_std = {"gyro_bias": math.radians(1.0), "accel_bias": 0.2, "scale": 0.02, "velocity": 10.0,
                          **(initial_std or {})}
@@ -299,7 +300,7 @@ class StrapdownEKF:
         x = np.zeros(N_STATES)
         x[_Q] = self.align(acc0, mag0)
         if not np.isfinite(x[_Q]).all():
-            raise ValueError("initial alignment failed: first accelerometer/magnetometer samples unusable")
+            raise SpecError("initial alignment failed: first accelerometer/magnetometer samples unusable")
         x[_SG] = x[_SA] = 1.0
         s = self.init_std
         v_std = s["velocity"] if velocity is None else self.gps_vel_std
@@ -357,7 +358,7 @@ class StrapdownEKF:
         gps_p = np.asarray(gps_pos_enu, dtype=float)
         gps_v = np.full((M, 3), np.nan) if gps_vel_enu is None else np.asarray(gps_vel_enu, dtype=float)
         if len(gyr) != len(acc) or M not in (len(gyr), len(gyr) + 1) or len(gps_p) != M or len(gps_v) != M:
-            raise ValueError("gyr, acc must have N rows and mag, gps M = N or N + 1 rows")
+            raise SpecError("gyr, acc must have N rows and mag, gps M = N or N + 1 rows")
         if initial_position is None:
             initial_position = _first_finite(gps_p)
         if initial_velocity is None:
@@ -476,7 +477,7 @@ class PlanarEKF:
         self.sigma_heading = (dict(sigma_heading) if isinstance(sigma_heading, dict)
                               else dict.fromkeys(modes, float(sigma_heading)))
         if set(self.sigma_heading) != modes:
-            raise ValueError("sigma_heading must give one value per GPS mode")
+            raise SpecError("sigma_heading must give one value per GPS mode")
         self.U = np.diag([odo_noise_std**2, gyro_noise_std**2])
         self.kappa_omega, self.kappa_rho = float(kappa_omega), float(kappa_rho)
         self.alpha_var = alpha_noise_std**2

@@ -8,6 +8,9 @@ runtime on Monte-Carlo simulations (:mod:`cfdesign.reproduce.seed001`).
 Euler-angle attitude filter and the multirate position filter
 (:mod:`cfdesign.reproduce.seed004`).
 
+``compare``: every navigation filter on the same scenarios, errors and cost per step
+(:mod:`cfdesign.reproduce.compare`).
+
 Each paper's module provides ``add_arguments(parser)`` (its options) and ``run(args)``.
 """
 
@@ -21,6 +24,7 @@ __all__ = ["add_parser", "PAPERS"]
 PAPERS = {
     "seed001": "Carreira et al., three-band complementary filters: Tables I and II (robot heading)",
     "seed004": "Vasconcelos et al., helicopter navigation: Table 2 (mean absolute errors)",
+    "compare": "CF against the seeds' EKFs and the adaptive CF: errors and cost per step, same scenarios",
 }
 
 

@@ -1,0 +1,34 @@
+"""cfdesign reproduce compare: every filter runs on both shared scenarios with bounded errors."""
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+from cfdesign.reproduce.compare import compare, verdict
+
+
+@pytest.fixture(scope="module")
+def ground():
+    return {r.filter: r for r in compare("ground", seed=1, duration_s=120.0)}
+
+
+def test_ground_scenario_all_filters_bounded(ground):
+    assert set(ground) == {"cf", "adaptive", "ekf003", "ekf002"}
+    for r in ground.values():
+        assert math.isfinite(r.position_rmse_m) and r.us_per_step > 0
+    assert ground["adaptive"].position_rmse_m < 3.0          # odometry dead reckoning through the outage
+    assert ground["ekf003"].position_rmse_m < 6.0
+    assert ground["cf"].attitude_rmse_deg < 2.0 and ground["ekf003"].attitude_rmse_deg < 2.0
+    assert ground["cf"].outage_max_m < 100.0                  # inertial coasting: 48 s at a 5-mg bias
+    assert "CF / EKF (seed 003)" in verdict(list(ground.values()))
+
+
+def test_cli_json(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "reproduce", "compare", "--scenario", "ground",
+                           "--duration", "60", "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert {r["filter"] for r in data["ground"]} == {"cf", "adaptive", "ekf003", "ekf002"}
