@@ -32,3 +32,12 @@ def test_cli_json(tmp_path):
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     assert {r["filter"] for r in data["ground"]} == {"cf", "adaptive", "ekf003", "ekf002"}
+
+
+def test_helicopter_scenario_cf_against_ekf():
+    results = {r.filter: r for r in compare("helicopter", seed=2)}
+    assert set(results) == {"cf", "adaptive", "ekf003"}
+    cf, ekf = results["cf"], results["ekf003"]
+    assert cf.position_rmse_m < 4.0 and ekf.position_rmse_m < 4.0
+    assert cf.attitude_rmse_deg < 0.5 and ekf.attitude_rmse_deg < 1.5
+    assert results["adaptive"].attitude_rmse_deg < 15.0  # accelerometer tilt in a helix: no turn compensation

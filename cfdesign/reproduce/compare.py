@@ -7,7 +7,8 @@ simulated data and measures, in the same process, its errors and its cost per st
 * ``cf`` - seed 004's navigation system: :class:`~cfdesign.nav.EulerAttitudeFilter` (MPS
   with centripetal compensation from a body velocity) and :class:`~cfdesign.nav.PositionFilter`
   (multirate gains), every gain designed by cfdesign from the noise figures;
-* ``adaptive`` - seed 000's adaptive CF (:mod:`cfdesign.nav.adaptive`; needs odometry);
+* ``adaptive`` - seed 000's adaptive CF (:mod:`cfdesign.nav.adaptive`; needs a forward speed:
+  odometry on the ground, the velocity sensor's speed on the helicopter, with 10 satellites);
 * ``ekf003`` - seed 003's 22-state strapdown EKF (:class:`~cfdesign.nav.ekf.StrapdownEKF`);
 * ``ekf002`` - seed 002's planar EKF [x, y, θ, α] (:class:`~cfdesign.nav.ekf.PlanarEKF`;
   needs odometry, ground vehicles only).
@@ -103,6 +104,7 @@ def _ground(seed: int, duration_s: float):
     return {"scenario": s, "truth_q": s.quaternion[1:], "truth_p": s.position_m[1:], "outage": outage,
             "gyr": s.gyro_rad_s, "acc": s.accel_m_s2, "mag": s.mag, "gps": s.gps_enu_m,
             "gps_v": s.gps_velocity_enu_m_s, "v_body": v_body, "rate": 1.0 / s.dt_s, "v0": s.velocity_m_s[0],
+            "odometry": s.odometry_speed_m_s, "n_satellites": s.n_satellites,
             "errors": _ground_noise(s)}
 
 
@@ -124,10 +126,11 @@ def _helicopter(seed: int, _duration_s: float):
     n = truth.steps
     v_body = np.einsum("kji,kj->ki", quat.to_matrix(truth.quaternion[:n]), truth.velocity_m_s[:n])
     e = heli.TABLE1
+    speed = np.linalg.norm(v_body, axis=1)  # the velocity sensor the CF's MPS uses, as forward speed
     return {"scenario": truth, "truth_q": truth.quaternion[:n], "truth_p": truth.position_m[:n],
             "outage": np.zeros(n, dtype=bool), "gyr": r.gyro_rad_s, "acc": r.accel_m_s2, "mag": r.mag_g[:n],
             "gps": r.gps_enu_m[:n], "gps_v": None, "v_body": v_body, "rate": 1.0 / truth.dt_s,
-            "v0": truth.velocity_m_s[0],
+            "v0": truth.velocity_m_s[0], "odometry": speed, "n_satellites": np.full(n, 10),
             "errors": {"gyro_std": e.gyro_noise_std_rad_s, "accel_std": e.accel_noise_std_m_s2,
                        "gps_std": e.gps_noise_std_m, "gps_vel_std": 0.1}}
 
@@ -164,9 +167,8 @@ def _run_cf(d, ground: bool):
 def _run_adaptive(d):
     from ..nav.adaptive import AdaptiveCF
 
-    s = d["scenario"]
-    f = AdaptiveCF(d["rate"])
-    est, seconds = _timed(lambda: f.run(d["gyr"], d["acc"], d["mag"], s.odometry_speed_m_s, d["gps"], s.n_satellites))
+    f = AdaptiveCF(d["rate"], v_max=2.0 if d["odometry"].max() < 2.0 else 2.0 * d["odometry"].max())
+    est, seconds = _timed(lambda: f.run(d["gyr"], d["acc"], d["mag"], d["odometry"], d["gps"], d["n_satellites"]))
     return est.quaternion, est.position, seconds
 
 
@@ -214,7 +216,7 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
         raise SpecError(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
     ground = scenario == "ground"
     d = _ground(seed, duration_s) if ground else _helicopter(seed, duration_s)
-    names = [f for f in (filters or FILTERS) if ground or f in ("cf", "ekf003")]
+    names = [f for f in (filters or FILTERS) if ground or f != "ekf002"]  # the planar EKF is for ground vehicles
     out = []
     for name in names:
         if name == "ekf002":
