@@ -26,7 +26,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
 from .errors import SpecError
 
@@ -96,6 +95,8 @@ class Bias:
 
 def van_loan(F, Qc, T: float):
     """Exact discretisation ``(Fd, Qd)`` of ``x' = F x + w``, ``E[w w^T] = Qc delta`` over ``T`` s."""
+    from scipy.linalg import expm
+
     F, Qc = np.atleast_2d(F).astype(float), np.atleast_2d(Qc).astype(float)
     n = F.shape[0]
     M = np.zeros((2 * n, 2 * n))
@@ -108,6 +109,8 @@ def van_loan(F, Qc, T: float):
 
 def zoh(F, B, T: float):
     """Zero-order-hold discretisation ``(Fd, Bd)``: ``Fd = e^{FT}``, ``Bd = int_0^T e^{F t} dt B``."""
+    from scipy.linalg import expm
+
     F, B = np.atleast_2d(F).astype(float), np.asarray(B, dtype=float).reshape(len(F), -1)
     n, p = B.shape
     M = np.zeros((n + p, n + p))
