@@ -30,7 +30,7 @@ def test_cli_json(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "cfdesign", "reproduce", "compare", "--scenario", "ground",
                            "--duration", "60", "--json"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    data = json.loads(proc.stdout)
+    data = json.loads(proc.stdout, parse_constant=lambda c: pytest.fail(f"invalid JSON constant {c}"))
     assert {r["filter"] for r in data["ground"]} == {"cf", "adaptive", "ekf003", "ekf002"}
 
 
