@@ -31,7 +31,6 @@ for the planar EKF), and the wall-clock microseconds per step of ``run`` on this
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -277,9 +276,9 @@ def run(args) -> int:
     scenarios = SCENARIOS if args.scenario == "all" else (args.scenario,)
     results = {s: compare(s, args.seed, args.duration) for s in scenarios}
     if args.json:
-        clean = {s: [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.__dict__.items()}
-                     for r in rs] for s, rs in results.items()}
-        print(json.dumps(clean, indent=1, allow_nan=False))  # no measurement: null
+        from .report import json_text
+
+        print(json_text({s: [r.__dict__ for r in rs] for s, rs in results.items()}))  # no measurement: null
         return 0
     for s, rs in results.items():
         print(f"\nscenario: {s} (seed {args.seed})", file=sys.stdout)

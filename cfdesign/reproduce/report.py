@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from ..sim.metrics import mean_ci
 
-__all__ = ["Comparison", "RATIO_RANGE", "format_table", "order_disagreements"]
+__all__ = ["Comparison", "RATIO_RANGE", "format_table", "order_disagreements", "json_text"]
 
 #: ratios ours/paper outside this range are explained, not hidden
 RATIO_RANGE = (1 / 3, 3.0)
@@ -96,3 +96,21 @@ def order_disagreements(ours, paper, tie: float = 0.05) -> list:
             if (ours[i] < ours[j]) != (paper[i] < paper[j]):
                 bad.append((i, j))
     return bad
+
+
+def _finite_or_none(value):
+    if isinstance(value, dict):
+        return {k: _finite_or_none(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_none(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def json_text(data) -> str:
+    """Strict JSON of a result: a quantity that could not be computed (NaN, e.g. the interval of
+    a single run) is ``null``, never the non-standard ``NaN``."""
+    import json
+
+    return json.dumps(_finite_or_none(data), indent=1, allow_nan=False)

@@ -343,10 +343,9 @@ def run(args) -> int:
 
     Raises :class:`cfdesign.errors.SpecError` for a bad ``--runs``.
     """
-    import json
-
     from ..sim.seed001 import READINGS
+    from .report import json_text
 
     result = reproduce(args.runs, seed=args.seed, reading=READINGS[args.reading], progress=not args.json)
-    print(json.dumps(result.to_dict(), indent=1) if args.json else result.text())
+    print(json_text(result.to_dict()) if args.json else result.text())
     return 0

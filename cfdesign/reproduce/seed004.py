@@ -33,7 +33,6 @@ Assumptions where the paper is silent
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 from dataclasses import dataclass, replace
@@ -41,7 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..sim import helicopter as heli
-from .report import Comparison
+from .report import Comparison, json_text
 
 __all__ = ["PAPER", "Tuning", "NOMINAL", "SMALL_BIAS_GAINS", "run_once", "Reproduction", "reproduce",
            "add_arguments", "run"]
@@ -203,5 +202,5 @@ def run(args) -> int:
     """Run ``cfdesign reproduce seed004``: print Table 2 (or JSON); exit status 0."""
     result = reproduce(getattr(args, "runs", 5), seed=getattr(args, "seed", 0),
                        accel_bias=getattr(args, "accel_bias", "z"), progress=not getattr(args, "json", False))
-    print(json.dumps(result.to_dict(), indent=1) if getattr(args, "json", False) else result.text())
+    print(json_text(result.to_dict()) if getattr(args, "json", False) else result.text())
     return 0
