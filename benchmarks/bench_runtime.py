@@ -178,7 +178,7 @@ def plain_python_filter(table):
     K = [np.asarray(k, dtype=float).tolist() for k in table.K]
     rt = Runtime(table)
     p, n, N_ = len(rt.inputs), len(F), range(len(F))
-    angle = {s["name"] for s in table.sensors if s["order"] == 0}
+    angle = {s.name for s in table.sensors if s.order == 0}
     wrapped = [bool(table.wrap_angle) and name in angle for name in rt.measurements]
     pi, tau, state = math.pi, 2 * math.pi, {"x": [0.0] * n, "u": [0.0] * p, "phase": 0}
 

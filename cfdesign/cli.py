@@ -150,9 +150,10 @@ def _summary(table) -> str:
     lines = [f"{table.name}: {table.structure} ({kind})"]
     if table.period > 1:
         lines.append(f"  multirate: period {table.period} steps; measurements per phase: "
-                     + ", ".join(f"{k}:{'+'.join(m)}" for k, m in enumerate(table.measured) if m))
+                     + ", ".join(f"{k}:{'+'.join(table.schedule.names(k))}" for k in range(table.period)
+                                 if table.schedule.rows(k)))
         for k, K in enumerate(table.K):
-            if table.measured[k]:
+            if table.schedule.rows(k):
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
     else:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))

@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 import platform
 import warnings
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from functools import reduce
 
@@ -32,12 +31,13 @@ from scipy import linalg, optimize
 
 from . import __version__
 from .errors import CfdesignError, SpecError
-from .gains import GainTable
+from . import linear
+from .gains import GainTable, Schedule, SensorPort
 from .noise import van_loan
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import FilterSpec
 
-__all__ = ["design", "Schedule", "multirate_schedule", "build_structure", "noise_covariances",
+__all__ = ["design", "multirate_schedule", "build_structure", "noise_covariances",
            "designed_observer"]
 
 _RATE_RTOL = 1e-9
@@ -45,21 +45,9 @@ _RATE_RTOL = 1e-9
 MAX_PERIOD = 10_000
 
 
-@dataclass(frozen=True)
-class Schedule:
-    """Multirate phase schedule: base sample time, period, and every how many base steps each
-    measurement sensor reads (at phases ``k % every == 0``)."""
-
-    sample_time_s: float
-    period: int
-    every: dict
-
-    def measured(self, phase: int) -> list:
-        return [name for name, n in self.every.items() if phase % n == 0]
-
-
-def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None) -> Schedule:
-    """Base rate = the fastest sensor (or ``1/sample_time_s``); period = lcm of the rate ratios.
+def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None) -> tuple:
+    """``(sample_time_s, Schedule)``: base rate = the fastest sensor (or ``1/sample_time_s``),
+    period = lcm of the rate ratios, each measurement read at the phases ``k % ratio == 0``.
 
     Input sensors drive the model every step and must run at the base rate.  Raises
     :class:`SpecError` naming the sensor when a ratio is not an integer.
@@ -80,7 +68,7 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     if period > MAX_PERIOD:
         raise SpecError(f"sensors: the rates give a period of {period} base steps (more than {MAX_PERIOD}); "
                         "choose rates with a smaller common multiple")
-    return Schedule(1.0 / base, period, every)
+    return 1.0 / base, Schedule.every(list(every), every, period)
 
 
 def build_structure(spec: FilterSpec):
@@ -189,24 +177,25 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
         _check_sensors(spec, obs)
     obs, fixed = _split_gains(obs, spec.gains)
     inputs = [s.name for s in obs.sensors if s.role == "input"]
-    rates = {s.name: spec.sensor(s.name).rate_hz for s in obs.sensors}
+    by_row = [s.name for s in sorted((s for s in obs.sensors if s.role == "measurement"), key=lambda s: s.index)]
+    rates = {name: spec.sensor(name).rate_hz for name in inputs + by_row}
     if obs.discrete:
-        schedule = multirate_schedule(rates, inputs, spec.sample_time_s)
-        model = obs.numeric_model(schedule.sample_time_s)
+        dt, schedule = multirate_schedule(rates, inputs, spec.sample_time_s)  # rows in H order
+        model = obs.numeric_model(dt)
     else:
         if spec.gain_form == "filter":
             raise SpecError("gain_form: 'filter' applies to discrete filters only")
-        schedule, model = None, obs.numeric_model()
+        dt, schedule, model = None, Schedule.from_names(by_row, [by_row]), obs.numeric_model()
     Qc, R = noise_covariances(obs, spec, model, obs.discrete)
     if obs.discrete:
-        Fd, Q = van_loan(model["Fc"], Qc, schedule.sample_time_s)
+        Fd, Q = van_loan(model["Fc"], Qc, dt)
         if not np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12):
             raise CfdesignError(f"{obs.name}: symbolic and numeric ZOH models disagree (a bug, please report it)")
         result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, fixed)
     else:
         Q = Qc
         result = _continuous_gains(obs, model, Q, R, fixed)
-    return _table(spec, obs, model, Q, R, schedule, result, spec.gains)
+    return _table(spec, obs, model, Q, R, dt, schedule, result, spec.gains)
 
 
 def _split_gains(obs, gains):
@@ -254,8 +243,7 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None):
         return _sparse_gains(obs, F, H, Q, R, form)
     if not _full_pattern(obs):
         raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
-    names = [s.name for s in sorted((s for s in obs.sensors if s.role == "measurement"), key=lambda s: s.index)]
-    rows = [[i for i, nm in enumerate(names) if nm in schedule.measured(k)] for k in range(schedule.period)]
+    rows = [list(schedule.rows(k)) for k in range(schedule.period)]
     sol = periodic_dare(F, [H[r, :] for r in rows], Q, [R[np.ix_(r, r)] for r in rows])
     K = []
     for r, Kk in zip(rows, getattr(sol, key), strict=True):
@@ -273,21 +261,21 @@ def _solver_info(sol) -> dict:
             "refinement_steps": int(sol.refinement_steps)}
 
 
-def _closed_loop(F, H, K, form):
-    return F @ (np.eye(len(F)) - K @ H) if form == "filter" else F - K @ H
-
-
 def _error_covariance(F, H, K, Q, R, form):
-    """Steady-state error covariance for a fixed gain (a-priori for discrete forms)."""
-    A = _closed_loop(F, H, K, form)
+    """Steady-state error covariance for a fixed gain (a-priori for discrete forms).
+
+    ``P = A P A' + Q + Kp R Kp'`` with ``A = F - Kp H`` (discrete), ``A P + P A' + Q + K R K' = 0``
+    (continuous); gain forms as :func:`cfdesign.linear.gain_pair`.
+    """
+    A = linear.closed_loop(F, H, K, form)
+    Kp, _ = linear.gain_pair(F, K, form)
     if form == "continuous":
         return linalg.solve_continuous_lyapunov(A, -(Q + K @ R @ K.T))
-    G = F @ K if form == "filter" else K
-    return linalg.solve_discrete_lyapunov(A, Q + G @ R @ G.T)
+    return linalg.solve_discrete_lyapunov(A, Q + Kp @ R @ Kp.T)
 
 
 def _stable(eigs, form) -> bool:
-    return bool(np.all(eigs.real < 0)) if form == "continuous" else bool(np.all(np.abs(eigs) < 1))
+    return linear.is_stable(eigs, "s" if form == "continuous" else "z")
 
 
 def _pattern_gain(pattern, free, values):
@@ -307,24 +295,18 @@ def _kalman_gain(F, H, Q, R, form):
     return (sol.K_filter if form == "filter" else sol.K_predictor), sol.P
 
 
-def _filtered(P, H, K, R):
-    """A-posteriori covariance of ``x+ = x- + K (y - H x-)`` for ANY gain (Joseph form)."""
-    IKH = np.eye(len(P)) - K @ H
-    return IKH @ P @ IKH.T + K @ R @ K.T
-
-
 def _output_covariance(F, H, K, Q, R, form):
     """Covariance of the estimate the gain form outputs (a-posteriori for the filter form)."""
     P = _error_covariance(F, H, K, Q, R, form)
-    return _filtered(P, H, K, R) if form == "filter" else P
+    return linear.posterior_covariance(P, H, K, R) if form == "filter" else P
 
 
 def _gain_result(K, F, H, Q, R, form, solver, optimum):
     """Error covariances of a fixed gain, beside the Kalman optimum ``(K_opt, P_opt)`` for comparison."""
     P = _error_covariance(F, H, K, Q, R, form)
-    P_filtered = _filtered(P, H, K, R) if form == "filter" else P
+    P_filtered = linear.posterior_covariance(P, H, K, R) if form == "filter" else P
     K_opt, P_opt = optimum
-    out = _filtered(P_opt, H, K_opt, R) if form == "filter" else P_opt
+    out = linear.posterior_covariance(P_opt, H, K_opt, R) if form == "filter" else P_opt
     mine = P_filtered if form == "filter" else P
     solver = {**solver, "kalman_predicted_variance": float(out[0, 0]), "predicted_variance": float(mine[0, 0])}
     return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
@@ -339,7 +321,7 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed):
         what = f"missing {', '.join(missing)}" if missing else f"unknown {', '.join(extra)}"
         raise SpecError(f"gains: {what} ({obs.name} has gains {', '.join(free)})")
     K = _pattern_gain(pattern, free, [fixed[e] for e in free])
-    if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
+    if not _stable(np.linalg.eigvals(linear.closed_loop(F, H, K, form)), form):
         raise SpecError(f"gains: the given gains do not stabilise {obs.name}")
     return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"},
                         _kalman_gain(F, H, Q, R, form))
@@ -352,7 +334,7 @@ def _sparse_gains(obs, F, H, Q, R, form):
 
     def cost(values):
         K = _pattern_gain(pattern, free, values)
-        if not _stable(np.linalg.eigvals(_closed_loop(F, H, K, form)), form):
+        if not _stable(np.linalg.eigvals(linear.closed_loop(F, H, K, form)), form):
             return np.inf
         with warnings.catch_warnings():
             warnings.simplefilter("error", linalg.LinAlgWarning)
@@ -399,23 +381,22 @@ def _pairs(values) -> list:
     return [[float(np.real(v)), float(np.imag(v))] for v in values]
 
 
-def _checks(obs, model, result, schedule, form):
+def _checks(obs, model, result, dt, schedule, form):
     F, H = model["F"], model["H"]
-    if schedule is not None and schedule.period > 1:
+    if schedule.period > 1:
         mult = np.array([complex(*p) for p in result["solver"]["monodromy_multipliers"]])
         return {"complementary": obs.proof().holds, "complementary_note":
                 "proved with the gains symbolic, so it holds at every phase",
                 "monodromy_multipliers": _pairs(mult), "stable": bool(np.all(np.abs(mult) < 1))}
     K = result["K"][0]
-    numeric = obs.with_gain_matrix(K, form if obs.discrete else None,
-                                   schedule.sample_time_s if schedule else None)
-    poles = np.linalg.eigvals(_closed_loop(F, H, K, form))
+    numeric = obs.with_gain_matrix(K, form if obs.discrete else None, dt)
+    poles = np.linalg.eigvals(linear.closed_loop(F, H, K, form))
     return {"complementary": numeric.proof().holds, "poles": _pairs(poles), "stable": _stable(poles, form)}
 
 
-def _table(spec, obs, model, Q, R, schedule, result, given=None) -> GainTable:
+def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTable:
     form = spec.gain_form if obs.discrete else "continuous"
-    checks = _checks(obs, model, result, schedule, form)
+    checks = _checks(obs, model, result, dt, schedule, form)
     if not checks["stable"]:
         roots = checks.get("poles", checks.get("monodromy_multipliers"))
         worst = max(abs(complex(*r)) if obs.discrete else complex(*r).real for r in roots)
@@ -427,17 +408,12 @@ def _table(spec, obs, model, Q, R, schedule, result, given=None) -> GainTable:
             for j, e in enumerate(row):
                 if isinstance(e, str):
                     gains[e] = float(result["K"][0][i, j])
-    period = schedule.period if schedule else 1
     return GainTable(
-        name=spec.name, structure=spec.structure, domain=obs.domain,
-        sample_time_s=schedule.sample_time_s if schedule else None, gain_form=form,
-        sensors=[{"name": s.name, "role": s.role, "index": s.index, "order": s.order,
-                  "rate_hz": spec.sensor(s.name).rate_hz} for s in obs.sensors],
+        name=spec.name, structure=spec.structure, domain=obs.domain, sample_time_s=dt, gain_form=form,
+        sensors=tuple(SensorPort(s.name, s.role, s.index, s.order, spec.sensor(s.name).rate_hz)
+                      for s in obs.sensors),
         F=model["F"], B=model["B"], H=model["H"], K=result["K"], P=result["P"],
-        P_filtered=result["P_filtered"],
-        measured=[schedule.measured(k) if schedule else [s.name for s in obs.sensors if s.role == "measurement"]
-                  for k in range(period)],
-        Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
+        P_filtered=result["P_filtered"], schedule=schedule, Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
         options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
                  if v is not None},
         provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,

@@ -44,8 +44,7 @@ def write_gain_csv(table, path) -> Path:
 
     Values use ``repr`` precision; the gain form and sample time are in the JSON table.
     """
-    meas = sorted((s for s in table.sensors if s["role"] == "measurement"), key=lambda s: s["index"])
-    rows = [["phase", "state", *(s["name"] for s in meas)]]
+    rows = [["phase", "state", *table.sensor_names("measurement")]]
     for k, K in enumerate(table.K):
         rows += [[k, i, *(repr(float(v)) for v in K[i])] for i in range(K.shape[0])]
     return _atomic_write(path, rows)

@@ -19,14 +19,15 @@ At a phase where a measurement sensor has no reading, its column of ``K[k]`` is 
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from .errors import CfdesignError, GainTableError
+from .linear import GAIN_FORMS
 
-__all__ = ["GainTable", "load_gains", "validate", "schema", "FORMAT_VERSION"]
+__all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION"]
 
 #: version of the JSON layout written by :meth:`GainTable.save`
 FORMAT_VERSION = 1
@@ -39,11 +40,16 @@ def schema() -> dict:
 
 
 def validate(data: dict, source: str = "gain table"):
-    """Check a parsed gain table against the schema and its shape rules; raise GainTableError.
+    """Check a parsed gain table; raise GainTableError naming the field; returns the GainTable.
 
-    The schema fixes the fields and types; the shapes (``F`` n x n, ``B`` n x p, ``H`` m x n,
-    ``K[k]`` n x m, one ``measured`` list per phase) are checked here, naming the field.
+    The JSON schema fixes the fields and types; how the parts fit together (shapes, sensor
+    ports, schedule) is checked when the :class:`GainTable` is built from them.
     """
+    _check_schema(data, source)
+    return GainTable._from_json(data, source)
+
+
+def _check_schema(data, source):
     import jsonschema
 
     if isinstance(data, dict) and data.get("format_version") not in (None, FORMAT_VERSION):
@@ -54,36 +60,163 @@ def validate(data: dict, source: str = "gain table"):
     except jsonschema.ValidationError as exc:
         where = "/".join(map(str, exc.absolute_path)) or "(top level)"
         raise GainTableError(f"{source}: schema violation at {where}: {exc.message}") from None
-    _check_shapes(data, source)
 
 
-def _check_shapes(d, source):
-    n = len(d["F"])
-    m, p = len(d["H"]), len(d["B"][0]) if d["B"] else 0
-    expect = {"F": (n, n), "B": (n, p), "H": (m, n), "Q": (n, n), "R": (m, m)}
-    for key, shape in expect.items():
-        _shape_of(d[key], shape, f"{source}: {key}")
+def _check_table(t, source):
+    """Shapes, ports and schedule of a table fit together (GainTableError naming the part)."""
+    if t.domain not in ("s", "z") or t.gain_form not in GAIN_FORMS:
+        raise GainTableError(f"{source}: domain {t.domain!r} / gain_form {t.gain_form!r} unknown")
+    if (t.domain == "s") != (t.gain_form == "continuous"):
+        raise GainTableError(f"{source}: gain_form {t.gain_form!r} does not go with domain {t.domain!r}")
+    n = np.shape(t.F)[0] if np.ndim(t.F) == 2 else 0
+    if n == 0:
+        raise GainTableError(f"{source}: F is empty: a filter needs at least one state")
+    m, p = np.shape(t.H)[0], np.shape(t.B)[1] if np.ndim(t.B) == 2 else -1
+    for key, shape in {"F": (n, n), "B": (n, p), "H": (m, n), "Q": (n, n), "R": (m, m)}.items():
+        _shape_of(getattr(t, key), shape, f"{source}: {key}")
+    if not t.K:
+        raise GainTableError(f"{source}: K has no phase")
     for key, shape in (("K", (n, m)), ("P", (n, n)), ("P_filtered", (n, n))):
-        if len(d[key]) != len(d["K"]):
-            raise GainTableError(f"{source}: {key} has {len(d[key])} phases, K has {len(d['K'])}")
-        for k, M in enumerate(d[key]):
+        if len(getattr(t, key)) != len(t.K):
+            raise GainTableError(f"{source}: {key} has {len(getattr(t, key))} phases, K has {len(t.K)}")
+        for k, M in enumerate(getattr(t, key)):
             _shape_of(M, shape, f"{source}: {key}[{k}]")
-    if len(d["measured"]) != len(d["K"]):
-        raise GainTableError(f"{source}: measured has {len(d['measured'])} phases, K has {len(d['K'])}")
-    roles = {"input": p, "measurement": m}
-    for role, count in roles.items():
-        idx = sorted(s["index"] for s in d["sensors"] if s["role"] == role)
+    _check_ports(t.sensors, p, m, source)
+    _check_schedule(t, source)
+
+
+def _check_ports(ports, p, m, source):
+    if not ports:
+        raise GainTableError(f"{source}: sensors: a table needs at least one sensor")
+    names = [s.name for s in ports]
+    dup = sorted({x for x in names if names.count(x) > 1})
+    if dup:
+        raise GainTableError(f"{source}: sensors: duplicate name(s) {', '.join(dup)}")
+    for s in ports:
+        if not (isinstance(s.name, str) and s.name.isascii() and s.name.isidentifier()):
+            raise GainTableError(f"{source}: sensors: name {s.name!r} is not an ASCII identifier")
+        if s.role not in ("input", "measurement") or s.order < 0 or not s.rate_hz > 0:
+            raise GainTableError(f"{source}: sensors.{s.name}: role {s.role!r}, order {s.order}, "
+                                 f"rate {s.rate_hz} Hz is not a valid port")
+    for role, count in (("input", p), ("measurement", m)):
+        idx = [s.index for s in ports if s.role == role]
         if idx != list(range(count)):
-            raise GainTableError(f"{source}: sensors: {role} indices {idx} do not match the {count} "
+            raise GainTableError(f"{source}: sensors: {role} indices {sorted(idx)} do not match the {count} "
                                  f"{'columns of B' if role == 'input' else 'rows of H'}")
 
 
+def _check_schedule(t, source):
+    sched = t.schedule
+    names = tuple(s.name for s in t.sensors if s.role == "measurement")
+    if not isinstance(sched, Schedule) or sched.measurements != names:
+        raise GainTableError(f"{source}: the schedule does not list the measurement sensors {', '.join(names)}")
+    if sched.period != len(t.K):
+        raise GainTableError(f"{source}: measured has {sched.period} phases, K has {len(t.K)}")
+    idle = ~sched.mask()
+    for k, K in enumerate(t.K):
+        cols = np.flatnonzero(idle[k] & np.any(np.asarray(K) != 0, axis=0))
+        if cols.size:
+            raise GainTableError(f"{source}: K[{k}] has a gain for {names[cols[0]]}, which the schedule does "
+                                 f"not read at phase {k}")
+
+
 def _shape_of(M, shape, what):
-    rows = len(M)
-    cols = {len(r) for r in M}
-    if rows != shape[0] or (rows and cols != {shape[1]}):
-        got = f"{rows}x{'/'.join(map(str, sorted(cols))) or 0}"
-        raise GainTableError(f"{what} must be {shape[0]}x{shape[1]}, got {got}")
+    got = np.shape(M)
+    if len(got) != 2 or got != shape:
+        raise GainTableError(f"{what} must be {shape[0]}x{shape[1]}, got {'x'.join(map(str, got)) or 'a scalar'}")
+
+
+@dataclass(frozen=True)
+class SensorPort:
+    """How one sensor enters a table.
+
+    Attributes
+    ----------
+    name : str
+        The sensor's name (an identifier; the log column and C macro are named after it).
+    role : {'input', 'measurement'}
+        ``input``: drives the model through column ``index`` of ``B`` every step;
+        ``measurement``: compared with row ``index`` of ``H x`` at the phases the
+        :class:`Schedule` lists.
+    index : int
+        Column of ``B`` or row of ``H``.
+    order : int
+        Derivative order of the common quantity it reads: 0 angle/position, 1 rate,
+        2 acceleration.
+    rate_hz : float
+        Its rate (Hz).
+    """
+
+    name: str
+    role: str
+    index: int
+    order: int
+    rate_hz: float
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SensorPort:
+        return cls(str(d["name"]), str(d["role"]), int(d["index"]), int(d["order"]), float(d["rate_hz"]))
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "role": self.role, "index": self.index, "order": self.order,
+                "rate_hz": self.rate_hz}
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Which measurement rows a multirate table reads at each phase of its period.
+
+    Attributes
+    ----------
+    measurements : tuple of str
+        Measurement sensor names in row order (row ``i`` of ``H``).
+    active : tuple of tuple of int
+        ``active[k]``: the rows read at phase ``k``, ascending; ``len(active)`` is the period.
+    """
+
+    measurements: tuple
+    active: tuple
+
+    @classmethod
+    def from_names(cls, measurements, per_phase) -> Schedule:
+        """From one list of sensor names per phase; unknown or repeated names raise ValueError."""
+        measurements = tuple(measurements)
+        active = []
+        for k, names in enumerate(per_phase):
+            unknown = [x for x in names if x not in measurements]
+            if unknown or len(set(names)) != len(names):
+                what = f"unknown sensor(s) {', '.join(map(repr, unknown))}" if unknown else "a repeated sensor"
+                raise ValueError(f"phase {k} lists {what} (measurements: {', '.join(measurements) or 'none'})")
+            active.append(tuple(sorted(measurements.index(x) for x in names)))
+        return cls(measurements, tuple(active))
+
+    @classmethod
+    def every(cls, measurements, every: dict, period: int) -> Schedule:
+        """Sensor ``name`` read at the phases ``k`` with ``k % every[name] == 0``."""
+        measurements = tuple(measurements)
+        return cls.from_names(measurements, [[x for x in measurements if k % every[x] == 0] for k in range(period)])
+
+    @property
+    def period(self) -> int:
+        return len(self.active)
+
+    def rows(self, phase: int) -> tuple:
+        """Rows of ``H`` read at ``phase`` (taken modulo the period)."""
+        return self.active[phase % self.period]
+
+    def names(self, phase: int) -> list:
+        """Names of the sensors read at ``phase``."""
+        return [self.measurements[i] for i in self.rows(phase)]
+
+    def mask(self) -> np.ndarray:
+        """``(period, m)`` booleans: row ``i`` is read at phase ``k``."""
+        out = np.zeros((self.period, len(self.measurements)), dtype=bool)
+        for k, rows in enumerate(self.active):
+            out[k, list(rows)] = True
+        return out
+
+    def per_phase_names(self) -> list:
+        return [self.names(k) for k in range(self.period)]
 
 
 @dataclass(frozen=True)
@@ -99,9 +232,10 @@ class GainTable:
     sample_time_s : float or None
         Base sample time (s); None for continuous filters.
     gain_form : {'predictor', 'filter', 'continuous'}
-    sensors : list of dict
-        ``name``, ``role`` (input/measurement), ``index`` (column of B / row of H),
-        ``order`` (0 angle/position, 1 rate, 2 acceleration), ``rate_hz``.
+        See :mod:`cfdesign.linear` for what each form means.
+    sensors : tuple of SensorPort
+        Inputs by column of ``B``, then measurements by row of ``H`` (the column order of
+        :func:`cfdesign.linear.realisation`'s ``G``).
     F, B, H : ndarray
         Model matrices (the discrete model for ``domain = 'z'``).
     K : list of ndarray
@@ -110,8 +244,9 @@ class GainTable:
         Predicted (a-priori) steady-state error covariance per phase.
     P_filtered : list of ndarray
         A-posteriori covariance per phase (equal to ``P`` where nothing is measured).
-    measured : list of list of str
-        Measurement sensors with a reading at each phase.
+    schedule : Schedule
+        The measurement rows read at each phase; a gain column of a row not read at a
+        phase is exactly zero.
     gains : dict
         ``{gain symbol: value}`` for single-rate tables (e.g. ``k11``); empty when periodic.
     wrap_angle : bool
@@ -124,6 +259,13 @@ class GainTable:
     checks : dict
         ``complementary`` (exact proof verdict), ``poles`` or ``monodromy_multipliers``
         (as ``[re, im]`` pairs) and ``stable``.
+
+    Raises
+    ------
+    GainTableError
+        On construction, when the parts do not fit together: shapes, sensor ports (each
+        column of ``B`` and row of ``H`` exactly one sensor, names unique), an empty model,
+        or a schedule that disagrees with the gains.
     """
 
     name: str
@@ -131,14 +273,14 @@ class GainTable:
     domain: str
     sample_time_s: float | None
     gain_form: str
-    sensors: list
+    sensors: tuple
     F: np.ndarray
     B: np.ndarray
     H: np.ndarray
     K: list
     P: list
     P_filtered: list
-    measured: list
+    schedule: Schedule
     Q: np.ndarray
     R: np.ndarray
     gains: dict = field(default_factory=dict)
@@ -147,9 +289,31 @@ class GainTable:
     provenance: dict = field(default_factory=dict)
     checks: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        ports = tuple(SensorPort.from_dict(s) if isinstance(s, dict) else s for s in self.sensors)
+        ports = tuple(sorted(ports, key=lambda s: (s.role != "input", s.index)))
+        object.__setattr__(self, "sensors", ports)
+        _check_table(self, self.name)
+
     @property
     def period(self) -> int:
         return len(self.K)
+
+    @property
+    def inputs(self) -> tuple:
+        """Input sensors, by column of ``B``."""
+        return tuple(s for s in self.sensors if s.role == "input")
+
+    @property
+    def measurements(self) -> tuple:
+        """Measurement sensors, by row of ``H``."""
+        return tuple(s for s in self.sensors if s.role == "measurement")
+
+    def sensor(self, name: str) -> SensorPort:
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise GainTableError(f"{self.name} has no sensor {name!r} (sensors: {', '.join(self.sensor_names())})")
 
     @property
     def predicted_std(self) -> float:
@@ -164,17 +328,19 @@ class GainTable:
     def phase_model(self, phase: int) -> tuple:
         """``(F, B, H_k, K_k)`` of one phase: ``H_k`` keeps the rows of the sensors measured at
         that phase and ``K_k`` their gain columns (the per-phase view of a multirate table)."""
-        k = phase % self.period
-        names = [s["name"] for s in sorted(self.sensors, key=lambda s: s["index"]) if s["role"] == "measurement"]
-        rows = [i for i, name in enumerate(names) if name in self.measured[k]]
-        return self.F, self.B, self.H[rows, :], self.K[k][:, rows]
+        rows = list(self.schedule.rows(phase))
+        return self.F, self.B, self.H[rows, :], self.K[phase % self.period][:, rows]
 
     def sensor_names(self, role: str | None = None) -> list:
-        return [s["name"] for s in self.sensors if role is None or s["role"] == role]
+        return [s.name for s in self.sensors if role is None or s.role == role]
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict:
-        d = asdict(self)
+        """The JSON form (plain lists and numbers; ``measured`` lists the schedule's names)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["sensors"] = [s.to_dict() for s in self.sensors]
+        d["measured"] = self.schedule.per_phase_names()
+        del d["schedule"]
         for key in ("F", "B", "H", "Q", "R"):
             d[key] = np.asarray(d[key]).tolist()
         for key in ("K", "P", "P_filtered"):
@@ -194,28 +360,51 @@ class GainTable:
     @classmethod
     def from_dict(cls, d: dict, source: str = "gain table") -> GainTable:
         """Build a table from its JSON form after validating it (:func:`validate`)."""
-        validate(d, source)
+        return validate(d, source)
+
+    @classmethod
+    def _from_json(cls, d: dict, source: str) -> GainTable:
+        kw = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
         try:
-            kw = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
-            for key in ("F", "B", "H", "Q", "R"):
-                kw[key] = np.array(d[key], dtype=float)
+            n, m = len(d["F"]), len(d["H"])
+            p = len(d["B"][0]) if d["B"] else 0
+            shapes = {"F": (n, n), "B": (n, p), "H": (m, n), "Q": (n, n), "R": (m, m)}
+            for key, shape in shapes.items():
+                kw[key] = _array(d[key], shape, f"{source}: {key}")
             for key in ("K", "P", "P_filtered"):
-                kw[key] = [np.array(m, dtype=float).reshape(_shape(key, d)) for m in d[key]]
-            return cls(**kw)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise GainTableError(f"{source}: malformed gain table: {exc}") from None
+                shape = (n, m) if key == "K" else (n, n)
+                kw[key] = [_array(M, shape, f"{source}: {key}[{k}]") for k, M in enumerate(d[key])]
+            kw["sensors"] = tuple(SensorPort.from_dict(s) for s in d["sensors"])
+            names = [s.name for s in sorted(kw["sensors"], key=lambda s: s.index) if s.role == "measurement"]
+            kw["schedule"] = Schedule.from_names(names, d["measured"])
+        except ValueError as exc:
+            raise GainTableError(f"{source}: {exc}") from None
+        return cls(**kw)
 
 
-def _shape(key, d):
-    n = len(d["F"])
-    return (n, len(d["H"])) if key == "K" else (n, n)
+def _array(value, shape, what) -> np.ndarray:
+    """A float array of ``shape`` from nested lists (an empty dimension may be given as [])."""
+    try:
+        a = np.array(value, dtype=float)
+    except ValueError:
+        raise GainTableError(f"{what} is ragged: its rows differ in length") from None
+    if a.size == 0 and 0 in shape:
+        a = a.reshape(shape)
+    _shape_of(a, shape, what)
+    if not np.isfinite(a).all():
+        raise GainTableError(f"{what} has a value that is not finite")
+    return a
+
+
+def _no_constant(token):
+    raise json.JSONDecodeError(f"{token} is not a JSON number (gain tables hold finite numbers only)", token, 0)
 
 
 def load_gains(path) -> GainTable:
     """Read a gain table written by :meth:`GainTable.save`."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
     except OSError as exc:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:

@@ -19,11 +19,12 @@ with ``rel_j = v**order`` (continuous) or the ZOH chain relation ``N_order / N_0
 from __future__ import annotations
 
 from dataclasses import dataclass
-from math import factorial
 
 import numpy as np
 
-__all__ = ["Check", "verify_table", "band_polynomials"]
+from . import linear
+
+__all__ = ["Check", "verify_table", "band_polynomials", "phase_realisation"]
 
 IDENTITY_RTOL = 1e-12
 GRID_ATOL = 1e-9
@@ -41,87 +42,29 @@ class Check:
         return f"{'PASS' if self.ok else 'FAIL'} {self.name}: {self.detail}"
 
 
-def _closed_loop(table, K):
-    F, H = table.F, table.H
-    n = len(F)
-    if table.gain_form == "filter":
-        IKH = np.eye(n) - K @ H
-        return F @ IKH, np.hstack([table.B, F @ K]), IKH[0], np.concatenate([np.zeros(table.B.shape[1]), K[0]])
-    G = np.hstack([table.B, K])
-    return F - K @ H, G, np.eye(n)[0], np.zeros(G.shape[1])
+def phase_realisation(table, phase: int = 0, output: str | None = None):
+    """One phase of ``table`` as a :class:`cfdesign.linear.Realisation`."""
+    return linear.realisation(table.F, table.B, table.H, table.K[phase], table.gain_form, output)
 
 
-def _adjugate(A, den):
-    """Coefficient matrices of adj(vI - A), highest power first (Faddeev-LeVerrier)."""
-    n = len(A)
-    out, M = [np.eye(n)], np.eye(n)
-    for k in range(1, n):
-        M = A @ M + den[k] * np.eye(n)
-        out.append(M)
-    return out
-
-
-def _relations(table):
-    """``{order: (num, den)}`` of the sensor relations, highest power first."""
-    orders = {s["order"] for s in table.sensors}
-    if table.domain == "s":
-        return {d: (np.r_[1.0, np.zeros(d)], np.ones(1)) for d in orders}
-    m = max(orders)
-    T = table.sample_time_s
-    Fd = np.array([[T ** (j - i) / factorial(j - i) if j >= i else 0.0 for j in range(m)] for i in range(m)])
-    Bd = np.array([T ** (m - i) / factorial(m - i) for i in range(m)])
-    den = np.poly(Fd).real if m else np.ones(1)
-    adj = _adjugate(Fd, den) if m else []
-    nums = [np.array([M[i] @ Bd for M in adj]) for i in range(m)] + [den]
-    return {d: (np.ones(1), np.ones(1)) if d == 0 else (nums[d], nums[0]) for d in orders}
-
-
-def band_polynomials(table, phase: int = 0):
+def band_polynomials(table, phase: int = 0, output: str | None = None):
     """``({sensor: (num, den)}, den_cl)``: every band of one phase as polynomials (highest first)."""
-    A, G, Co, D = _closed_loop(table, table.K[phase])
-    den = np.poly(A).real
-    adj = _adjugate(A, den)
-    relations = _relations(table)
-    columns = {}
-    p = table.B.shape[1]
-    for s in table.sensors:
-        j = s["index"] if s["role"] == "input" else p + s["index"]
-        num = np.array([D[j]] + [Co @ adj[k] @ G[:, j] + D[j] * den[k + 1] for k in range(len(A))])
-        rel_num, rel_den = relations[s["order"]]
-        columns[s["name"]] = (np.polymul(num, rel_num), np.polymul(den, rel_den))
-    return columns, den
-
-
-def _identity_residual(bands) -> float:
-    """Relative size of ``sum_i num_i / den_i - 1`` cleared of denominators."""
-    common = np.ones(1)
-    for _, d in bands.values():
-        common = common if _same_poly(common, d) else np.polymul(common, d)
-    total, scale = -common, np.abs(common).max()
-    for num, d in bands.values():
-        q, _r = np.polydiv(common, d)
-        term = np.polymul(num, q)
-        total = np.polyadd(total, term)
-        scale = max(scale, np.abs(term).max())
-    return float(np.abs(np.trim_zeros(total, "f") if total.size else total).max(initial=0.0) / scale)
-
-
-def _same_poly(a, b):
-    return len(a) == len(b) and np.allclose(a, b, rtol=1e-14, atol=0)
+    orders = {s.order for s in table.sensors}
+    relations = linear.chain_relations(orders, table.domain, table.sample_time_s)
+    return linear.band_polynomials(phase_realisation(table, phase, output), table.sensors, relations)
 
 
 def _grid_error(table, bands) -> float:
     dt = table.sample_time_s
     w = np.logspace(-4, np.log10(np.pi / dt if dt else 1e4), 400) if dt else np.logspace(-4, 4, 400)
-    x = np.exp(1j * w * dt) if dt else 1j * w
-    total = sum(np.polyval(num, x) / np.polyval(den, x) for num, den in bands.values())
+    total = sum(linear.response(num, den, w, dt) for num, den in bands.values())
     return float(np.abs(total - 1).max())
 
 
 def _complementarity(table) -> list:
     worst, worst_phase = 0.0, 0
     for k in range(len(table.K)):
-        residual = _identity_residual(band_polynomials(table, k)[0])
+        residual = linear.identity_residual(band_polynomials(table, k)[0])
         if residual > worst:
             worst, worst_phase = residual, k
     ok = worst <= IDENTITY_RTOL
@@ -136,7 +79,7 @@ def _complementarity(table) -> list:
 
 
 def _stability(table) -> Check:
-    maps = [_closed_loop(table, K)[0] for K in table.K]
+    maps = [linear.closed_loop(table.F, table.H, K, table.gain_form) for K in table.K]
     if len(maps) == 1:
         eig = np.linalg.eigvals(maps[0])
         what, margin = "closed-loop poles", (eig.real.max() if table.domain == "s" else np.abs(eig).max())

@@ -23,6 +23,7 @@ import pytest
 import cfdesign
 from cfdesign.codegen import render_c, write_c
 from cfdesign.errors import CfdesignError
+from cfdesign.gains import Schedule
 from cfdesign.runtime import Runtime, wrap
 from cfdesign.sim.signals import sinusoid_readings
 
@@ -111,16 +112,18 @@ def test_filter_form_angle_table_agrees(tables, tmp_path):
                                  "gyrö"])
 def test_sensor_name_must_be_c_identifier(bad, tables):
     table = tables["dckf3"]
-    sensors = [{**s, "name": bad} if s["name"] == "gyro" else s for s in table.sensors]
-    with pytest.raises(CfdesignError, match=f"sensor {re.escape(repr(bad))}"):
+    sensors = [dataclasses.replace(s, name=bad) if s.name == "gyro" else s for s in table.sensors]
+    with pytest.raises(CfdesignError, match=re.escape(repr(bad))):  # refused by the table or by the C generator
         render_c(dataclasses.replace(table, sensors=sensors))
 
 
 def test_sensor_names_clashing_upper_case_are_refused(tables):
     table = tables["dckf3"]
-    sensors = [{**s, "name": "Compass"} if s["name"] == "odometry" else s for s in table.sensors]
+    sensors = [dataclasses.replace(s, name="Compass") if s.name == "odometry" else s for s in table.sensors]
+    names = [s.name for s in sensors if s.role == "measurement"]
+    schedule = Schedule.from_names(names, [names])
     with pytest.raises(CfdesignError, match="clash"):
-        render_c(dataclasses.replace(table, sensors=sensors))
+        render_c(dataclasses.replace(table, sensors=sensors, schedule=schedule))
 
 
 @pytest.mark.parametrize("bad", ["static", "1filter", "my-filter", "__cf"])

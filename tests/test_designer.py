@@ -99,9 +99,9 @@ def test_multirate_position_filter_gains_zero_between_fixes():
     assert table.period == 50 and table.sample_time_s == pytest.approx(0.02)
     for k, K in enumerate(table.K):
         if k == 0:
-            assert table.measured[k] == ["gps"] and np.abs(K).max() > 0
+            assert table.schedule.names(k) == ["gps"] and np.abs(K).max() > 0
         else:
-            assert table.measured[k] == [] and np.all(K == 0)
+            assert table.schedule.names(k) == [] and np.all(K == 0)
     assert table.checks["stable"] and table.checks["complementary"]
     assert table.phase_model(0)[2].shape == (1, 3) and table.phase_model(1)[2].shape == (0, 3)
     # lifted check: P[0] solves the DARE of (F^N, H, sum F^i Q F^iT, R) (MATH.md §6)
@@ -113,9 +113,10 @@ def test_multirate_position_filter_gains_zero_between_fixes():
 
 
 def test_multirate_schedule_lcm_and_errors():
-    s = multirate_schedule({"imu": 20.0, "a": 10.0, "b": 4.0}, inputs=["imu"])
-    assert s.period == 10 and s.every == {"a": 2, "b": 5}
-    assert s.measured(0) == ["a", "b"] and s.measured(2) == ["a"] and s.measured(5) == ["b"]
+    dt, s = multirate_schedule({"imu": 20.0, "a": 10.0, "b": 4.0}, inputs=["imu"])
+    assert dt == 1 / 20 and s.period == 10 and s.measurements == ("a", "b")
+    assert s.names(0) == ["a", "b"] and s.names(2) == ["a"] and s.names(5) == ["b"] and s.rows(7) == ()
+    assert s.rows(10) == (0, 1)  # phases wrap around the period
     with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz.*not the base rate"):
         multirate_schedule({"imu": 50.0, "gps": 0.7}, inputs=["imu"])
     with pytest.raises(SpecError, match=r"input sensor imu must run at the base rate"):
@@ -130,7 +131,7 @@ def test_gain_table_round_trip_is_exact(tmp_path):
         assert np.array_equal(getattr(back, key), getattr(table, key))
     for a, b in zip(back.K + back.P, table.K + table.P, strict=True):
         assert np.array_equal(a, b)
-    assert back.measured == table.measured and back.provenance == table.provenance
+    assert back.schedule == table.schedule and back.sensors == table.sensors and back.provenance == table.provenance
 
 
 def test_provenance_names_spec_and_version():
@@ -213,7 +214,7 @@ def test_builtin_example_is_the_seed001_best_filter():
     assert (TABLE_II[0].low, TABLE_II[0].band, TABLE_II[0].high) == ("gyro", "compass", "odometry")
     assert np.allclose(table.K[0], best.K[0], rtol=1e-9, atol=0)
     assert table.gains["k22"] == 0.0 and table.checks["complementary"] and table.checks["stable"]
-    roles = {s["name"]: s["role"] for s in table.sensors}
+    roles = {s.name: s.role for s in table.sensors}
     assert roles == {"odometry_rate": "input", "gyro_heading": "measurement", "compass": "measurement"}
 
 
@@ -224,7 +225,7 @@ def test_ports_and_partial_gains_are_checked():
         "compass": {"rate_hz": 5.0, "noise": {"std": 0.04}},
         "odometry": {"rate_hz": 5.0, "noise": {"std": 0.01}}}}
     table = design(parse_spec({**base, "gains": {"k22": 0.0}}))
-    assert [s["name"] for s in table.sensors] == ["wheel", "compass", "odometry"]
+    assert [s.name for s in table.sensors] == ["wheel", "compass", "odometry"]
     assert table.K[0][1, 1] == 0.0 and table.gains["k22"] == 0.0
     bad = {**base, "sensors": {**base["sensors"], "wheel": {**base["sensors"]["wheel"], "port": "spinner"}}}
     with pytest.raises(SpecError, match=r"sensors\.wheel\.port"):

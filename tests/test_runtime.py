@@ -24,7 +24,7 @@ def position():
 def readings(table, N, seed=0, amplitude=0.3):
     rng = np.random.default_rng(seed)
     t = np.arange(N)
-    return {s["name"]: amplitude * rng.normal(size=N) + np.sin(0.002 * t) for s in table.sensors}
+    return {s.name: amplitude * rng.normal(size=N) + np.sin(0.002 * t) for s in table.sensors}
 
 
 def stream(table, data, x0=None):

@@ -73,7 +73,7 @@ def test_interim_design_path_equals_the_public_designer():
     public = cfdesign.design(dataclasses.replace(spec, sensors=ports))
     assert np.array_equal(ours.K[0], public.K[0]) and np.array_equal(ours.P[0], public.P[0])
     assert ours.checks["complementary"] and ours.checks["stable"]
-    assert [s["name"] for s in ours.sensors] == ["odometry", "gyro"]
+    assert [s.name for s in ours.sensors] == ["odometry", "gyro"]
 
 
 def test_every_row_gives_back_the_truth_from_noise_free_sensors():

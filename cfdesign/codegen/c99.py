@@ -10,7 +10,7 @@ from string import Template
 
 import numpy as np
 
-from .. import __version__
+from .. import __version__, linear
 from ..errors import CfdesignError
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
@@ -23,8 +23,8 @@ C99_KEYWORDS = frozenset("""
 """.split())
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-#: precision -> (C type, fmod function, literal suffix)
-_PRECISIONS = {"double": ("double", "fmod", ""), "float": ("float", "fmodf", "f")}
+#: precision -> (C type, ceil function, literal suffix)
+_PRECISIONS = {"double": ("double", "ceil", ""), "float": ("float", "ceilf", "f")}
 #: generated files, in the order returned: (template, what the file holds)
 _FILES = (("gains.h", "the gain table as C99 constants"),
           ("filter.h", "the filter's state and functions"),
@@ -32,7 +32,7 @@ _FILES = (("gains.h", "the gain table as C99 constants"),
 _ORDER_NAMES = {0: "angle/position", 1: "rate", 2: "acceleration"}
 
 
-def write_c(table, directory, *, prefix=None, precision="double") -> list[Path]:
+def write_c(table, directory, *, prefix=None, precision="double", output=None) -> list[Path]:
     """Write the table as C99 source: ``<prefix>_gains.h``, ``<prefix>_filter.h``, ``<prefix>_filter.c``.
 
     Parameters
@@ -46,6 +46,9 @@ def write_c(table, directory, *, prefix=None, precision="double") -> list[Path]:
         table's structure (e.g. ``dckf3``), else its name.  Must be a C identifier.
     precision : {'double', 'float'}
         The C arithmetic type.
+    output : {'prior', 'posterior'}, optional
+        The estimate ``<prefix>_step`` returns: the one-step prediction or the estimate after
+        this step's readings; default the gain form's own, as :class:`cfdesign.runtime.Runtime`.
 
     Returns
     -------
@@ -58,7 +61,7 @@ def write_c(table, directory, *, prefix=None, precision="double") -> list[Path]:
         The table cannot run (continuous), a name is not a C identifier, a value is not finite,
         or the files cannot be written.
     """
-    texts = render_c(table, prefix=prefix, precision=precision)
+    texts = render_c(table, prefix=prefix, precision=precision, output=output)
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
@@ -70,9 +73,9 @@ def write_c(table, directory, *, prefix=None, precision="double") -> list[Path]:
     return paths
 
 
-def render_c(table, *, prefix=None, precision="double") -> dict:
+def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
     """The generated C files as ``{file name: text}`` without writing them (see :func:`write_c`)."""
-    fields = _fields(table, prefix, precision)
+    fields = _fields(table, prefix, precision, output)
     out = {}
     for stem, what in _FILES:
         name = f"{fields['prefix']}_{stem}"
@@ -116,75 +119,90 @@ def _default_prefix(table) -> str:
 
 def _sensors(table) -> list:
     """Sensors by role and index, names checked; each role's indices must be 0, 1, ..."""
-    sensors = sorted(table.sensors, key=lambda s: (s["role"] != "input", s["index"]))
+    sensors = table.sensors  # inputs by column, then measurements by row (checked by GainTable)
     for s in sensors:
-        check_c_identifier(s["name"], f"{table.name}: sensor")
-    for role, count in (("input", table.B.shape[1]), ("measurement", table.H.shape[0])):
-        if [s["index"] for s in sensors if s["role"] == role] != list(range(count)):
-            raise CfdesignError(f"{table.name}: {role} sensor indices must be 0..{count - 1} (one per "
-                                f"{'column of B' if role == 'input' else 'row of H'})")
-    macros = [s["name"].upper() for s in sensors]
+        check_c_identifier(s.name, f"{table.name}: sensor")
+    macros = [s.name.upper() for s in sensors]
     if len(set(macros)) < len(macros):
-        raise CfdesignError(f"{table.name}: sensor names {', '.join(s['name'] for s in sensors)} clash once "
+        raise CfdesignError(f"{table.name}: sensor names {', '.join(s.name for s in sensors)} clash once "
                             "upper-cased for the C macros; rename one")
     return sensors
 
 
 # ---------------------------------------------------------------------- rendering
-def _fields(table, prefix, precision) -> dict:
+def _fields(table, prefix, precision, output) -> dict:
     """Every substitution of the templates."""
     _check_runnable(table)
+    output = linear.default_output(table.gain_form) if output is None else output
+    if output not in linear.OUTPUTS:
+        raise CfdesignError(f"output must be one of {', '.join(linear.OUTPUTS)}, got {output!r}")
     if precision not in _PRECISIONS:
         raise CfdesignError(f"precision must be 'double' or 'float', got {precision!r}")
     prefix = check_c_identifier(_default_prefix(table) if prefix is None else prefix, "C prefix")
-    real, fmod, suffix = _PRECISIONS[precision]
+    real, ceil, suffix = _PRECISIONS[precision]
     sensors = _sensors(table)
     n, p, m = table.F.shape[0], table.B.shape[1], table.H.shape[0]
-    shapes = {"F": (n, n), "B": (n, max(p, 1)), "H": (max(m, 1), n), "K": (table.period, n, max(m, 1))}
-    arrays = {key: _initializer(_padded(getattr(table, key), shape, f"{table.name}: {key}"), suffix)
+    gains = _gains(table, output)
+    shapes = {"F": (n, n), "B": (n, max(p, 1)), "H": (max(m, 1), n), "K": (table.period, n, max(m, 1)),
+              "L": (table.period, n, max(m, 1))}
+    values = {"F": table.F, "B": table.B, "H": table.H, **gains}
+    arrays = {key: _initializer(_padded(values[key], shape, f"{table.name}: {key}"), suffix)
               for key, shape in shapes.items()}
+    active = table.schedule.mask()
     return {
-        **_provenance(table), **arrays, **_step_code(table, prefix), "prefix": prefix, "PREFIX": prefix.upper(),
-        "real": real, "fmod": fmod, "n": n, "p": p, "m": m, "p_alloc": max(p, 1), "m_alloc": max(m, 1),
-        "period": table.period, "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
-        "filter_form": int(table.gain_form == "filter"), "wrap_angle": int(bool(table.wrap_angle)),
-        "measured": _initializer(np.array([int(np.any(k != 0)) for k in table.K]), ""),
+        **_provenance(table), **arrays, **_step_code(table, prefix, gains), "prefix": prefix,
+        "PREFIX": prefix.upper(), "real": real, "ceil": ceil, "n": n, "p": p, "m": m, "p_alloc": max(p, 1),
+        "m_alloc": max(m, 1), "period": table.period,
+        "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
+        "posterior": int(output == "posterior"), "output": output, "wrap_angle": int(bool(table.wrap_angle)),
+        "active": _initializer(_padded(active, (table.period, max(m, 1)), "schedule").astype(int), ""),
+        "measured": _initializer(active.any(axis=1).astype(int), ""),
         "sensor_macros": _sensor_macros(sensors, prefix),
         "pi": _literal(math.pi, suffix, "pi"), "two_pi": _literal(2 * math.pi, suffix, "2 pi"),
     }
 
 
-def _step_code(table, prefix) -> dict:
+def _gains(table, output) -> dict:
+    """``{'K': predictor gains, 'L': update gains}`` per phase (:func:`cfdesign.linear.gain_pair`)."""
+    pairs = [linear.gain_pair(table.F, K, table.gain_form) for K in table.K]
+    if output == "posterior" and any(L is None for _, L in pairs):
+        raise CfdesignError(f"{table.name}: {output} output needs an invertible F")
+    return {"K": np.array([Kp for Kp, _ in pairs]),
+            "L": np.array([L if L is not None else np.zeros_like(Kp) for Kp, L in pairs])}
+
+
+def _step_code(table, prefix, gains) -> dict:
     """The products of the step written out as C statements (see ``templates/filter.c.in``)."""
-    F, B, H, K = (np.asarray(a, dtype=float) for a in (table.F, table.B, table.H, table.K))
+    F, B, H = (np.asarray(a, dtype=float) for a in (table.F, table.B, table.H))
     n, p, m = F.shape[0], B.shape[1], H.shape[0]
     x, e, u = ([f"{name}[{j}]" for j in range(k)] for name, k in (("x", n), ("e", m), ("s->u_last", p)))
-    predictor, used = table.gain_form == "predictor", K.any(axis=0)  # K entries non-zero at some phase
+    used_k, used_l = gains["K"].any(axis=0), gains["L"].any(axis=0)  # entries non-zero at some phase
     return {"innovations": _lines(_innovations(table, prefix, H, x), 2),
-            "corrections": _lines([f"c[{r}] = {_sum('K', r, used[r], e)};" for r in range(n)], 2),
-            "update": _lines(_updates(prefix, F, B, x, u, predictor), 1),
-            "update_comment": "x = F x + B u + K (y - H x)" if predictor else "x = F x+ + B u"}
+            "corrections": _lines([f"c[{r}] = {_sum('K', r, used_k[r], e)};" for r in range(n)], 2),
+            "posterior_estimate": f"est = x[0] + ({_sum('L', 0, used_l[0], e)});",
+            "update": _lines(_updates(prefix, F, B, x, u), 1)}
 
 
 def _innovations(table, prefix, H, x) -> list:
-    """``e[i] = y[i] - (H x)[i]``, wrapped for the angle sensors of angle tables; 0 if missing."""
-    angle = {s["index"] for s in table.sensors if s["role"] == "measurement" and s["order"] == 0}
+    """``e[i] = y[i] - (H x)[i]``, wrapped for the angle sensors of angle tables; 0 if missing
+    or not read at this phase."""
+    angle = {s.index for s in table.measurements if s.order == 0}
     out = []
     for i, row in enumerate(H):
         diff = f"y[{i}] - ({_sum(prefix + '_H', i, row, x)})"
-        value = f"{prefix}_wrap({diff}, 1)" if table.wrap_angle and i in angle else diff
-        out.append(f"e[{i}] = isnan(y[{i}]) ? 0 : {value};")
+        value = f"{prefix}_wrap({diff})" if table.wrap_angle and i in angle else diff
+        out.append(f"e[{i}] = (isnan(y[{i}]) || !{prefix}_ACTIVE[phase][{i}]) ? 0 : {value};")
     return out
 
 
-def _updates(prefix, F, B, x, u, predictor) -> list:
-    """``next = (F x) + (B u) [+ c]`` row by row, in the runtime's order; a zero ``B u`` left out."""
+def _updates(prefix, F, B, x, u) -> list:
+    """``next = (F x) + (B u) + c`` row by row, in the runtime's order; a zero ``B u`` left out."""
     out = []
     for r in range(len(F)):
         terms = [f"({_sum(prefix + '_F', r, F[r], x)})"]
         if B[r].any():
             terms.append(f"({_sum(prefix + '_B', r, B[r], u)})")
-        out.append(f"next[{r}] = {' + '.join(terms + [f'c[{r}]'] * predictor)};")
+        out.append(f"next[{r}] = {' + '.join([*terms, f'c[{r}]'])};")
     return out
 
 
@@ -217,9 +235,9 @@ def _comment_text(value) -> str:
 def _sensor_macros(sensors, prefix) -> str:
     lines = []
     for s in sensors:
-        kind = "U" if s["role"] == "input" else "Y"
-        note = f"{s['role']}, order {s['order']} ({_ORDER_NAMES.get(s['order'], '?')}), {s['rate_hz']:g} Hz"
-        lines.append(f"#define {prefix.upper()}_{kind}_{s['name'].upper()} {s['index']}  /* {s['name']}: {note} */")
+        kind = "U" if s.role == "input" else "Y"
+        note = f"{s.role}, order {s.order} ({_ORDER_NAMES.get(s.order, '?')}), {s.rate_hz:g} Hz"
+        lines.append(f"#define {prefix.upper()}_{kind}_{s.name.upper()} {s.index}  /* {s.name}: {note} */")
     return "\n".join(lines)
 
 

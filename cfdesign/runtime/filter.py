@@ -1,43 +1,37 @@
-"""The Python runtime: run a designed filter (a GainTable) on sensor readings.
+r"""The Python runtime: run a designed filter (a GainTable) on sensor readings.
 
-numpy only; scipy.signal.lfilter is imported lazily by the fast batch path.  The filter is
-the table's observer, in its named gain form (seed 001 eq. (25); DESIGN.md):
+numpy only; scipy.signal.lfilter is imported lazily by the fast batch path.  Every phase
+``k`` (base-rate steps modulo the period) runs the one recursion of :mod:`cfdesign.linear`,
 
-* ``predictor``:  ``est[k] = x[k][0]``;  ``x[k+1] = F x[k] + B u[k] + K[k] (y[k] - H x[k])``
-* ``filter``:     ``x+ = x[k] + K[k] (y[k] - H x[k])``;  ``est[k] = x+[0]``;
-  ``x[k+1] = F x+ + B u[k]``
+.. math::
 
-with ``k`` counting base-rate steps and ``K[k]`` the gain of phase ``k mod period``.
+    e = y - H x,\qquad \hat x^+ = x + L_k e,\qquad x \leftarrow F x + B u + K_{p,k} e,
+
+where ``Kp`` and ``L`` are the table's gain in predictor and update form
+(:func:`cfdesign.linear.gain_pair`).  The estimate returned is the table's declared output:
+the prediction ``x`` (``output='prior'``, predictor tables) or ``x+`` after this step's
+readings (``output='posterior'``, filter tables); either can be asked for.
 
 Missing readings (a NaN, or a sensor left out of ``step``): a missing measurement
-contributes nothing at that step (its gain column is skipped); a missing input holds the
-last input received (zero before the first).  At phases where the table schedules no
-reading of a sensor its gain column is zero, so a reading given there has no effect.
-Angle tables (``wrap_angle``) wrap every innovation of an angle sensor and the estimate to
-(-pi, pi], so a compass crossing +-180 deg does not jolt the estimate.
+contributes nothing at that step (its innovation is zero); a missing input holds the last
+input received (zero before the first).  A measurement the table's schedule does not read
+at this phase has no gain there and no effect.  Angle tables (``wrap_angle``) wrap every
+innovation of an angle sensor and the estimate to (-pi, pi] with
+:func:`cfdesign.linear.wrap`, so a compass crossing +-180 deg does not jolt the estimate.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from .. import linear
 from ..errors import CfdesignError
+from ..linear import wrap, wrap_scalar
 
 __all__ = ["Runtime", "wrap"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
-
-
-def wrap(angle):
-    """Wrap angles (rad) to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
-
-
-def _wrap_scalar(a: float) -> float:
-    return math.pi - math.fmod(math.fmod(math.pi - a, 2 * math.pi) + 2 * math.pi, 2 * math.pi)
 
 
 class Runtime:
@@ -49,6 +43,10 @@ class Runtime:
         A discrete table (``domain = 'z'``).
     x0 : array_like, optional
         Initial state (default zeros).
+    output : {'prior', 'posterior'}, optional
+        The estimate returned: the one-step prediction or the estimate after this step's
+        readings.  Default: the table's gain form's own (prior for predictor tables,
+        posterior for filter tables).
 
     Examples
     --------
@@ -57,19 +55,28 @@ class Runtime:
     >>> est = rt.run({"gyro": w, "compass": c, "odometry": o})   # whole arrays
     """
 
-    def __init__(self, table, x0=None):
+    def __init__(self, table, x0=None, output=None):
         if table.domain != "z":
             raise CfdesignError(f"{table.name} is a continuous-time table; the runtime runs discrete tables "
                                 "(design a discrete structure: dckf3, position, or cf2/cf3/cfn with discrete = true)")
         self.table = table
         self.F, self.B, self.H = (np.array(m, dtype=float) for m in (table.F, table.B, table.H))
-        self.K = [np.array(k, dtype=float) for k in table.K]
-        self.n, self.period, self.form = self.F.shape[0], len(self.K), table.gain_form
-        by_index = sorted(table.sensors, key=lambda s: s["index"])
-        self.inputs = [s["name"] for s in by_index if s["role"] == "input"]
-        self.measurements = [s["name"] for s in by_index if s["role"] == "measurement"]
-        angle = {s["name"] for s in table.sensors if s["order"] == 0}
-        self._wrap_rows = np.array([bool(table.wrap_angle) and m in angle for m in self.measurements])
+        self.n, self.period = self.F.shape[0], table.period
+        self.output = linear.default_output(table.gain_form) if output is None else output
+        try:
+            self._phases = [linear.realisation(self.F, self.B, self.H, K, table.gain_form, self.output)
+                            for K in table.K]
+        except ValueError as exc:
+            raise CfdesignError(f"{table.name}: {exc}") from None
+        pairs = [linear.gain_pair(self.F, K, table.gain_form) for K in table.K]
+        self.Kp = [kp for kp, _ in pairs]
+        self.L = [l if l is not None else np.zeros_like(kp) for kp, l in pairs]
+        self.posterior = self.output == "posterior"
+        self.inputs = table.sensor_names("input")
+        self.measurements = table.sensor_names("measurement")
+        self._active = table.schedule.mask()
+        self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
+                                   dtype=bool)
         self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(self.n)
         self.reset()
 
@@ -108,22 +115,17 @@ class Runtime:
         return est
 
     def _advance(self, u, y) -> float:
-        x, K = self.x, self.K[self.phase]
-        seen = ~np.isnan(y)
-        innovation = np.where(seen, y - self.H @ x, 0.0)
+        """One step of the recursion in the module docstring; returns the estimate."""
+        x, k = self.x, self.phase
+        seen = self._active[k] & ~np.isnan(y)
+        e = np.where(seen, y - self.H @ x, 0.0)
         if self._wrap_rows.any():
-            innovation = np.where(self._wrap_rows, wrap(innovation), innovation)
-        correction = K[:, seen] @ innovation[seen]
-        if self.form == "filter":
-            post = x + correction
-            est = post[0]
-            x = self.F @ post + self.B @ u
-        else:
-            est = x[0]
-            x = self.F @ x + self.B @ u + correction
+            e = np.where(self._wrap_rows, wrap(e), e)
+        est = x[0] + self.L[k][0] @ e if self.posterior else x[0]
+        x = self.F @ x + self.B @ u + self.Kp[k] @ e
         if self.table.wrap_angle:
-            x[0], est = _wrap_scalar(x[0]), _wrap_scalar(est)
-        self.x, self.phase = x, (self.phase + 1) % self.period
+            x[0], est = wrap_scalar(x[0]), wrap_scalar(est)
+        self.x, self.phase = x, (k + 1) % self.period
         return float(est)
 
     # ------------------------------------------------------------------ batch
@@ -183,22 +185,16 @@ class Runtime:
         L = self.period * max(1, _BLOCK // self.period)
         P = -(-N // L)
         pad = P * L - N
-        A = self._phase_maps(L)
+        phases = [self._phases[(self.phase + j) % self.period] for j in range(L)]
         W = np.concatenate([np.hstack([u, y]), np.zeros((pad, u.shape[1] + y.shape[1]))])
         W = W.reshape(P, L, -1)
-        G = [np.hstack([self.B, self._input_gain(j)]) for j in range(L)]
-        Phi, C = self._lift(A, G, W)
+        Phi, C = self._lift([ph.A for ph in phases], [ph.G for ph in phases], W)
         X = _boundary_states(Phi, C, self.x)  # (P, n): x at the start of every block
         est, xs = np.empty((P, L)), np.empty((P, L, self.n))
-        for j in range(L):
+        for j, ph in enumerate(phases):
             xs[:, j] = X
-            yj = W[:, j, u.shape[1]:]
-            if self.form == "filter":
-                Kj = self.K[(self.phase + j) % self.period]
-                est[:, j] = (X + (yj - X @ self.H.T) @ Kj.T)[:, 0]
-            else:
-                est[:, j] = X[:, 0]
-            X = X @ A[j].T + W[:, j] @ G[j].T
+            est[:, j] = X @ ph.C[0] + W[:, j] @ ph.D[0] if self.posterior else X[:, 0]
+            X = X @ ph.A.T + W[:, j] @ ph.G.T
         est, xs = est.reshape(-1)[:N], xs.reshape(-1, self.n)[:N]
         self._finish(xs[-1], u[-1], y[-1], N)
         if self.table.wrap_angle:
@@ -210,18 +206,6 @@ class Runtime:
         self.x, self.phase = x_last.copy(), (self.phase + N - 1) % self.period
         self._advance(u_last, y_last)
         self.u_last = u_last.copy()
-
-    def _phase_maps(self, L):
-        """Closed-loop state matrix of each phase of a block (offset by the current phase)."""
-        out = []
-        for j in range(L):
-            K = self.K[(self.phase + j) % self.period]
-            out.append(self.F @ (np.eye(self.n) - K @ self.H) if self.form == "filter" else self.F - K @ self.H)
-        return out
-
-    def _input_gain(self, j):
-        K = self.K[(self.phase + j) % self.period]
-        return self.F @ K if self.form == "filter" else K
 
     def _lift(self, A, G, W):
         """``Phi = A[L-1]...A[0]`` and ``c[p] = sum_j A[L-1]...A[j+1] G[j] w[pL+j]``."""
@@ -254,13 +238,15 @@ class Runtime:
 class _LtiBands:
     """A single-rate table as IIR filters, one per sensor, through scipy's lfilter.
 
-    The band of input ``j`` is ``num_j / den`` with ``den = det(zI - A)`` and
-    ``num_j = C_o adj(zI - A) G_j + D_j den``.  lfilter's direct-form-II-transposed state is
-    the observable canonical state ``z = T x`` of this realisation, with rows
-    ``T_i = C_o (A^(i-1) + a_1 A^(i-2) + ... + a_(i-1) I)``; so the filter starts from
-    ``zi = T x0`` and hands back ``x = T^-1 sum_j zf_j``, exactly the state the streaming
-    recursion would hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill
-    conditioned) use the blocked path instead.
+    The band of reading ``j`` is ``num_j / den`` with ``den = det(zI - A)`` and
+    ``num_j = C_o adj(zI - A) G_j + D_j den`` (:func:`cfdesign.linear.band_polynomials`
+    without the sensor relation).  lfilter's direct-form-II-transposed state is the
+    observable canonical state ``z = T x`` of this realisation, with rows
+    ``T_i = C_o (A^(i-1) + a_1 A^(i-2) + ... + a_(i-1) I)``
+    (:func:`cfdesign.linear.output_adjugate`); so the filter starts from ``zi = T x0`` and
+    hands back ``x = T^-1 sum_j zf_j``, exactly the state the streaming recursion would
+    hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill conditioned) use the
+    blocked path instead.  Cost: ``O(n^3)`` once per runtime.
     """
 
     def __init__(self, den, nums, T, Tinv):
@@ -271,16 +257,10 @@ class _LtiBands:
         cached = getattr(rt, "_lti", False)
         if cached is not False:
             return cached
-        n, K = rt.n, rt.K[0]
-        A = rt._phase_maps(1)[0]
-        G = np.hstack([rt.B, rt._input_gain(0)])
-        Co = (np.eye(n) - K @ rt.H)[0] if rt.form == "filter" else np.eye(n)[0]
-        D = np.concatenate([np.zeros(rt.B.shape[1]), K[0] if rt.form == "filter" else np.zeros(K.shape[1])])
-        den = np.poly(A).real
-        adj = _adjugate_coefficients(A, den)
-        nums = [np.concatenate([[D[j]], [Co @ adj[k] @ G[:, j] + D[j] * den[k + 1] for k in range(n)]])
-                for j in range(G.shape[1])]
-        T = np.array([Co @ _adjugate_coefficients(A, den)[i] for i in range(n)])
+        ph = rt._phases[0]
+        den = linear.characteristic_polynomial(ph.A)
+        T = linear.output_adjugate(ph.A, ph.C[0], den)
+        nums = [np.concatenate([[d], T @ g + d * den[1:]]) for g, d in zip(ph.G.T, ph.D[0], strict=True)]
         lti = None
         if np.linalg.cond(T) < 1e8:
             lti = cls(den, nums, T, np.linalg.inv(T))
@@ -300,11 +280,8 @@ class _LtiBands:
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
-            rt.x[0] = _wrap_scalar(rt.x[0])
-            if est.min() <= -np.pi or est.max() > np.pi:
-                np.subtract(np.pi, est, out=est)  # wrap in place: pi - mod(pi - a, 2 pi)
-                np.mod(est, 2 * np.pi, out=est)
-                np.subtract(np.pi, est, out=est)
+            rt.x[0] = wrap_scalar(rt.x[0])
+            linear.wrap_inplace(est)
         return est
 
 
@@ -329,25 +306,13 @@ def _boundary_states(Phi, C, x0):
     from scipy.signal import lfilter
 
     n, P = len(x0), len(C)
-    den = np.poly(Phi).real
+    den = linear.characteristic_polynomial(Phi)
     # Z[k+1] = Phi Z[k] + S[k], Z[0] = 0, S = [x0, C[0], C[1], ...]: then X[p] = Z[p + 1]
     S = np.vstack([x0[None, :], C])
     out = np.zeros((P + 1, n))
-    adj = _adjugate_coefficients(Phi, den)  # (zI - Phi)^-1 = sum_i adj[i] z^(n-1-i) / den
+    adj = linear.adjugate_coefficients(Phi, den)  # (zI - Phi)^-1 = sum_i adj[i] z^(n-1-i) / den
     for i in range(n):
         for j in range(n):
             num = np.concatenate([[0.0], adj[:, i, j]])
             out[:, i] += lfilter(num, den, S[:, j])
     return out[1:]
-
-
-def _adjugate_coefficients(Phi, den):
-    """Coefficients (highest power first) of adj(zI - Phi) by the Faddeev-LeVerrier recursion."""
-    n = len(Phi)
-    coeffs = np.empty((n, n, n))
-    M = np.eye(n)
-    coeffs[0] = M
-    for k in range(1, n):
-        M = Phi @ M + den[k] * np.eye(n)
-        coeffs[k] = M
-    return coeffs

@@ -82,10 +82,10 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
     truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
     data = {}
     for s in table.sensors:
-        values = truth[s["order"]] + 0.05 * rng.normal(size=n)
-        if table.wrap_angle and s["order"] == 0:
+        values = truth[s.order] + 0.05 * rng.normal(size=n)
+        if table.wrap_angle and s.order == 0:
             values = wrap(values)
         if missing:
             values[rng.random(n) < missing] = np.nan
-        data[s["name"]] = values
+        data[s.name] = values
     return data

@@ -1,0 +1,381 @@
+"""The numeric meaning of a gain table: gain forms, closed loop, bands, one angle wrap.
+
+numpy only: this is the module the runtime, the designer, ``verify``, the analysis and the
+C generator share, so that a gain form means one thing everywhere.  The symbolic engine
+(:mod:`cfdesign.symbolic.observer`) derives the same objects exactly; the tests hold the two
+against each other.  Derivations: ``docs/derivations.md`` (sections "One observer" and
+"Gain forms").
+
+Gain forms
+----------
+A discrete table stores one gain ``K[k]`` per phase in a *named* form:
+
+* ``predictor`` (Carreira et al. eq. (25)):
+  ``x[k+1] = F x[k] + B u[k] + K (y[k] - H x[k])``;
+* ``filter`` (the measurement update whose gain Carreira et al. eq. (28) write):
+  ``x+[k] = x[k] + K (y[k] - H x[k])``, ``x[k+1] = F x+[k] + B u[k]``.
+
+Both are the same recursion written with two gains (:func:`gain_pair`): the *predictor gain*
+``Kp`` that carries the innovation into the next prediction and the *update gain* ``L`` that
+gives the estimate after this step's readings,
+
+.. math::
+
+    e[k] = y[k] - H x[k],\\qquad x^+[k] = x[k] + L e[k],\\qquad
+    x[k+1] = F x[k] + B u[k] + K_p e[k],\\qquad K_p = F L,
+
+with ``L = K`` for the filter form and ``L = F^{-1} K`` for the predictor form.  Either
+table can therefore output the one-step *prior* estimate ``x[k]`` or the *posterior*
+``x+[k]``; :func:`realisation` writes the chosen output as a state-space system.  Continuous
+tables (``x' = F x + B u + K (y - H x)``) have only the prior form.
+
+Bands
+-----
+With the realisation ``x[k+1] = A x + G w``, ``est = C x + D w`` (``w`` the readings, inputs
+first) and a sensor relation ``rel_j`` (reading = ``rel_j`` x quantity), the band of sensor
+``j`` is ``T_j = (C adj(vI - A) G_j + D_j det(vI - A)) / det(vI - A) * rel_j`` and the bands
+sum to one for any stabilising gain (see the derivation).  :func:`band_polynomials` computes
+them in floating point in ``O(n^3)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from math import factorial
+
+import numpy as np
+
+__all__ = [
+    "GAIN_FORMS",
+    "OUTPUTS",
+    "wrap",
+    "wrap_scalar",
+    "default_output",
+    "gain_pair",
+    "closed_loop",
+    "Realisation",
+    "realisation",
+    "posterior_covariance",
+    "zoh_chain",
+    "chain_relations",
+    "characteristic_polynomial",
+    "output_adjugate",
+    "adjugate_coefficients",
+    "wrap_inplace",
+    "band_polynomials",
+    "response",
+    "identity_residual",
+    "is_stable",
+    "spectral_margin",
+]
+
+#: the named gain forms of a table
+GAIN_FORMS = ("predictor", "filter", "continuous")
+#: what a discrete filter can output: the prediction before this step's readings, or the
+#: estimate after them
+OUTPUTS = ("prior", "posterior")
+
+_TWO_PI = 2.0 * math.pi
+
+
+# ---------------------------------------------------------------------------- angle wrap
+def wrap(angle):
+    """Wrap angles (rad) to ``(-pi, pi]``: ``a - 2 pi ceil((a - pi) / (2 pi))``.
+
+    This is the one wrap of cfdesign: the runtime, the simulations and the generated C
+    (``templates/filter.c.in``, the same operations in the same order) use it.  An angle
+    already in ``(-pi, pi]`` comes back unchanged, bit for bit.
+
+    Parameters
+    ----------
+    angle : float or array_like
+        Angles in radians.
+
+    Returns
+    -------
+    ndarray
+        Wrapped angles, same shape (a 0-d array for a scalar input).
+
+    Examples
+    --------
+    >>> float(wrap(3 * math.pi / 2)), float(wrap(-math.pi))
+    (-1.5707963267948966, 3.141592653589793)
+    """
+    a = np.asarray(angle, dtype=float)
+    return a - _TWO_PI * np.ceil((a - math.pi) / _TWO_PI)
+
+
+def wrap_scalar(a: float) -> float:
+    """:func:`wrap` of one float with ``math`` (same operations, same result, no numpy)."""
+    return a - _TWO_PI * math.ceil((a - math.pi) / _TWO_PI) if not -math.pi < a <= math.pi else a
+
+
+def wrap_inplace(a: np.ndarray) -> np.ndarray:
+    """:func:`wrap` of a float array, in place (no temporaries beyond one scratch array)."""
+    if a.size and (a.min() <= -math.pi or a.max() > math.pi):
+        t = np.subtract(a, math.pi)
+        np.divide(t, _TWO_PI, out=t)
+        np.ceil(t, out=t)
+        np.multiply(t, _TWO_PI, out=t)
+        np.subtract(a, t, out=a)
+    return a
+
+
+# ---------------------------------------------------------------------------- gain forms
+def default_output(form: str) -> str:
+    """The estimate a gain form outputs by default: ``prior`` for predictor (and continuous)
+    tables, ``posterior`` for filter tables."""
+    _check_form(form)
+    return "posterior" if form == "filter" else "prior"
+
+
+def _check_form(form):
+    if form not in GAIN_FORMS:
+        raise ValueError(f"gain form must be one of {', '.join(GAIN_FORMS)}, got {form!r}")
+
+
+def gain_pair(F, K, form: str):
+    """``(Kp, L)``: the predictor gain and the update gain of a gain ``K`` in ``form``.
+
+    ``filter``: ``L = K``, ``Kp = F K``.  ``predictor``: ``Kp = K``, ``L = F^-1 K`` (None when
+    ``F`` is singular: such a table has no posterior output).  ``continuous``: ``Kp = K``,
+    ``L = None``.
+
+    Parameters
+    ----------
+    F : ndarray (n, n)
+    K : ndarray (n, m)
+    form : {'predictor', 'filter', 'continuous'}
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(Kp, L)``, each (n, m); ``L`` may be None.
+    """
+    _check_form(form)
+    F, K = np.asarray(F, dtype=float), np.asarray(K, dtype=float)
+    if form == "filter":
+        return F @ K, K
+    if form == "continuous" or K.shape[1] == 0:
+        return K, (None if form == "continuous" else K)
+    if np.linalg.cond(F) > 1e12:
+        return K, None
+    return K, np.linalg.solve(F, K)
+
+
+def closed_loop(F, H, K, form: str) -> np.ndarray:
+    """State matrix of the error dynamics: ``F - Kp H`` (= ``F (I - K H)`` in filter form)."""
+    Kp, _ = gain_pair(F, K, form)
+    return np.asarray(F, dtype=float) - Kp @ np.asarray(H, dtype=float)
+
+
+@dataclass(frozen=True)
+class Realisation:
+    """One phase of a filter as a linear system of its readings ``w = [u; y]``.
+
+    ``x[k+1] = A x[k] + G w[k]`` and the output states ``xo[k] = C x[k] + D w[k]`` (the first
+    row is the estimate of the common quantity).  Continuous: ``x' = A x + G w``.
+
+    Attributes
+    ----------
+    A : ndarray (n, n)
+    G : ndarray (n, p + m)
+    C : ndarray (n, n)
+    D : ndarray (n, p + m)
+    output : {'prior', 'posterior'}
+    """
+
+    A: np.ndarray
+    G: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    output: str
+
+
+def realisation(F, B, H, K, form: str, output: str | None = None) -> Realisation:
+    """The filter of one phase as ``(A, G, C, D)`` (see :class:`Realisation`).
+
+    ``A = F - Kp H``, ``G = [B, Kp]``; prior output ``C = I``, ``D = 0``; posterior output
+    ``C = I - L H``, ``D = [0, L]`` (module docstring).
+
+    Raises
+    ------
+    ValueError
+        ``output`` is not ``prior``/``posterior``, or the posterior is asked of a
+        continuous table or of a predictor table whose ``F`` is singular.
+    """
+    output = default_output(form) if output is None else output
+    if output not in OUTPUTS:
+        raise ValueError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
+    F, B, H = (np.asarray(M, dtype=float) for M in (F, B, H))
+    Kp, L = gain_pair(F, K, form)
+    n, p = F.shape[0], B.shape[1]
+    A = F - Kp @ H
+    G = np.hstack([B, Kp])
+    if output == "prior":
+        return Realisation(A, G, np.eye(n), np.zeros_like(G), output)
+    if L is None:
+        raise ValueError("a posterior estimate needs a discrete table with an invertible F"
+                         if form != "continuous" else "a continuous table has no posterior estimate")
+    return Realisation(A, G, np.eye(n) - L @ H, np.hstack([np.zeros((n, p)), L]), output)
+
+
+def posterior_covariance(P, H, L, R) -> np.ndarray:
+    """Covariance after the update ``x+ = x + L (y - H x)`` for ANY gain (Joseph form).
+
+    ``P+ = (I - L H) P (I - L H)' + L R L'``; equal to ``(I - L H) P`` for the Kalman gain.
+    """
+    P, H, L, R = (np.asarray(M, dtype=float) for M in (P, H, L, R))
+    IKH = np.eye(len(P)) - L @ H
+    return IKH @ P @ IKH.T + L @ R @ L.T
+
+
+def is_stable(eigenvalues, domain: str) -> bool:
+    """Strictly stable: every eigenvalue in the open left half-plane (``s``) or unit disc (``z``)."""
+    return spectral_margin(eigenvalues, domain) < 0
+
+
+def spectral_margin(eigenvalues, domain: str) -> float:
+    """``max Re(lambda)`` (``s``) or ``max |lambda| - 1`` (``z``): negative means stable."""
+    eig = np.asarray(eigenvalues)
+    if not eig.size:
+        return -math.inf
+    return float(eig.real.max()) if domain == "s" else float(np.abs(eig).max() - 1.0)
+
+
+# ---------------------------------------------------------------------------- kinematic chains
+def zoh_chain(m: int, dt: float):
+    """Numeric ZOH model of an ``m``-state kinematic chain driven by its ``m``-th derivative.
+
+    ``F[i, j] = dt^(j-i) / (j-i)!`` (``j >= i``), ``B[i] = dt^(m-i) / (m-i)!``: the exact
+    discretisation of ``m`` integrators in a row with the input held over each sample.
+    """
+    F = np.array([[dt ** (j - i) / factorial(j - i) if j >= i else 0.0 for j in range(m)] for i in range(m)])
+    B = np.array([dt ** (m - i) / factorial(m - i) for i in range(m)])
+    return F.reshape(m, m), B
+
+
+def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
+    """``{order: (num, den)}``: reading = ``num/den`` x quantity for a sensor of each order.
+
+    Continuous: ``s**order``.  Discrete: the ZOH chain of the highest order ``M``; the
+    relation of order ``j`` is ``G_j / G_0`` with ``G_i`` the transfer from the held
+    ``M``-th derivative to the sampled ``i``-th (order 1 of a 1-chain: ``(z - 1)/dt``).
+    Polynomials are highest power first and not reduced.
+    """
+    orders = set(orders)
+    if domain == "s":
+        return {d: (np.r_[1.0, np.zeros(d)], np.ones(1)) for d in orders}
+    M = max(orders, default=0)
+    if M == 0:
+        return {0: (np.ones(1), np.ones(1))} if orders else {}
+    Fd, Bd = zoh_chain(M, dt)
+    den = characteristic_polynomial(Fd)
+    nums = [output_adjugate(Fd, row, den) @ Bd for row in np.eye(M)] + [den]
+    return {d: (np.ones(1), np.ones(1)) if d == 0 else (nums[d], nums[0]) for d in orders}
+
+
+# ---------------------------------------------------------------------------- bands
+def characteristic_polynomial(A) -> np.ndarray:
+    """``det(vI - A)`` coefficients, highest power first (real)."""
+    A = np.asarray(A, dtype=float)
+    return np.poly(A).real if A.size else np.ones(1)
+
+
+def output_adjugate(A, c, den=None) -> np.ndarray:
+    """Rows ``c adj(vI - A)`` by power: ``W[k] = W[k-1] A + den[k] c``, ``W[0] = c``.
+
+    The Faddeev-LeVerrier recursion applied to one output row, ``O(n^3)`` in all:
+    ``c adj(vI - A) = sum_k W[k] v^(n-1-k)``.  Returns an (n, n) array, row ``k`` the
+    coefficient of ``v^(n-1-k)``.
+    """
+    A = np.asarray(A, dtype=float)
+    c = np.asarray(c, dtype=float)
+    den = characteristic_polynomial(A) if den is None else den
+    n = len(A)
+    W = np.empty((n, n))
+    if n:
+        W[0] = c
+    for k in range(1, n):
+        W[k] = W[k - 1] @ A + den[k] * c
+    return W
+
+
+def adjugate_coefficients(A, den=None) -> np.ndarray:
+    """``adj(vI - A) = sum_k M[k] v^(n-1-k)``: the (n, n, n) coefficient matrices.
+
+    Faddeev-LeVerrier: ``M[0] = I``, ``M[k] = A M[k-1] + den[k] I``.  ``O(n^4)``: for one
+    output row use :func:`output_adjugate`.
+    """
+    A = np.asarray(A, dtype=float)
+    den = characteristic_polynomial(A) if den is None else den
+    n = len(A)
+    M = np.empty((n, n, n))
+    if n:
+        M[0] = np.eye(n)
+    for k in range(1, n):
+        M[k] = A @ M[k - 1] + den[k] * np.eye(n)
+    return M
+
+
+def band_polynomials(real: Realisation, ports, relations: dict, row: int = 0):
+    """Every band of one phase as polynomials (highest power first).
+
+    Parameters
+    ----------
+    real : Realisation
+        The phase (:func:`realisation`).
+    ports : sequence
+        Sensors with ``name`` and ``order``, in column order of ``G``/``D`` (inputs by
+        index, then measurements by index), e.g. ``GainTable.sensors``.
+    relations : dict
+        ``{order: (num, den)}`` from :func:`chain_relations`.
+    row : int
+        Output row (state) whose bands are wanted; 0 is the estimate of the common quantity.
+
+    Returns
+    -------
+    tuple
+        ``({name: (num, den)}, den_closed_loop)``.
+    """
+    den = characteristic_polynomial(real.A)
+    W = output_adjugate(real.A, real.C[row], den)
+    out = {}
+    for j, s in enumerate(ports):
+        d = real.D[row, j]
+        num = np.concatenate([[d], W @ real.G[:, j] + d * den[1:]])
+        rel_num, rel_den = relations[s.order]
+        out[s.name] = (np.polymul(num, rel_num), np.polymul(den, rel_den))
+    return out, den
+
+
+def response(num, den, omega, dt: float | None = None) -> np.ndarray:
+    """Frequency response ``num/den`` at ``j omega`` (continuous) or ``e^{j omega dt}`` (discrete)."""
+    omega = np.asarray(omega, dtype=float)
+    x = np.exp(1j * omega * dt) if dt else 1j * omega
+    with np.errstate(all="ignore"):
+        return np.polyval(num, x) / np.polyval(den, x)
+
+
+def identity_residual(bands: dict) -> float:
+    """Relative coefficient size of ``sum_i num_i/den_i - 1`` cleared of denominators.
+
+    Equal denominators are multiplied in once; the result is 0 for an exact identity and
+    about the rounding level for a numerically complementary set.
+    """
+    common = np.ones(1)
+    for _, d in bands.values():
+        if not _same_poly(common, d):
+            common = np.polymul(common, d)
+    total, scale = -common, np.abs(common).max()
+    for num, d in bands.values():
+        q, _ = np.polydiv(common, d)
+        term = np.polymul(num, q)
+        total = np.polyadd(total, term)
+        scale = max(scale, np.abs(term).max())
+    return float(np.abs(total).max(initial=0.0) / scale)
+
+
+def _same_poly(a, b):
+    return len(a) == len(b) and np.allclose(a, b, rtol=1e-14, atol=0)
