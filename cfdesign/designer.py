@@ -20,24 +20,31 @@ structure can do, which the paper notes is not the optimum in general.
 
 from __future__ import annotations
 
+import functools
+import json
 import math
 import platform
 import warnings
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from functools import reduce
+from pathlib import Path
 
 import numpy as np
 from scipy import linalg, optimize
 
-from . import __version__
+from . import __version__, linear
 from .errors import CfdesignError, SpecError
-from . import linear
 from .gains import GainTable, Schedule, SensorPort
-from .noise import van_loan
+from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
-from .spec import FilterSpec
+from .spec import QUANTITY_ORDERS, FilterSpec
 
-__all__ = ["design", "multirate_schedule", "build_structure", "noise_covariances",
+#: structures stored for use without the symbolic engine (:meth:`Structure.load`)
+STRUCTURES_DIR = Path(__file__).resolve().parent / "structures"
+
+__all__ = ["design", "design_from_structure", "Structure", "numeric_structure", "multirate_schedule",
+           "build_structure", "noise_covariances",
            "designed_observer"]
 
 _RATE_RTOL = 1e-9
@@ -71,6 +78,124 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     return 1.0 / base, Schedule.every(list(every), every, period)
 
 
+@dataclass(frozen=True)
+class StructurePort:
+    """A sensor of a :class:`Structure`: as :class:`~cfdesign.gains.SensorPort` without the rate,
+    plus the state that estimates an input sensor's bias (``bias_state``)."""
+
+    name: str
+    role: str
+    index: int
+    order: int
+    bias_state: int | None = None
+
+
+@dataclass(frozen=True)
+class Structure:
+    """What a design needs from a structure, as numbers: the output of the symbolic stage.
+
+    The symbolic engine turns a structure (``dckf3``, ``cf2`` order 2, ...) into this once;
+    everything after it (noise, Riccati, the gain table) is numpy/scipy and runs without
+    sympy, so a navigation filter can design its gains at start-up from a stored structure
+    (:meth:`load`).
+
+    Attributes
+    ----------
+    name : str
+    discrete : bool
+        Discrete structures are the zero-order-hold discretisation of ``(Fc, Bc)``.
+    Fc, Bc : ndarray
+        The continuous model (the discrete ``F, B`` at any sample time follow from it).
+    H : ndarray
+    pattern : tuple of tuple
+        The gain matrix: a gain's name where an entry is free, else its (fixed) value.
+    sensors : tuple of StructurePort
+    proved : bool
+        The exact complementarity proof with the gains left symbolic (so it holds for every
+        value they take).
+    """
+
+    name: str
+    discrete: bool
+    Fc: np.ndarray
+    Bc: np.ndarray
+    H: np.ndarray
+    pattern: tuple
+    sensors: tuple
+    proved: bool
+
+    @classmethod
+    def from_observer(cls, obs) -> Structure:
+        """The numeric structure of a symbolic observer (runs its exact proof)."""
+        if obs.continuous is None:
+            raise SpecError(f"structure {obs.name}: a discrete observer needs its continuous model "
+                            "(Observer(..., continuous=(Fc, Bc))) for the noise discretisation")
+        Fc, Bc = (np.array(M.evalf(17), dtype=float) for M in obs.continuous)
+        out = cls(obs.name, obs.discrete, Fc, Bc, np.array(obs.H.evalf(17), dtype=float),
+                  tuple(tuple(row) for row in obs.gain_pattern()),
+                  tuple(StructurePort(x.name, x.role, x.index, x.order, x.bias_state) for x in obs.sensors),
+                  obs.proof().holds)
+        if obs.discrete:
+            dt = 0.1 if obs._sample_time_symbol is not None else float(obs.sample_time)
+            mine, ref = out.model(dt), obs.numeric_model(dt)
+            if not all(np.allclose(mine[k], ref[k], rtol=1e-12, atol=1e-15) for k in ("F", "B")):
+                raise CfdesignError(f"{obs.name}: its discrete model is not the zero-order hold of its continuous "
+                                    "one (a bug, please report it)")
+        return out
+
+    @property
+    def domain(self) -> str:
+        return "z" if self.discrete else "s"
+
+    @property
+    def gains(self) -> tuple:
+        """Names of the free gains, sorted."""
+        return tuple(sorted({e for row in self.pattern for e in row if isinstance(e, str)}))
+
+    @property
+    def full_pattern(self) -> bool:
+        """Every entry a distinct free gain (the Kalman gain fits it)."""
+        names = [e for row in self.pattern for e in row]
+        return all(isinstance(e, str) for e in names) and len(set(names)) == len(names)
+
+    def fixed(self, values: dict) -> Structure:
+        """The structure with some gains given numbers (the rest stay free)."""
+        pattern = tuple(tuple(float(values[e]) if isinstance(e, str) and e in values else e for e in row)
+                        for row in self.pattern)
+        return replace(self, pattern=pattern)
+
+    def model(self, dt: float | None = None) -> dict:
+        """``F, B, H`` (discrete at ``dt``: zero-order hold of ``Fc, Bc``) and ``Fc, Bc``."""
+        if self.discrete:
+            F, B = zoh(self.Fc, self.Bc, dt)
+        else:
+            F, B = self.Fc, self.Bc
+        return {"F": F, "B": B, "H": self.H, "Fc": self.Fc, "Bc": self.Bc}
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "discrete": self.discrete, "Fc": self.Fc.tolist(), "Bc": self.Bc.tolist(),
+                "H": self.H.tolist(), "pattern": [list(r) for r in self.pattern],
+                "sensors": [vars(x) for x in self.sensors], "proved": self.proved}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Structure:
+        n = len(d["Fc"])
+        return cls(d["name"], bool(d["discrete"]), np.array(d["Fc"], dtype=float).reshape(n, n),
+                   np.array(d["Bc"], dtype=float).reshape(n, -1), np.array(d["H"], dtype=float).reshape(-1, n),
+                   tuple(tuple(r) for r in d["pattern"]), tuple(StructurePort(**x) for x in d["sensors"]),
+                   bool(d["proved"]))
+
+    @classmethod
+    def load(cls, name: str) -> Structure:
+        """A structure stored with cfdesign (``cfdesign/structures/NAME.json``), without sympy."""
+        path = STRUCTURES_DIR / f"{name}.json"
+        try:
+            return cls.from_dict(json.loads(path.read_text()))
+        except FileNotFoundError:
+            known = ", ".join(sorted(p.stem for p in STRUCTURES_DIR.glob("*.json")))
+            raise SpecError(f"no stored structure {name!r} (stored: {known})") from None
+
+
 def build_structure(spec: FilterSpec):
     """The symbolic observer the spec names, with its options; errors name the field."""
     from .errors import StructureError
@@ -95,6 +220,22 @@ def build_structure(spec: FilterSpec):
     return obs
 
 
+@functools.lru_cache(maxsize=128)
+def _cached_structure(name, order, bands, discrete, ports) -> Structure:
+    from .symbolic.filters import structure
+
+    obs = structure(name, order=order, bands=bands, discrete=discrete)
+    return Structure.from_observer(obs.renamed(dict(ports)) if ports else obs)
+
+
+def numeric_structure(spec: FilterSpec) -> Structure:
+    """:func:`build_structure` as a :class:`Structure` (cached: the symbolic work, proof
+    included, runs once per structure, options and ports)."""
+    build_structure(spec)  # checks the spec against the structure (cheap: no band is derived)
+    ports = tuple(sorted((x.port, x.name) for x in spec.sensors if x.port is not None))
+    return _cached_structure(spec.structure, spec.order, spec.bands, spec.discrete, ports)
+
+
 def _apply_ports(spec, obs):
     """Rename the structure's sensors after the physical sensors that play them (``port``)."""
     ports = {x.port: x.name for x in spec.sensors if x.port is not None}
@@ -115,8 +256,6 @@ def _check_sensors(spec, obs):
     for x in spec.sensors:
         if x.name not in names:
             raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})")
-    from .symbolic.observer import QUANTITY_ORDERS
-
     for s in obs.sensors:
         given = spec.sensor(s.name)
         if given.measures is not None:
@@ -169,60 +308,76 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     ``observer`` (optional) replaces the structure the spec names: any observer built on the
     engine, with symbolic gains and sensors named as in the spec.  A ``[gains]`` table that
     gives only some of the gains fixes those and optimises the rest (a sparse pattern).
+    The exact proof is re-run with the designed gains substituted (single-rate tables).
     """
     if observer is None:
-        obs = build_structure(spec)
+        structure = numeric_structure(spec)
     else:
-        obs = observer
-        _check_sensors(spec, obs)
-    obs, fixed = _split_gains(obs, spec.gains)
-    inputs = [s.name for s in obs.sensors if s.role == "input"]
-    by_row = [s.name for s in sorted((s for s in obs.sensors if s.role == "measurement"), key=lambda s: s.index)]
+        _check_sensors(spec, observer)
+        structure = Structure.from_observer(observer)
+    table = design_from_structure(structure, spec)
+    if table.period == 1:
+        obs = observer if observer is not None else build_structure(spec)
+        form = table.gain_form if obs.discrete else None
+        exact = obs.with_gain_matrix(table.K[0], form, table.sample_time_s).proof().holds
+        table = replace(table, checks={**table.checks, "complementary": exact,
+                                       "complementary_method": "exact proof with the designed gains"})
+    return table
+
+
+def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
+    """The numeric stage of :func:`design` (numpy/scipy, no sympy): noise, Riccati, table.
+
+    The table's ``checks['complementary']`` is the structure's exact proof (gains symbolic)
+    confirmed by the numeric band identity of the designed gains (:mod:`cfdesign.linear`).
+    """
+    _check_sensors(spec, structure)
+    structure, fixed = _split_gains(structure, spec.gains)
+    inputs = [s.name for s in structure.sensors if s.role == "input"]
+    by_row = [s.name for s in sorted((s for s in structure.sensors if s.role == "measurement"),
+                                     key=lambda s: s.index)]
     rates = {name: spec.sensor(name).rate_hz for name in inputs + by_row}
-    if obs.discrete:
+    if structure.discrete:
         dt, schedule = multirate_schedule(rates, inputs, spec.sample_time_s)  # rows in H order
-        model = obs.numeric_model(dt)
     else:
         if spec.gain_form == "filter":
             raise SpecError("gain_form: 'filter' applies to discrete filters only")
-        dt, schedule, model = None, Schedule.from_names(by_row, [by_row]), obs.numeric_model()
-    Qc, R = noise_covariances(obs, spec, model, obs.discrete)
-    if obs.discrete:
-        Fd, Q = van_loan(model["Fc"], Qc, dt)
-        if not np.allclose(Fd, model["F"], rtol=1e-9, atol=1e-12):
-            raise CfdesignError(f"{obs.name}: symbolic and numeric ZOH models disagree (a bug, please report it)")
-        result = _discrete_gains(obs, model, Q, R, schedule, spec.gain_form, fixed)
+        if spec.sample_time_s is not None:
+            raise SpecError(f"sample_time_s: {structure.name} is continuous "
+                            "(set discrete = true where the structure allows)")
+        dt, schedule = None, Schedule.from_names(by_row, [by_row])
+    model = structure.model(dt)
+    Qc, R = noise_covariances(structure, spec, model, structure.discrete)
+    if structure.discrete:
+        _, Q = van_loan(model["Fc"], Qc, dt)
+        result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed)
     else:
         Q = Qc
-        result = _continuous_gains(obs, model, Q, R, fixed)
-    return _table(spec, obs, model, Q, R, dt, schedule, result, spec.gains)
+        result = _continuous_gains(structure, model, Q, R, fixed)
+    return _table(spec, structure, model, Q, R, dt, schedule, result, spec.gains)
 
 
-def _split_gains(obs, gains):
-    """``(observer, fixed)``: a partial ``[gains]`` is substituted (the rest stay free and are
+def _split_gains(structure, gains):
+    """``(structure, fixed)``: a partial ``[gains]`` is substituted (the rest stay free and are
     optimised); a complete one is returned as the fixed gains."""
     if not gains:
-        return obs, None
-    names = set(obs.gains)
+        return structure, None
+    names = set(structure.gains)
     unknown = sorted(set(gains) - names)
     if unknown:
-        raise SpecError(f"gains: unknown {', '.join(unknown)} ({obs.name} has gains {', '.join(sorted(names))})")
+        raise SpecError(f"gains: unknown {', '.join(unknown)} ({structure.name} has gains "
+                        f"{', '.join(sorted(names))})")
     if set(gains) == names:
-        return obs, gains
-    return obs.subs(gains), None
+        return structure, gains
+    return structure.fixed(gains), None
 
 
 # ---------------------------------------------------------------------------- gains
-def _full_pattern(obs) -> bool:
-    names = [e for row in obs.gain_pattern() for e in row]
-    return all(isinstance(e, str) for e in names) and len(set(names)) == len(names)
-
-
 def _continuous_gains(obs, model, Q, R, fixed=None):
     F, H = model["F"], model["H"]
     if fixed is not None:
         return _fixed_gains(obs, F, H, Q, R, "continuous", fixed)
-    if _full_pattern(obs):
+    if obs.full_pattern:
         sol = kalman_continuous(F, H, Q, R)
         return {"K": [sol.K], "P": [sol.P], "P_filtered": [sol.P], "solver": _solver_info(sol.solution)}
     return _sparse_gains(obs, F, H, Q, R, "continuous")
@@ -236,12 +391,12 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None):
             raise SpecError("gains: fixed gains apply to single-rate filters only")
         return _fixed_gains(obs, F, H, Q, R, form, fixed)
     if schedule.period == 1:
-        if _full_pattern(obs):
+        if obs.full_pattern:
             sol = kalman_discrete(F, H, Q, R)
             return {"K": [getattr(sol, key)], "P": [sol.P], "P_filtered": [sol.P_filtered],
                     "solver": _solver_info(sol.solution)}
         return _sparse_gains(obs, F, H, Q, R, form)
-    if not _full_pattern(obs):
+    if not obs.full_pattern:
         raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
     rows = [list(schedule.rows(k)) for k in range(schedule.period)]
     sol = periodic_dare(F, [H[r, :] for r in rows], Q, [R[np.ix_(r, r)] for r in rows])
@@ -314,7 +469,7 @@ def _gain_result(K, F, H, Q, R, form, solver, optimum):
 
 def _fixed_gains(obs, F, H, Q, R, form, fixed):
     """Gains given in the spec: check names and stability, predict the error (Lyapunov)."""
-    pattern = obs.gain_pattern()
+    pattern = obs.pattern
     free = _free_names(pattern)
     missing, extra = sorted(set(free) - set(fixed)), sorted(set(fixed) - set(free))
     if missing or extra:
@@ -329,7 +484,7 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed):
 
 def _sparse_gains(obs, F, H, Q, R, form):
     """Minimise the error variance of the estimate over the free entries of the pattern."""
-    pattern = obs.gain_pattern()
+    pattern = obs.pattern
     free = _free_names(pattern)
 
     def cost(values):
@@ -381,22 +536,23 @@ def _pairs(values) -> list:
     return [[float(np.real(v)), float(np.imag(v))] for v in values]
 
 
-def _checks(obs, model, result, dt, schedule, form):
+def _checks(structure, model, result, schedule, form):
     F, H = model["F"], model["H"]
     if schedule.period > 1:
         mult = np.array([complex(*p) for p in result["solver"]["monodromy_multipliers"]])
-        return {"complementary": obs.proof().holds, "complementary_note":
-                "proved with the gains symbolic, so it holds at every phase",
+        return {"complementary": structure.proved, "complementary_method":
+                "exact proof with the gains symbolic, so it holds at every phase",
                 "monodromy_multipliers": _pairs(mult), "stable": bool(np.all(np.abs(mult) < 1))}
     K = result["K"][0]
-    numeric = obs.with_gain_matrix(K, form if obs.discrete else None, dt)
     poles = np.linalg.eigvals(linear.closed_loop(F, H, K, form))
-    return {"complementary": numeric.proof().holds, "poles": _pairs(poles), "stable": _stable(poles, form)}
+    return {"complementary": structure.proved, "complementary_method":
+            "exact proof with the gains symbolic, so it holds for the designed gains",
+            "poles": _pairs(poles), "stable": _stable(poles, form)}
 
 
 def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTable:
     form = spec.gain_form if obs.discrete else "continuous"
-    checks = _checks(obs, model, result, dt, schedule, form)
+    checks = _checks(obs, model, result, schedule, form)
     if not checks["stable"]:
         roots = checks.get("poles", checks.get("monodromy_multipliers"))
         worst = max(abs(complex(*r)) if obs.discrete else complex(*r).real for r in roots)
@@ -404,7 +560,7 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTabl
                             f"{'magnitude' if obs.discrete else 'real part'} {worst:.6g})")
     gains = dict(given or {})
     if len(result["K"]) == 1:
-        for i, row in enumerate(obs.gain_pattern()):
+        for i, row in enumerate(obs.pattern):
             for j, e in enumerate(row):
                 if isinstance(e, str):
                     gains[e] = float(result["K"][0][i, j])

@@ -39,7 +39,17 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["SensorSpec", "FilterSpec", "load_spec", "parse_spec", "example_path", "EXAMPLES"]
+__all__ = ["SensorSpec", "FilterSpec", "load_spec", "parse_spec", "example_path", "EXAMPLES", "QUANTITY_ORDERS"]
+
+#: what a sensor may measure (``measures = ...``), as the derivative order of the common quantity
+QUANTITY_ORDERS = {
+    "angle": 0,
+    "position": 0,
+    "rate": 1,
+    "velocity": 1,
+    "acceleration": 2,
+    "jerk": 3,
+}
 
 EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
 #: built-in example design files, by short name

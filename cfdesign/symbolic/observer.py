@@ -37,6 +37,7 @@ import numpy as np
 import sympy as sp
 
 from ..errors import GainError, ProofError, StructureError
+from ..spec import QUANTITY_ORDERS
 
 __all__ = [
     "QUANTITY_ORDERS",
@@ -58,15 +59,6 @@ z = sp.Symbol("z")
 #: sample time in seconds (kept symbolic unless substituted)
 T = sp.Symbol("T", positive=True)
 
-#: names accepted for what a sensor measures, as the derivative order of the common quantity
-QUANTITY_ORDERS = {
-    "angle": 0,
-    "position": 0,
-    "rate": 1,
-    "velocity": 1,
-    "acceleration": 2,
-    "jerk": 3,
-}
 
 
 def _order_of(measures) -> int:
