@@ -157,7 +157,15 @@ def _summary(table) -> str:
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
     else:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
-    lines.append(f"  predicted steady-state std of the estimate: {table.predicted_std:.6g}")
+    if table.domain == "z":
+        other = "prior" if table.output == "posterior" else "posterior"
+        names = {"posterior": "estimate after each step's readings (posterior)",
+                 "prior": "one-step prediction (prior)"}
+        lines.append(f"  predicted steady-state std, {names[table.output]}: {table.predicted_std:.6g}  "
+                     "<- the default output")
+        lines.append(f"  predicted steady-state std, {names[other]}: {table.predicted_std_of(other):.6g}")
+    else:
+        lines.append(f"  predicted steady-state std of the estimate: {table.predicted_std:.6g}")
     c = table.checks
     roots = c.get("poles", c.get("monodromy_multipliers"))
     what = "poles" if "poles" in c else "monodromy multipliers"
@@ -183,7 +191,8 @@ def cmd_export(args) -> int:
     else:
         from .codegen import write_c
 
-        written = write_c(table, args.output, prefix=args.prefix, precision=args.precision)
+        written = write_c(table, args.output, prefix=args.prefix, precision=args.precision,
+                          output="prior" if args.prediction else None)
     for path in written:
         print(f"wrote {path}")
     return 0
@@ -210,7 +219,7 @@ def cmd_run(args) -> int:
     from .runtime import Runtime
 
     table = load_gains(args.table)
-    runtime = Runtime(table)
+    runtime = Runtime(table, output="prior" if args.prediction else None)
     time, readings = read_readings(args.data, runtime.inputs + runtime.measurements)
     est, states = _run_blocks(runtime, readings)
     write_estimates(args.output, time, est, states)
@@ -282,6 +291,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="file (json, csv) or directory (c)")
     p.add_argument("--precision", choices=["double", "float"], default="double", help="C only: real type")
     p.add_argument("--prefix", help="C only: identifier prefix of the generated code")
+    p.add_argument("--prediction", action="store_true",
+                   help="C only: the step returns the one-step prediction instead of the table's output "
+                        "(by default the estimate after each step's readings)")
     p.set_defaults(run=cmd_export)
 
     p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
@@ -294,6 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("table", help="gain table (JSON)")
     p.add_argument("data", help="CSV with one column per sensor (named as in the table) and an optional time")
     p.add_argument("-o", "--output", required=True, help="CSV of estimates to write")
+    p.add_argument("--prediction", action="store_true",
+                   help="write the one-step prediction instead of the table's output (by default the estimate "
+                        "after each step's readings)")
     p.set_defaults(run=cmd_run)
 
     from .reproduce import add_parser as add_reproduce

@@ -347,14 +347,30 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
                             "(set discrete = true where the structure allows)")
         dt, schedule = None, Schedule.from_names(by_row, [by_row])
     model = structure.model(dt)
+    output = _output(spec, structure, model)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete)
     if structure.discrete:
         _, Q = van_loan(model["Fc"], Qc, dt)
-        result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed)
+        result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed, output)
     else:
         Q = Qc
         result = _continuous_gains(structure, model, Q, R, fixed)
-    return _table(spec, structure, model, Q, R, dt, schedule, result, spec.gains)
+    return _table(spec, structure, model, Q, R, dt, schedule, result, output)
+
+
+def _output(spec, structure, model) -> str:
+    """The estimate the table outputs: the spec's ``output``, by default the posterior (after
+    each step's readings) for discrete tables; continuous tables have only the prior."""
+    if not structure.discrete:
+        if spec.output == "posterior":
+            raise SpecError(f"output: {structure.name} is continuous; it has no posterior estimate")
+        return "prior"
+    if np.linalg.cond(model["F"]) > 1e12 and spec.gain_form == "predictor":
+        if spec.output == "posterior":
+            raise SpecError(f"output: {structure.name} has a singular F, so its predictor gains give no "
+                            "posterior estimate; use gain_form = 'filter' or output = 'prior'")
+        return "prior"
+    return spec.output or "posterior"
 
 
 def _split_gains(structure, gains):
@@ -376,26 +392,26 @@ def _split_gains(structure, gains):
 def _continuous_gains(obs, model, Q, R, fixed=None):
     F, H = model["F"], model["H"]
     if fixed is not None:
-        return _fixed_gains(obs, F, H, Q, R, "continuous", fixed)
+        return _fixed_gains(obs, F, H, Q, R, "continuous", fixed, "prior")
     if obs.full_pattern:
         sol = kalman_continuous(F, H, Q, R)
         return {"K": [sol.K], "P": [sol.P], "P_filtered": [sol.P], "solver": _solver_info(sol.solution)}
-    return _sparse_gains(obs, F, H, Q, R, "continuous")
+    return _sparse_gains(obs, F, H, Q, R, "continuous", "prior")
 
 
-def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None):
+def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="posterior"):
     F, H = model["F"], model["H"]
     key = "K_filter" if form == "filter" else "K_predictor"
     if fixed is not None:
         if schedule.period != 1:
             raise SpecError("gains: fixed gains apply to single-rate filters only")
-        return _fixed_gains(obs, F, H, Q, R, form, fixed)
+        return _fixed_gains(obs, F, H, Q, R, form, fixed, output)
     if schedule.period == 1:
         if obs.full_pattern:
             sol = kalman_discrete(F, H, Q, R)
             return {"K": [getattr(sol, key)], "P": [sol.P], "P_filtered": [sol.P_filtered],
                     "solver": _solver_info(sol.solution)}
-        return _sparse_gains(obs, F, H, Q, R, form)
+        return _sparse_gains(obs, F, H, Q, R, form, output)
     if not obs.full_pattern:
         raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
     rows = [list(schedule.rows(k)) for k in range(schedule.period)]
@@ -450,24 +466,31 @@ def _kalman_gain(F, H, Q, R, form):
     return (sol.K_filter if form == "filter" else sol.K_predictor), sol.P
 
 
-def _output_covariance(F, H, K, Q, R, form):
-    """Covariance of the estimate the gain form outputs (a-posteriori for the filter form)."""
-    P = _error_covariance(F, H, K, Q, R, form)
-    return linear.posterior_covariance(P, H, K, R) if form == "filter" else P
+def _covariances(F, H, K, Q, R, form, P=None):
+    """``(P, P_filtered)``: prior and posterior error covariances of a fixed gain (Joseph form
+    with the update gain of :func:`cfdesign.linear.gain_pair`; the prior where there is none)."""
+    P = _error_covariance(F, H, K, Q, R, form) if P is None else P
+    L = linear.gain_pair(F, K, form)[1]
+    return P, (P if L is None else linear.posterior_covariance(P, H, L, R))
 
 
-def _gain_result(K, F, H, Q, R, form, solver, optimum):
+def _output_covariance(F, H, K, Q, R, form, output):
+    """Covariance of the estimate the table outputs."""
+    P, P_filtered = _covariances(F, H, K, Q, R, form)
+    return P_filtered if output == "posterior" else P
+
+
+def _gain_result(K, F, H, Q, R, form, solver, optimum, output):
     """Error covariances of a fixed gain, beside the Kalman optimum ``(K_opt, P_opt)`` for comparison."""
-    P = _error_covariance(F, H, K, Q, R, form)
-    P_filtered = linear.posterior_covariance(P, H, K, R) if form == "filter" else P
+    P, P_filtered = _covariances(F, H, K, Q, R, form)
     K_opt, P_opt = optimum
-    out = linear.posterior_covariance(P_opt, H, K_opt, R) if form == "filter" else P_opt
-    mine = P_filtered if form == "filter" else P
-    solver = {**solver, "kalman_predicted_variance": float(out[0, 0]), "predicted_variance": float(mine[0, 0])}
+    best = _covariances(F, H, K_opt, Q, R, form, P_opt)[output == "posterior"]
+    mine = P_filtered if output == "posterior" else P
+    solver = {**solver, "kalman_predicted_variance": float(best[0, 0]), "predicted_variance": float(mine[0, 0])}
     return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
 
 
-def _fixed_gains(obs, F, H, Q, R, form, fixed):
+def _fixed_gains(obs, F, H, Q, R, form, fixed, output):
     """Gains given in the spec: check names and stability, predict the error (Lyapunov)."""
     pattern = obs.pattern
     free = _free_names(pattern)
@@ -479,11 +502,12 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed):
     if not _stable(np.linalg.eigvals(linear.closed_loop(F, H, K, form)), form):
         raise SpecError(f"gains: the given gains do not stabilise {obs.name}")
     return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"},
-                        _kalman_gain(F, H, Q, R, form))
+                        _kalman_gain(F, H, Q, R, form), output)
 
 
-def _sparse_gains(obs, F, H, Q, R, form):
-    """Minimise the error variance of the estimate over the free entries of the pattern."""
+def _sparse_gains(obs, F, H, Q, R, form, output):
+    """Minimise the error variance of the estimate the table outputs over the free entries of
+    the pattern."""
     pattern = obs.pattern
     free = _free_names(pattern)
 
@@ -494,7 +518,7 @@ def _sparse_gains(obs, F, H, Q, R, form):
         with warnings.catch_warnings():
             warnings.simplefilter("error", linalg.LinAlgWarning)
             try:
-                P = _output_covariance(F, H, K, Q, R, form)
+                P = _output_covariance(F, H, K, Q, R, form, output)
             except (linalg.LinAlgWarning, np.linalg.LinAlgError):
                 return np.inf  # too close to the stability boundary to evaluate
         return P[0, 0] if np.all(np.isfinite(P)) and P[0, 0] > 0 else np.inf
@@ -515,7 +539,7 @@ def _sparse_gains(obs, F, H, Q, R, form):
                         "give hand-tuned gains in [gains] or use the full-gain structure")
     return _gain_result(_pattern_gain(pattern, free, best.x), F, H, Q, R, form,
                         {"method": "sparse gain: Nelder-Mead on the Lyapunov error variance of the estimate",
-                         "iterations": int(best.nit)}, optimum)
+                         "iterations": int(best.nit)}, optimum, output)
 
 
 def _sparse_start(obs, pattern, free, K_opt, cost):
@@ -550,7 +574,7 @@ def _checks(structure, model, result, schedule, form):
             "poles": _pairs(poles), "stable": _stable(poles, form)}
 
 
-def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTable:
+def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
     form = spec.gain_form if obs.discrete else "continuous"
     checks = _checks(obs, model, result, schedule, form)
     if not checks["stable"]:
@@ -558,7 +582,7 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTabl
         worst = max(abs(complex(*r)) if obs.discrete else complex(*r).real for r in roots)
         raise CfdesignError(f"{spec.name}: the designed filter is not stable (worst pole "
                             f"{'magnitude' if obs.discrete else 'real part'} {worst:.6g})")
-    gains = dict(given or {})
+    gains = dict(spec.gains or {})
     if len(result["K"]) == 1:
         for i, row in enumerate(obs.pattern):
             for j, e in enumerate(row):
@@ -570,6 +594,7 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, given=None) -> GainTabl
                       for s in obs.sensors),
         F=model["F"], B=model["B"], H=model["H"], K=result["K"], P=result["P"],
         P_filtered=result["P_filtered"], schedule=schedule, Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
+        output=output,
         options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
                  if v is not None},
         provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import linear
 from .errors import CfdesignError, GainTableError
 from .linear import GAIN_FORMS
 
@@ -118,6 +119,14 @@ def _check_schedule(t, source):
         if cols.size:
             raise GainTableError(f"{source}: K[{k}] has a gain for {names[cols[0]]}, which the schedule does "
                                  f"not read at phase {k}")
+
+
+def _check_output(t, source):
+    if t.output not in linear.OUTPUTS:
+        raise GainTableError(f"{source}: output must be one of {', '.join(linear.OUTPUTS)}, got {t.output!r}")
+    if t.output == "posterior" and (t.domain == "s" or any(linear.gain_pair(t.F, K, t.gain_form)[1] is None
+                                                           for K in t.K)):
+        raise GainTableError(f"{source}: a posterior output needs a discrete table with an invertible F")
 
 
 def _shape_of(M, shape, what):
@@ -233,6 +242,10 @@ class GainTable:
         Base sample time (s); None for continuous filters.
     gain_form : {'predictor', 'filter', 'continuous'}
         See :mod:`cfdesign.linear` for what each form means.
+    output : {'posterior', 'prior'}
+        The estimate the runtimes return by default: after each step's readings (posterior,
+        covariance ``P_filtered``) or the one-step prediction (prior, ``P``).  Tables written
+        without it get the posterior where the table has one.
     sensors : tuple of SensorPort
         Inputs by column of ``B``, then measurements by row of ``H`` (the column order of
         :func:`cfdesign.linear.realisation`'s ``G``).
@@ -285,6 +298,7 @@ class GainTable:
     R: np.ndarray
     gains: dict = field(default_factory=dict)
     wrap_angle: bool = False
+    output: str = ""
     options: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     checks: dict = field(default_factory=dict)
@@ -294,6 +308,11 @@ class GainTable:
         ports = tuple(sorted(ports, key=lambda s: (s.role != "input", s.index)))
         object.__setattr__(self, "sensors", ports)
         _check_table(self, self.name)
+        if not self.output:  # tables written before the output was declared: the posterior where it exists
+            posterior = self.domain == "z" and all(linear.gain_pair(self.F, K, self.gain_form)[1] is not None
+                                                   for K in self.K)
+            object.__setattr__(self, "output", "posterior" if posterior else "prior")
+        _check_output(self, self.name)
 
     @property
     def period(self) -> int:
@@ -317,13 +336,15 @@ class GainTable:
 
     @property
     def predicted_std(self) -> float:
-        """Predicted steady-state standard deviation of the estimate (first state), worst phase.
+        """Predicted steady-state standard deviation of the estimate the table outputs
+        (:attr:`output`; first state), worst phase."""
+        return self.predicted_std_of(self.output)
 
-        Uses the covariance of the estimate the gain form outputs: a-priori for predictor
-        tables, a-posteriori for filter tables.
-        """
-        covs = self.P_filtered if self.gain_form == "filter" else self.P
-        return float(np.sqrt(max(c[0, 0] for c in covs)))
+    def predicted_std_of(self, output: str, state: int = 0) -> float:
+        """Predicted steady-state std of ``state`` in the ``prior`` (prediction, ``P``) or the
+        ``posterior`` estimate (after the step's readings, ``P_filtered``), worst phase."""
+        covs = self.P_filtered if output == "posterior" else self.P
+        return float(np.sqrt(max(c[state, state] for c in covs)))
 
     def phase_model(self, phase: int) -> tuple:
         """``(F, B, H_k, K_k)`` of one phase: ``H_k`` keeps the rows of the sensors measured at

@@ -7,6 +7,8 @@ A design file names a structure and describes each of its sensors::
     gain_form = "predictor"        # discrete: predictor | filter
     # sample_time_s = 0.2          # default: 1 / the fastest sensor's rate
     # wrap_angle = true            # a heading: angle readings and the estimate live in (-pi, pi]
+    # output = "posterior"         # discrete: the estimate after each step's readings (default),
+    #                              # or "prior", the one-step prediction
     # discrete = true              # cf2, cf3, cfn: continuous unless true
     # order = 2                    # cf2 only;  bands = 4  # cfn only
     # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones;
@@ -61,7 +63,7 @@ EXAMPLES = {
     "position": "position_imu_gps.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
-             "description", "gains", "wrap_angle"}
+             "description", "gains", "wrap_angle", "output"}
 _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port"}
 
 
@@ -93,6 +95,7 @@ class FilterSpec:
     description: str = ""
     gains: dict | None = None
     wrap_angle: bool = False
+    output: str | None = None
 
     def sensor(self, name: str) -> SensorSpec:
         for x in self.sensors:
@@ -147,6 +150,7 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
         description=_text(data, "description") or "",
         gains=_gains(data.get("gains")),
         wrap_angle=bool(_flag(data, "wrap_angle")),
+        output=_choice(data, "output", ("posterior", "prior", None), None),
     )
 
 

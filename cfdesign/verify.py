@@ -43,7 +43,9 @@ class Check:
 
 
 def phase_realisation(table, phase: int = 0, output: str | None = None):
-    """One phase of ``table`` as a :class:`cfdesign.linear.Realisation`."""
+    """One phase of ``table`` as a :class:`cfdesign.linear.Realisation` (default: the output the
+    table declares)."""
+    output = table.output if output is None else output
     return linear.realisation(table.F, table.B, table.H, table.K[phase], table.gain_form, output)
 
 
@@ -70,7 +72,8 @@ def _complementarity(table) -> list:
     ok = worst <= IDENTITY_RTOL
     where = f" (worst at phase {worst_phase})" if len(table.K) > 1 else ""
     checks = [Check("complementary (polynomial identity)", ok,
-                    f"sum of bands - 1 has relative coefficient size {worst:.2e}{where}, tolerance {IDENTITY_RTOL:g}")]
+                    f"sum of the {table.output} output's bands - 1 has relative coefficient size {worst:.2e}{where}, "
+                    f"tolerance {IDENTITY_RTOL:g}")]
     if len(table.K) == 1:
         err = _grid_error(table, band_polynomials(table, 0)[0])
         checks.append(Check("complementary (frequency grid)", err <= GRID_ATOL,

@@ -46,11 +46,15 @@ def tables():
 
 @pytest.fixture(scope="module")
 def reference(tables):
-    """``{name: (readings, Python runtime estimates)}`` on the shared test signal."""
+    """``{name: (readings, Python runtime estimates)}`` on the shared test signal (the streaming
+    step, whose operation order the C follows; the batch path agrees to rounding)."""
     out = {}
     for name, table in tables.items():
         data = readings(table)
-        out[name] = data, Runtime(table).run(data)
+        rt, names = Runtime(table), list(data)
+        stream = np.array([rt.step(**{n: data[n][k] for n in names}) for k in range(N)])  # the C's operation order
+        assert np.max(np.abs(stream - Runtime(table).run(data))) <= 1e-9 * np.max(np.abs(stream))
+        out[name] = data, stream
     return out
 
 
@@ -98,10 +102,12 @@ def test_c_agrees_with_python_runtime(name, precision, tables, reference, tmp_pa
 
 
 @needs_cc
-def test_filter_form_angle_table_agrees(tables, tmp_path):
-    """Filter gains with heading wrap (the examples cover predictor + wrap and filter, no wrap)."""
+@pytest.mark.parametrize("output", ["posterior", "prior"])
+def test_filter_form_angle_table_agrees_for_both_outputs(tables, tmp_path, output):
+    """Filter gains with heading wrap (the examples cover predictor + wrap and filter, no wrap),
+    the default posterior output and the prediction (``output='prior'``)."""
     spec = cfdesign.load_spec(cfdesign.example_path("dckf3"))
-    table = cfdesign.design(dataclasses.replace(spec, gain_form="filter"))
+    table = cfdesign.design(dataclasses.replace(spec, gain_form="filter", output=output))
     data = {k: v[:20_000] for k, v in readings(table).items()}
     c = run_c(table, data, tmp_path, "double")
     assert difference(table, c, Runtime(table).run(data)) <= 1e-12

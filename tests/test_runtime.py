@@ -55,26 +55,31 @@ def test_batch_equals_streaming(name, request):
 
 
 @pytest.mark.parametrize("form", ["predictor", "filter"])
-def test_filter_form_runs_the_measurement_update(form):
+def test_both_gain_forms_run_their_recursion_and_output_both_estimates(form):
     spec = cfdesign.load_spec(cfdesign.example_path("dckf3"))
     import dataclasses
 
     table = cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False))
+    assert table.output == "posterior"  # the default of designed tables, whatever the gain form
     data = readings(table, 500)
     est_stream, _ = stream(table, data)
     assert np.max(np.abs(Runtime(table).run(data) - est_stream)) < 1e-10
-    # one step by hand
-    rt = Runtime(table)
+    # one step by hand, in the gain form as the paper writes it
     x = np.array([0.3, -0.01])
-    rt.x = x.copy()
-    est = rt.step(gyro=0.1, compass=0.5, odometry=0.45)
     innov = np.array([0.5, 0.45]) - table.H @ x
     K = table.K[0]
-    if form == "filter":
+    if form == "filter":  # x+ = x + K e; x[k+1] = F x+ + B u
         post = x + K @ innov
-        assert est == pytest.approx(post[0]) and np.allclose(rt.x, table.F @ post + table.B[:, 0] * 0.1)
-    else:
-        assert est == pytest.approx(x[0]) and np.allclose(rt.x, table.F @ x + table.B[:, 0] * 0.1 + K @ innov)
+        nxt = table.F @ post + table.B[:, 0] * 0.1
+    else:  # x[k+1] = F x + B u + K e; the estimate after the readings: x + F^-1 K e
+        post = x + np.linalg.solve(table.F, K) @ innov
+        nxt = table.F @ x + table.B[:, 0] * 0.1 + K @ innov
+    for output, expected in (("posterior", post[0]), ("prior", x[0])):
+        rt = Runtime(table, output=output)
+        rt.x = x.copy()
+        assert rt.step(gyro=0.1, compass=0.5, odometry=0.45) == pytest.approx(expected, abs=1e-15)
+        assert np.allclose(rt.x, nxt, atol=1e-15)
+    assert Runtime(table).output == "posterior"
 
 
 def test_split_run_with_restore_equals_one_run(position):

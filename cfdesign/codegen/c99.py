@@ -48,7 +48,7 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
         The C arithmetic type.
     output : {'prior', 'posterior'}, optional
         The estimate ``<prefix>_step`` returns: the one-step prediction or the estimate after
-        this step's readings; default the gain form's own, as :class:`cfdesign.runtime.Runtime`.
+        this step's readings; default the table's declared output, as :class:`cfdesign.runtime.Runtime`.
 
     Returns
     -------
@@ -133,7 +133,7 @@ def _sensors(table) -> list:
 def _fields(table, prefix, precision, output) -> dict:
     """Every substitution of the templates."""
     _check_runnable(table)
-    output = linear.default_output(table.gain_form) if output is None else output
+    output = table.output if output is None else output
     if output not in linear.OUTPUTS:
         raise CfdesignError(f"output must be one of {', '.join(linear.OUTPUTS)}, got {output!r}")
     if precision not in _PRECISIONS:

@@ -136,7 +136,8 @@ def _spec(sc, name, structure: dict, inputs, measurements):
 
     sensors = {n: _sensor_entry(sc, n, "input") for n in inputs}
     sensors.update({n: _sensor_entry(sc, n, "measurement") for n in measurements})
-    return parse_spec({"name": name, **structure, "gain_form": "predictor", "wrap_angle": True,
+    # the paper's estimate: the predictor's one-step prediction (eq. (25)), not the posterior
+    return parse_spec({"name": name, **structure, "gain_form": "predictor", "wrap_angle": True, "output": "prior",
                        "description": sc.reading.describe(), "sensors": sensors})
 
 

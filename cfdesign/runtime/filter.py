@@ -9,8 +9,9 @@ numpy only; scipy.signal.lfilter is imported lazily by the fast batch path.  Eve
 
 where ``Kp`` and ``L`` are the table's gain in predictor and update form
 (:func:`cfdesign.linear.gain_pair`).  The estimate returned is the table's declared output:
-the prediction ``x`` (``output='prior'``, predictor tables) or ``x+`` after this step's
-readings (``output='posterior'``, filter tables); either can be asked for.
+the estimate ``x+`` after this step's readings (``output='posterior'``, the default of
+designed tables) or the one-step prediction ``x`` (``output='prior'``); either can be asked
+for, whatever the gain form.  At phases where nothing is read the two are equal.
 
 Missing readings (a NaN, or a sensor left out of ``step``): a missing measurement
 contributes nothing at that step (its innovation is zero); a missing input holds the last
@@ -45,8 +46,8 @@ class Runtime:
         Initial state (default zeros).
     output : {'prior', 'posterior'}, optional
         The estimate returned: the one-step prediction or the estimate after this step's
-        readings.  Default: the table's gain form's own (prior for predictor tables,
-        posterior for filter tables).
+        readings.  Default: the table's declared :attr:`~cfdesign.gains.GainTable.output`
+        (the posterior for tables designed by cfdesign).
 
     Examples
     --------
@@ -62,7 +63,7 @@ class Runtime:
         self.table = table
         self.F, self.B, self.H = (np.array(m, dtype=float) for m in (table.F, table.B, table.H))
         self.n, self.period = self.F.shape[0], table.period
-        self.output = linear.default_output(table.gain_form) if output is None else output
+        self.output = table.output if output is None else output
         try:
             self._phases = [linear.realisation(self.F, self.B, self.H, K, table.gain_form, self.output)
                             for K in table.K]
@@ -70,7 +71,7 @@ class Runtime:
             raise CfdesignError(f"{table.name}: {exc}") from None
         pairs = [linear.gain_pair(self.F, K, table.gain_form) for K in table.K]
         self.Kp = [kp for kp, _ in pairs]
-        self.L = [l if l is not None else np.zeros_like(kp) for kp, l in pairs]
+        self.L = [upd if upd is not None else np.zeros_like(kp) for kp, upd in pairs]
         self.posterior = self.output == "posterior"
         self.inputs = table.sensor_names("input")
         self.measurements = table.sensor_names("measurement")
@@ -82,10 +83,13 @@ class Runtime:
 
     # ------------------------------------------------------------------ state
     def reset(self):
-        """Back to the initial state, phase 0, no input received."""
+        """Back to the initial state, phase 0, no input received, counts cleared."""
         self.x = self._x0.copy()
         self.phase = 0
         self.u_last = np.zeros(len(self.inputs))
+        #: readings not used, by kind and sensor: ``non_finite`` (inf, treated as missing) and
+        #: ``unscheduled`` (a measurement at a phase the schedule does not read: no gain)
+        self.counts = {}
 
     def state(self) -> dict:
         """A JSON-ready snapshot (``x``, ``phase``, ``u_last``) for :meth:`restore`."""
@@ -108,43 +112,99 @@ class Runtime:
             raise CfdesignError(f"unknown sensor(s) {', '.join(sorted(unknown))}; "
                                 f"{self.table.name} reads {', '.join(self.inputs + self.measurements)}")
         u = np.array([readings.get(name, np.nan) for name in self.inputs], dtype=float)
-        u = np.where(np.isnan(u), self.u_last, u)
         y = np.array([readings.get(name, np.nan) for name in self.measurements], dtype=float)
-        est = self._advance(u, y)
+        u = self._held_inputs(u[None, :])[0]
+        finite = np.isfinite(y)
+        self._count("non_finite", (~finite & ~np.isnan(y))[None, :])
+        self._count("unscheduled", (finite & ~self._active[self.phase])[None, :])
+        out = self._advance(u, y)
         self.u_last = u
-        return est
+        return float(out[0])
 
-    def _advance(self, u, y) -> float:
-        """One step of the recursion in the module docstring; returns the estimate."""
+    def _advance(self, u, y) -> np.ndarray:
+        """One step of the recursion in the module docstring; returns the output state."""
         x, k = self.x, self.phase
-        seen = self._active[k] & ~np.isnan(y)
+        seen = self._active[k] & np.isfinite(y)
         e = np.where(seen, y - self.H @ x, 0.0)
         if self._wrap_rows.any():
             e = np.where(self._wrap_rows, wrap(e), e)
-        est = x[0] + self.L[k][0] @ e if self.posterior else x[0]
+        out = x + self.L[k] @ e if self.posterior else x.copy()
         x = self.F @ x + self.B @ u + self.Kp[k] @ e
         if self.table.wrap_angle:
-            x[0], est = wrap_scalar(x[0]), wrap_scalar(est)
+            x[0], out[0] = wrap_scalar(x[0]), wrap_scalar(out[0])
         self.x, self.phase = x, (k + 1) % self.period
-        return float(est)
+        return out
 
     # ------------------------------------------------------------------ batch
     def run(self, readings: dict, *, states: bool = False):
         """Run on whole arrays ``{sensor: (N,) array}``; the state carries over between calls.
 
-        Every sensor must be present (use NaN for missing samples).  Returns the (N,)
-        estimates, or ``(estimates, x)`` with the (N, n) states ``x[k]`` before step ``k``
-        when ``states`` is true.  Without NaNs the work is vectorised (see
-        :meth:`_run_vectorised`); with NaNs it is a loop of :meth:`step`.
+        Every sensor must be present; NaN marks a missing sample (a slow sensor's column is
+        NaN between its readings).  Returns the (N,) estimates, or ``(estimates, x)`` with
+        the (N, n) output states (the posterior ``x+[k]`` or the prior ``x[k]``, as
+        :attr:`output`) when ``states`` is true.
+
+        The work is vectorised (:meth:`_run_vectorised`, or one IIR filter per sensor for a
+        single-rate table) over every stretch where each scheduled measurement is present;
+        the few steps where one is missing run through :meth:`step`'s recursion.  Missing
+        inputs hold their last value.  Non-finite readings (inf) are treated as missing;
+        readings at phases the schedule does not read have no gain: both are counted in
+        :attr:`counts`.
         """
         cols = self._columns(readings)
-        if any(np.isnan(c).any() for c in cols):
-            return self._run_loop(*self._split(cols), states)
-        if self.period == 1 and not states and len(cols[0]):
+        u, y = self._split(cols)
+        N = len(u)
+        if N == 0:
+            return (np.empty(0), np.empty((0, self.n))) if states else np.empty(0)
+        u = self._held_inputs(u)
+        active = self._active[(self.phase + np.arange(N)) % self.period]
+        finite = np.isfinite(y)
+        self._count("non_finite", ~finite & ~np.isnan(y))
+        self._count("unscheduled", finite & ~active)
+        y = np.where(active & finite, y, 0.0)
+        irregular = np.flatnonzero((active & ~finite).any(axis=1))
+        if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
+            return self._run_loop(u, np.where(active & finite, y, np.nan), states)
+        pieces, start = [], 0
+        for k in [*irregular, N]:
+            if k > start:
+                pieces.append(self._run_regular(u[start:k], y[start:k], states))
+            if k < N:
+                pieces.append(self._run_loop(u[k:k + 1], np.where(active[k] & finite[k], y[k], np.nan)[None],
+                                             states))
+            start = k + 1
+        if len(pieces) == 1:
+            return pieces[0]
+        if states:
+            return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+        return np.concatenate(pieces)
+
+    def _run_regular(self, u, y, states):
+        """A stretch where every scheduled measurement is present (and inputs are held)."""
+        if self.period == 1 and not states:
             lti = _LtiBands.of(self)
             if lti is not None:
-                return lti.run(self, self._unwrapped_columns(cols))
-        return self._run_vectorised(*self._split(cols), states)
+                return lti.run(self, self._unwrapped_columns([*u.T, *y.T]))
+        return self._run_vectorised(u, y, states)
+
+    def _held_inputs(self, u):
+        """Inputs with NaN or inf replaced by the last good value (``u_last`` before the first)."""
+        bad = ~np.isfinite(u)
+        if not bad.any():
+            return u
+        self._count("non_finite_inputs", bad & ~np.isnan(u))
+        u = np.vstack([self.u_last[None, :], u])
+        good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])
+        idx = np.maximum.accumulate(np.where(good, np.arange(len(u))[:, None], 0), axis=0)
+        return np.take_along_axis(u, idx, axis=0)[1:]
+
+    def _count(self, what, mask):
+        if mask.any():
+            names = self.inputs if what == "non_finite_inputs" else self.measurements
+            bucket = self.counts.setdefault("non_finite" if what == "non_finite_inputs" else what, {})
+            for name, c in zip(names, mask.sum(axis=0), strict=True):
+                if c:
+                    bucket[name] = bucket.get(name, 0) + int(c)
 
     def _columns(self, readings) -> list:
         """One contiguous float array per sensor: inputs (by column of B), then measurements."""
@@ -167,11 +227,10 @@ class Runtime:
     def _run_loop(self, u, y, states):
         N = len(u)
         est, xs = np.empty(N), np.empty((N, self.n))
-        for k in range(N):
-            xs[k] = self.x
-            uk = np.where(np.isnan(u[k]), self.u_last, u[k])
-            est[k] = self._advance(uk, y[k])
-            self.u_last = uk
+        for k in range(N):  # inputs are held already (run)
+            xs[k] = self._advance(u[k], y[k])
+            est[k] = xs[k, 0]
+            self.u_last = u[k]
         return (est, xs) if states else est
 
     def _run_vectorised(self, u, y, states):
@@ -179,8 +238,6 @@ class Runtime:
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
         once, vectorised over the blocks (``L`` a multiple of the period)."""
         N = len(u)
-        if N == 0:
-            return (np.empty(0), np.empty((0, self.n))) if states else np.empty(0)
         y = self._unwrapped(y)
         L = self.period * max(1, _BLOCK // self.period)
         P = -(-N // L)
@@ -190,13 +247,15 @@ class Runtime:
         W = W.reshape(P, L, -1)
         Phi, C = self._lift([ph.A for ph in phases], [ph.G for ph in phases], W)
         X = _boundary_states(Phi, C, self.x)  # (P, n): x at the start of every block
-        est, xs = np.empty((P, L)), np.empty((P, L, self.n))
+        xs, last = np.empty((P, L, self.n)), None
         for j, ph in enumerate(phases):
-            xs[:, j] = X
-            est[:, j] = X @ ph.C[0] + W[:, j] @ ph.D[0] if self.posterior else X[:, 0]
+            if j == (N - 1) % L:
+                last = X[-1].copy()  # the state before the last sample
+            xs[:, j] = X @ ph.C.T + W[:, j] @ ph.D.T if self.posterior else X
             X = X @ ph.A.T + W[:, j] @ ph.G.T
-        est, xs = est.reshape(-1)[:N], xs.reshape(-1, self.n)[:N]
-        self._finish(xs[-1], u[-1], y[-1], N)
+        xs = xs.reshape(-1, self.n)[:N]
+        est = xs[:, 0].copy()
+        self._finish(last, u[-1], y[-1], N)
         if self.table.wrap_angle:
             est, xs[:, 0] = wrap(est), wrap(xs[:, 0])
         return (est, xs) if states else est

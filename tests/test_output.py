@@ -1,0 +1,69 @@
+"""The estimate users get: the posterior (after this step's readings) by default, and its error
+variance is what the table predicts, on logs drawn from the table's own model."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import cfdesign
+from cfdesign.runtime import Runtime
+from cfdesign.sim.gaussian import model_log
+
+N = 400_000
+
+
+def _table(example, form, rates=None):
+    spec = cfdesign.load_spec(cfdesign.example_path(example))
+    sensors = tuple(dataclasses.replace(s, rate_hz=(rates or {}).get(s.name, s.rate_hz)) for s in spec.sensors)
+    return cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False, sensors=sensors))
+
+
+@pytest.mark.parametrize("rates", [None, {"compass": 1.0}], ids=["single-rate", "multirate"])
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+def test_default_output_variance_is_the_posterior_prediction(rates, form):
+    """The Fig. 6 DCKF3 at 5 Hz, and with the compass at 1 Hz (period 5): the default output's
+    error variance within 3 % of the table's a-posteriori prediction, the prediction's within 3 %
+    of P (measured: within 0.5 % over four seeds)."""
+    table = _table("dckf3", form, rates)
+    assert table.period == (1 if rates is None else 5)
+    assert table.output == "posterior"
+    x, readings = model_log(table, N, seed=7)
+    skip = 5000  # the start-up transient
+    phases = np.arange(skip, N) % table.period
+    for output, covs in (("posterior", table.P_filtered), ("prior", table.P)):
+        est = Runtime(table, output=output).run(readings)
+        measured = np.mean((est[skip:] - x[skip:, 0]) ** 2)
+        predicted = np.mean([covs[k][0, 0] for k in phases])
+        assert measured == pytest.approx(predicted, rel=0.03), (output, measured, predicted)
+    # the posterior is the better estimate, as predicted
+    assert table.predicted_std_of("posterior") < table.predicted_std_of("prior")
+
+
+def test_multirate_phases_without_a_reading_give_the_prediction():
+    table = _table("position", "filter")
+    _, readings = model_log(table, 500, seed=1)
+    post, xs_post = Runtime(table).run(readings, states=True)
+    prior, xs_prior = Runtime(table, output="prior").run(readings, states=True)
+    read = table.schedule.mask()[np.arange(500) % table.period].any(axis=1)
+    assert np.array_equal(post[~read], prior[~read]) and not np.allclose(post[read], prior[read])
+    assert np.array_equal(xs_post[~read], xs_prior[~read])
+
+
+def test_gaps_and_bad_numbers_run_in_batch_like_the_stream():
+    """NaN gaps at scheduled phases, inf readings and NaN inputs: batch equals streaming, nothing
+    becomes NaN, bad numbers are counted."""
+    table = _table("dckf3", "predictor")
+    _, readings = model_log(table, 3000, seed=2)
+    readings["compass"][[10, 11, 500, 1700]] = np.nan
+    readings["odometry"][[42, 2999]] = np.inf
+    readings["compass"][100] = -np.inf
+    readings["gyro"][[5, 6, 900]] = [np.nan, np.inf, -np.inf]
+    rt = Runtime(table)
+    batch = rt.run(readings)
+    stream_rt = Runtime(table)
+    names = list(readings)
+    stream = np.array([stream_rt.step(**{n: readings[n][k] for n in names}) for k in range(3000)])
+    assert np.all(np.isfinite(batch)) and np.max(np.abs(batch - stream)) < 1e-9
+    assert rt.counts == stream_rt.counts == {"non_finite": {"odometry": 2, "compass": 1, "gyro": 2}}
+    assert np.all(np.isfinite(rt.x))
