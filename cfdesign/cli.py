@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import CfdesignError, GainError, SpecError
+from .errors import CfdesignError, GainError, InternalError, SpecError
+from .files import write_files
 
 __all__ = ["main", "parse_gains"]
 
@@ -84,8 +85,8 @@ def cmd_bode(args) -> int:
     from .plot import bode_plot
 
     obs = _numeric(args)
-    _save_figure(bode_plot(obs), args.output)
-    print(f"wrote {args.output}")
+    for path in write_files({args.output: _figure_bytes(bode_plot(obs), args.output)}):
+        print(f"wrote {path}")
     return 0
 
 
@@ -101,47 +102,26 @@ def cmd_design(args) -> int:
         table = design(spec)
     except SpecError as exc:
         raise SpecError(f"{path}: {exc}") from None
-    image = _bode_png(spec, table, args.bode) if args.bode else None
+    outputs = {}  # everything is computed before anything is written, then written all or nothing
+    if args.output:
+        outputs[args.output] = table.to_json()
+    if args.bode:
+        outputs[args.bode] = _bode_png(spec, table, args.bode)
     print(_summary(table))
-    written = []
-    try:  # everything is computed before anything is written; a failed write removes the rest
-        if args.output:
-            written.append(table.save(args.output))
-        if image is not None:
-            written.append(_write_bytes(args.bode, image))
-    except CfdesignError:
-        for path in written:
-            path.unlink(missing_ok=True)
-        raise
-    for path in written:
+    for path in write_files(outputs):
         print(f"wrote {path}")
     return 0
 
 
 def _bode_png(spec, table, target) -> bytes:
     """The Bode plot of a designed single-rate filter, rendered in memory."""
-    import io
-
     from .designer import designed_observer
     from .plot import bode_plot
 
     if table.period != 1:
         raise CfdesignError(f"{table.name} is multirate (period {table.period}): its bands change with the phase, "
                             "so there is no single Bode plot; leave out --bode")
-    fig = bode_plot(designed_observer(spec, table))
-    buffer = io.BytesIO()
-    fmt = Path(target).suffix.lstrip(".").lower() or "png"
-    _save_figure(fig, buffer, fmt)
-    return buffer.getvalue()
-
-
-def _write_bytes(path, data: bytes) -> Path:
-    path = Path(path)
-    try:
-        path.write_bytes(data)
-    except OSError as exc:
-        raise CfdesignError(f"cannot write {path}: {exc.strerror or exc}") from None
-    return path
+    return _figure_bytes(bode_plot(designed_observer(spec, table)), target)
 
 
 def _summary(table) -> str:
@@ -182,8 +162,7 @@ def cmd_export(args) -> int:
 
     table = load_gains(args.table)
     if args.format == "json":
-        table.save(args.output)
-        written = [args.output]
+        written = [table.save(args.output)]
     elif args.format == "csv":
         from .export import write_gain_csv
 
@@ -243,13 +222,23 @@ def _run_blocks(runtime, readings, block=100_000):
     return est, states
 
 
-def _save_figure(fig, target, fmt=None):
+_FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def _figure_bytes(fig, target) -> bytes:
+    """``fig`` rendered in memory in the format ``target``'s suffix names (png without one)."""
+    import io
+
     import matplotlib.pyplot as plt
 
+    fmt = Path(target).suffix.lstrip(".").lower() or "png"
     try:
-        fig.savefig(target, dpi=120, format=fmt)
-    except (OSError, ValueError) as exc:
-        raise CfdesignError(f"cannot write {target}: {exc}") from None
+        if fmt not in _FIGURE_FORMATS:
+            raise CfdesignError(f"cannot write {target}: unknown image format {fmt!r} "
+                                f"(use {', '.join('.' + f for f in _FIGURE_FORMATS)})")
+        buffer = io.BytesIO()
+        fig.savefig(buffer, dpi=120, format=fmt)
+        return buffer.getvalue()
     finally:
         plt.close(fig)
 
@@ -263,6 +252,7 @@ def _add_structure(p):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="cfdesign", description="Design and verify complementary filters.")
     parser.add_argument("--version", action="version", version=f"cfdesign {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     p = sub.add_parser("prove", help="derive the bands of a structure and prove they sum to 1")
@@ -318,16 +308,52 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    import matplotlib
+    """Run the ``cfdesign`` command; returns the exit status.
 
-    matplotlib.use("Agg")
+    0 success, 1 a proof or check failed, 2 a user error (one line on stderr), 3 an internal
+    error (one line asking for a report; ``--debug`` shows the traceback).
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    debug = "--debug" in argv
     try:
         args = build_parser().parse_args(argv)
         return args.run(args)
     except CfdesignError as exc:
-        message = str(exc)
-        print(message if message.startswith("cfdesign") else f"cfdesign: error: {message}", file=sys.stderr)
+        _error(exc)
         return exc.exit_code
+    except BrokenPipeError:  # the reader went away (cfdesign design | head): not an error of ours
+        _quiet_stdout()
+        return 0
+    except KeyboardInterrupt:
+        print("cfdesign: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug: one line, the traceback only on request
+        if debug:
+            raise
+        print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
+              "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
+        return InternalError.exit_code
+
+
+def _one_line(text: str, limit: int = 300) -> str:
+    """Text safe to print on one line: control characters replaced, length capped."""
+    text = "".join(c if c.isprintable() else " " for c in text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _error(exc):
+    message = _one_line(str(exc), 2000)
+    print(message if message.startswith("cfdesign") else f"cfdesign: error: {message}", file=sys.stderr)
+
+
+def _quiet_stdout():
+    """After a broken pipe: point stdout at devnull so the interpreter's final flush is silent."""
+    import os
+
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -20,6 +20,9 @@ __all__ = [
     "NoStabilisingSolutionError",
     "AccuracyError",
     "GainTableError",
+    "DataError",
+    "OutputError",
+    "InternalError",
 ]
 
 
@@ -68,3 +71,18 @@ class AccuracyError(RiccatiError):
 
 class GainTableError(CfdesignError):
     """A gain table file cannot be read, is malformed, or fails its schema."""
+
+
+class DataError(CfdesignError, ValueError):
+    """Sensor data cannot be used: a log file (missing column, text in a number column, bad
+    times) or arrays given to a filter (shapes, lengths); the message names the row or column."""
+
+
+class OutputError(CfdesignError):
+    """An output file cannot be written; no existing file was replaced."""
+
+
+class InternalError(CfdesignError):
+    """A bug: cfdesign reached a state it should not.  The CLI asks for a report (exit 3)."""
+
+    exit_code = 3

@@ -8,35 +8,20 @@ from __future__ import annotations
 
 import csv
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from .errors import CfdesignError
+from .errors import DataError
+from .files import open_atomic
 
 __all__ = ["write_gain_csv", "read_readings", "write_estimates", "DataError"]
 
 
-class DataError(CfdesignError):
-    """A sensor log (CSV) cannot be used: missing column, text in a number column, ragged row."""
-
-
 def _atomic_write(path, rows):
-    path = Path(path)
-    try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as exc:
-        raise CfdesignError(f"cannot write {path}: {exc.strerror or exc}") from None
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            csv.writer(fh).writerows(rows)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    with open_atomic(path, "w", newline="") as fh:
+        csv.writer(fh).writerows(rows)
+    return Path(path)
 
 
 def write_gain_csv(table, path) -> Path:

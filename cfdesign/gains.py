@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from . import linear
-from .errors import CfdesignError, GainTableError
+from .errors import GainTableError
 from .linear import GAIN_FORMS
 
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION"]
@@ -368,15 +368,29 @@ class GainTable:
             d[key] = [np.asarray(m).tolist() for m in d[key]]
         return {"format_version": FORMAT_VERSION, **d}
 
+    def to_json(self) -> str:
+        """The table as JSON text (full float precision, no NaN or Infinity tokens)."""
+        return json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n"
+
     def save(self, path) -> Path:
-        """Write the table as JSON (full float precision); returns the path."""
-        path = Path(path)
-        text = json.dumps(self.to_dict(), indent=1, allow_nan=False)
-        try:
-            path.write_text(text + "\n")
-        except OSError as exc:
-            raise CfdesignError(f"cannot write {path}: {exc.strerror or exc}") from None
-        return path
+        """Write the table as JSON, atomically (a failure leaves any previous file as it was).
+
+        Parameters
+        ----------
+        path : str or Path
+
+        Returns
+        -------
+        Path
+
+        Raises
+        ------
+        OutputError
+            The file cannot be written.
+        """
+        from .files import write_text
+
+        return write_text(path, self.to_json())
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "gain table") -> GainTable:

@@ -85,7 +85,8 @@ def wrap(angle):
 
     This is the one wrap of cfdesign: the runtime, the simulations and the generated C
     (``templates/filter.c.in``, the same operations in the same order) use it.  An angle
-    already in ``(-pi, pi]`` comes back unchanged, bit for bit.
+    already in ``(-pi, pi]`` comes back unchanged, bit for bit; an angle outside whose
+    rounded result lands an ulp outside is moved by one more turn.
 
     Parameters
     ----------
@@ -102,23 +103,27 @@ def wrap(angle):
     >>> float(wrap(3 * math.pi / 2)), float(wrap(-math.pi))
     (-1.5707963267948966, 3.141592653589793)
     """
-    a = np.asarray(angle, dtype=float)
-    return a - _TWO_PI * np.ceil((a - math.pi) / _TWO_PI)
+    a = np.array(angle, dtype=float)
+    return wrap_inplace(a) if a.ndim else np.asarray(wrap_scalar(float(a)))
 
 
 def wrap_scalar(a: float) -> float:
     """:func:`wrap` of one float with ``math`` (same operations, same result, no numpy)."""
-    return a - _TWO_PI * math.ceil((a - math.pi) / _TWO_PI) if not -math.pi < a <= math.pi else a
+    if -math.pi < a <= math.pi:
+        return a
+    r = a - _TWO_PI * math.ceil((a - math.pi) / _TWO_PI)
+    return r - _TWO_PI if r > math.pi else (r + _TWO_PI if r <= -math.pi else r)
 
 
 def wrap_inplace(a: np.ndarray) -> np.ndarray:
-    """:func:`wrap` of a float array, in place (no temporaries beyond one scratch array)."""
-    if a.size and (a.min() <= -math.pi or a.max() > math.pi):
-        t = np.subtract(a, math.pi)
-        np.divide(t, _TWO_PI, out=t)
-        np.ceil(t, out=t)
-        np.multiply(t, _TWO_PI, out=t)
-        np.subtract(a, t, out=a)
+    """:func:`wrap` of a float array, in place: only the entries outside ``(-pi, pi]`` change."""
+    out = (a <= -math.pi) | (a > math.pi)
+    if out.any():
+        b = a[out]
+        b -= _TWO_PI * np.ceil((b - math.pi) / _TWO_PI)
+        b[b > math.pi] -= _TWO_PI
+        b[b <= -math.pi] += _TWO_PI
+        a[out] = b
     return a
 
 

@@ -11,7 +11,8 @@ from string import Template
 import numpy as np
 
 from .. import __version__, linear
-from ..errors import CfdesignError
+from ..errors import CfdesignError, OutputError
+from ..files import write_files
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
 
@@ -65,12 +66,9 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
-        paths = [directory / name for name in texts]
-        for path in paths:
-            path.write_text(texts[path.name])
     except OSError as exc:
-        raise CfdesignError(f"cannot write C code to {directory}: {exc.strerror or exc}") from None
-    return paths
+        raise OutputError(f"cannot write C code to {directory}: {exc.strerror or exc}") from None
+    return write_files({directory / name: text for name, text in texts.items()})
 
 
 def render_c(table, *, prefix=None, precision="double", output=None) -> dict:

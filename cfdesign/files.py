@@ -1,0 +1,116 @@
+"""Writing files so that nothing is lost or half-written.
+
+Every file cfdesign writes goes through :func:`write_files`: each is first written in full to
+a temporary file beside its target (same directory, so the final rename is atomic on POSIX
+and Windows), flushed and synced; only when *every* file of the set is complete are they
+renamed into place, in turn.  A failure while writing (a full disk, an unwritable
+directory, a target that is a directory) removes the temporaries and leaves the previous
+files untouched; only a failure between two renames of complete files on the same disk,
+which does not happen in practice, could leave a set half replaced.  New
+files get the permissions the user's umask gives an ordinary file (``0o666 & ~umask``), not
+the owner-only mode of :func:`tempfile.mkstemp`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+from .errors import OutputError
+
+__all__ = ["write_files", "write_text", "write_bytes", "open_atomic"]
+
+
+def _umask_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def write_files(contents: dict) -> list:
+    """Write ``{path: bytes or str}`` all-or-nothing; returns the list of paths written.
+
+    Raises
+    ------
+    OutputError
+        A target cannot be written (its directory is missing or read-only, it is a
+        directory, the disk is full); no target was changed.
+    """
+    staged = []
+    try:
+        for path, data in contents.items():
+            path = Path(path)
+            staged.append((path, _stage(path, data.encode("utf-8") if isinstance(data, str) else data)))
+        for path, tmp in staged:
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    finally:
+        for _, tmp in staged:
+            Path(tmp).unlink(missing_ok=True)
+    return [path for path, _ in staged]
+
+
+def _stage(path: Path, data: bytes) -> str:
+    """``data`` in a complete temporary file beside ``path``; its name."""
+    with _temporary(path, "wb") as (fh, tmp):
+        fh.write(data)
+    return tmp
+
+
+@contextlib.contextmanager
+def _temporary(path: Path, mode: str, **kwargs):
+    """A temporary file beside ``path``, complete (flushed, synced, umask mode) on a clean exit
+    and removed on any error."""
+    if path.is_dir():
+        raise OutputError(f"cannot write {path}: it is a directory")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.",
+                                   suffix=".tmp")
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    try:
+        with os.fdopen(fd, mode, **kwargs) as fh:
+            yield fh, tmp
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, _umask_mode())
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+@contextlib.contextmanager
+def open_atomic(path, mode: str = "w", **kwargs):
+    """Open ``path`` for writing a stream (a large output); it replaces ``path`` only when the
+    ``with`` block completes without error, else nothing changes.
+
+    Examples
+    --------
+    >>> with open_atomic("estimates.csv", newline="") as fh:   # doctest: +SKIP
+    ...     fh.write("time,heading\n")
+    """
+    path = Path(path)
+    with _temporary(path, mode, **kwargs) as (fh, tmp):
+        yield fh
+    try:
+        os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def write_text(path, text: str) -> Path:
+    """One text file (UTF-8), atomically."""
+    return write_files({path: text})[0]
+
+
+def write_bytes(path, data: bytes) -> Path:
+    """One binary file, atomically."""
+    return write_files({path: data})[0]
