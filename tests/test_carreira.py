@@ -16,7 +16,6 @@ import sympy as sp
 import cfdesign
 from cfdesign.errors import SpecError
 from cfdesign.reproduce import add_parser
-from cfdesign.reproduce.report import RATIO_RANGE, order_disagreements
 from cfdesign.reproduce.carreira import (
     ROWS,
     TABLE_I,
@@ -26,6 +25,7 @@ from cfdesign.reproduce.carreira import (
     reproduce,
     run_filter,
 )
+from cfdesign.reproduce.report import RATIO_RANGE, order_disagreements
 from cfdesign.reproduce.structures import banded_observer, design_observer
 from cfdesign.runtime import Runtime, wrap
 from cfdesign.sim import HeadingSensor, RateSensor, heading_error, mean_ci

@@ -147,7 +147,8 @@ def _spec(sc, name, structure: dict, inputs, measurements):
 def dckf3_spec(sc=None):
     """The DCKF³ of Carreira et al. eqs. (25)-(27) as written: gyro rate in, compass and odometry headings measured."""
     sc = sc or scenario(READING)
-    return _spec(sc, "robot heading (Carreira et al. DCKF3, eqs. 25-27)", {"structure": "dckf3"}, ["gyro"], ["compass", "odometry"])
+    return _spec(sc, "robot heading (Carreira et al. DCKF3, eqs. 25-27)", {"structure": "dckf3"}, ["gyro"],
+                 ["compass", "odometry"])
 
 
 @cache

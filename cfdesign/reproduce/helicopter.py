@@ -126,7 +126,8 @@ class Reproduction:
             rows[row] = [{"quantity": c.cells[0], "mae": c.mean, "ci95": [c.stats[1], c.stats[2]],
                           "paper": c.paper, "ratio": c.ratio, "runs": list(c.values)} for c in self.comparisons(row)]
         m = self.manoeuvre
-        return {"paper": "helicopter", "runs": len(self.seeds), "seeds": list(self.seeds), "accel_bias": self.accel_bias,
+        return {"paper": "helicopter", "runs": len(self.seeds), "seeds": list(self.seeds),
+                "accel_bias": self.accel_bias,
                 "attitude_filter": "cfdesign.nav.attitude.EulerAttitudeFilter",
                 "manoeuvre": {"straight_s": m.straight_s, "helix_s": m.helix_s, "speed_m_s": m.speed_m_s,
                               "turn_rate_rad_s": m.turn_rate_rad_s, "climb_m_s": m.climb_m_s, "rate_hz": m.rate_hz},
@@ -137,7 +138,8 @@ class Reproduction:
 
     def text(self) -> str:
         m = self.manoeuvre
-        lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + {m.helix_s:g} s ascending "
+        lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + "
+                 f"{m.helix_s:g} s ascending "
                  f"helix at {m.speed_m_s:g} m/s, IMU {m.rate_hz:g} Hz, GPS 1 Hz; accelerometer bias on "
                  f"{self.accel_bias}; {len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
                  "mean absolute error E|x - x_hat| over the run, averaged over the runs (95% CI)"]

@@ -46,7 +46,9 @@ _BIASED_RATE = (sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([1, 0]))
 
 
 def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
-    """Two-sensor complementary filter: an angle sensor and a rate sensor (``docs/derivations.md``, "Three-band filters").
+    """Two-sensor complementary filter: an angle sensor and a rate sensor.
+
+    Derivation: ``docs/derivations.md``, section "Three-band filters".
 
     ``order=1``: state ``[angle]``, ``T_angle = k/(s + k)``, ``T_rate = s/(s + k)``.
     ``order=2`` (gyro-bias estimation): state ``[angle, rate correction]`` with
