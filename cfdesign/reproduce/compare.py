@@ -143,7 +143,7 @@ def _helicopter(seed: int, _duration_s: float):
 
 # ---------------------------------------------------------------------------- filters
 def _run_cf(d, ground: bool):
-    """Seed 004's system.  Its samples are at ``t_k`` with GPS fixes on phase 0 of each second;
+    """Vasconcelos et al.'s system.  Its samples are at ``t_k`` with GPS fixes on phase 0 of each second;
     the ground readings belong to ``t_{k+1}``, so they are shifted one row (nothing at ``t_0``)."""
     from ..nav import EulerAttitudeFilter, PositionFilter
 
