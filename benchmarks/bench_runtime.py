@@ -2,8 +2,9 @@
 
 Run by hand from the repository root:  python benchmarks/bench_runtime.py [--samples N] [--c-steps M]
 
-On the seed-001 Fig. 6 DCKF3 table ("dckf3" example) (single rate, heading wrapped) and the multirate position
-table (period 50), with 1,000,000 samples of a slow sinusoid plus noise:
+On the robot-heading DCKF3 table of Carreira et al. (the "dckf3" example: single rate, heading
+wrapped) and the multirate position table (period 50), with 1,000,000 samples of a slow
+sinusoid plus noise:
 
 1. batch: ``Runtime(table).run(readings)`` in samples/s beside ``scipy.signal.lfilter`` on
    the same data (the DCKF3's three bands as IIR filters, summed; target run >= 0.5 x
@@ -40,7 +41,7 @@ from cfdesign.codegen import write_c
 from cfdesign.runtime import Runtime, wrap
 from cfdesign.sim.signals import sinusoid_readings
 
-EXAMPLES = {"dckf3": "robot heading (seed 001 Fig. 6 DCKF3)", "position": "position (multirate)"}
+EXAMPLES = {"dckf3": "robot heading (DCKF3)", "position": "position (multirate)"}
 BLOCK = 10_000
 C_CFLAGS = ["-std=c99", "-O2"]
 #: samples cycled through by the C timing driver (a power of two)

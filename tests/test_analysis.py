@@ -33,7 +33,7 @@ def test_transfer_functions_discrete_carry_dt_and_sum_to_one():
 
 
 def test_crossovers_of_cf3_are_analytic():
-    """|k2| = |k1 w| at w = k2/k1 and |k1 w| = w^2 at w = k1 (seed 001 eqs. (4)-(6))."""
+    """|k2| = |k1 w| at w = k2/k1 and |k1 w| = w^2 at w = k1 (Carreira et al. eqs. (4)-(6))."""
     resp = cfdesign.frequency_response(cfdesign.cf3().with_gains(k1=2, k2=1))
     found = {(a, b): w for a, b, w in resp.crossovers()}
     assert found[("position", "velocity")] == pytest.approx(0.5, rel=1e-9)

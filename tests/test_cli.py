@@ -76,3 +76,18 @@ def test_parse_gains_exact():
     from sympy import Rational
 
     assert parse_gains("k1=0.1, k2=1/3") == {"k1": Rational(1, 10), "k2": Rational(1, 3)}
+
+
+@pytest.mark.parametrize("paper", ["carreira", "seed001"])
+def test_reproduce_carreira_json_under_its_name_and_its_former_name(paper, capsys):
+    """``seed001`` is the former name of ``carreira``: same command, same JSON."""
+    assert main(["reproduce", paper, "--runs", "1", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["paper"] == "carreira" and data["runs"] == 1 and len(data["tables"]["II"]) == 6
+
+
+def test_reproduce_help_lists_the_papers_by_name_not_the_aliases():
+    code, stdout, _ = run("reproduce", "--help")
+    assert code == 0
+    assert "carreira" in stdout and "helicopter" in stdout and "compare" in stdout
+    assert "seed0" not in stdout

@@ -23,7 +23,7 @@ def test_ground_scenario_all_filters_bounded(ground):
     assert ground["ekf003"].position_rmse_m < 6.0
     assert ground["cf"].attitude_rmse_deg < 2.0 and ground["ekf003"].attitude_rmse_deg < 2.0
     assert ground["cf"].outage_max_m < 100.0                  # inertial coasting: 48 s at a 5-mg bias
-    assert "CF / EKF (seed 003)" in verdict(list(ground.values()))
+    assert "CF / strapdown EKF" in verdict(list(ground.values()))
 
 
 def test_cli_json(tmp_path):

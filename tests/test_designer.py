@@ -54,7 +54,7 @@ def test_ckf3_continuous_matches_scipy_care():
     table = design(load_spec(example_path("ckf3")))
     F, H, Q, R = table.F, table.H, table.Q, table.R
     P = linalg.solve_continuous_are(F.T, H.T, Q, R)
-    assert np.allclose(table.K[0], P @ H.T @ np.linalg.inv(R), rtol=1e-8)  # seed 001 eq. (23)
+    assert np.allclose(table.K[0], P @ H.T @ np.linalg.inv(R), rtol=1e-8)  # Carreira et al. eq. (23)
     # Q: the accelerometer PSD through Bc = [0, 1]^T; R: the PSDs of the velocity and position sensors
     assert np.allclose(Q, [[0, 0], [0, 0.003**2]])
     assert np.allclose(R, np.diag([0.05**2 / 10, 0.01**2 / 100]))
@@ -107,7 +107,7 @@ def test_multirate_position_filter_gains_zero_between_fixes():
             assert table.schedule.names(k) == [] and np.all(K == 0)
     assert table.checks["stable"] and table.checks["complementary"]
     assert table.phase_model(0)[2].shape == (1, 3) and table.phase_model(1)[2].shape == (0, 3)
-    # lifted check: P[0] solves the DARE of (F^N, H, sum F^i Q F^iT, R) (MATH.md §6)
+    # lifted check: P[0] solves the DARE of (F^N, H, sum F^i Q F^iT, R) (docs/derivations.md, "Multirate gains")
     F, H, Q, R = table.F, table.H, table.Q, table.R
     FN = np.linalg.matrix_power(F, 50)
     QN = sum(np.linalg.matrix_power(F, i) @ Q @ np.linalg.matrix_power(F, i).T for i in range(50))
@@ -208,9 +208,9 @@ def test_unmodelled_biases_and_huge_periods_are_refused():
         multirate_schedule({"imu": 100.0, "a": 100.0 / 101, "b": 100.0 / 103}, inputs=["imu"])
 
 
-def test_builtin_example_is_the_seed001_best_filter():
+def test_builtin_example_is_carreiras_best_filter():
     """`cfdesign design` designs Table II's best row (LP gyro, BP compass, HP odometry)."""
-    from cfdesign.reproduce.seed001 import READING, TABLE_II, design_row, scenario
+    from cfdesign.reproduce.carreira import READING, TABLE_II, design_row, scenario
     from cfdesign.reproduce.structures import design_observer
 
     table = design(load_spec(example_path("robot-heading")))

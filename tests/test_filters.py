@@ -1,8 +1,9 @@
 """Named filters against independent derivations: hand-typed formulas and a linear solve.
 
 The engine derives bands with the adjugate of (vI - A).  Here every band is checked
-(a) against the formula typed from seed 001 / MATH.md and (b) against a derivation that
-solves the observer equations for the estimate with sympy.linsolve, one sensor at a time.
+(a) against the formula typed from Carreira et al. / docs/derivations.md and (b) against a
+derivation that solves the observer equations for the estimate with sympy.linsolve, one
+sensor at a time.
 """
 
 import pytest
@@ -56,7 +57,7 @@ def test_cf2_discrete_proof_and_independent_solve(order):
 
 
 # --------------------------------------------------------------------------- CF3
-def test_cf3_matches_seed001_eqs_4_to_6():
+def test_cf3_matches_carreira_eqs_4_to_6():
     obs = cfdesign.cf3()
     den = s**2 + k1 * s + k2
     assert same(obs.bands["acceleration"], s**2 / den)  # eq. (4), high-pass
@@ -92,7 +93,7 @@ def test_ckf3_independent_linear_solve():
 
 
 def test_ckf3_printed_eqs_15_17_differ_from_the_model_but_also_sum_to_one():
-    """Seed 001 eqs. (15)-(17) do not follow from eqs. (10)-(14) (MATH.md §4)."""
+    """Carreira et al. eqs. (15)-(17) do not follow from eqs. (10)-(14) (docs/derivations.md, "Three-band filters")."""
     printed = cfdesign.ckf3_printed()
     derived = cfdesign.ckf3().bands
     assert same(sum(printed.values()), 1)

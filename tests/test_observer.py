@@ -39,7 +39,9 @@ def test_discrete_gain_forms_both_complementary(form):
 
 
 def test_filter_form_is_predictor_form_with_gain_F_K_up_to_the_update():
-    """x-[k+1] = F x+ + B u with x+ = x- + K(y - H x-) has the predictor gain F K (MATH.md §5)."""
+    """x-[k+1] = F x+ + B u with x+ = x- + K(y - H x-) has the predictor gain F K.
+
+    docs/derivations.md, section "Gain forms"."""
     d = cfdesign.dckf3()
     filt = Observer(d.F, d.B, d.H, d.K, d.sensors, domain="z", gain_form="filter")
     pred = Observer(d.F, d.B, d.H, d.F * d.K, d.sensors, domain="z")
@@ -52,8 +54,8 @@ def test_discrete_relation_zoh_chain():
     assert sp.simplify(discrete_relation(2, 2) - 2 * (z - 1) ** 2 / (T**2 * (z + 1))) == 0
 
 
-def test_seed004_position_chain_is_complementary():
-    """State [p, v, b_a], accelerometer input, GPS position (MATH.md §6)."""
+def test_position_chain_is_complementary():
+    """Vasconcelos et al.'s position filter: state [p, v, b_a], accelerometer input, GPS position."""
     F = sp.Matrix([[1, T, -T**2 / 2], [0, 1, -T], [0, 0, 1]])
     B = sp.Matrix([T**2 / 2, T, 0])
     K = sp.Matrix(sp.symbols("kp kv kb"))

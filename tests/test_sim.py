@@ -26,7 +26,7 @@ from cfdesign.sim import (
     simulate,
     smooth_turn,
 )
-from cfdesign.sim import seed001 as s001
+from cfdesign.sim import robot_heading as s001
 
 DT = 0.2
 

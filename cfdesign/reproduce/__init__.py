@@ -1,31 +1,36 @@
 """Reproductions of the papers' results: ``cfdesign reproduce PAPER [options]``.
 
-``seed001``: Tables I and II of Carreira et al. (seed 001), every assignment of a gyro, a
-compass and odometry to the bands of a CF and a CF³, designed by the toolkit, run by the
-runtime on Monte-Carlo simulations (:mod:`cfdesign.reproduce.seed001`).
+``carreira``: Tables I and II of Carreira et al., *Complementary Filter Design with Three
+Frequency Bands: Robot Attitude Estimation* - every assignment of a gyro, a compass and
+odometry to the bands of a CF and a CF³, designed by the toolkit, run by the runtime on
+Monte-Carlo simulations of the robot-heading scenario (:mod:`cfdesign.reproduce.carreira`).
 
-``seed004``: Table 2 of Vasconcelos et al. (seed 004), the helicopter manoeuvre with the
-Euler-angle attitude filter and the multirate position filter
-(:mod:`cfdesign.reproduce.seed004`).
+``helicopter``: Table 2 of Vasconcelos et al.'s helicopter navigation system - the
+manoeuvre flown with the Euler-angle attitude filter and the multirate position filter
+(:mod:`cfdesign.reproduce.helicopter`).
 
 ``compare``: every navigation filter on the same scenarios, errors and cost per step
 (:mod:`cfdesign.reproduce.compare`).
 
 Each paper's module provides ``add_arguments(parser)`` (its options) and ``run(args)``.
+Older names (:data:`ALIASES`) still work; they are left out of the help list.
 """
 
 from __future__ import annotations
 
 from importlib import import_module
 
-__all__ = ["add_parser", "PAPERS"]
+__all__ = ["add_parser", "PAPERS", "ALIASES"]
 
 #: papers that can be reproduced, with a one-line description
 PAPERS = {
-    "seed001": "Carreira et al., three-band complementary filters: Tables I and II (robot heading)",
-    "seed004": "Vasconcelos et al., helicopter navigation: Table 2 (mean absolute errors)",
-    "compare": "CF against the seeds' EKFs and the adaptive CF: errors and cost per step, same scenarios",
+    "carreira": "Carreira et al., three-band complementary filters: Tables I and II (robot heading)",
+    "helicopter": "Vasconcelos et al., helicopter navigation: Table 2 (mean absolute errors)",
+    "compare": "CF against the EKF baselines and the adaptive CF: errors and cost per step, same scenarios",
 }
+
+#: former names, still accepted: ``{alias: name in PAPERS}``
+ALIASES = {"seed001": "carreira", "seed004": "helicopter"}
 
 
 def add_parser(subparsers):
@@ -36,6 +41,12 @@ def add_parser(subparsers):
     for name, description in PAPERS.items():
         module = import_module(f".{name}", __name__)
         q = papers.add_parser(name, help=description, description=description)
+        module.add_arguments(q)
+        q.set_defaults(run=module.run)
+    for alias, name in ALIASES.items():
+        # no help= : argparse leaves the alias out of the list of papers (metavar hides the choices)
+        module = import_module(f".{name}", __name__)
+        q = papers.add_parser(alias, description=f"Alias of '{name}': {PAPERS[name]}")
         module.add_arguments(q)
         q.set_defaults(run=module.run)
     return p

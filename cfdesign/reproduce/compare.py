@@ -1,23 +1,29 @@
 """Is the complementary filter as good as the EKF for less?  One comparison, same scenarios.
 
-The seeds claim a complementary filter comes close to an EKF (or UKF) at a fraction of the
-cost (seed 000 Sec. 5, seed 004 Sec. 1).  This module runs every filter on the same
-simulated data and measures, in the same process, its errors and its cost per step:
+The complementary-filter papers claim a complementary filter comes close to an EKF (or UKF)
+at a fraction of the cost (Alves Neto et al. Sec. 5, Vasconcelos et al. Sec. 1).  This module
+runs every filter on the same simulated data and measures, in the same process, its errors
+and its cost per step:
 
-* ``cf`` - seed 004's navigation system: :class:`~cfdesign.nav.EulerAttitudeFilter` (MPS
-  with centripetal compensation from a body velocity) and :class:`~cfdesign.nav.PositionFilter`
-  (multirate gains), every gain designed by cfdesign from the noise figures;
-* ``adaptive`` - seed 000's adaptive CF (:mod:`cfdesign.nav.adaptive`; needs a forward speed:
-  odometry on the ground, the velocity sensor's speed on the helicopter, with 10 satellites);
-* ``ekf003`` - seed 003's 22-state strapdown EKF (:class:`~cfdesign.nav.ekf.StrapdownEKF`);
-* ``ekf002`` - seed 002's planar EKF [x, y, θ, α] (:class:`~cfdesign.nav.ekf.PlanarEKF`;
-  needs odometry, ground vehicles only).
+* ``cf`` - Vasconcelos et al.'s navigation system: :class:`~cfdesign.nav.EulerAttitudeFilter`
+  (MPS with centripetal compensation from a body velocity) and
+  :class:`~cfdesign.nav.PositionFilter` (multirate gains), every gain designed by cfdesign
+  from the noise figures;
+* ``adaptive`` - Alves Neto et al.'s adaptive CF (:mod:`cfdesign.nav.adaptive`; needs a
+  forward speed: odometry on the ground, the velocity sensor's speed on the helicopter, with
+  10 satellites);
+* ``ekf003`` - the 22-state strapdown INS/GPS/magnetometer EKF
+  (:class:`~cfdesign.nav.ekf.StrapdownEKF`);
+* ``ekf002`` - the planar odometry/gyro/GPS EKF [x, y, θ, α]
+  (:class:`~cfdesign.nav.ekf.PlanarEKF`; needs odometry, ground vehicles only).
 
 Scenarios: ``ground`` - a robot on uneven terrain with a 60-s GPS outage
-(:func:`cfdesign.sim.ground.ground_robot_scenario`); ``helicopter`` - seed 004's manoeuvre
-(:mod:`cfdesign.sim.helicopter`).  The body velocity the CF's MPS needs comes from odometry
+(:func:`cfdesign.sim.ground.ground_robot_scenario`); ``helicopter`` - Vasconcelos et al.'s
+manoeuvre (:mod:`cfdesign.sim.helicopter`).  The body velocity the CF's MPS needs comes from odometry
 (ground: ``[v_odo, 0, 0]``) or from a velocity sensor (helicopter: the true body velocity,
-as in ``cfdesign reproduce seed004``).
+as in ``cfdesign reproduce helicopter``).  The two EKF baselines are described in
+``docs/derivations.md``, section "Navigation filters"; ``ekf003`` and ``ekf002`` are their
+filter names in the tables and the JSON.
 
 Every filter starts from the true initial velocity (the vehicle's state at switch-on is known)
 and aligns its attitude and position from its own first readings.  The planar EKF integrates
@@ -40,8 +46,9 @@ import numpy as np
 
 __all__ = ["Result", "compare", "add_arguments", "run", "FILTERS", "SCENARIOS"]
 
-FILTERS = {"cf": "complementary filter (seed 004, designed gains)", "adaptive": "adaptive CF (seed 000)",
-           "ekf003": "strapdown EKF, 22 states (seed 003)", "ekf002": "planar EKF (seed 002)"}
+FILTERS = {"cf": "complementary filter (Vasconcelos et al., designed gains)",
+           "adaptive": "adaptive CF (Alves Neto et al.)",
+           "ekf003": "strapdown INS/GPS/magnetometer EKF, 22 states", "ekf002": "planar odometry/gyro/GPS EKF"}
 SCENARIOS = ("ground", "helicopter")
 
 
@@ -136,7 +143,7 @@ def _helicopter(seed: int, _duration_s: float):
 
 # ---------------------------------------------------------------------------- filters
 def _run_cf(d, ground: bool):
-    """Seed 004's system.  Its samples are at ``t_k`` with GPS fixes on phase 0 of each second;
+    """Vasconcelos et al.'s system.  Its samples are at ``t_k`` with GPS fixes on phase 0 of each second;
     the ground readings belong to ``t_{k+1}``, so they are shifted one row (nothing at ``t_0``)."""
     from ..nav import EulerAttitudeFilter, PositionFilter
 
@@ -257,7 +264,7 @@ def verdict(results) -> str:
     if "cf" not in by or "ekf003" not in by:
         return ""
     cf, ekf = by["cf"], by["ekf003"]
-    return (f"CF / EKF (seed 003): position RMSE x{cf.position_rmse_m / ekf.position_rmse_m:.2f}, "
+    return (f"CF / strapdown EKF: position RMSE x{cf.position_rmse_m / ekf.position_rmse_m:.2f}, "
             f"attitude RMSE x{cf.attitude_rmse_deg / ekf.attitude_rmse_deg:.2f}, "
             f"cost per step x{cf.us_per_step / ekf.us_per_step:.3f}")
 

@@ -1,8 +1,9 @@
 """Band assignments as observers: which sensor drives the filter and which are measured.
 
 A complementary filter's bands are fixed by how each sensor enters the observer
-(MATH.md §1-§5), so an assignment "low-pass X, band-pass Y, high-pass Z" (seed 001 Tables
-I and II) is a structure:
+(``docs/derivations.md``, sections "One observer" and "Three-band filters"), so an
+assignment "low-pass X, band-pass Y, high-pass Z" (Carreira et al., Tables I and II) is a
+structure:
 
 * **high-pass** - the *input*: the sensor's rate drives ``x[k+1] = F x + B u``, with a
   rate-correction state that absorbs its rate bias.  Its band is ``(z - 1)^2/den``: no DC,
@@ -15,7 +16,7 @@ I and II) is a structure:
 
 Two sensors (Table I): ``cf2(order=2, discrete=True)`` with the high-pass sensor as its
 rate input and the low-pass sensor as its angle; its Kalman gain is optimal.  Three sensors
-(Table II): the DCKF³ of seed 001 eqs. (25)-(27) with ``k22 = 0``: the gains are the best
+(Table II): the DCKF³ of Carreira et al. eqs. (25)-(27) with ``k22 = 0``: the gains are the best
 this band assignment allows (the designer's rule for sparse gain patterns: minimum
 steady-state error variance ``P[0, 0]``), the CF³ of the paper.  Sensors are renamed after
 the physical sensor in each port; a heading sensor in the input port is fed its
@@ -32,8 +33,8 @@ def banded_observer(low: str, high: str, band: str | None = None):
     """The discrete observer that puts ``low``, ``band`` and ``high`` in those bands.
 
     Two sensors: ``cf2(order=2, discrete=True)`` with ports ``rate <- high``, ``angle <- low``;
-    bands ``T_high = (z - 1)^2/den``, ``T_low = (k1 (z - 1) + T k2)/den`` (MATH.md §2).
-    Three sensors: the DCKF³ of seed 001 eqs. (25)-(27) with ``k22 = 0``, ports
+    bands ``T_high = (z - 1)^2/den``, ``T_low = (k1 (z - 1) + T k2)/den``.
+    Three sensors: the DCKF³ of Carreira et al. eqs. (25)-(27) with ``k22 = 0``, ports
     ``gyro <- high``, ``compass <- low``, ``odometry <- band``; with eq. (32)'s denominator
     ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21``:
 
@@ -64,7 +65,7 @@ def design_observer(spec, observer):
     """:func:`cfdesign.design` for an observer built on the engine rather than named in ``spec``.
 
     The same path as the designer - sensor checks, multirate schedule, noise covariances,
-    Van Loan, DARE (seed 001 eq. (28), predictor form of eq. (25)) or, for a sparse gain
+    Van Loan, DARE (Carreira et al. eq. (28), predictor form of eq. (25)) or, for a sparse gain
     pattern, the gains minimising the steady-state ``P[0, 0]``, exact checks - with
     ``observer`` in place of ``build_structure(spec)``.
 

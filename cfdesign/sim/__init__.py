@@ -9,7 +9,8 @@
 * :mod:`~cfdesign.sim.signals` - a heading sensor as a rate (differenced), a gyro as a
   heading (dead reckoned), and the white noise a design assumes for each.
 * :mod:`~cfdesign.sim.metrics` - accumulated heading error, MSE, Student-t intervals.
-* :mod:`~cfdesign.sim.seed001` - seed 001 Sec. V-A and the reading of its noise figures.
+* :mod:`~cfdesign.sim.robot_heading` - Carreira et al.'s robot-heading scenario (Sec. V-A) and the
+  reading of its noise figures.
 
 SI units throughout (s, rad, rad/s, m, m/s).
 """

@@ -1,19 +1,22 @@
-"""The named complementary filters of the seeds, as small constructors on the engine.
+"""The named complementary filters of the papers, as small constructors on the engine.
 
 Each returns an :class:`~cfdesign.symbolic.observer.Observer` with the paper's symbol
-names, so its bands can be compared with the printed equations of seed 001.
+names, so its bands can be compared with the printed equations of Carreira et al.,
+*Complementary Filter Design with Three Frequency Bands: Robot Attitude Estimation*.
 
-Where seed 001's printed transfer functions do not follow from its own state-space model,
-cfdesign derives from the model (MATH.md §4-5) and offers the printed versions separately
-(:func:`ckf3_printed`, :func:`dckf3_printed`), named as such:
+Where the paper's printed transfer functions do not follow from its own state-space model,
+cfdesign derives from the model and offers the printed versions separately
+(:func:`ckf3_printed`, :func:`dckf3_printed`), named as such (``docs/derivations.md``,
+section "Three-band filters", derives both):
 
 * CKF³: eqs. (15)-(17) have the denominator ``(1 + k12) s^2 + (k11 + k22) s + k21``; the
   model of eqs. (10)-(14) gives ``s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21`` and other
   numerators.  Both sets sum to one; the printed one belongs to the block diagram of the
   paper's Fig. 3, not to eqs. (10)-(14).
-* DCKF³: eq. (29) is the gyro band, eq. (30) the odometry band, and eq. (31) times
-  ``(1 - z^-1)/(T z^-1)`` the compass band; the paper's F-labels are mixed up, the sum and
-  the denominator eq. (32) are right (:func:`dckf3` reproduces eq. (32) exactly).
+* DCKF³: against the ports of eqs. (25)-(27), eq. (29) is the gyro band, eq. (30) the
+  odometry band, and eq. (31) times ``(1 - z^-1)/(T z^-1)`` the compass band; the paper's
+  F-labels do not match these ports (they match its Fig. 6 arrangement), the sum and the
+  denominator eq. (32) are right (:func:`dckf3` reproduces eq. (32) exactly).
 """
 
 from __future__ import annotations
@@ -43,7 +46,9 @@ _BIASED_RATE = (sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([1, 0]))
 
 
 def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
-    """Two-sensor complementary filter: an angle sensor and a rate sensor (MATH.md §2).
+    """Two-sensor complementary filter: an angle sensor and a rate sensor.
+
+    Derivation: ``docs/derivations.md``, section "Three-band filters".
 
     ``order=1``: state ``[angle]``, ``T_angle = k/(s + k)``, ``T_rate = s/(s + k)``.
     ``order=2`` (gyro-bias estimation): state ``[angle, rate correction]`` with
@@ -68,7 +73,7 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
 
     State ``[psi, psi', ..., psi^(n-2)]``; the ``(n-1)``-th derivative drives the chain,
     the ``n - 1`` lower ones are measured (``H = I``).  The sparse gain (``full=False``,
-    the CF³ pattern of seed 001 eq. (13)) has the last row ``[k_{n-1}, ..., k1]`` and gives
+    the CF³ pattern of Carreira et al. eq. (13)) has the last row ``[k_{n-1}, ..., k1]`` and gives
 
         den = s^(n-1) + k1 s^(n-2) + ... + k_(n-1),
         T_j = k_(n-1-j) s^j / den  (j < n - 1),   T_(n-1) = s^(n-1) / den.
@@ -90,7 +95,7 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
 
 
 def cf3(*, discrete: bool = False) -> Observer:
-    """CF³ of seed 001 eqs. (4)-(13): sparse gain ``K = [[0, 0], [k2, k1]]``.
+    """CF³ of Carreira et al. eqs. (4)-(13): sparse gain ``K = [[0, 0], [k2, k1]]``.
 
     ``T_acceleration = s^2/den`` (high-pass), ``T_velocity = k1 s/den`` (band-pass),
     ``T_position = k2/den`` (low-pass), ``den = s^2 + k1 s + k2``.
@@ -101,9 +106,10 @@ def cf3(*, discrete: bool = False) -> Observer:
 
 
 def ckf3() -> Observer:
-    """CKF³ of seed 001 eqs. (10)-(14) with the full gain ``[[k11, k12], [k21, k22]]``.
+    """CKF³ of Carreira et al. eqs. (10)-(14) with the full gain ``[[k11, k12], [k21, k22]]``.
 
-    Derived from the model (MATH.md §4), not the printed eqs. (15)-(17):
+    Derived from the model, not the printed eqs. (15)-(17) (``docs/derivations.md``,
+    "Three-band filters"):
 
         den   = s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21
         T_acc = (1 - k12) s^2 / den,  T_vel = (k12 s + k22) s / den,
@@ -115,11 +121,12 @@ def ckf3() -> Observer:
 
 
 def dckf3() -> Observer:
-    """DCKF³ of seed 001 Fig. 6 / eqs. (25)-(27): gyro rate input, compass and odometry angles.
+    """DCKF³ of Carreira et al. eqs. (25)-(27): gyro rate input, compass and odometry angles.
 
     ``F = [[1, T], [0, 1]]``, ``B = [T, 0]^T``, ``H = [[1, 0], [1, 0]]``, full predictor
     gain ``K = [[k11, k12], [k21, k22]]``; the second state is a rate (bias) correction.
-    Bands (MATH.md §5), ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21 + T k22``
+    Bands (``docs/derivations.md``, "Three-band filters"),
+    ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21 + T k22``
     (eq. (32) times ``z^2``):
 
         T_gyro = (z - 1)^2/den,  T_compass = (k11 (z - 1) + T k21)/den,
@@ -132,12 +139,13 @@ def dckf3() -> Observer:
 
 
 def position(*, discrete: bool = True) -> Observer:
-    """Position filter of seed 004 Sec. 3, one axis: state ``[p, v, b_a]`` (MATH.md §6).
+    """Position filter of Vasconcelos et al. Sec. 3, one axis: state ``[p, v, b_a]``.
 
     Continuous model ``p' = v``, ``v' = u - b_a``, ``b_a' = 0`` with ``u`` the accelerometer
     (Earth frame, gravity removed) and ``b_a`` its bias; GPS measures ``p``.  Its ZOH model is
     ``F = [[1, T, -T^2/2], [0, 1, -T], [0, 0, 1]]``, ``B = [T^2/2, T, 0]^T``, ``H = [1, 0, 0]``,
-    gain ``K = [k1, k2, k3]^T`` (one per phase when multirate).
+    gain ``K = [k1, k2, k3]^T`` (one per phase when multirate; ``docs/derivations.md``,
+    "Multirate gains").
     """
     Fc = sp.Matrix([[0, 1, 0], [0, 0, -1], [0, 0, 0]])
     sensors = [Sensor.input("accelerometer", "acceleration", bias_state=2), Sensor.measurement("gps", "position", 0)]
@@ -146,7 +154,7 @@ def position(*, discrete: bool = True) -> Observer:
 
 
 def ckf3_printed() -> dict:
-    """Seed 001 eqs. (15)-(17) as printed, turned into bands ``T_1 = F_1 s^2`` etc. (eq. (19)).
+    """Carreira et al. eqs. (15)-(17) as printed, turned into bands ``T_1 = F_1 s^2`` etc. (eq. (19)).
 
     These are NOT the bands of the model of eqs. (10)-(14) (see :func:`ckf3`); they sum to
     one too and are offered only for comparison with the paper.
@@ -158,13 +166,13 @@ def ckf3_printed() -> dict:
 
 
 def eq32_denominator():
-    """``den(z)`` exactly as printed in seed 001 eq. (32), in powers of ``z^-1``."""
+    """``den(z)`` exactly as printed in Carreira et al. eq. (32), in powers of ``z^-1``."""
     k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
     return (1 - k12 - k11 + T * k21 + T * k22) * z**-2 + (k11 + k12 - 2) * z**-1 + 1
 
 
 def dckf3_printed() -> dict:
-    """Seed 001 eqs. (29)-(31) as printed, keyed by the sensor each one really belongs to.
+    """Carreira et al. eqs. (29)-(31) as printed, keyed by the port of :func:`dckf3` each belongs to.
 
     Keys: ``'gyro'`` is eq. (29) (printed as psi_hat/psi), ``'odometry'`` is eq. (30),
     ``'compass'`` is eq. (31) (printed as psi_hat/omega) times ``(1 - z^-1)/(T z^-1)``.

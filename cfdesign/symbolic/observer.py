@@ -1,6 +1,6 @@
 """The symbolic engine: a linear observer of a kinematic chain -> band transfer functions.
 
-Every filter in cfdesign is an observer (MATH.md §1)
+Every filter in cfdesign is an observer (``docs/derivations.md``, section "One observer")
 
 .. math::
 
@@ -18,8 +18,8 @@ sampled counterparts (discrete, see :func:`discrete_relation`).  The *band* of a
 the transfer function from the common quantity, routed through that sensor, to the
 estimate: ``T_i = G_i * D_i`` with ``G_i`` the transfer from the sensor's reading to the
 estimate and ``D_i`` the relation.  If the relations are those the model implies, the
-estimation error is autonomous and the bands sum to one for ANY gain (seed 001 eq. (1),
-eq. (34)); :meth:`Observer.proof` checks it exactly with the gains left symbolic.
+estimation error is autonomous and the bands sum to one for ANY gain (Carreira et al. eqs. (1)
+and (34)); :meth:`Observer.proof` checks it exactly with the gains left symbolic.
 
 This package is the only one in cfdesign that imports sympy.
 """
@@ -131,12 +131,13 @@ def discrete_relation(order: int, chain_order: int, sample_time=T):
     """Sampled relation ``reading = D(z) * quantity`` for a ZOH kinematic chain.
 
     The chain ``psi^(chain_order) = w`` with ``w`` held constant over each sample time
-    (zero-order hold, the assumption of seed 001 Sec. IV) gives exact discrete transfers
+    (zero-order hold, the assumption of Carreira et al. Sec. IV) gives exact discrete transfers
     ``G_j(z)`` from ``w`` to the sampled ``j``-th derivative; the relation of a sensor of
     order ``j`` is ``D_j = G_j / G_0``.  For ``chain_order = 1`` this is ``(z - 1)/T``
-    (the differentiator implied by ``x[k+1] = x[k] + T u[k]``, MATH.md §1); for
+    (the differentiator implied by ``x[k+1] = x[k] + T u[k]``); for
     ``chain_order = 2`` the rate relation is ``2 (z - 1) / (T (z + 1))`` and the
-    acceleration relation ``2 (z - 1)**2 / (T**2 (z + 1))``.
+    acceleration relation ``2 (z - 1)**2 / (T**2 (z + 1))`` (``docs/derivations.md``, section
+    "Relations").
     """
     if not 0 <= order <= chain_order:
         raise StructureError(f"relation of order {order} needs 0 <= order <= chain order {chain_order}")
@@ -245,7 +246,7 @@ class Observer:
         Discrete only; defaults to the symbol ``T``.
     gain_form : {'predictor', 'filter'}
         Discrete only.  ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the
-        estimate is ``C x`` (seed 001 eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
+        estimate is ``C x`` (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
         ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
     name : str
         Label used in reports.

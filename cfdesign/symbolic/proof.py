@@ -1,6 +1,6 @@
 """Exact complementarity proofs: the bands of an observer sum to one.
 
-Continuous (seed 001 eq. (1)): ``sum_i T_i(s) = 1``; discrete (seed 001 eq. (34)):
+Continuous (Carreira et al. eq. (1)): ``sum_i T_i(s) = 1``; discrete (Carreira et al. eq. (34)):
 ``sum_i T_i(z) = 1``.  The proof reduces ``sum_i T_i - 1`` with ``sympy.cancel``, which
 returns the canonical ``p/q`` form (``p`` and ``q`` coprime, expanded): the identity holds
 for every value of the variable and of every symbolic gain exactly when ``p`` is the zero
@@ -93,7 +93,7 @@ class Proof:
 
 
 def prove(observer) -> Proof:
-    """Prove (or refute) ``sum_i T_i = 1`` for ``observer`` exactly (MATH.md §1)."""
+    """Prove (or refute) ``sum_i T_i = 1`` for ``observer`` exactly (``docs/derivations.md``, "One observer")."""
     bands = observer.bands
     total = sp.cancel(sp.together(sum(bands.values())))
     residual = sp.cancel(sp.together(total - 1))

@@ -1,4 +1,4 @@
-"""Seed 004: the helicopter manoeuvre's kinematics and a shortened Table 2 reproduction."""
+"""Vasconcelos et al.'s helicopter: the manoeuvre's kinematics and a shortened Table 2 reproduction."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
+from cfdesign.cli import main
 from cfdesign.nav import quaternion as quat
-from cfdesign.reproduce import seed004
+from cfdesign.reproduce import helicopter
 from cfdesign.sim import helicopter as heli
 
 
@@ -56,8 +57,8 @@ def test_readings_follow_table1(truth):
 
 def test_short_reproduction_beats_bounds():
     m = heli.Manoeuvre(helix_s=40.0)
-    result = seed004.reproduce(1, seed=1, manoeuvre=m)
-    for row in seed004.PAPER:
+    result = helicopter.reproduce(1, seed=1, manoeuvre=m)
+    for row in helicopter.PAPER:
         maes = np.array(result.values[row][0])
         assert np.all(np.isfinite(maes))
         assert maes[0] < 2.5  # m
@@ -69,9 +70,13 @@ def test_short_reproduction_beats_bounds():
 
 
 def test_cli_entry_points(capsys, monkeypatch):
-    full = seed004.reproduce
-    monkeypatch.setattr(seed004, "reproduce", lambda *a, **k: full(1, seed=0, manoeuvre=heli.Manoeuvre(helix_s=10.0)))
+    full = helicopter.reproduce
+    short = lambda *a, **k: full(1, seed=0, manoeuvre=heli.Manoeuvre(helix_s=10.0))  # noqa: E731
+    monkeypatch.setattr(helicopter, "reproduce", short)
     parser = argparse.ArgumentParser()
-    seed004.add_arguments(parser)
-    assert seed004.run(parser.parse_args(["--json"])) == 0
-    assert json.loads(capsys.readouterr().out)["paper"] == "seed004"
+    helicopter.add_arguments(parser)
+    assert helicopter.run(parser.parse_args(["--json"])) == 0
+    assert json.loads(capsys.readouterr().out)["paper"] == "helicopter"
+    for name in ("helicopter", "seed004"):  # the command's name and its former name
+        assert main(["reproduce", name, "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["paper"] == "helicopter"

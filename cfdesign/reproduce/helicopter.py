@@ -1,6 +1,6 @@
-"""Seed 004 Table 2: mean absolute errors of the navigation system on the helicopter manoeuvre.
+"""Vasconcelos et al.'s Table 2: mean absolute errors of the navigation system on the helicopter manoeuvre.
 
-Pipeline of one run (seed 004 Fig. 3), all filters designed by the toolkit:
+Pipeline of one run (the paper's Fig. 3), all filters designed by the toolkit:
 
 1. truth and readings: :mod:`cfdesign.sim.helicopter` (straight path, then an ascending
    helix; IMU 50 Hz, GPS 1 Hz, Table 1's sensor errors);
@@ -29,6 +29,8 @@ Assumptions where the paper is silent
   the three ENU axes (the paper's one "X, Y, Z" row), yaw error wrapped; then averaged over
   ``--runs`` Monte-Carlo runs (seeds ``seed .. seed + runs - 1``), with a 95 % Student-t
   interval.  The paper reports one run.
+
+Derivations: ``docs/derivations.md``, sections "Multirate gains" and "Navigation filters".
 """
 
 from __future__ import annotations
@@ -124,7 +126,8 @@ class Reproduction:
             rows[row] = [{"quantity": c.cells[0], "mae": c.mean, "ci95": [c.stats[1], c.stats[2]],
                           "paper": c.paper, "ratio": c.ratio, "runs": list(c.values)} for c in self.comparisons(row)]
         m = self.manoeuvre
-        return {"paper": "seed004", "runs": len(self.seeds), "seeds": list(self.seeds), "accel_bias": self.accel_bias,
+        return {"paper": "helicopter", "runs": len(self.seeds), "seeds": list(self.seeds),
+                "accel_bias": self.accel_bias,
                 "attitude_filter": "cfdesign.nav.attitude.EulerAttitudeFilter",
                 "manoeuvre": {"straight_s": m.straight_s, "helix_s": m.helix_s, "speed_m_s": m.speed_m_s,
                               "turn_rate_rad_s": m.turn_rate_rad_s, "climb_m_s": m.climb_m_s, "rate_hz": m.rate_hz},
@@ -135,7 +138,8 @@ class Reproduction:
 
     def text(self) -> str:
         m = self.manoeuvre
-        lines = [f"Seed 004 (Vasconcelos et al.) Table 2: {m.straight_s:g} s straight + {m.helix_s:g} s ascending "
+        lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + "
+                 f"{m.helix_s:g} s ascending "
                  f"helix at {m.speed_m_s:g} m/s, IMU {m.rate_hz:g} Hz, GPS 1 Hz; accelerometer bias on "
                  f"{self.accel_bias}; {len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
                  "mean absolute error E|x - x_hat| over the run, averaged over the runs (95% CI)"]
@@ -189,7 +193,7 @@ def reproduce(runs: int = 5, *, seed: int = 0, accel_bias: str = "z", manoeuvre:
 
 
 def add_arguments(parser):
-    """Options of ``cfdesign reproduce seed004``: ``--runs``, ``--seed``, ``--accel-bias``, ``--json``."""
+    """Options of ``cfdesign reproduce helicopter``: ``--runs``, ``--seed``, ``--accel-bias``, ``--json``."""
     parser.add_argument("--runs", type=int, default=5, help="Monte-Carlo runs (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first run (runs use seed, seed+1, ...)")
     parser.add_argument("--accel-bias", choices=sorted(heli.ACCEL_BIAS_READINGS), default="z",
@@ -199,7 +203,7 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    """Run ``cfdesign reproduce seed004``: print Table 2 (or JSON); exit status 0."""
+    """Run ``cfdesign reproduce helicopter``: print Table 2 (or JSON); exit status 0."""
     result = reproduce(getattr(args, "runs", 5), seed=getattr(args, "seed", 0),
                        accel_bias=getattr(args, "accel_bias", "z"), progress=not getattr(args, "json", False))
     print(json_text(result.to_dict()) if getattr(args, "json", False) else result.text())

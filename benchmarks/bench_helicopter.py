@@ -1,4 +1,5 @@
-"""Seed 004 Table 2, full reproduction: ``python benchmarks/bench_seed004.py [--runs N] [--json]``.
+"""Vasconcelos et al.'s Table 2 (helicopter), full reproduction:
+``python benchmarks/bench_helicopter.py [--runs N] [--json]``.
 
 Prints the table (ours beside the paper's, with the ratio) and the wall-clock time of the run.
 """
@@ -8,15 +9,15 @@ from __future__ import annotations
 import argparse
 import time
 
-from cfdesign.reproduce import seed004
+from cfdesign.reproduce import helicopter
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    seed004.add_arguments(parser)
+    helicopter.add_arguments(parser)
     args = parser.parse_args()
     start = time.perf_counter()
-    status = seed004.run(args)
+    status = helicopter.run(args)
     elapsed = time.perf_counter() - start
     print(f"\n{args.runs} runs in {elapsed:.1f} s ({elapsed / args.runs:.2f} s per run, both rows)")
     return status

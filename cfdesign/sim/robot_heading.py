@@ -1,8 +1,11 @@
-"""Seed 001 Sec. V-A: a robot's heading on a rounded square, with a gyro, a compass and odometry.
+"""The robot-heading scenario of Carreira et al. (Sec. V-A): a rounded square, with a gyro, a compass and odometry.
 
-This module is the one place where the paper's noise figures are read (:class:`Reading`);
-the simulation, the designs of :mod:`cfdesign.reproduce.seed001` and the docs all take them
-from here.
+Carreira et al., *Complementary Filter Design with Three Frequency Bands: Robot Attitude
+Estimation*, simulate a robot's heading to compare every assignment of three sensors to the
+bands of a complementary filter (their Tables I and II).  This module is the one place where
+the paper's noise figures are read (:class:`Reading`); the simulation, the designs of
+:mod:`cfdesign.reproduce.carreira` and the docs all take them from here
+(``docs/derivations.md``, section "Robot-heading simulation").
 
 The paper, as printed
 ---------------------
@@ -53,7 +56,7 @@ START_HEADING_DEG = 135.0
 
 @dataclass(frozen=True)
 class _Paper:
-    """Seed 001 Sec. V-A and V-B as printed: ``N(0, x)`` figures, biases (deg/s), perturbation (deg)."""
+    """Carreira et al. Sec. V-A and V-B as printed: ``N(0, x)`` figures, biases (deg/s), perturbation (deg)."""
 
     noise_x: dict = field(default_factory=lambda: {"gyro": 2e-3, "compass": 2e-3, "odometry": 4e-6})
     gyro_bias_deg_s: float = 0.8
@@ -106,8 +109,8 @@ READING = READINGS["std"]
 class Scenario:
     """The truth, the sensor models and the reading they came from.
 
-    ``gyro_compensation_rad_s`` is subtracted from the gyro before use (seed 001: the bias
-    "can be compensated").
+    ``gyro_compensation_rad_s`` is subtracted from the gyro before use (Carreira et al.: the
+    bias "can be compensated").
     """
 
     trajectory: Trajectory
@@ -149,7 +152,7 @@ class Scenario:
 
 def scenario(reading: Reading = READING, *, straight_s: float = PAPER.straight_s,
              start_heading_deg: float = START_HEADING_DEG, linear_gaussian: bool = False) -> Scenario:
-    """Seed 001's rounded square and sensors under ``reading``.
+    """Carreira et al.'s rounded square and sensors under ``reading``.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Seed 001 Tables I and II reproduced, and the optimality the paper only claims.
+"""Carreira et al.'s Tables I and II reproduced, and the optimality the paper only claims.
 
 The reproduction runs the full 2440-s scenario (designs are cached, runs take milliseconds);
 the optimality check runs a shortened linear-Gaussian version on several seeds.
@@ -16,8 +16,7 @@ import sympy as sp
 import cfdesign
 from cfdesign.errors import SpecError
 from cfdesign.reproduce import add_parser
-from cfdesign.reproduce.report import RATIO_RANGE, order_disagreements
-from cfdesign.reproduce.seed001 import (
+from cfdesign.reproduce.carreira import (
     ROWS,
     TABLE_I,
     TABLE_II,
@@ -26,13 +25,14 @@ from cfdesign.reproduce.seed001 import (
     reproduce,
     run_filter,
 )
+from cfdesign.reproduce.report import RATIO_RANGE, order_disagreements
 from cfdesign.reproduce.structures import banded_observer, design_observer
 from cfdesign.runtime import Runtime, wrap
 from cfdesign.sim import HeadingSensor, RateSensor, heading_error, mean_ci
-from cfdesign.sim import seed001 as s001
+from cfdesign.sim import robot_heading as rh
 from cfdesign.symbolic.observer import z
 
-SENSORS = set(s001.SENSORS)
+SENSORS = set(rh.SENSORS)
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_interim_design_path_equals_the_public_designer():
     """A Table I row designed through design_observer equals cfdesign.design on cf2's own ports."""
     row = TABLE_I[0]
     ours = design_row(row)
-    spec = row.spec(s001.scenario())
+    spec = row.spec(rh.scenario())
     ports = (dataclasses.replace(spec.sensor(row.high), name="rate"),
              dataclasses.replace(spec.sensor(row.low), name="angle"))
     public = cfdesign.design(dataclasses.replace(spec, sensors=ports))
@@ -78,7 +78,7 @@ def test_interim_design_path_equals_the_public_designer():
 
 def test_every_row_gives_back_the_truth_from_noise_free_sensors():
     """Complementarity through the whole pipeline: design, export, runtime, wrap-around."""
-    sc = s001.scenario(straight_s=30.0)
+    sc = rh.scenario(straight_s=30.0)
     exact = dataclasses.replace(sc, sensors={"gyro": RateSensor(), "compass": HeadingSensor(),
                                              "odometry": HeadingSensor()}, gyro_compensation_rad_s=0.0)
     signals = exact.signals(0)
@@ -113,7 +113,7 @@ def test_every_ratio_is_reported_and_inside_the_range(result):
 
 
 def test_variance_reading_breaks_the_papers_order_and_says_why():
-    other = reproduce(2, reading=s001.READINGS["variance"])
+    other = reproduce(2, reading=rh.READINGS["variance"])
     checks = other.checks()
     assert not checks["I"]["best_matches_paper"] and checks["I"]["rows_outside_ratio_range"] == [1, 2]
     note = next(c.note for c in other.comparisons("I") if not c.in_range)
@@ -122,7 +122,7 @@ def test_variance_reading_breaks_the_papers_order_and_says_why():
 
 
 def test_heading_crosses_180_deg_without_a_jump(result):
-    sc = s001.scenario()
+    sc = rh.scenario()
     row = result.best("II")
     est = run_filter(row, result.tables[row], sc, sc.signals(0))
     assert np.any(np.abs(np.diff(est)) > np.pi)  # the wrapped estimate goes through +-180 deg
@@ -139,17 +139,17 @@ def _cli(*argv):
 
 
 def test_reproduce_command_json_and_text(capsys):
-    assert _cli("seed001", "--runs", "2", "--json") == 0
+    assert _cli("carreira", "--runs", "2", "--json") == 0
     data = json.loads(capsys.readouterr().out)
     assert data["runs"] == 2 and data["seeds"] == [0, 1] and data["reading"] == "std"
     row = data["tables"]["II"][0]
     assert {"low_pass", "band_pass", "high_pass", "mse", "ci", "paper", "ratio", "runs", "gains", "note"} <= set(row)
     assert row["ratio"] == pytest.approx(row["mse"] / row["paper"]) and len(data["tables"]["I"]) == 6
-    assert _cli("seed001", "--runs", "1", "--seed", "3") == 0
+    assert _cli("carreira", "--runs", "1", "--seed", "3") == 0
     out = capsys.readouterr().out
     assert "Table I" in out and "Table II" in out and "ours/paper" in out and "seeds 3..3" in out
     with pytest.raises(SpecError, match="runs"):
-        _cli("seed001", "--runs", "0")
+        _cli("carreira", "--runs", "0")
 
 
 # ---------------------------------------------------------------------- optimality (the paper's claim)
@@ -173,7 +173,7 @@ def test_optimal_dckf3_error_variance_is_the_dare_prediction_and_other_gains_do_
     the Monte-Carlo error variance of the DARE gains is their predicted P[0, 0] within 5 %
     (95 % interval inside [0.95, 1.05]); hand-tuned gains and the band-constrained CF³ gains
     match their own Lyapunov predictions and do worse, run by run on the same readings."""
-    sc = s001.scenario(s001.READINGS[reading], straight_s=600.0, linear_gaussian=True)
+    sc = rh.scenario(rh.READINGS[reading], straight_s=600.0, linear_gaussian=True)
     spec = dckf3_spec(sc)
     optimal = cfdesign.design(spec)
     hand = cfdesign.design(dataclasses.replace(spec, gains={"k11": 0.5, "k12": 0.5, "k21": 0.05, "k22": 0.05}))

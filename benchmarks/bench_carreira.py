@@ -1,6 +1,6 @@
-"""Seed 001 Tables I and II, full reproduction, with timing.
+"""Carreira et al.'s Tables I and II (robot heading), full reproduction, with timing.
 
-Run by hand from the repository root:  python benchmarks/bench_seed001.py [RUNS] [--reading std|variance]
+Run by hand from the repository root:  python benchmarks/bench_carreira.py [RUNS] [--reading std|variance]
 
 Designs the twelve filters (six two-sensor CFs, six three-sensor CF³s), runs each on RUNS
 (default 100) Monte-Carlo simulations of the 2440-s rounded square, and prints both tables
@@ -19,8 +19,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT)]
 
-from cfdesign.reproduce.seed001 import ROWS, design_row, reproduce, run_filter  # noqa: E402
-from cfdesign.sim import seed001  # noqa: E402
+from cfdesign.reproduce.carreira import ROWS, design_row, reproduce, run_filter  # noqa: E402
+from cfdesign.sim import robot_heading  # noqa: E402
 
 
 def timed(fn, *args, repeat=1):
@@ -36,12 +36,12 @@ def timed(fn, *args, repeat=1):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="?", type=int, default=100)
-    parser.add_argument("--reading", choices=sorted(seed001.READINGS), default="std")
+    parser.add_argument("--reading", choices=sorted(robot_heading.READINGS), default="std")
     args = parser.parse_args(argv)
-    reading = seed001.READINGS[args.reading]
+    reading = robot_heading.READINGS[args.reading]
 
     _, t_design = timed(lambda: [design_row(row, reading) for row in ROWS])
-    sc = seed001.scenario(reading)
+    sc = robot_heading.scenario(reading)
     signals, t_sim = timed(sc.signals, 0, repeat=5)
     row = ROWS[0]
     _, t_filter = timed(run_filter, row, design_row(row, reading), sc, signals, repeat=20)

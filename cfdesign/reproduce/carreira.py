@@ -1,26 +1,30 @@
-"""Seed 001 Tables I and II: every assignment of gyro, compass and odometry to the bands.
+"""Carreira et al.'s Tables I and II: every assignment of gyro, compass and odometry to the bands.
 
 Each row of the paper's tables - "low-pass X, (band-pass Y,) high-pass Z" - becomes an
 observer on the engine (:mod:`cfdesign.reproduce.structures`): Z is the rate input (the gyro
 as it is, a heading sensor differenced), X the low-pass heading measurement (the gyro dead
 reckoned), Y the band-pass one.  Its gains are designed by the toolkit for the sensors'
-white noise under the reading of :mod:`cfdesign.sim.seed001` (Kalman gains for the two-sensor
-CF, the best gains of the band assignment for the CF³), it is exported as a gain table and
-run by :class:`cfdesign.runtime.Runtime` from the true start heading on every Monte-Carlo
-run of the scenario (the same readings for every row of a run).  The error is the
-accumulated heading error, whole turns counted (:func:`cfdesign.sim.heading_error`); its
-mean square over the 2440-s run is averaged over the runs, with a 95 % Student-t interval.
+white noise under the reading of :mod:`cfdesign.sim.robot_heading` (Kalman gains for the
+two-sensor CF, the best gains of the band assignment for the CF³), it is exported as a gain
+table and run by :class:`cfdesign.runtime.Runtime` from the true start heading on every
+Monte-Carlo run of the scenario (the same readings for every row of a run).  The error is
+the accumulated heading error, whole turns counted (:func:`cfdesign.sim.heading_error`);
+its mean square over the 2440-s run is averaged over the runs, with a 95 % Student-t
+interval.  Derivations: ``docs/derivations.md``, sections "Three-band filters" and
+"Robot-heading simulation".
 
-Why the paper's labels are the bands, not the ports of its Fig. 6
-------------------------------------------------------------------
+Why the paper's labels are the bands, not the ports of its eqs. (25)-(27)
+-------------------------------------------------------------------------
 The sensor in the low-pass band carries the estimate's DC, and every row's MSE is set by
 that sensor's slow error: the gyro's dead-reckoning random walk (~1e-3 rad^2), the compass's
 20-deg perturbation ((20 deg)^2/2 = 0.061 rad^2 over four headings 90 deg apart) or
 odometry's 0.5 deg/s drift (b^2 D^2/3 = 151 rad^2 over D = 2440 s).  These are the paper's
-three groups (2e-3, 2.6e-2, 1.4e2), in its order.  The paper's Fig. 6 DCKF³ (gyro rate in,
-compass and odometry headings measured, full Kalman gain) cannot be its best row: with
-odometry's noise far below the compass's it trusts odometry at DC and inherits its drift
-(151 rad^2 in this scenario, under either reading).
+three groups (2e-3, 2.6e-2, 1.4e2), in its order.  The DCKF³ of eqs. (25)-(27) as written
+(gyro rate in, compass and odometry headings measured, full Kalman gain; the paper's Fig. 5,
+:func:`dckf3_spec`) cannot be its best row: with odometry's noise far below the compass's it
+trusts odometry at DC and inherits its drift (151 rad^2 in this scenario, under either
+reading).  The paper's best row is the assignment of its Fig. 6 (low-pass gyro, band-pass
+compass, high-pass odometry), Table II row 1 here.
 
 Ratios ours/paper, and rows outside [1/3, 3]
 --------------------------------------------
@@ -55,7 +59,7 @@ from functools import cache
 import numpy as np
 
 from ..sim.metrics import mse
-from ..sim.seed001 import PAPER, READING, START_HEADING_DEG, Reading, scenario
+from ..sim.robot_heading import PAPER, READING, START_HEADING_DEG, Reading, scenario
 from ..sim.sensors import RateSensor
 from .report import RATIO_RANGE, Comparison, format_table, order_disagreements
 from .structures import banded_observer, design_observer
@@ -96,7 +100,7 @@ class Row:
         measured = [self.low] if self.band is None else [self.low, self.band]
         structure = {"structure": "cf2", "order": 2, "discrete": True} if self.band is None else \
             {"structure": "dckf3_bandpass"}
-        return _spec(sc, f"seed 001 table {self.table} row {self.number}: {self.label}", structure,
+        return _spec(sc, f"Carreira et al. table {self.table} row {self.number}: {self.label}", structure,
                      [self.high], measured)
 
     def readings(self, signals: dict, steps: int) -> dict:
@@ -142,9 +146,10 @@ def _spec(sc, name, structure: dict, inputs, measurements):
 
 
 def dckf3_spec(sc=None):
-    """The paper's DCKF³ (Fig. 6): gyro rate in, compass and odometry headings measured."""
+    """The DCKF³ of Carreira et al. eqs. (25)-(27) as written: gyro rate in, compass and odometry headings measured."""
     sc = sc or scenario(READING)
-    return _spec(sc, "robot heading (seed 001 DCKF3)", {"structure": "dckf3"}, ["gyro"], ["compass", "odometry"])
+    return _spec(sc, "robot heading (Carreira et al. DCKF3, eqs. 25-27)", {"structure": "dckf3"}, ["gyro"],
+                 ["compass", "odometry"])
 
 
 @cache
@@ -236,12 +241,12 @@ class Reproduction:
             tables[t] = [{"row": r.number, **c.to_dict(names[t]), "gains": self.tables[r].gains,
                           "predicted_std_rad": self.tables[r].predicted_std}
                          for r, c in zip(rows, self.comparisons(t), strict=True)]
-        return {"paper": "seed001", "reading": self.reading.name, "reading_text": self.reading.describe(),
+        return {"paper": "carreira", "reading": self.reading.name, "reading_text": self.reading.describe(),
                 "scenario": _scenario_dict(self.straight_s), "runs": len(self.seeds), "seeds": list(self.seeds),
                 "mse_unit": "rad^2", "ratio_range": list(RATIO_RANGE), "tables": tables, "checks": self.checks()}
 
     def text(self) -> str:
-        head = [f"Seed 001 (Carreira et al.) Sec. V-A: {_scenario_text(self.straight_s)}; "
+        head = [f"Carreira et al., three-band complementary filters, Sec. V-A: {_scenario_text(self.straight_s)}; "
                 f"{len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
                 f"reading: {self.reading.describe()}",
                 "MSE of the accumulated heading error over the run [rad^2]; * = ratio outside "
@@ -290,7 +295,7 @@ def reproduce(runs: int = 20, *, seed: int = 0, reading: Reading = READING, stra
     seed : int
         Seed of the first run.
     reading : Reading
-        How the paper's noise figures are read (:mod:`cfdesign.sim.seed001`).
+        How the paper's noise figures are read (:mod:`cfdesign.sim.robot_heading`).
     straight_s : float
         Length of each straight leg (s); shorter legs for quick checks.
     progress : bool
@@ -328,8 +333,8 @@ def reproduce(runs: int = 20, *, seed: int = 0, reading: Reading = READING, stra
 
 # ---------------------------------------------------------------------------- command line
 def add_arguments(parser):
-    """Options of ``cfdesign reproduce seed001``: ``--runs``, ``--seed``, ``--reading``, ``--json``."""
-    from ..sim.seed001 import READINGS
+    """Options of ``cfdesign reproduce carreira``: ``--runs``, ``--seed``, ``--reading``, ``--json``."""
+    from ..sim.robot_heading import READINGS
 
     parser.add_argument("--runs", type=int, default=20, help="Monte-Carlo runs per row (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first run (runs use seed, seed+1, ...)")
@@ -340,11 +345,11 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    """Run ``cfdesign reproduce seed001``: print the tables (or JSON); exit status 0.
+    """Run ``cfdesign reproduce carreira``: print the tables (or JSON); exit status 0.
 
     Raises :class:`cfdesign.errors.SpecError` for a bad ``--runs``.
     """
-    from ..sim.seed001 import READINGS
+    from ..sim.robot_heading import READINGS
     from .report import json_text
 
     result = reproduce(args.runs, seed=args.seed, reading=READINGS[args.reading], progress=not args.json)
