@@ -20,6 +20,9 @@ __all__ = [
     "NoStabilisingSolutionError",
     "AccuracyError",
     "GainTableError",
+    "TableMismatchError",
+    "InputError",
+    "AttitudeInputError",
 ]
 
 
@@ -40,6 +43,11 @@ class StructureError(CfdesignError, ValueError):
 
 class GainError(CfdesignError, ValueError):
     """Gains or parameters given for a filter are missing, unknown or not numbers."""
+
+
+class TableMismatchError(GainError):
+    """A gain table (or design spec) given to a filter does not fit it: its structure, gain form,
+    sample time or sensor rates differ from what the filter runs; the message names the mismatch."""
 
 
 class ProofError(CfdesignError):
@@ -68,3 +76,13 @@ class AccuracyError(RiccatiError):
 
 class GainTableError(CfdesignError):
     """A gain table file cannot be read, is malformed, or fails its schema."""
+
+
+class InputError(CfdesignError, ValueError):
+    """Data or arguments given to a filter or a simulation are invalid: an array of the wrong
+    shape or with unusable values, a rate or duration that does not fit; the message names the
+    argument.  (Design files and specifications raise :class:`SpecError`.)"""
+
+
+class AttitudeInputError(InputError):
+    """Bad input to an attitude filter (array shapes, sample rate, noise figures); names the argument."""
