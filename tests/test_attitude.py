@@ -6,7 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cfdesign import rotations as rot
 from cfdesign.errors import CfdesignError
+from cfdesign.linear import wrap
 from cfdesign.nav import (
     EulerAttitudeFilter,
     estimate_attitude,
@@ -15,7 +17,6 @@ from cfdesign.nav import (
     mps_euler,
     mps_quaternion,
 )
-from cfdesign.nav import quaternion as quat
 
 G = 9.81
 FIELD_ENU = np.array([0.0, 20.0, -40.0])       # µT, north and down, declination 0
@@ -24,14 +25,14 @@ BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
 def angle_between(q1, q2):
     """Rotation angle (rad) between attitude quaternions, row-wise."""
-    e = quat.multiply(q1, quat.conjugate(q2))
+    e = rot.multiply(q1, rot.conjugate(q2))
     return 2 * np.arccos(np.clip(np.abs(e[..., 0]), 0, 1))
 
 
 def body_rates(q, dt):
     """Body rate from a quaternion trajectory: ω = 2 vec(conj(q) ⊗ q') (central differences)."""
     dq = np.gradient(q, dt, axis=0)
-    return 2 * quat.multiply(quat.conjugate(q), dq)[:, 1:]
+    return 2 * rot.multiply(rot.conjugate(q), dq)[:, 1:]
 
 
 def trajectory(n, rate_hz, amplitude=(2.0, 0.4, 0.5)):
@@ -44,7 +45,7 @@ def trajectory(n, rate_hz, amplitude=(2.0, 0.4, 0.5)):
 
 def sensors(q, field=FIELD_ENU):
     """Noise-free accelerometer (specific force, static) and magnetometer readings in the body frame."""
-    R = quat.to_matrix(q)
+    R = rot.to_matrix(q)
     acc = np.einsum("nji,j->ni", R, [0.0, 0.0, G])
     mag = np.einsum("nji,j->ni", R, field)
     return acc, mag
@@ -53,7 +54,7 @@ def sensors(q, field=FIELD_ENU):
 def test_rate_matrix_matches_finite_differences():
     rate = 1000.0
     _t, euler = trajectory(4000, rate)
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     omega = body_rates(q, 1 / rate)
     lam_dot = np.gradient(euler, 1 / rate, axis=0)
     predicted = np.einsum("nij,nj->ni", euler_rate_matrix(euler), omega)
@@ -66,17 +67,17 @@ def test_rate_matrix_matches_finite_differences():
 def test_mps_recovers_static_attitudes(declination):
     rng = np.random.default_rng(1)
     euler = np.column_stack([rng.uniform(-3.1, 3.1, 200), rng.uniform(-1.4, 1.4, 200), rng.uniform(-3.1, 3.1, 200)])
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     field = np.array([np.sin(declination), np.cos(declination), -1.5]) * 30
     acc, mag = sensors(q, field)
     got = mps_euler(acc, mag, declination_rad=declination)
-    assert np.abs(quat.wrap_angle(got - euler)).max() < 1e-9
+    assert np.abs(wrap(got - euler)).max() < 1e-9
     assert angle_between(mps_quaternion(acc, mag, declination_rad=declination), q).max() < 1e-7
 
 
 def test_mps_centripetal_compensation():
     euler = np.array([[0.5, 0.1, -0.2]])
-    acc, mag = sensors(quat.from_euler(euler))
+    acc, mag = sensors(rot.from_euler(euler))
     omega, v = np.array([[0.1, -0.2, 0.5]]), np.array([[12.0, 0.5, 0.0]])
     measured = acc + np.cross(omega, v)                     # coordinated motion: f = g_b + ω × v
     assert np.abs(mps_euler(measured, mag) - euler).max() > 0.05
@@ -86,7 +87,7 @@ def test_mps_centripetal_compensation():
 
 def noisy_run(n=12000, rate=100.0, bias=(0.02, -0.015, 0.01), seed=2):
     _t, euler = trajectory(n, rate)
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     rng = np.random.default_rng(seed)
     acc, mag = sensors(q)
     gyr = body_rates(q, 1 / rate) + np.array(bias) + rng.normal(0, 0.005, (n, 3))
@@ -102,7 +103,7 @@ def test_euler_filter_converges_with_bias():
     out = f.run(gyr, acc, mag)
     assert set(out.gains) == {"tilt", "heading"} and out.gains["tilt"].gains["k1"] > 0
     late = slice(len(q) // 2, None)
-    err = np.abs(quat.wrap_angle(out.euler - euler))[late]
+    err = np.abs(wrap(out.euler - euler))[late]
     assert err.max() < np.radians(1.0)                      # stated bound: 1° after 60 s
     assert np.abs(out.bias[late] - bias).max() < 0.005      # bias within 0.005 rad/s
     assert angle_between(out.quaternion, q)[late].max() < np.radians(1.5)
@@ -121,7 +122,7 @@ def test_quaternion_form_passes_pitch_90():
     rate, n = 100.0, 3000
     t = np.arange(n) / rate
     euler = np.column_stack([0.3 + 0 * t, 1.8 * np.sin(0.5 * t), 0.2 * np.sin(0.7 * t)])   # pitch ±103°
-    q = quat.normalize(quat.from_euler(euler))
+    q = rot.normalize(rot.from_euler(euler))
     acc, mag = sensors(q)
     gyr = body_rates(q, 1 / rate)
     est = estimate_attitude(gyr, acc, mag, rate)

@@ -6,7 +6,7 @@ quaternions ``[w, x, y, z]`` map body to ENU, Euler angles are ZYX ``[yaw, pitch
 * :func:`estimate_attitude` - general purpose, singularity-free (quaternion) filter;
 * :class:`EulerAttitudeFilter` - seed 004's Euler-angle filter (low-pitch vehicles);
 * :class:`PositionFilter` - seed 004's per-axis position filter (accelerometer + GPS, multirate gains);
-* :mod:`cfdesign.nav.mps` - the Magneto-Pendular Sensor; :mod:`cfdesign.nav.quaternion` - helpers.
+* :mod:`cfdesign.nav.mps` - the Magneto-Pendular Sensor; rotations: :mod:`cfdesign.rotations`.
 """
 
 from .attitude import (

@@ -30,8 +30,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from . import quaternion as quat
+from .. import rotations as quat
+from ..errors import AttitudeInputError
+from ..linear import wrap_scalar
+from ..rotations import euler_rate_matrix, euler_rate_matrix_inverse
 from .mps import mps_euler, mps_quaternion
 
 __all__ = ["EulerAttitudeFilter", "EulerEstimate", "euler_rate_matrix", "euler_rate_matrix_inverse",
@@ -44,42 +46,6 @@ DEFAULT_NOISE = {
     "tilt_noise_density": 0.002,       # rad/sqrt(Hz): MPS tilt after the 1 s strapdown-frame average
     "heading_noise_density": 0.04,     # rad/sqrt(Hz): MPS heading incl. indoor field distortion
 }
-
-
-class AttitudeInputError(SpecError):
-    """Bad input to an attitude filter (array shapes, sample rate, noise figures); names the argument."""
-
-
-# --------------------------------------------------------------------------------------------
-# kinematics (seed 004 Sec. 2.1)
-
-
-def euler_rate_matrix(euler):
-    """``Q(λ)`` of seed 004 Sec. 2.1: Euler-angle rates ``λ' = Q(λ) ω`` for ``λ = (ψ, θ, φ)``.
-
-    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``; ``ω`` is
-    the body rate (rad/s).  Singular at ``θ = ±90°``.  ``euler`` (..., 3) -> (..., 3, 3).
-    """
-    e = np.asarray(euler, dtype=float)
-    sf, cf = np.sin(e[..., 2]), np.cos(e[..., 2])
-    sec, tan = 1.0 / np.cos(e[..., 1]), np.tan(e[..., 1])
-    zero, one = np.zeros_like(sf), np.ones_like(sf)
-    return np.stack([np.stack([zero, sf * sec, cf * sec], -1),
-                     np.stack([zero, cf, -sf], -1),
-                     np.stack([one, sf * tan, cf * tan], -1)], -2)
-
-
-def euler_rate_matrix_inverse(euler):
-    """``Q(λ)^-1``: body rate from Euler-angle rates, ``ω = Q^-1 λ'`` (defined at every attitude).
-
-    ``Q^-1 = [[-sinθ, 0, 1], [cosθ sinφ, cosφ, 0], [cosθ cosφ, -sinφ, 0]]`` (columns ψ', θ', φ').
-    """
-    e = np.asarray(euler, dtype=float)
-    st, ct, sf, cf = np.sin(e[..., 1]), np.cos(e[..., 1]), np.sin(e[..., 2]), np.cos(e[..., 2])
-    zero, one = np.zeros_like(st), np.ones_like(st)
-    return np.stack([np.stack([-st, zero, one], -1),
-                     np.stack([ct * sf, cf, zero], -1),
-                     np.stack([ct * cf, -sf, zero], -1)], -2)
 
 
 # --------------------------------------------------------------------------------------------
@@ -335,18 +301,13 @@ class EulerAttitudeFilter:
                          velocity_body=v).tolist()
 
 
-def _wrap(angle):
-    """Scalar wrap to (-pi, pi]."""
-    return angle - 2 * math.pi * math.ceil((angle - math.pi) / (2 * math.pi))
-
-
 def _euler_propagate(lam, rate, T):
     """``λ + T Q(λ) ω`` (seed 004 Sec. 2.1) in Python floats; yaw wrapped."""
     psi, theta, phi = lam
     sf, cf = math.sin(phi), math.cos(phi)
     ct, tt = math.cos(theta), math.tan(theta)
     wy, wz = rate[1], rate[2]
-    return [_wrap(psi + T * (sf * wy + cf * wz) / ct), theta + T * (cf * wy - sf * wz),
+    return [wrap_scalar(psi + T * (sf * wy + cf * wz) / ct), theta + T * (cf * wy - sf * wz),
             phi + T * (rate[0] + tt * (sf * wy + cf * wz))]
 
 
@@ -355,8 +316,8 @@ def _euler_correct(lam, b, y, gains):
     (k1p, k1t, k1r), (k2p, k2t, k2r) = gains
     e = [y[0] - lam[0], y[1] - lam[1], y[2] - lam[2]]
     e = [v if v == v else 0.0 for v in e]                   # NaN: channel not measured
-    e[0] = _wrap(e[0])
-    psi, theta, phi = _wrap(lam[0] + k1p * e[0]), lam[1] + k1t * e[1], lam[2] + k1r * e[2]
+    e[0] = wrap_scalar(e[0])
+    psi, theta, phi = wrap_scalar(lam[0] + k1p * e[0]), lam[1] + k1t * e[1], lam[2] + k1r * e[2]
     dpsi, dtheta, dphi = k2p * e[0], k2t * e[1], k2r * e[2]
     st, ct, sf, cf = math.sin(theta), math.cos(theta), math.sin(phi), math.cos(phi)
     b = [b[0] - (-st * dpsi + dphi), b[1] - (ct * sf * dpsi + cf * dtheta), b[2] - (ct * cf * dpsi - sf * dtheta)]
@@ -604,8 +565,7 @@ def _heading_error(r, m, north):
     my = r[3] * m[0] + r[4] * m[1] + r[5] * m[2]
     if math.hypot(mx, my) < 1e-9 * math.sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]):
         return 0.0
-    d = north - math.atan2(my, mx)
-    return d - 2 * math.pi * math.floor((d + math.pi) / (2 * math.pi))
+    return wrap_scalar(north - math.atan2(my, mx))
 
 
 def _outputs(P, starts, residual, biases, T, n):

@@ -1,7 +1,7 @@
 """Extended Kalman filters of seeds 003 (strapdown INS/GPS, 22 states) and 002 (planar, odometer scale).
 
-Frames as :mod:`cfdesign.nav.quaternion`: ENU local frame, FLU body, quaternions ``[w, x, y, z]``
-body -> ENU, gravity :data:`cfdesign.nav.position.GRAVITY_ENU` (``a_n = R_nb f_b + g_n``).
+Frames as :mod:`cfdesign.rotations`: ENU local frame, FLU body, quaternions ``[w, x, y, z]``
+body -> ENU, gravity :data:`cfdesign.rotations.GRAVITY_ENU` (``a_n = R_nb f_b + g_n``).
 
 Seed 003 (:class:`StrapdownEKF`)
 --------------------------------
@@ -18,7 +18,7 @@ velocity and position, gyro bias and scale factor, accelerometer bias and scale 
       v(k+1) = v(k) + (C(q(k)) f + g_n) Δt
       r(k+1) = r(k) + v(k) Δt + (C(q(k)) f + g_n) Δt² / 2
 
-  with ``C(q)`` = :func:`cfdesign.nav.quaternion.to_matrix` evaluated at the start of the
+  with ``C(q)`` = :func:`cfdesign.rotations.to_matrix` evaluated at the start of the
   interval as printed; ``ω̃``, ``f̃`` are the interval-mean readings.  The covariance is
   propagated with the analytic Jacobian ``F = ∂x(k+1)/∂x(k)`` (:func:`strapdown_step`).
 * Process noise at the IMU rate: attitude ``(σ_g Δt / 2)² I_4`` (the gyro white noise,
@@ -71,10 +71,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from . import quaternion as quat
+from .. import rotations as quat
+from ..errors import InputError
+from ..linear import wrap_scalar
+from ..rotations import GRAVITY_ENU
 from .mps import centripetal_compensation
-from .position import GRAVITY_ENU
 from .triad import triad_quaternion
 
 __all__ = ["N_STATES", "EkfEstimate", "StrapdownEKF", "strapdown_step", "norm_observation",
@@ -101,7 +102,7 @@ def _right(p) -> np.ndarray:
 
 
 def _delta_quaternion(phi) -> tuple[np.ndarray, np.ndarray]:
-    """``p = exp(φ / 2)`` (:func:`~cfdesign.nav.quaternion.from_rotation_vector`) and ``∂p/∂φ`` (4, 3)."""
+    """``p = exp(φ / 2)`` (:func:`~cfdesign.rotations.from_rotation_vector`) and ``∂p/∂φ`` (4, 3)."""
     p = quat.from_rotation_vector(phi)
     a = math.sqrt(float(phi @ phi))
     if a > 1e-4:
@@ -116,7 +117,7 @@ def _delta_quaternion(phi) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rotate_with_jacobian(q, f) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``C(q)``, ``C(q) f`` and ``∂(C(q) f)/∂q`` (3, 4), ``C`` as :func:`~cfdesign.nav.quaternion.to_matrix`."""
+    """``C(q)``, ``C(q) f`` and ``∂(C(q) f)/∂q`` (3, 4), ``C`` as :func:`~cfdesign.rotations.to_matrix`."""
     C = quat.to_matrix(q)
     w, x, y, z = q
     f0, f1, f2 = f
@@ -265,7 +266,7 @@ class StrapdownEKF:
         mag_rate = float(rate_hz if mag_rate_hz is None else mag_rate_hz)
         self.mag_every = round(rate_hz / mag_rate)
         if self.mag_every < 1 or not math.isclose(self.mag_every * mag_rate, rate_hz, rel_tol=1e-9):
-            raise SpecError(f"mag_rate_hz {mag_rate:g} must divide rate_hz {rate_hz:g}")
+            raise InputError(f"mag_rate_hz {mag_rate:g} must divide rate_hz {rate_hz:g}")
         self.mag_reference = np.asarray(mag_reference_enu, dtype=float)
         self.init_std = {"gyro_bias": math.radians(1.0), "accel_bias": 0.2, "scale": 0.02, "velocity": 10.0,
                          **(initial_std or {})}
@@ -300,7 +301,7 @@ class StrapdownEKF:
         x = np.zeros(N_STATES)
         x[_Q] = self.align(acc0, mag0)
         if not np.isfinite(x[_Q]).all():
-            raise SpecError("initial alignment failed: first accelerometer/magnetometer samples unusable")
+            raise InputError("initial alignment failed: first accelerometer/magnetometer samples unusable")
         x[_SG] = x[_SA] = 1.0
         s = self.init_std
         v_std = s["velocity"] if velocity is None else self.gps_vel_std
@@ -358,7 +359,7 @@ class StrapdownEKF:
         gps_p = np.asarray(gps_pos_enu, dtype=float)
         gps_v = np.full((M, 3), np.nan) if gps_vel_enu is None else np.asarray(gps_vel_enu, dtype=float)
         if len(gyr) != len(acc) or M not in (len(gyr), len(gyr) + 1) or len(gps_p) != M or len(gps_v) != M:
-            raise SpecError("gyr, acc must have N rows and mag, gps M = N or N + 1 rows")
+            raise InputError("gyr, acc must have N rows and mag, gps M = N or N + 1 rows")
         if initial_position is None:
             initial_position = _first_finite(gps_p)
         if initial_velocity is None:
@@ -477,7 +478,7 @@ class PlanarEKF:
         self.sigma_heading = (dict(sigma_heading) if isinstance(sigma_heading, dict)
                               else dict.fromkeys(modes, float(sigma_heading)))
         if set(self.sigma_heading) != modes:
-            raise SpecError("sigma_heading must give one value per GPS mode")
+            raise InputError("sigma_heading must give one value per GPS mode")
         self.U = np.diag([odo_noise_std**2, gyro_noise_std**2])
         self.kappa_omega, self.kappa_rho = float(kappa_omega), float(kappa_rho)
         self.alpha_var = alpha_noise_std**2
@@ -531,7 +532,7 @@ class PlanarEKF:
             if np.isfinite(gps[k]).all() and mode[k] in self.gps_std:
                 state, P, used[k] = self._gps_update(state, P, gps[k], mode[k], last_fix, turned, travelled)
                 last_fix, turned, travelled = gps[k], 0.0, 0.0
-            state[2] = quat.wrap_angle(state[2])
+            state[2] = _wrap(state[2])
             out[k], cov[k] = state, P
         return PlanarEstimate(x=out[:, 0], y=out[:, 1], theta=out[:, 2], alpha=out[:, 3], covariance=cov,
                               heading_std=used[:, 1], gps_std_used=used[:, 0])
@@ -547,6 +548,11 @@ class PlanarEKF:
             chord = math.atan2(d[1], d[0]) + (math.pi if travelled < 0 else 0.0)
             s_head = self.heading_std(mode, turned, travelled)
             H, R = np.eye(4)[:3], np.diag([sg**2, sg**2, s_head**2])
-            innovation = np.array([fix[0] - state[0], fix[1] - state[1], quat.wrap_angle(chord - state[2])])
+            innovation = np.array([fix[0] - state[0], fix[1] - state[1], _wrap(chord - state[2])])
         state, P = _joseph(state, P, innovation, H, R)
         return state, P, (sg, s_head)
+
+
+def _wrap(angle):
+    """:func:`cfdesign.linear.wrap_scalar`, passing a non-finite angle through (a NaN reading stays NaN)."""
+    return wrap_scalar(angle) if math.isfinite(angle) else angle

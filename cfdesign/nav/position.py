@@ -14,7 +14,7 @@ in filter form ``x^+[k] = x[k] + K[k] (y[k] - H x[k])``, ``H = [1, 0, 0]``.  The
 filter runs open loop between fixes.  One gain table serves the three axes (seed 004:
 ``K_iP = I_3 k_iP``), run by :class:`cfdesign.runtime.Runtime`.
 
-Input (seed 004 Fig. 3, gravity removal; frames as :mod:`cfdesign.nav.quaternion`):
+Input (seed 004 Fig. 3, gravity removal; frames as :mod:`cfdesign.rotations`):
 the accelerometer reads the specific force in the body frame, ``f_b = R_nb^T (a_n - g_n)``,
 so the Earth-frame acceleration is
 
@@ -42,13 +42,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from . import quaternion as quat
+from .. import rotations as quat
+from ..errors import InputError
+from ..rotations import GRAVITY_ENU
 
-__all__ = ["GRAVITY_ENU", "PositionEstimate", "PositionFilter", "position_spec", "earth_acceleration"]
-
-#: gravity in ENU (m/s^2)
-GRAVITY_ENU = np.array([0.0, 0.0, -9.80665])
+__all__ = ["PositionEstimate", "PositionFilter", "position_spec", "earth_acceleration"]
 
 
 @dataclass(frozen=True)
@@ -176,13 +174,13 @@ class PositionFilter:
         N = len(acc)
         for name, a, cols in (("acc_body", acc, 3), ("quat_nb", q, 4), ("gps_enu", gps, 3)):
             if a.shape != (N, cols):
-                raise SpecError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
+                raise InputError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
         if N == 0 or not np.all(np.isfinite(acc)) or not np.all(np.isfinite(q)):
-            raise SpecError("acc_body and quat_nb must be non-empty and finite")
+            raise InputError("acc_body and quat_nb must be non-empty and finite")
         fixes = np.flatnonzero(np.isfinite(gps).any(axis=1))
         stray = fixes[~np.isin(fixes % len(self.table.K), self.fix_phases)]
         if stray.size:
-            raise SpecError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
+            raise InputError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
                             f"{self.fix_phases} of {len(self.table.K)}); resample the fixes onto the schedule")
         return acc, q, gps
 

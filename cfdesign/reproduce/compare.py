@@ -69,13 +69,14 @@ def _timed(fn):
 
 
 def _attitude_errors(q_est, q_true, euler_est=None, euler_true=None):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
+    from ..linear import wrap
 
     e = quat.multiply(quat.normalize(q_est), quat.conjugate(q_true))
     total = 2 * np.arccos(np.clip(np.abs(e[:, 0]), 0, 1))
     yaw_est = quat.to_euler(q_est)[:, 0] if euler_est is None else euler_est
     yaw_true = quat.to_euler(q_true)[:, 0] if euler_true is None else euler_true
-    heading = quat.wrap_angle(yaw_est - yaw_true)
+    heading = wrap(yaw_est - yaw_true)
     return _rms_deg(heading), _rms_deg(total)
 
 
@@ -117,7 +118,7 @@ def _ground_noise(s) -> dict:
 
 
 def _helicopter(seed: int, _duration_s: float):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
     from ..sim import helicopter as heli
 
     truth = heli.helicopter_manoeuvre()
@@ -235,7 +236,7 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
 
 
 def _truth_yaw(q):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
 
     return quat.to_euler(q)[:, 0]
 

@@ -78,18 +78,18 @@ def _filters(tuning: Tuning, errors: heli.SensorErrors, rate_hz: float):
 
 def _mae(truth: heli.HelicopterTrajectory, position, euler) -> np.ndarray:
     """``[position (m), yaw, pitch, roll (deg)]`` mean absolute errors over the run."""
-    from ..nav.quaternion import wrap_angle
+    from ..linear import wrap
 
     n = len(position)
     d = euler - truth.euler_rad[:n]
-    d[:, 0] = wrap_angle(d[:, 0])
+    d[:, 0] = wrap(d[:, 0])
     return np.concatenate([[np.mean(np.abs(position - truth.position_m[:n]))], np.degrees(np.abs(d).mean(axis=0))])
 
 
 def run_once(truth: heli.HelicopterTrajectory, seed: int, tuning: Tuning = NOMINAL,
              errors: heli.SensorErrors = heli.TABLE1, filters=None) -> np.ndarray:
     """One simulated run: ``[position (m), yaw, pitch, roll (deg)]`` mean absolute errors."""
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
 
     attitude, position = filters or _filters(tuning, errors, 1.0 / truth.dt_s)
     r = heli.simulate_readings(truth, seed, errors)

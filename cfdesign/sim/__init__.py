@@ -1,7 +1,7 @@
 """Simulation: trajectories, sensor models and the scenarios of the papers.
 
 * :mod:`~cfdesign.sim.trajectory` - sampled truth (heading profile, speed); smooth turns;
-  seed 001's rounded square.
+  the rounded square of Carreira et al.
 * :mod:`~cfdesign.sim.sensors` - rate and heading sensors: white noise, constant or
   random-walk bias, drift, heading-dependent magnetic perturbation, sample rate, dropouts.
   Seeded, reproducible, vectorised; noise given with the design's own objects
@@ -9,7 +9,8 @@
 * :mod:`~cfdesign.sim.signals` - a heading sensor as a rate (differenced), a gyro as a
   heading (dead reckoned), and the white noise a design assumes for each.
 * :mod:`~cfdesign.sim.metrics` - accumulated heading error, MSE, Student-t intervals.
-* :mod:`~cfdesign.sim.seed001` - seed 001 Sec. V-A and the reading of its noise figures.
+* the robot-heading scenario of Carreira et al. (three-band CF, Sec. V-A) and the reading of its
+  noise figures.
 
 SI units throughout (s, rad, rad/s, m, m/s).
 """
