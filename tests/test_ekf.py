@@ -8,8 +8,9 @@ import pytest
 from cfdesign import rotations as rot
 from cfdesign.errors import InputError
 from cfdesign.linear import wrap
-from cfdesign.nav.ekf import N_STATES, PlanarEKF, StrapdownEKF, norm_observation, planar_step, strapdown_step
 from cfdesign.nav.mps import mps_quaternion
+from cfdesign.nav.planar_ekf import PlanarEKF, planar_step
+from cfdesign.nav.strapdown_ekf import N_STATES, StrapdownEKF, norm_observation, strapdown_step
 from cfdesign.nav.triad import triad_matrix, triad_quaternion
 from cfdesign.sim.helicopter import (
     MAGNETIC_FIELD_ENU_G,

@@ -9,8 +9,8 @@ simulated data and measures, in the same process, its errors and its cost per st
   (multirate gains), every gain designed by cfdesign from the noise figures;
 * ``adaptive`` - seed 000's adaptive CF (:mod:`cfdesign.nav.adaptive`; needs a forward speed:
   odometry on the ground, the velocity sensor's speed on the helicopter, with 10 satellites);
-* ``ekf003`` - seed 003's 22-state strapdown EKF (:class:`~cfdesign.nav.ekf.StrapdownEKF`);
-* ``ekf002`` - seed 002's planar EKF [x, y, θ, α] (:class:`~cfdesign.nav.ekf.PlanarEKF`;
+* ``ekf003`` - seed 003's 22-state strapdown EKF (:class:`~cfdesign.nav.strapdown_ekf.StrapdownEKF`);
+* ``ekf002`` - seed 002's planar EKF [x, y, θ, α] (:class:`~cfdesign.nav.planar_ekf.PlanarEKF`;
   needs odometry, ground vehicles only).
 
 Scenarios: ``ground`` - a robot on uneven terrain with a 60-s GPS outage
@@ -173,7 +173,7 @@ def _run_adaptive(d):
 
 
 def _run_ekf003(d, ground: bool):
-    from ..nav.ekf import StrapdownEKF
+    from ..nav.strapdown_ekf import StrapdownEKF
 
     e = d["errors"]
     f = StrapdownEKF(d["rate"], gyro_noise_std=e["gyro_std"], accel_noise_std=e["accel_std"], gyro_bias_density=1e-4,
@@ -190,7 +190,7 @@ def _run_ekf003(d, ground: bool):
 
 
 def _run_ekf002(d):
-    from ..nav.ekf import PlanarEKF
+    from ..nav.planar_ekf import PlanarEKF
 
     s = d["scenario"]
     dt = 1.0 / d["rate"]
