@@ -1,4 +1,4 @@
-"""cfdesign.nav.adaptive: seed 000's adaptive complementary filter on the ground-robot scenario."""
+"""cfdesign.nav.adaptive: the adaptive complementary filter of Alves Neto et al. on the ground-robot scenario."""
 
 import math
 
@@ -43,7 +43,7 @@ def test_attitude_error_bounded(run):
 
 
 def test_paper_rate_10_hz(run):
-    """Seed 000 samples at 10 Hz: every 5th row (gyro averaged over the 0.1-s interval), same bounds."""
+    """The paper samples at 10 Hz: every 5th row (gyro averaged over the 0.1-s interval), same bounds."""
     s, _ = run
     gyr = s.gyro_rad_s.reshape(-1, 5, 3).mean(axis=1)
     rows = slice(4, None, 5)

@@ -1,4 +1,5 @@
-"""Seed 003's strapdown EKF, seed 002's planar EKF and the TRIAD attitude (cfdesign.nav.ekf, .triad)."""
+"""The strapdown EKF of the low-cost 3D localization paper, the planar EKF of the outdoor localization paper and
+the TRIAD attitude (cfdesign.nav.strapdown_ekf, .planar_ekf, .triad)."""
 
 import math
 
@@ -46,7 +47,7 @@ def test_triad_exact_on_noise_free_vectors():
     b1, b2 = (np.einsum("kji,kj->ki", R, r) for r in (r1, r2))   # R^T r
     np.testing.assert_allclose(triad_matrix(b1, b2, r1, r2), R, atol=1e-12)
     np.testing.assert_allclose(triad_quaternion(b1, b2, r1, r2), q, atol=1e-12)
-    # seed 003 eq. (7): [r1 | r2 | r1 x r2] = C [b1 | b2 | b1 x b2]
+    # eq. (7) of the low-cost 3D localization paper: [r1 | r2 | r1 x r2] = C [b1 | b2 | b1 x b2]
     C = triad_matrix(b1[0], b2[0], r1[0], r2[0])
     lhs = np.column_stack([r1[0], r2[0], np.cross(r1[0], r2[0])])
     np.testing.assert_allclose(C @ np.column_stack([b1[0], b2[0], np.cross(b1[0], b2[0])]), lhs, atol=1e-12)

@@ -4,9 +4,9 @@ Pipeline of one run (seed 004 Fig. 3), all filters designed by the toolkit:
 
 1. truth and readings: :mod:`cfdesign.sim.helicopter` (straight path, then an ascending
    helix; IMU 50 Hz, GPS 1 Hz, Table 1's sensor errors);
-2. attitude: :class:`cfdesign.nav.attitude.EulerAttitudeFilter` (Euler channels, gyro bias
+2. attitude: :class:`cfdesign.nav.EulerAttitudeFilter` (Euler channels, gyro bias
    in body rates, Magneto-Pendular Sensor with centripetal compensation ``a - w x v_B``);
-3. position: :class:`cfdesign.nav.position.PositionFilter` fed by the accelerometer rotated
+3. position: :class:`cfdesign.nav.PositionFilter` fed by the accelerometer rotated
    with the attitude estimate, gravity removed, and the GPS fixes (periodic gains).
 
 Assumptions where the paper is silent
@@ -65,8 +65,7 @@ SMALL_BIAS_GAINS = Tuning(accel_bias_density=1e-4, gyro_bias_density=1e-6, calib
 
 
 def _filters(tuning: Tuning, errors: heli.SensorErrors, rate_hz: float):
-    from ..nav.attitude import EulerAttitudeFilter
-    from ..nav.position import PositionFilter
+    from ..nav import EulerAttitudeFilter, PositionFilter
 
     attitude = EulerAttitudeFilter(rate_hz, gyro_noise_std=errors.gyro_noise_std_rad_s,
                                    gyro_bias_density=tuning.gyro_bias_density, tilt_noise_std=tuning.mps_noise_std,
@@ -125,7 +124,7 @@ class Reproduction:
                           "paper": c.paper, "ratio": c.ratio, "runs": list(c.values)} for c in self.comparisons(row)]
         m = self.manoeuvre
         return {"paper": "seed004", "runs": len(self.seeds), "seeds": list(self.seeds), "accel_bias": self.accel_bias,
-                "attitude_filter": "cfdesign.nav.attitude.EulerAttitudeFilter",
+                "attitude_filter": "cfdesign.nav.EulerAttitudeFilter",
                 "manoeuvre": {"straight_s": m.straight_s, "helix_s": m.helix_s, "speed_m_s": m.speed_m_s,
                               "turn_rate_rad_s": m.turn_rate_rad_s, "climb_m_s": m.climb_m_s, "rate_hz": m.rate_hz},
                 "rows": rows, "not_worse_than_paper": self.not_worse()}
