@@ -1,4 +1,4 @@
-"""Layers only look down: sim/ imports nothing from nav/ or runtime/; runtime/ and nav/ do not import sympy.
+"""Layers only look down: sim/ imports nothing from nav/ or runtime/; runtime/ and nav/ never import sympy.
 
 Each check runs in a fresh interpreter, so that what the test process has already imported
 cannot hide an import.
@@ -43,5 +43,31 @@ def test_sim_imports_nothing_from_nav_or_runtime():
 @pytest.mark.parametrize("package", ["cfdesign.runtime", "cfdesign.nav"])
 def test_runtime_and_nav_never_import_sympy(package):
     modules = _modules_after(_import_all(package))
-    assert f"{package}.filter" in modules or f"{package}.position" in modules
+    assert f"{package}.filter" in modules or f"{package}.quaternion_attitude" in modules
+    assert _under(modules, "sympy", "cfdesign.symbolic") == []
+
+
+def test_nav_filters_run_without_sympy():
+    """The filters design their default gains without the symbolic engine, at construction or first call."""
+    modules = _modules_after("""
+        import time
+        import numpy as np
+        from cfdesign.nav import estimate_attitude
+        rng = np.random.default_rng(0)
+        n = 1000
+        gyr = rng.normal(0.0, 0.01, (n, 3))
+        acc = np.tile([0.0, 0.0, 9.81], (n, 1)) + rng.normal(0.0, 0.05, (n, 3))
+        mag = np.tile([0.0, 20.0, -40.0], (n, 1))
+        start = time.perf_counter()
+        estimate_attitude(gyr, acc, mag, 100.0)
+        print(f"estimate_attitude: first call on 1,000 samples {time.perf_counter() - start:.3f} s")
+        import sys
+        assert "sympy" not in sys.modules
+        from cfdesign.nav import EulerAttitudeFilter, PositionFilter
+        EulerAttitudeFilter(100.0, gyro_noise_std=0.005, gyro_bias_density=1e-4, tilt_noise_std=0.01,
+                            heading_noise_std=0.02).run(gyr, acc, mag)
+        pf = PositionFilter(50.0, 1.0, accel_noise_std=0.006, accel_bias_density=1e-3, gps_noise_std=3.0)
+        pf.run(acc, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.full((n, 3), np.nan))
+        """)
+    assert "cfdesign.nav.position" in modules and "cfdesign.designer" in modules
     assert _under(modules, "sympy", "cfdesign.symbolic") == []

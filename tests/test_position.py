@@ -1,4 +1,4 @@
-"""Seed 004 position filter (cfdesign.nav.position) on simulated 3-D flights with the true attitude."""
+"""The position filter of Vasconcelos et al. (cfdesign.nav.position) on simulated 3-D flights with the true attitude."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from cfdesign import rotations as rot
-from cfdesign.errors import InputError
-from cfdesign.nav.position import PositionFilter, earth_acceleration
+from cfdesign.errors import InputError, TableMismatchError
+from cfdesign.nav.position import PositionFilter, design_position, earth_acceleration, position_spec
 from cfdesign.sim import helicopter as heli
 
 RATE = 50
@@ -84,3 +84,42 @@ def test_stray_fix_and_shapes_rejected(pf):
         pf.run(acc, q, gps)
     with pytest.raises(InputError, match="quat_nb"):
         pf.run(acc, q[:, :3], gps)
+
+
+def test_default_gains_are_the_designers(pf):
+    """The stored-structure design (no sympy) gives the periodic gains of cfdesign.design bit for bit."""
+    from cfdesign.designer import design
+
+    spec = position_spec(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                         gps_noise_std=ERRORS.gps_noise_std_m)
+    assert all(np.array_equal(a, b) for a, b in zip(pf.table.K, design(spec).K, strict=True))
+
+
+def test_a_users_table_drives_the_filter(pf, flight):
+    truth, readings = flight
+    table = design_position(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                            gps_noise_std=ERRORS.gps_noise_std_m)
+    given = PositionFilter(table=table)                     # rates from the table
+    assert given.fix_phases == pf.fix_phases
+    n = 20 * RATE
+    args = (readings.accel_m_s2[:n], truth.quaternion[:n], readings.gps_enu_m[:n])
+    assert np.array_equal(given.run(*args).position, pf.run(*args).position)
+    spec = position_spec(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                         gps_noise_std=ERRORS.gps_noise_std_m)
+    assert np.array_equal(PositionFilter(RATE, 1, table=spec).run(*args).position, pf.run(*args).position)
+
+
+def test_tables_that_do_not_fit_are_rejected():
+    table = design_position(RATE, 1, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)
+    with pytest.raises(TableMismatchError, match="period of 50 step"):
+        PositionFilter(RATE, 5, table=table)
+    with pytest.raises(TableMismatchError, match=r"sample time 0\.02 s"):
+        PositionFilter(100, 2, table=table)
+    from cfdesign.nav import design_channel
+
+    with pytest.raises(TableMismatchError, match="2 states"):
+        PositionFilter(table=design_channel(RATE, 0.01, 1e-4, 0.01))
+    with pytest.raises(InputError, match="not both"):
+        PositionFilter(table=table, gps_noise_std=1.0)
+    with pytest.raises(InputError, match="accel_bias_density is missing"):
+        PositionFilter(RATE, 1, accel_noise_std=0.01, gps_noise_std=1.0)
