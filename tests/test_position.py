@@ -123,3 +123,5 @@ def test_tables_that_do_not_fit_are_rejected():
         PositionFilter(table=table, gps_noise_std=1.0)
     with pytest.raises(InputError, match="accel_bias_density is missing"):
         PositionFilter(RATE, 1, accel_noise_std=0.01, gps_noise_std=1.0)
+    with pytest.raises(InputError, match="3 Hz must divide imu_rate_hz 50 Hz"):
+        PositionFilter(RATE, 3, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)

@@ -170,8 +170,8 @@ class PositionFilter:
             missing = [name for name, value in figures.items() if value is None]
             if missing:
                 raise InputError(f"{missing[0]} is missing: give the noise figures or table=")
-            imu = 50.0 if imu_rate_hz is None else imu_rate_hz
-            gps = 1.0 if gps_rate_hz is None else gps_rate_hz
+            imu, gps, period = _rates(50.0 if imu_rate_hz is None else imu_rate_hz,
+                                      1.0 if gps_rate_hz is None else gps_rate_hz)
             table = design_position(imu, gps, **figures)
         elif given:
             raise InputError(f"give either table or the noise figures ({', '.join(given)}), not both")
@@ -180,16 +180,12 @@ class PositionFilter:
             if table.domain != "z" or len(table.measurements) != 1:
                 raise TableMismatchError(f"table: {table.name!r} is not a discrete table with one measurement; "
                                          f"this filter runs {_MODEL}")
-            imu = 1.0 / table.sample_time_s if imu_rate_hz is None else imu_rate_hz
-            gps = table.measurements[0].rate_hz if gps_rate_hz is None else gps_rate_hz
-        imu, gps = _rate("imu_rate_hz", imu), _rate("gps_rate_hz", gps)
-        ratio = imu / gps
-        if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
-            raise InputError(f"gps_rate_hz: {gps:g} Hz must divide imu_rate_hz {imu:g} Hz")
+            imu, gps, period = _rates(1.0 / table.sample_time_s if imu_rate_hz is None else imu_rate_hz,
+                                      table.measurements[0].rate_hz if gps_rate_hz is None else gps_rate_hz)
         T = 1.0 / imu
         check_fits(table, "table", F=[[1.0, T, -T * T / 2], [0.0, 1.0, -T], [0.0, 0.0, 1.0]],
                    B=[[T * T / 2], [T], [0.0]], H=[[1.0, 0.0, 0.0]], orders=(2, 0), sample_time_s=T,
-                   period=round(ratio), model=_MODEL, timing=f"imu_rate_hz {imu:g} Hz, gps_rate_hz {gps:g} Hz")
+                   period=period, model=_MODEL, timing=f"imu_rate_hz {imu:g} Hz, gps_rate_hz {gps:g} Hz")
         self.table = table
         self._input, self._fix = table.inputs[0].name, table.measurements[0].name
 
@@ -275,11 +271,19 @@ _MODEL = ("the position chain: states [p, v, accelerometer bias], an acceleratio
           "measurement")
 
 
-def _rate(name, value) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise InputError(f"{name} must be a positive finite number, got {value!r}")
-    return value
+def _rates(imu_rate_hz, gps_rate_hz) -> tuple:
+    """``(imu, gps, period)``: positive finite rates whose ratio (the period in IMU steps) is an integer."""
+    rates = []
+    for name, value in (("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise InputError(f"{name} must be a number, got {value!r}") from None
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a positive finite number, got {value!r}")
+        rates.append(value)
+    imu, gps = rates
+    ratio = imu / gps
+    if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
+        raise InputError(f"gps_rate_hz: {gps:g} Hz must divide imu_rate_hz {imu:g} Hz")
+    return imu, gps, round(ratio)
