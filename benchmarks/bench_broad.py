@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from cfdesign import rotations as rot
 from cfdesign.nav import estimate_attitude
-from cfdesign.nav import quaternion as quat
 from cfdesign.nav.broad import broad_rmse, load_trial
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
@@ -58,9 +58,9 @@ def run_cfdesign(d):
 
 def run_madgwick(d):
     from ahrs.filters import Madgwick
-    q0 = quat.multiply(quat.conjugate(ENU_FROM_NWU), initial_quaternion(d))
+    q0 = rot.multiply(rot.conjugate(ENU_FROM_NWU), initial_quaternion(d))
     q = Madgwick(gyr=d["gyr"], acc=d["acc"], mag=d["mag"], frequency=d["rate"], gain=0.12, q0=q0).Q
-    return quat.multiply(ENU_FROM_NWU, q)
+    return rot.multiply(ENU_FROM_NWU, q)
 
 
 def run_mahony(d):

@@ -20,6 +20,9 @@ __all__ = [
     "NoStabilisingSolutionError",
     "AccuracyError",
     "GainTableError",
+    "TableMismatchError",
+    "InputError",
+    "AttitudeInputError",
     "DataError",
     "OutputError",
     "InternalError",
@@ -43,6 +46,11 @@ class StructureError(CfdesignError, ValueError):
 
 class GainError(CfdesignError, ValueError):
     """Gains or parameters given for a filter are missing, unknown or not numbers."""
+
+
+class TableMismatchError(GainError):
+    """A gain table (or design spec) given to a filter does not fit it: its structure, gain form,
+    sample time or sensor rates differ from what the filter runs; the message names the mismatch."""
 
 
 class ProofError(CfdesignError):
@@ -73,9 +81,19 @@ class GainTableError(CfdesignError):
     """A gain table file cannot be read, is malformed, or fails its schema."""
 
 
-class DataError(CfdesignError, ValueError):
-    """Sensor data cannot be used: a log file (missing column, text in a number column, bad
-    times) or arrays given to a filter (shapes, lengths); the message names the row or column."""
+class InputError(CfdesignError, ValueError):
+    """Data or arguments given to a filter or a simulation are invalid: an array of the wrong
+    shape or with unusable values, a rate or duration that does not fit; the message names the
+    argument.  (Design files and specifications raise :class:`SpecError`.)"""
+
+
+class AttitudeInputError(InputError):
+    """Bad input to an attitude filter (array shapes, sample rate, noise figures); names the argument."""
+
+
+class DataError(InputError):
+    """A sensor log cannot be used (a missing column, text in a number column, bad times);
+    the message names the file, the row or the column."""
 
 
 class OutputError(CfdesignError):

@@ -1,21 +1,26 @@
-"""Attitude filters of seed 004 (cfdesign.nav): Q(λ), MPS, Euler and quaternion forms, BROAD."""
+"""Attitude filters of Vasconcelos et al. (cfdesign.nav): Q(λ), MPS, Euler and quaternion forms, gain tables, BROAD."""
 
-import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cfdesign.errors import CfdesignError
+from cfdesign import rotations as rot
+from cfdesign.errors import AttitudeInputError, CfdesignError, TableMismatchError
+from cfdesign.linear import wrap
 from cfdesign.nav import (
     EulerAttitudeFilter,
+    design_channel,
     estimate_attitude,
     euler_rate_matrix,
     euler_rate_matrix_inverse,
     mps_euler,
     mps_quaternion,
 )
-from cfdesign.nav import quaternion as quat
+from cfdesign.nav.attitude_channel import channel_spec, gain_schedule
+from cfdesign.nav.quaternion_attitude import DEFAULT_NOISE
+from cfdesign.nav.stored_design import design_stored
 
 G = 9.81
 FIELD_ENU = np.array([0.0, 20.0, -40.0])       # µT, north and down, declination 0
@@ -24,14 +29,14 @@ BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
 
 def angle_between(q1, q2):
     """Rotation angle (rad) between attitude quaternions, row-wise."""
-    e = quat.multiply(q1, quat.conjugate(q2))
+    e = rot.multiply(q1, rot.conjugate(q2))
     return 2 * np.arccos(np.clip(np.abs(e[..., 0]), 0, 1))
 
 
 def body_rates(q, dt):
     """Body rate from a quaternion trajectory: ω = 2 vec(conj(q) ⊗ q') (central differences)."""
     dq = np.gradient(q, dt, axis=0)
-    return 2 * quat.multiply(quat.conjugate(q), dq)[:, 1:]
+    return 2 * rot.multiply(rot.conjugate(q), dq)[:, 1:]
 
 
 def trajectory(n, rate_hz, amplitude=(2.0, 0.4, 0.5)):
@@ -44,7 +49,7 @@ def trajectory(n, rate_hz, amplitude=(2.0, 0.4, 0.5)):
 
 def sensors(q, field=FIELD_ENU):
     """Noise-free accelerometer (specific force, static) and magnetometer readings in the body frame."""
-    R = quat.to_matrix(q)
+    R = rot.to_matrix(q)
     acc = np.einsum("nji,j->ni", R, [0.0, 0.0, G])
     mag = np.einsum("nji,j->ni", R, field)
     return acc, mag
@@ -53,7 +58,7 @@ def sensors(q, field=FIELD_ENU):
 def test_rate_matrix_matches_finite_differences():
     rate = 1000.0
     _t, euler = trajectory(4000, rate)
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     omega = body_rates(q, 1 / rate)
     lam_dot = np.gradient(euler, 1 / rate, axis=0)
     predicted = np.einsum("nij,nj->ni", euler_rate_matrix(euler), omega)
@@ -66,17 +71,17 @@ def test_rate_matrix_matches_finite_differences():
 def test_mps_recovers_static_attitudes(declination):
     rng = np.random.default_rng(1)
     euler = np.column_stack([rng.uniform(-3.1, 3.1, 200), rng.uniform(-1.4, 1.4, 200), rng.uniform(-3.1, 3.1, 200)])
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     field = np.array([np.sin(declination), np.cos(declination), -1.5]) * 30
     acc, mag = sensors(q, field)
     got = mps_euler(acc, mag, declination_rad=declination)
-    assert np.abs(quat.wrap_angle(got - euler)).max() < 1e-9
+    assert np.abs(wrap(got - euler)).max() < 1e-9
     assert angle_between(mps_quaternion(acc, mag, declination_rad=declination), q).max() < 1e-7
 
 
 def test_mps_centripetal_compensation():
     euler = np.array([[0.5, 0.1, -0.2]])
-    acc, mag = sensors(quat.from_euler(euler))
+    acc, mag = sensors(rot.from_euler(euler))
     omega, v = np.array([[0.1, -0.2, 0.5]]), np.array([[12.0, 0.5, 0.0]])
     measured = acc + np.cross(omega, v)                     # coordinated motion: f = g_b + ω × v
     assert np.abs(mps_euler(measured, mag) - euler).max() > 0.05
@@ -86,7 +91,7 @@ def test_mps_centripetal_compensation():
 
 def noisy_run(n=12000, rate=100.0, bias=(0.02, -0.015, 0.01), seed=2):
     _t, euler = trajectory(n, rate)
-    q = quat.from_euler(euler)
+    q = rot.from_euler(euler)
     rng = np.random.default_rng(seed)
     acc, mag = sensors(q)
     gyr = body_rates(q, 1 / rate) + np.array(bias) + rng.normal(0, 0.005, (n, 3))
@@ -102,7 +107,7 @@ def test_euler_filter_converges_with_bias():
     out = f.run(gyr, acc, mag)
     assert set(out.gains) == {"tilt", "heading"} and out.gains["tilt"].gains["k1"] > 0
     late = slice(len(q) // 2, None)
-    err = np.abs(quat.wrap_angle(out.euler - euler))[late]
+    err = np.abs(wrap(out.euler - euler))[late]
     assert err.max() < np.radians(1.0)                      # stated bound: 1° after 60 s
     assert np.abs(out.bias[late] - bias).max() < 0.005      # bias within 0.005 rad/s
     assert angle_between(out.quaternion, q)[late].max() < np.radians(1.5)
@@ -121,7 +126,7 @@ def test_quaternion_form_passes_pitch_90():
     rate, n = 100.0, 3000
     t = np.arange(n) / rate
     euler = np.column_stack([0.3 + 0 * t, 1.8 * np.sin(0.5 * t), 0.2 * np.sin(0.7 * t)])   # pitch ±103°
-    q = quat.normalize(quat.from_euler(euler))
+    q = rot.normalize(rot.from_euler(euler))
     acc, mag = sensors(q)
     gyr = body_rates(q, 1 / rate)
     est = estimate_attitude(gyr, acc, mag, rate)
@@ -172,12 +177,102 @@ def test_broad_trial_01():
     from scipy.io import loadmat
     d = loadmat(path)
     rate = float(d["sampling_rate"].item())
-    estimate_attitude(d["imu_gyr"][:10], d["imu_acc"][:10], d["imu_mag"][:10], rate)   # design cached
-    start = time.perf_counter()
-    est = estimate_attitude(d["imu_gyr"], d["imu_acc"], d["imu_mag"], rate)
-    elapsed = time.perf_counter() - start
+    est = estimate_attitude(d["imu_gyr"], d["imu_acc"], d["imu_mag"], rate)   # speed: benchmarks/bench_broad.py
     ref = d["opt_quat"]
     keep = d["movement"].ravel().astype(bool) & np.isfinite(ref).all(axis=1)
     total = np.degrees(np.sqrt(np.mean(angle_between(est[keep], ref[keep]) ** 2)))
     assert total < 4.0                      # measured 2.9° with the defaults (Madgwick beta 0.12: 3.3°)
-    assert elapsed < 1.0                    # measured ~0.05 s for 56,940 samples
+
+
+# ---------------------------------------------------------------------- gain tables
+EULER_NOISE = {"gyro_noise_std": 0.005, "gyro_bias_density": 1e-4, "tilt_noise_std": 0.01, "heading_noise_std": 0.02}
+
+
+def euler_tables(rate=100.0, noise=EULER_NOISE, form="filter"):
+    """(tilt, heading) tables of the Euler filter's channels, designed as the filter designs them."""
+    specs = [channel_spec(rate, noise["gyro_noise_std"], noise["gyro_bias_density"], noise[key])
+             for key in ("tilt_noise_std", "heading_noise_std")]
+    if form == "filter":
+        return tuple(design_channel(rate, noise["gyro_noise_std"], noise["gyro_bias_density"], noise[key])
+                     for key in ("tilt_noise_std", "heading_noise_std"))
+    return tuple(design_stored(replace(spec, gain_form=form), "cf2-order2-discrete") for spec in specs)
+
+
+def test_default_channel_gains_are_the_designers():
+    """The stored-structure design (no sympy) gives the gains of cfdesign.design bit for bit."""
+    from cfdesign.designer import design
+
+    spec = channel_spec(100.0, 0.005, 1e-4, 0.01)
+    table = design_channel(100.0, 0.005, 1e-4, 0.01)
+    assert np.array_equal(table.K[0], design(spec).K[0]) and table.gain_form == "filter"
+
+
+def test_euler_filter_runs_a_users_tables():
+    _q, _, gyr, acc, mag, _ = noisy_run(n=2000)
+    default = EulerAttitudeFilter(100.0, **EULER_NOISE).run(gyr, acc, mag)
+    given = EulerAttitudeFilter(100.0, tables=euler_tables()).run(gyr, acc, mag)
+    assert np.array_equal(default.euler, given.euler) and np.array_equal(default.bias, given.bias)
+    specs = [channel_spec(100.0, 0.005, 1e-4, std) for std in (0.01, 0.02)]
+    from_specs = EulerAttitudeFilter(100.0, tables=specs).run(gyr, acc, mag)
+    assert np.array_equal(default.euler, from_specs.euler)
+    predictor = EulerAttitudeFilter(100.0, tables=euler_tables(form="predictor"))  # the update gain F^-1 K
+    assert np.allclose(predictor.k1, EulerAttitudeFilter(100.0, **EULER_NOISE).k1, rtol=1e-12)
+
+
+def test_estimate_attitude_runs_a_users_tables():
+    _q, _, gyr, acc, mag, _ = noisy_run(n=2000)
+    f_c = 1.0  # the default correction rate
+    tables = tuple(design_channel(f_c, DEFAULT_NOISE["gyro_noise_density"], DEFAULT_NOISE["gyro_bias_density"],
+                                  DEFAULT_NOISE[key]) for key in ("tilt_noise_density", "heading_noise_density"))
+    assert np.array_equal(estimate_attitude(gyr, acc, mag, 100.0, tables=tables),
+                          estimate_attitude(gyr, acc, mag, 100.0))
+    stiffer = tuple(design_channel(f_c, 2e-4, 1e-5, std) for std in (0.0005, 0.01))
+    assert not np.array_equal(estimate_attitude(gyr, acc, mag, 100.0, tables=stiffer),
+                              estimate_attitude(gyr, acc, mag, 100.0))
+
+
+def test_fixed_gain_tables_skip_the_start_up_schedule():
+    """A table with hand-set gains is run with them from the first correction (no Kalman start-up)."""
+    spec = replace(channel_spec(1.0, 2e-4, 1e-5, 0.002), gains={"k1": 0.3, "k2": 0.02})
+    fixed = design_stored(spec, "cf2-order2-discrete")
+    assert gain_schedule(fixed, (0.3, 0.02), 0.0175, 100) == ([0.3], [0.02])
+    optimal = design_channel(1.0, 2e-4, 1e-5, 0.002)
+    k1, _ = gain_schedule(optimal, (optimal.gains["k1"], optimal.gains["k2"]), 0.0175, 100)
+    assert len(k1) > 2 and k1[0] > k1[-1]
+    _q, _, gyr, acc, mag, _ = noisy_run(n=1000)
+    assert np.isfinite(estimate_attitude(gyr, acc, mag, 100.0, tables=(fixed, fixed))).all()
+
+
+@pytest.mark.parametrize("tables, match", [
+    (lambda: euler_tables(rate=50.0), r"tables\[0\] \(tilt\).*sample time 0.02 s.*every 0.01 s"),
+    (lambda: (euler_tables()[0], "gains.json"), r"tables\[1\] \(heading\): a GainTable or a FilterSpec"),
+    (lambda: euler_tables()[:1], "a pair"),
+])
+def test_euler_filter_rejects_tables_that_do_not_fit(tables, match):
+    with pytest.raises(TableMismatchError, match=match):
+        EulerAttitudeFilter(100.0, tables=tables())
+
+
+def test_tables_of_another_structure_are_rejected():
+    from cfdesign.nav.position import position_spec
+
+    spec = position_spec(100.0, 1.0, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)
+    position = design_stored(spec, "position")
+    with pytest.raises(TableMismatchError, match="3 states"):
+        EulerAttitudeFilter(100.0, tables=(position, position))
+    with pytest.raises(TableMismatchError, match="this filter runs cf2 order 2"):
+        EulerAttitudeFilter(100.0, tables=(spec, spec))
+    _q, _, gyr, acc, mag, _ = noisy_run(n=500)
+    with pytest.raises(TableMismatchError, match="correction interval"):
+        estimate_attitude(gyr, acc, mag, 100.0, tables=euler_tables())      # tables at 100 Hz, corrections at 1 Hz
+    assert np.isfinite(estimate_attitude(gyr, acc, mag, 100.0, tables=euler_tables(), correction_rate_hz=100.0)).all()
+
+
+def test_tables_or_noise_figures_not_both():
+    with pytest.raises(AttitudeInputError, match="not both"):
+        EulerAttitudeFilter(100.0, gyro_noise_std=0.005, tables=euler_tables())
+    with pytest.raises(AttitudeInputError, match="heading_noise_std is missing"):
+        EulerAttitudeFilter(100.0, gyro_noise_std=0.005, gyro_bias_density=1e-4, tilt_noise_std=0.01)
+    with pytest.raises(AttitudeInputError, match="not both"):
+        estimate_attitude(np.zeros((5, 3)), np.zeros((5, 3)), None, 100.0, tilt_noise_density=0.01,
+                          tables=euler_tables())

@@ -1,14 +1,17 @@
-"""Seed 003's strapdown EKF, seed 002's planar EKF and the TRIAD attitude (cfdesign.nav.ekf, .triad)."""
+"""The strapdown EKF of the low-cost 3D localization paper, the planar EKF of the outdoor localization paper and
+the TRIAD attitude (cfdesign.nav.strapdown_ekf, .planar_ekf, .triad)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from cfdesign.errors import SpecError
-from cfdesign.nav import quaternion as quat
-from cfdesign.nav.ekf import N_STATES, PlanarEKF, StrapdownEKF, norm_observation, planar_step, strapdown_step
+from cfdesign import rotations as rot
+from cfdesign.errors import InputError
+from cfdesign.linear import wrap
 from cfdesign.nav.mps import mps_quaternion
+from cfdesign.nav.planar_ekf import PlanarEKF, planar_step
+from cfdesign.nav.strapdown_ekf import N_STATES, StrapdownEKF, norm_observation, strapdown_step
 from cfdesign.nav.triad import triad_matrix, triad_quaternion
 from cfdesign.sim.helicopter import (
     MAGNETIC_FIELD_ENU_G,
@@ -21,7 +24,7 @@ from cfdesign.sim.helicopter import (
 
 def _attitude_error_deg(q_true, q_est):
     """Angle (deg) of the rotation between two attitude series."""
-    dq = quat.multiply(quat.conjugate(q_true), q_est)
+    dq = rot.multiply(rot.conjugate(q_true), q_est)
     return np.degrees(2 * np.arcsin(np.clip(np.linalg.norm(dq[..., 1:], axis=-1), 0.0, 1.0)))
 
 
@@ -38,13 +41,13 @@ def _fd_jacobian(fun, x, h=1e-6):
 # ---------------------------------------------------------------------------- TRIAD
 def test_triad_exact_on_noise_free_vectors():
     rng = np.random.default_rng(3)
-    q = quat.normalize(rng.normal(size=(50, 4)))
-    R = quat.to_matrix(q)                                   # body -> reference
+    q = rot.normalize(rng.normal(size=(50, 4)))
+    R = rot.to_matrix(q)                                   # body -> reference
     r1, r2 = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
     b1, b2 = (np.einsum("kji,kj->ki", R, r) for r in (r1, r2))   # R^T r
     np.testing.assert_allclose(triad_matrix(b1, b2, r1, r2), R, atol=1e-12)
     np.testing.assert_allclose(triad_quaternion(b1, b2, r1, r2), q, atol=1e-12)
-    # seed 003 eq. (7): [r1 | r2 | r1 x r2] = C [b1 | b2 | b1 x b2]
+    # eq. (7) of the low-cost 3D localization paper: [r1 | r2 | r1 x r2] = C [b1 | b2 | b1 x b2]
     C = triad_matrix(b1[0], b2[0], r1[0], r2[0])
     lhs = np.column_stack([r1[0], r2[0], np.cross(r1[0], r2[0])])
     np.testing.assert_allclose(C @ np.column_stack([b1[0], b2[0], np.cross(b1[0], b2[0])]), lhs, atol=1e-12)
@@ -60,8 +63,8 @@ def test_triad_primary_exact_secondary_projected_and_degenerate():
 
 def test_triad_matches_mps_quaternion():
     rng = np.random.default_rng(4)
-    q = quat.normalize(rng.normal(size=(20, 4)))
-    R = quat.to_matrix(q)
+    q = rot.normalize(rng.normal(size=(20, 4)))
+    R = rot.to_matrix(q)
     field = np.array([0.0, 0.27, -0.35])                    # north and down, as a real field
     acc = np.einsum("kji,j->ki", R, [0.0, 0.0, 9.8])
     mag = np.einsum("kji,j->ki", R, field)
@@ -72,7 +75,7 @@ def test_triad_matches_mps_quaternion():
 # ---------------------------------------------------------------------------- Jacobians
 def _random_state(rng):
     x = np.zeros(N_STATES)
-    x[0:4] = 1.02 * quat.normalize(rng.normal(size=4))      # slightly non-unit, as in the filter
+    x[0:4] = 1.02 * rot.normalize(rng.normal(size=4))      # slightly non-unit, as in the filter
     x[4:10] = rng.normal(size=6) * 3
     x[10:13] = 0.01 * rng.normal(size=3)
     x[13:16] = 1 + 0.05 * rng.normal(size=3)
@@ -158,11 +161,11 @@ def test_strapdown_ekf_long_run_covariance_spd_with_outage():
 
 
 def test_strapdown_ekf_rejects_bad_rates_and_shapes():
-    with pytest.raises(SpecError):
+    with pytest.raises(InputError):
         StrapdownEKF(50.0, gyro_noise_std=1e-3, accel_noise_std=1e-2, gyro_bias_density=1e-5,
                      accel_bias_density=1e-4, scale_density=1e-6, gps_pos_std=3.0, gps_vel_std=0.1,
                      triad_std=0.03, mag_rate_hz=7.0)
-    with pytest.raises(SpecError):
+    with pytest.raises(InputError):
         _strapdown(50.0).run(np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((9, 3)), np.zeros((9, 3)), None)
 
 
@@ -201,7 +204,7 @@ def test_planar_ekf_estimates_odometer_scale_and_tracks():
     assert np.abs(est.alpha[1000:] - 1.05).max() < 0.02
     err = np.hypot(est.x - x, est.y - y)
     assert err[1500:].mean() < 0.5 and err[1500:].max() < 1.5
-    assert np.degrees(np.abs(quat.wrap_angle(est.theta - theta)))[1500:].max() < 2.0
+    assert np.degrees(np.abs(wrap(est.theta - theta)))[1500:].max() < 2.0
     assert all(np.linalg.eigvalsh(P)[0] > 0 and np.abs(P - P.T).max() == 0 for P in est.covariance)
 
 
@@ -209,7 +212,7 @@ def test_planar_ekf_heading_wraps_near_pi():
     inputs, (_, _, theta) = _planar_path(n=1500, theta0=math.pi - 0.05)   # heading crosses +-pi
     est = _planar().run(**inputs, initial_state=[0.0, 0.0, -math.pi + 0.02, 1.0])
     assert np.abs(est.theta).max() <= math.pi
-    assert np.degrees(np.abs(quat.wrap_angle(est.theta - theta)))[500:].max() < 3.0
+    assert np.degrees(np.abs(wrap(est.theta - theta)))[500:].max() < 3.0
 
 
 def test_planar_ekf_gps_mode_switches_variance():

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from cfdesign.errors import SpecError
-from cfdesign.nav import quaternion as quat
-from cfdesign.nav.position import GRAVITY_ENU
+from cfdesign import rotations as rot
+from cfdesign.errors import InputError
+from cfdesign.rotations import GRAVITY_ENU
 from cfdesign.sim.ground import ground_robot_scenario
 
 
@@ -40,8 +40,8 @@ def test_velocity_is_the_position_derivative(scenario):
 
 def test_body_rate_is_the_attitude_derivative(scenario):
     s = scenario
-    dq = quat.multiply(quat.conjugate(s.quaternion[:-1]), s.quaternion[1:])   # body-frame increments
-    dq = quat.normalize(dq)
+    dq = rot.multiply(rot.conjugate(s.quaternion[:-1]), s.quaternion[1:])   # body-frame increments
+    dq = rot.normalize(dq)
     angle = 2 * np.arctan2(np.linalg.norm(dq[:, 1:], axis=1), dq[:, 0])
     axis = dq[:, 1:] / np.maximum(np.linalg.norm(dq[:, 1:], axis=1, keepdims=True), 1e-300)
     rate_fd = axis * (angle / s.dt_s)[:, None]
@@ -51,7 +51,7 @@ def test_body_rate_is_the_attitude_derivative(scenario):
 
 def test_specific_force_and_readings(scenario):
     s = scenario
-    R = quat.to_matrix(s.quaternion)
+    R = rot.to_matrix(s.quaternion)
     force = np.einsum("kji,kj->ki", R, s.acceleration_m_s2 - GRAVITY_ENU)
     np.testing.assert_allclose(force, s.specific_force_m_s2, atol=1e-9)
     # the IMU reads the interval means plus small errors
@@ -84,9 +84,9 @@ def test_seeded_and_validated():
     c = ground_robot_scenario(4, duration_s=20.0)
     assert np.array_equal(a.gyro_rad_s, b.gyro_rad_s) and np.array_equal(a.gps_enu_m, b.gps_enu_m, equal_nan=True)
     assert not np.array_equal(a.gyro_rad_s, c.gyro_rad_s)
-    with pytest.raises(SpecError, match="imu_rate_hz"):
+    with pytest.raises(InputError, match="imu_rate_hz"):
         ground_robot_scenario(imu_rate_hz=0.0)
-    with pytest.raises(SpecError, match="gps_rate_hz"):
+    with pytest.raises(InputError, match="gps_rate_hz"):
         ground_robot_scenario(duration_s=10.0, gps_rate_hz=3.0)
-    with pytest.raises(SpecError, match="outages"):
+    with pytest.raises(InputError, match="outages"):
         ground_robot_scenario(duration_s=10.0, outages=((5.0, 2.0),))

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from cfdesign import rotations as rot
 from cfdesign.cli import main
-from cfdesign.nav import quaternion as quat
 from cfdesign.reproduce import helicopter
 from cfdesign.sim import helicopter as heli
 
@@ -28,9 +28,9 @@ def test_kinematics_consistent(truth):
     assert np.max(np.abs(_central(truth.position_m, dt) - truth.velocity_m_s[1:-1])) < 1e-3
     assert np.max(np.abs(_central(truth.velocity_m_s, dt) - truth.acceleration_m_s2[1:-1])) < 1e-3
     q = truth.quaternion  # q' = q (x) [0, w] / 2
-    omega = 2 * quat.multiply(quat.conjugate(q[1:-1]), _central(q, dt))[:, 1:]
+    omega = 2 * rot.multiply(rot.conjugate(q[1:-1]), _central(q, dt))[:, 1:]
     assert np.max(np.abs(omega - truth.body_rate_rad_s[1:-1])) < 1e-3
-    f = quat.rotate(q, truth.specific_force_m_s2) + heli.GRAVITY_ENU
+    f = rot.rotate(q, truth.specific_force_m_s2) + heli.GRAVITY_ENU
     assert np.max(np.abs(f - truth.acceleration_m_s2)) < 1e-9
     mean = 0.5 * (truth.body_rate_rad_s[1:] + truth.body_rate_rad_s[:-1])
     assert np.max(np.abs(truth.mean_body_rate_rad_s - mean)) < 1e-4

@@ -1,4 +1,4 @@
-"""Seed 004 position filter (cfdesign.nav.position) on simulated 3-D flights with the true attitude."""
+"""The position filter of Vasconcelos et al. (cfdesign.nav.position) on simulated 3-D flights with the true attitude."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from cfdesign.errors import SpecError
-from cfdesign.nav import quaternion as quat
-from cfdesign.nav.position import PositionFilter, earth_acceleration
+from cfdesign import rotations as rot
+from cfdesign.errors import InputError, TableMismatchError
+from cfdesign.nav.position import PositionFilter, design_position, earth_acceleration, position_spec
 from cfdesign.sim import helicopter as heli
 
 RATE = 50
@@ -57,7 +57,7 @@ def test_error_bounded_and_bias_converges(pf, flight):
     gps_err = np.linalg.norm(readings.gps_enu_m - truth.position_m, axis=1)
     assert err.max() < 6.0  # the start: zero bias estimate against 10 mg per axis
     assert err[len(err) // 2:].mean() < 0.5 * np.nanmean(gps_err)  # better than the GPS alone
-    bias_enu = quat.rotate(truth.quaternion[-1], ERRORS.accel_bias)  # constant attitude at the end
+    bias_enu = rot.rotate(truth.quaternion[-1], ERRORS.accel_bias)  # constant attitude at the end
     assert np.max(np.abs(est.accel_bias[-1000:].mean(axis=0) - bias_enu)) < 2.5 * heli.MG_M_S2
     assert np.all(np.isfinite(est.velocity))
 
@@ -80,7 +80,48 @@ def test_outage_coasts_and_recovers(pf, flight):
 def test_stray_fix_and_shapes_rejected(pf):
     acc, q, gps = np.zeros((100, 3)), np.tile([1.0, 0, 0, 0], (100, 1)), np.full((100, 3), np.nan)
     gps[3] = 0.0
-    with pytest.raises(SpecError, match="off the GPS schedule"):
+    with pytest.raises(InputError, match="off the GPS schedule"):
         pf.run(acc, q, gps)
-    with pytest.raises(SpecError, match="quat_nb"):
+    with pytest.raises(InputError, match="quat_nb"):
         pf.run(acc, q[:, :3], gps)
+
+
+def test_default_gains_are_the_designers(pf):
+    """The stored-structure design (no sympy) gives the periodic gains of cfdesign.design bit for bit."""
+    from cfdesign.designer import design
+
+    spec = position_spec(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                         gps_noise_std=ERRORS.gps_noise_std_m)
+    assert all(np.array_equal(a, b) for a, b in zip(pf.table.K, design(spec).K, strict=True))
+
+
+def test_a_users_table_drives_the_filter(pf, flight):
+    truth, readings = flight
+    table = design_position(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                            gps_noise_std=ERRORS.gps_noise_std_m)
+    given = PositionFilter(table=table)                     # rates from the table
+    assert given.fix_phases == pf.fix_phases
+    n = 20 * RATE
+    args = (readings.accel_m_s2[:n], truth.quaternion[:n], readings.gps_enu_m[:n])
+    assert np.array_equal(given.run(*args).position, pf.run(*args).position)
+    spec = position_spec(RATE, 1, accel_noise_std=ERRORS.accel_noise_std_m_s2, accel_bias_density=2e-3,
+                         gps_noise_std=ERRORS.gps_noise_std_m)
+    assert np.array_equal(PositionFilter(RATE, 1, table=spec).run(*args).position, pf.run(*args).position)
+
+
+def test_tables_that_do_not_fit_are_rejected():
+    table = design_position(RATE, 1, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)
+    with pytest.raises(TableMismatchError, match="period of 50 step"):
+        PositionFilter(RATE, 5, table=table)
+    with pytest.raises(TableMismatchError, match=r"sample time 0\.02 s"):
+        PositionFilter(100, 2, table=table)
+    from cfdesign.nav import design_channel
+
+    with pytest.raises(TableMismatchError, match="2 states"):
+        PositionFilter(table=design_channel(RATE, 0.01, 1e-4, 0.01))
+    with pytest.raises(InputError, match="not both"):
+        PositionFilter(table=table, gps_noise_std=1.0)
+    with pytest.raises(InputError, match="accel_bias_density is missing"):
+        PositionFilter(RATE, 1, accel_noise_std=0.01, gps_noise_std=1.0)
+    with pytest.raises(InputError, match="3 Hz must divide imu_rate_hz 50 Hz"):
+        PositionFilter(RATE, 3, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)

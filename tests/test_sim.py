@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from cfdesign.errors import SpecError
+from cfdesign.errors import InputError, SpecError
+from cfdesign.linear import wrap
 from cfdesign.noise import Bias, WhiteNoise, van_loan
-from cfdesign.runtime import wrap
 from cfdesign.sim import (
     HeadingSensor,
     MagneticPerturbation,
@@ -58,9 +58,9 @@ def test_turns_are_smooth_and_can_go_right():
 
 
 def test_trajectory_duration_must_be_whole_samples():
-    with pytest.raises(SpecError, match="whole number"):
+    with pytest.raises(InputError, match="whole number"):
         from_segments([Segment(1.05, 0.1, 1.0)], dt_s=DT)
-    with pytest.raises(SpecError, match="segment"):
+    with pytest.raises(InputError, match="segment"):
         from_segments([], dt_s=DT)
 
 
@@ -113,9 +113,9 @@ def test_slow_sensors_dropouts_and_bad_rates():
     assert np.all(~np.isnan(r["g"][::5])) and np.all(np.isnan(r["g"][1::5]))
     assert np.allclose(r["g"][::5], 0.0) and np.all(np.isnan(r["c"][1::2])) and np.allclose(r["c"][::2], 0.3)
     assert np.mean(np.isnan(r["d"])) == pytest.approx(0.3, abs=0.05)
-    with pytest.raises(SpecError, match="sensor c: rate_hz: 3 Hz"):
+    with pytest.raises(InputError, match="sensor c: rate_hz: 3 Hz"):
         simulate(traj, {"c": HeadingSensor(rate_hz=3.0)}, seed=0)
-    with pytest.raises(SpecError, match="dropout"):
+    with pytest.raises(InputError, match="dropout"):
         simulate(traj, {"c": HeadingSensor(dropout=1.0)}, seed=0)
 
 

@@ -1,23 +1,24 @@
-"""Seed 000's adaptive complementary filter: attitude (IMU + compass) and position (GPS + odometry).
+"""The adaptive complementary filter of Alves Neto et al.: attitude (IMU + compass) and position (GPS + odometry).
 
-Alves Neto et al., seed 000 Sec. 3.  Frames as the rest of :mod:`cfdesign.nav`: ENU, FLU body,
+Alves Neto et al., *Adaptive complementary filtering algorithm for mobile robot localization*,
+Sec. 3 (equation numbers below are that paper's).  Frames as the rest of :mod:`cfdesign.nav`: ENU, FLU body,
 quaternions ``[w, x, y, z]`` body -> ENU, Euler angles ZYX ``[yaw ψ, pitch θ, roll φ]``.
 
 Reading of the (garbled) equations
 ----------------------------------
-* Accelerometer tilt, seed 000 eqs. (3)-(4), written in NED with a forward-right-down body:
+* Accelerometer tilt, eqs. (3)-(4), written in NED with a forward-right-down body:
   ``θ_a = asin(a_x/|a|)``, ``φ_a = asin(-a_y/(|a| cos θ_a))`` with ``a`` the specific force.  In
   ENU/FLU the body y axis and the sense of pitch flip (our θ > 0 is nose *down*), giving
   ``θ_a = asin(-f_x/|f|)``, ``φ_a = asin(f_y/(|f| cos θ_a))``.  Since ``|f| cos θ_a =
   sqrt(f_y² + f_z²)`` these are the pendular angles of :func:`cfdesign.nav.mps.mps_euler`
   (``atan2`` forms, equal for ``f_z > 0``), which we reuse.
-* Magnetic heading ψ_m: seed 000 uses a levelled two-axis compass; we use the tilt-compensated
+* Magnetic heading ψ_m: the paper uses a levelled two-axis compass; we use the tilt-compensated
   field of :func:`cfdesign.nav.mps.mps_euler` (tilt from the accelerometer, minus the declination).
-* Gyro branch, seed 000 eqs. (10)-(11): ``q' = ½ Ω(g) q``, discretised exactly for a rate held
+* Gyro branch, eqs. (10)-(11): ``q' = ½ Ω(g) q``, discretised exactly for a rate held
   over the step, ``q[k] = q[k-1] ⊗ exp(g T / 2)``; its Euler angles, eqs. (7)-(9), by
-  :func:`cfdesign.nav.quaternion.to_euler`.  The initial attitude, seed 000's ``q(0)``, is the
+  :func:`cfdesign.rotations.to_euler`.  The initial attitude, the paper's ``q(0)``, is the
   accelerometer/compass attitude of the first row.
-* Fusion, seed 000 eqs. (12)-(14): ``φ = G_l * φ_a + G_h * φ_g`` (likewise θ, ψ) with first-order
+* Fusion, eqs. (12)-(14): ``φ = G_l * φ_a + G_h * φ_g`` (likewise θ, ψ) with first-order
   low/high-pass filters sharing one cut-off ω_c.  With the exact discretisation ``α = exp(-ω_c T)``
   of the pole, ``G_l = (1 - α)/(1 - α z⁻¹)`` and ``G_h = (1 - z⁻¹) α/(1 - α z⁻¹)`` (``G_l + G_h = 1``),
   so the sum obeys ``φ[k] = φ_p + (1 - α)(φ_a[k] - φ_p)``, ``φ_p = φ[k-1] + Δφ_g[k]``.  The gyro
@@ -46,8 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from . import quaternion as quat
+from .. import rotations as rot
+from ..errors import InputError
+from ..linear import wrap_scalar
 from .mps import mps_euler
 
 __all__ = ["AdaptiveEstimate", "AdaptiveCF", "attitude_cutoffs", "position_cutoff", "cutoff_plot"]
@@ -76,13 +78,13 @@ class AdaptiveEstimate:
 
 
 def attitude_cutoffs(acc, k_phi, k_theta, g0=G0_M_S2):
-    """Roll and pitch cut-offs (rad/s), seed 000 eqs. (15)-(16): ``k exp(-|g0 - |a||)``, shape (N, 2)."""
+    """Roll and pitch cut-offs (rad/s), Alves Neto et al. eqs. (15)-(16): ``k exp(-|g0 - |a||)``, shape (N, 2)."""
     shrink = np.exp(-np.abs(g0 - np.linalg.norm(np.asarray(acc, dtype=float), axis=-1)))
     return np.stack([k_phi * shrink, k_theta * shrink], axis=-1)
 
 
 def _saturating(x, x_max, k):
-    """``k (1 - exp(-x/(x_max - x)))`` for ``0 <= x < x_max``, ``k`` beyond ``x_max`` (seed 000 eqs. 23-24)."""
+    """``k (1 - exp(-x/(x_max - x)))`` for ``0 <= x < x_max``, ``k`` beyond ``x_max`` (eqs. 23-24)."""
     x = np.asarray(x, dtype=float)
     below = x < x_max
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -91,7 +93,7 @@ def _saturating(x, x_max, k):
 
 
 def position_cutoff(speed, n_satellites, k_p, v_max, n_max):
-    """Position cut-off (rad/s), seed 000 eqs. (22)-(24): ``min(ω_v, ω_N)``, 0 with three satellites or fewer."""
+    """Position cut-off (rad/s), Alves Neto et al. eqs. (22)-(24): ``min(ω_v, ω_N)``, 0 with 3 satellites or fewer."""
     w_v = _saturating(np.abs(np.nan_to_num(np.asarray(speed, dtype=float))), v_max, k_p)
     n = np.asarray(n_satellites, dtype=float)
     w_n = np.where(n > 3, _saturating(np.where(n > 3, n, 0.0), n_max, k_p), 0.0)
@@ -99,12 +101,12 @@ def position_cutoff(speed, n_satellites, k_p, v_max, n_max):
 
 
 class AdaptiveCF:
-    """Seed 000's adaptive complementary filter (module docstring).
+    """The adaptive complementary filter of Alves Neto et al. (module docstring).
 
     Parameters
     ----------
     rate_hz : float
-        Filter (input row) rate (Hz); seed 000 runs at 10 Hz.
+        Filter (input row) rate (Hz); the paper runs at 10 Hz.
     k_phi, k_theta, k_psi : float
         Nominal roll, pitch and yaw cut-offs (rad/s), eqs. (15)-(17).  Defaults 0.5, 0.5, 0.3:
         a gyro bias ``b`` costs ``b/k`` (0.2° for 0.1 °/s at 0.5 rad/s, 0.33° at 0.3 rad/s) and
@@ -137,7 +139,7 @@ class AdaptiveCF:
         self.v_max = _number("v_max", v_max, positive=True)
         self.n_max = _number("n_max", n_max, positive=True)
         if self.n_max <= 3:
-            raise SpecError(f"n_max: more than 3 satellites are needed, got {n_max!r}")
+            raise InputError(f"n_max: more than 3 satellites are needed, got {n_max!r}")
         self.g0 = _number("g0", g0, positive=True)
         self.declination_rad = _number("declination_rad", declination_rad, signed=True)
 
@@ -165,7 +167,7 @@ class AdaptiveCF:
 
         Raises
         ------
-        SpecError
+        InputError
             An input of the wrong shape (the message names it).
         """
         gyr, acc, mag, gps = (_rows(n, v, 3) for n, v in (("gyr", gyr), ("acc", acc), ("mag", mag),
@@ -173,12 +175,12 @@ class AdaptiveCF:
         speed, n_sat = _rows("odometry_speed", odometry_speed), _rows("n_satellites", n_satellites)
         lengths = {len(v) for v in (gyr, acc, mag, gps, speed, n_sat)}
         if len(lengths) != 1 or 0 in lengths:
-            raise SpecError("gyr, acc, mag, odometry_speed, gps_enu, n_satellites: one non-zero number of rows is "
+            raise InputError("gyr, acc, mag, odometry_speed, gps_enu, n_satellites: one non-zero number of rows is "
                             f"needed, got {[len(v) for v in (gyr, acc, mag, speed, gps, n_sat)]}")
         euler, cut_att = self._attitude(gyr, acc, mag)
         cut_pos = position_cutoff(speed, n_sat, self.k_p, self.v_max, self.n_max)
         position = self._position(euler, speed, gps, cut_pos, initial_position)
-        return AdaptiveEstimate(quaternion=quat.from_euler(euler), euler=euler, position=position,
+        return AdaptiveEstimate(quaternion=rot.from_euler(euler), euler=euler, position=position,
                                 cutoff_attitude=cut_att, cutoff_position=cut_pos)
 
     # ------------------------------------------------------------------ attitude
@@ -188,26 +190,26 @@ class AdaptiveCF:
         measured = mps_euler(acc, mag, declination_rad=self.declination_rad)        # [ψ_m, θ_a, φ_a]
         cut = np.zeros((len(acc), 3))
         cut[:, :2] = np.nan_to_num(attitude_cutoffs(acc, self.k_phi, self.k_theta, self.g0))
-        steps = quat.from_rotation_vector(np.nan_to_num(gyr) * T)
+        steps = rot.from_rotation_vector(np.nan_to_num(gyr) * T)
         euler = np.empty((len(acc), 3))
         euler[0] = np.nan_to_num(measured[0])
-        q = quat.from_euler(euler[0])
+        q = rot.from_euler(euler[0])
         for k in range(1, len(acc)):
-            psi, theta, phi = quat.to_euler(quat.multiply(q, steps[k])).tolist()
+            psi, theta, phi = rot.to_euler(rot.multiply(q, steps[k])).tolist()
             psi_m, theta_a, phi_a = measured[k].tolist()
             w_psi = self.k_psi * math.exp(-max(abs(euler[k - 1, 1]), abs(euler[k - 1, 2])))
             cut[k, 2] = w_psi
             if math.isfinite(theta_a):
                 theta += (1.0 - math.exp(-cut[k, 1] * T)) * (theta_a - theta)
-                phi += (1.0 - math.exp(-cut[k, 0] * T)) * quat.wrap_angle(phi_a - phi)
+                phi += (1.0 - math.exp(-cut[k, 0] * T)) * wrap_scalar(phi_a - phi)
             else:
                 cut[k, :2] = 0.0
             if math.isfinite(psi_m):
-                psi = quat.wrap_angle(psi + (1.0 - math.exp(-w_psi * T)) * quat.wrap_angle(psi_m - psi))
+                psi = wrap_scalar(psi + (1.0 - math.exp(-w_psi * T)) * wrap_scalar(psi_m - psi))
             else:
                 cut[k, 2] = 0.0
             euler[k] = psi, theta, phi
-            q = quat.from_euler(euler[k])
+            q = rot.from_euler(euler[k])
         return euler, cut
 
     # ------------------------------------------------------------------ position
@@ -255,7 +257,7 @@ def cutoff_plot(estimate: AdaptiveEstimate, t_s, ax=None):
 
     t = np.asarray(t_s, dtype=float)
     if t.shape != (len(estimate.cutoff_position),):
-        raise SpecError(f"t_s: shape ({len(estimate.cutoff_position)},) needed, got {t.shape}")
+        raise InputError(f"t_s: shape ({len(estimate.cutoff_position)},) needed, got {t.shape}")
     if ax is None:
         ax = plt.subplots(figsize=(8, 3.5))[1]
     for i, name in enumerate(("roll ω_φ", "pitch ω_θ", "yaw ω_ψ")):
@@ -263,32 +265,32 @@ def cutoff_plot(estimate: AdaptiveEstimate, t_s, ax=None):
     ax.plot(t, estimate.cutoff_position, label="position ω_c", lw=1.5, color="k")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("cut-off (rad/s)")
-    ax.set_title("Adapted cut-off frequencies (seed 000 eqs. 15-17, 22-24)")
+    ax.set_title("Adapted cut-off frequencies (Alves Neto et al. eqs. 15-17, 22-24)")
     ax.legend(loc="best", fontsize="small")
     return ax
 
 
 # ---------------------------------------------------------------------------- validation
 def _number(name, value, *, positive=False, signed=False):
-    """A finite float, non-negative (or positive, or any sign); SpecError naming ``name`` otherwise."""
+    """A finite float, non-negative (or positive, or any sign); InputError naming ``name`` otherwise."""
     try:
         value = float(value)
     except (TypeError, ValueError):
-        raise SpecError(f"{name}: a number is needed, got {value!r}") from None
+        raise InputError(f"{name}: a number is needed, got {value!r}") from None
     if not math.isfinite(value) or (not signed and (value <= 0 if positive else value < 0)):
         kind = "finite" if signed else "positive" if positive else "non-negative"
-        raise SpecError(f"{name}: a {kind} number is needed, got {value!r}")
+        raise InputError(f"{name}: a {kind} number is needed, got {value!r}")
     return value
 
 
 def _rows(name, value, width=None):
-    """``value`` as a float array of shape (N,) or (N, width); SpecError naming ``name`` otherwise."""
+    """``value`` as a float array of shape (N,) or (N, width); InputError naming ``name`` otherwise."""
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        raise SpecError(f"{name}: a numeric array is needed") from None
+        raise InputError(f"{name}: a numeric array is needed") from None
     expected = 1 if width is None else 2
     if a.ndim != expected or (width is not None and a.shape[1] != width):
         shape = "(N,)" if width is None else f"(N, {width})"
-        raise SpecError(f"{name}: shape {shape} needed, got {a.shape}")
+        raise InputError(f"{name}: shape {shape} needed, got {a.shape}")
     return a

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import quaternion as quat
+from .. import rotations as rot
 
 __all__ = ["load_trial", "broad_rmse"]
 
@@ -32,7 +32,7 @@ def load_trial(path) -> dict:
 def broad_rmse(q_est, q_ref, movement) -> tuple:
     """BROAD's ``(total, heading, inclination)`` RMSE in degrees over the movement phases."""
     q_ref = q_ref / np.linalg.norm(q_ref, axis=1, keepdims=True)
-    e = quat.multiply(quat.normalize(q_est), quat.conjugate(q_ref))
+    e = rot.multiply(rot.normalize(q_est), rot.conjugate(q_ref))
     e = e[np.asarray(movement, dtype=bool) & np.isfinite(e).all(axis=1)]
     total = 2 * np.arccos(np.clip(np.abs(e[:, 0]), 0, 1))
     heading = 2 * np.arctan(np.abs(e[:, 3] / e[:, 0]))

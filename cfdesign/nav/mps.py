@@ -1,11 +1,13 @@
-"""Magneto-Pendular Sensor (MPS): attitude from gravity and the magnetic field, seed 004 Sec. 2.2.
+"""Magneto-Pendular Sensor (MPS): attitude from gravity and the magnetic field.
+
+The attitude aiding device of Vasconcelos et al. (Sec. 2.2).
 
 Frame: ENU (x east, y north, z up); angles are ZYX ``[yaw, pitch, roll]`` of the body
-relative to ENU (see :mod:`cfdesign.nav.quaternion`).  The accelerometer reads specific
-force, ``+g`` along up at rest, so seed 004 eq. (2) holds as printed:
+relative to ENU (see :mod:`cfdesign.rotations`).  The accelerometer reads specific
+force, ``+g`` along up at rest, so the paper's eq. (2) holds as printed:
 ``a = (-g sin θ, g cos θ sin φ, g cos θ cos φ)``.
 
-Roll and pitch (seed 004 eq. (3))::
+Roll and pitch (eq. (3))::
 
     φ = atan2(a_y, a_z),   θ = atan2(-a_x, a_z / cos φ) = atan2(-a_x, sqrt(a_y² + a_z²))
 
@@ -15,7 +17,7 @@ writes ``ψ = atan2(-m'_y, m'_x) - α_dec`` for a north-east-down frame; in ENU 
 construction reads ``ψ = atan2(m'_x, m'_y) - α_dec`` (yaw counter-clockwise from east,
 declination ``α_dec`` positive when magnetic north lies east of true north).
 
-Centripetal compensation (seed 004 Sec. 2.2): ``a_MPS = a - ω̂ × v_B`` with the unbiased
+Centripetal compensation (Sec. 2.2): ``a_MPS = a - ω̂ × v_B`` with the unbiased
 rate ``ω̂`` and the body-frame velocity ``v_B``.
 """
 
@@ -23,13 +25,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import quaternion as quat
+from .. import rotations as rot
+from ..linear import wrap
 
 __all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_compensated_field"]
 
 
 def centripetal_compensation(acc, rate, velocity_body):
-    """``a_MPS = a - ω̂ × v_B`` (m/s², seed 004 Sec. 2.2); arrays (..., 3) in the body frame."""
+    """``a_MPS = a - ω̂ × v_B`` (m/s², Vasconcelos et al. Sec. 2.2); arrays (..., 3) in the body frame."""
     return np.asarray(acc, dtype=float) - np.cross(rate, velocity_body)
 
 
@@ -45,7 +48,7 @@ def tilt_compensated_field(mag, pitch, roll):
 
 
 def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=None):
-    """MPS attitude ``[yaw, pitch, roll]`` (rad, ZYX, body relative to ENU), seed 004 eqs. (2)-(3).
+    """MPS attitude ``[yaw, pitch, roll]`` (rad, ZYX, body relative to ENU), Vasconcelos et al. eqs. (2)-(3).
 
     Parameters
     ----------
@@ -76,7 +79,7 @@ def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=No
         mp = tilt_compensated_field(mag, pitch, roll)
         horizontal = np.hypot(mp[..., 0], mp[..., 1])
         with np.errstate(invalid="ignore"):
-            yaw = np.where(horizontal > 0, quat.wrap_angle(np.arctan2(mp[..., 0], mp[..., 1]) - declination_rad),
+            yaw = np.where(horizontal > 0, wrap(np.arctan2(mp[..., 0], mp[..., 1]) - declination_rad),
                            np.nan)
     return np.stack([yaw, pitch, roll], axis=-1)
 
@@ -103,9 +106,9 @@ def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
     if east is None:
         return tilt
     north = np.cross(up, east)
-    q = quat.from_matrix(np.stack([east, north, up], axis=-2))
-    q = quat.multiply(quat.from_rotation_vector(np.array([0.0, 0.0, -declination_rad])), q)
-    q = quat.normalize(q)
+    q = rot.from_matrix(np.stack([east, north, up], axis=-2))
+    q = rot.multiply(rot.from_rotation_vector(np.array([0.0, 0.0, -declination_rad])), q)
+    q = rot.normalize(q)
     return np.where(np.isfinite(q).all(axis=-1, keepdims=True), q, tilt)
 
 
@@ -116,4 +119,4 @@ def _tilt_only(up):
     q = np.stack([w, up[..., 1], -up[..., 0], np.zeros_like(w)], axis=-1)
     flipped = w < 1e-9                      # upside down: any horizontal axis, take x
     q = np.where(flipped[..., None], np.array([0.0, 1.0, 0.0, 0.0]), q)
-    return quat.normalize(q)
+    return rot.normalize(q)

@@ -1,7 +1,8 @@
-"""Seed 004's multirate position filter, per ENU axis: state ``[p, v, b_a]``, IMU in, GPS fixes.
+"""The multirate position filter of Vasconcelos et al., per ENU axis: state ``[p, v, b_a]``, IMU in, GPS fixes.
 
-Model (seed 004 Sec. 3; MATH.md §6): on each ENU axis, with the Earth-frame acceleration
-``u`` as the input and the accelerometer bias ``b`` as a slow random walk,
+Model (Vasconcelos et al. Sec. 3; derivation in ``docs/derivations.md``): on each ENU axis,
+with the Earth-frame acceleration ``u`` as the input and the accelerometer bias ``b`` as a
+slow random walk,
 
 .. math:: x = [p, v, b]^T,\\quad x[k+1] = F x^+[k] + B u[k],\\quad
           F = \\begin{bmatrix}1 & T & -T^2/2\\\\ 0 & 1 & -T\\\\ 0 & 0 & 1\\end{bmatrix},\\quad
@@ -9,12 +10,15 @@ Model (seed 004 Sec. 3; MATH.md §6): on each ENU axis, with the Earth-frame acc
 
 and a GPS position fix ``y = p + n`` every ``N = imu_rate_hz / gps_rate_hz`` steps, applied
 in filter form ``x^+[k] = x[k] + K[k] (y[k] - H x[k])``, ``H = [1, 0, 0]``.  The gains
-``K[k]`` are the periodic-DARE Kalman gains of :func:`cfdesign.design` (structure
-``position``); they are exactly zero at the phases without a fix (seed 004 Sec. 3), so the
-filter runs open loop between fixes.  One gain table serves the three axes (seed 004:
-``K_iP = I_3 k_iP``), run by :class:`cfdesign.runtime.Runtime`.
+``K[k]`` are the periodic-DARE Kalman gains of the ``position`` structure; they are exactly
+zero at the phases without a fix (Vasconcelos et al. Sec. 3), so the filter runs open loop
+between fixes.  One gain table serves the three axes (the paper's ``K_iP = I_3 k_iP``), run
+by :class:`cfdesign.runtime.Runtime`.  By default the table is designed from the noise
+figures by the numeric design stage on the stored ``position`` structure
+(:mod:`cfdesign.nav.stored_design`, no sympy); a user's own design can be given instead
+(``table=``: a :class:`~cfdesign.gains.GainTable` or a ``position`` FilterSpec).
 
-Input (seed 004 Fig. 3, gravity removal; frames as :mod:`cfdesign.nav.quaternion`):
+Input (Vasconcelos et al. Fig. 3, gravity removal; frames as :mod:`cfdesign.rotations`):
 the accelerometer reads the specific force in the body frame, ``f_b = R_nb^T (a_n - g_n)``,
 so the Earth-frame acceleration is
 
@@ -38,17 +42,21 @@ the accelerometer and recovers with the next fixes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from . import quaternion as quat
+from .. import rotations as rot
+from ..errors import InputError, TableMismatchError
+from ..rotations import GRAVITY_ENU
+from ..spec import parse_spec
+from .stored_design import as_table, check_fits, design_stored
 
-__all__ = ["GRAVITY_ENU", "PositionEstimate", "PositionFilter", "position_spec", "earth_acceleration"]
+__all__ = ["PositionEstimate", "PositionFilter", "position_spec", "design_position", "earth_acceleration"]
 
-#: gravity in ENU (m/s^2)
-GRAVITY_ENU = np.array([0.0, 0.0, -9.80665])
+#: the stored structure of the filter
+STRUCTURE = "position"
 
 
 @dataclass(frozen=True)
@@ -85,15 +93,23 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
     gps_noise_std : float
         GPS position noise per fix and axis (m).
     """
-    from ..spec import parse_spec
-
     return parse_spec({
-        "name": "position axis (seed 004)", "structure": "position", "gain_form": "filter",
+        "name": "position axis", "structure": "position", "gain_form": "filter",
         "sensors": {"accelerometer": {"measures": "acceleration", "rate_hz": float(imu_rate_hz),
                                       "noise": {"std": float(accel_noise_std)},
                                       "bias": {"model": "random_walk", "density": float(accel_bias_density)}},
                     "gps": {"measures": "position", "rate_hz": float(gps_rate_hz),
                             "noise": {"std": float(gps_noise_std)}}}})
+
+
+def design_position(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: float, accel_bias_density: float,
+                    gps_noise_std: float):
+    """The periodic gain table of one axis for these noise figures: :func:`position_spec` designed
+    by the numeric stage on the stored ``position`` structure (no sympy; the same gains as
+    ``cfdesign.design(position_spec(...))``)."""
+    return design_stored(position_spec(imu_rate_hz, gps_rate_hz, accel_noise_std=accel_noise_std,
+                                       accel_bias_density=accel_bias_density, gps_noise_std=gps_noise_std),
+                         STRUCTURE)
 
 
 def _midpoints(q) -> np.ndarray:
@@ -107,35 +123,71 @@ def _midpoints(q) -> np.ndarray:
 
 def earth_acceleration(acc_body, quat_nb) -> np.ndarray:
     """``u = R_nb f_b + g_n`` (m/s^2, ENU) with each interval's midpoint attitude (module docstring)."""
-    return quat.rotate(_midpoints(np.asarray(quat_nb, dtype=float)), acc_body) + GRAVITY_ENU
+    return rot.rotate(_midpoints(np.asarray(quat_nb, dtype=float)), acc_body) + GRAVITY_ENU
 
 
 class PositionFilter:
-    """Seed 004's position complementary filter on three ENU axes, gains from :func:`cfdesign.design`.
+    """The position complementary filter of Vasconcelos et al. on three ENU axes (module docstring).
 
     Parameters
     ----------
-    imu_rate_hz, gps_rate_hz : float
-        Rates (Hz); the GPS rate must divide the IMU rate (period ``imu/gps`` steps).
-    accel_noise_std : float
+    imu_rate_hz, gps_rate_hz : float, optional
+        Rates (Hz); the GPS rate must divide the IMU rate (period ``imu/gps`` steps).  Default
+        50 and 1 Hz, or those of ``table``.
+    accel_noise_std : float, optional
         Accelerometer noise per sample (m/s^2).
-    accel_bias_density : float
+    accel_bias_density : float, optional
         Bias random-walk density (m/s^2/sqrt(s)), the designer's tuning knob for the bias gain.
-    gps_noise_std : float
+    gps_noise_std : float, optional
         GPS noise per fix and axis (m).
+    table : GainTable or FilterSpec, optional
+        A user's own design instead of the three noise figures: a discrete table of the
+        ``position`` model at the IMU rate with the GPS period (e.g. from
+        :func:`cfdesign.design` or :func:`design_position`), or a ``position`` spec.  Give
+        either ``table`` or all three noise figures (designed by :func:`design_position`,
+        no sympy).
 
     Attributes
     ----------
     table : GainTable
-        The designed periodic gain table shared by the three axes.
+        The periodic gain table shared by the three axes.
+
+    Raises
+    ------
+    InputError
+        A missing noise figure, both a table and noise figures, or rates that do not divide.
+    TableMismatchError
+        A table that is not the ``position`` model at these rates (the message names it).
     """
 
-    def __init__(self, imu_rate_hz: float = 50.0, gps_rate_hz: float = 1.0, *, accel_noise_std: float,
-                 accel_bias_density: float, gps_noise_std: float):
-        from ..designer import design
-
-        self.table = design(position_spec(imu_rate_hz, gps_rate_hz, accel_noise_std=accel_noise_std,
-                                          accel_bias_density=accel_bias_density, gps_noise_std=gps_noise_std))
+    def __init__(self, imu_rate_hz: float | None = None, gps_rate_hz: float | None = None, *,
+                 accel_noise_std: float | None = None, accel_bias_density: float | None = None,
+                 gps_noise_std: float | None = None, table=None):
+        figures = {"accel_noise_std": accel_noise_std, "accel_bias_density": accel_bias_density,
+                   "gps_noise_std": gps_noise_std}
+        given = [name for name, value in figures.items() if value is not None]
+        if table is None:
+            missing = [name for name, value in figures.items() if value is None]
+            if missing:
+                raise InputError(f"{missing[0]} is missing: give the noise figures or table=")
+            imu, gps, period = _rates(50.0 if imu_rate_hz is None else imu_rate_hz,
+                                      1.0 if gps_rate_hz is None else gps_rate_hz)
+            table = design_position(imu, gps, **figures)
+        elif given:
+            raise InputError(f"give either table or the noise figures ({', '.join(given)}), not both")
+        else:
+            table = as_table(table, STRUCTURE, "table")
+            if table.domain != "z" or len(table.measurements) != 1:
+                raise TableMismatchError(f"table: {table.name!r} is not a discrete table with one measurement; "
+                                         f"this filter runs {_MODEL}")
+            imu, gps, period = _rates(1.0 / table.sample_time_s if imu_rate_hz is None else imu_rate_hz,
+                                      table.measurements[0].rate_hz if gps_rate_hz is None else gps_rate_hz)
+        T = 1.0 / imu
+        check_fits(table, "table", F=[[1.0, T, -T * T / 2], [0.0, 1.0, -T], [0.0, 0.0, 1.0]],
+                   B=[[T * T / 2], [T], [0.0]], H=[[1.0, 0.0, 0.0]], orders=(2, 0), sample_time_s=T,
+                   period=period, model=_MODEL, timing=f"imu_rate_hz {imu:g} Hz, gps_rate_hz {gps:g} Hz")
+        self.table = table
+        self._input, self._fix = table.inputs[0].name, table.measurements[0].name
 
     @property
     def fix_phases(self) -> list:
@@ -167,7 +219,7 @@ class PositionFilter:
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
         u = earth_acceleration(acc, q)
         runtimes = self._runtimes(gps, initial_position, initial_velocity, initial_bias)
-        position, after = self._loop(runtimes, u, gps)
+        position, after = self._loop(runtimes, u, gps, self._input, self._fix)
         post = self._posterior(after, u)
         return PositionEstimate(position=position, velocity=post[:, :, 1].copy(), accel_bias=post[:, :, 2].copy())
 
@@ -176,13 +228,13 @@ class PositionFilter:
         N = len(acc)
         for name, a, cols in (("acc_body", acc, 3), ("quat_nb", q, 4), ("gps_enu", gps, 3)):
             if a.shape != (N, cols):
-                raise SpecError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
+                raise InputError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
         if N == 0 or not np.all(np.isfinite(acc)) or not np.all(np.isfinite(q)):
-            raise SpecError("acc_body and quat_nb must be non-empty and finite")
+            raise InputError("acc_body and quat_nb must be non-empty and finite")
         fixes = np.flatnonzero(np.isfinite(gps).any(axis=1))
         stray = fixes[~np.isin(fixes % len(self.table.K), self.fix_phases)]
         if stray.size:
-            raise SpecError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
+            raise InputError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
                             f"{self.fix_phases} of {len(self.table.K)}); resample the fixes onto the schedule")
         return acc, q, gps
 
@@ -196,16 +248,16 @@ class PositionFilter:
         v0 = np.zeros(3) if v0 is None else np.asarray(v0, dtype=float)
         b0 = np.zeros(3) if b0 is None else np.asarray(b0, dtype=float)
         x0 = np.column_stack([np.asarray(p0, dtype=float), v0, b0])
-        return [Runtime(self.table, x0=x0[i]) for i in range(3)]
+        return [Runtime(self.table, x0=x0[i], output="posterior") for i in range(3)]
 
     @staticmethod
-    def _loop(runtimes, u, gps):
+    def _loop(runtimes, u, gps, acc_name, gps_name):
         """Step the three axes; returns the filtered positions and the states after each step."""
         N = len(u)
         position, after = np.empty((N, 3)), np.empty((N, 3, 3))
         for k in range(N):
             for i, rt in enumerate(runtimes):
-                position[k, i] = rt.step(accelerometer=u[k, i], gps=gps[k, i])
+                position[k, i] = rt.step(**{acc_name: u[k, i], gps_name: gps[k, i]})
                 after[k, i] = rt.x
         return position, after
 
@@ -213,3 +265,25 @@ class PositionFilter:
         """Filtered states ``x^+[k] = F^-1 (x[k+1] - B u[k])`` from the states after each step, (N, 3, 3)."""
         F, B = np.asarray(self.table.F, dtype=float), np.asarray(self.table.B, dtype=float)[:, 0]
         return np.einsum("ij,kaj->kai", np.linalg.inv(F), after - u[:, :, None] * B)
+
+
+_MODEL = ("the position chain: states [p, v, accelerometer bias], an acceleration input, a position "
+          "measurement")
+
+
+def _rates(imu_rate_hz, gps_rate_hz) -> tuple:
+    """``(imu, gps, period)``: positive finite rates whose ratio (the period in IMU steps) is an integer."""
+    rates = []
+    for name, value in (("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise InputError(f"{name} must be a number, got {value!r}") from None
+        if not (math.isfinite(value) and value > 0):
+            raise InputError(f"{name} must be a positive finite number, got {value!r}")
+        rates.append(value)
+    imu, gps = rates
+    ratio = imu / gps
+    if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
+        raise InputError(f"gps_rate_hz: {gps:g} Hz must divide imu_rate_hz {imu:g} Hz")
+    return imu, gps, round(ratio)

@@ -1,7 +1,8 @@
-"""TRIAD attitude from two vector pairs (seed 003 eq. (7); Black 1964, Shuster & Oh 1981).
+"""TRIAD attitude from two vector pairs (Black 1964, Shuster & Oh 1981), as the low-cost 3D localization paper uses it.
 
 Given two non-parallel vectors measured in the body frame, ``b1`` and ``b2``, and the same
-two vectors known in the reference frame, ``r1`` and ``r2``, seed 003 eq. (7) reads
+two vectors known in the reference frame, ``r1`` and ``r2``, eq. (7) of *Low-cost 3D localization
+with strapdown IMU, GPS and 3-axis magnetometer* reads
 
 .. math:: [\\,r_1 \\mid r_2 \\mid r_1 \\times r_2\\,] = C\\,[\\,b_1 \\mid b_2 \\mid b_1 \\times b_2\\,],
 
@@ -15,9 +16,9 @@ errors").  The TRIAD algorithm builds an orthonormal triad on each side instead,
 so ``C`` is always a rotation, maps ``b1`` exactly onto the direction of ``r1`` (the primary,
 trusted vector) and ``b2`` onto ``r2`` as far as the angle between the pairs allows; on
 noise-free vectors it equals the eq. (7) solution.  The "improved TRIAD" of Li and Yuan
-(2005) cited by seed 003 is not in the seed's text and is not implemented here.
+(2005) cited by that paper is not described in it and is not implemented here.
 
-Frames as :mod:`cfdesign.nav.quaternion`: with body measurements and ENU references the
+Frames as :mod:`cfdesign.rotations`: with body measurements and ENU references the
 result maps body to ENU, ``r = C b``.
 """
 
@@ -25,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import quaternion as quat
+from .. import rotations as rot
 
 __all__ = ["triad_frame", "triad_matrix", "triad_quaternion"]
 
@@ -69,5 +70,5 @@ def triad_quaternion(b1, b2, r1, r2) -> np.ndarray:
     """TRIAD attitude as a quaternion ``[w, x, y, z]`` (w >= 0), body -> reference; NaN if undefined."""
     C = triad_matrix(b1, b2, r1, r2)
     finite = np.isfinite(C).all(axis=(-2, -1))
-    q = quat.from_matrix(np.where(finite[..., None, None], C, np.eye(3)))
+    q = rot.from_matrix(np.where(finite[..., None, None], C, np.eye(3)))
     return np.where(finite[..., None], q, np.nan)

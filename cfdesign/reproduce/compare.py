@@ -13,9 +13,9 @@ and its cost per step:
   forward speed: odometry on the ground, the velocity sensor's speed on the helicopter, with
   10 satellites);
 * ``ekf003`` - the 22-state strapdown INS/GPS/magnetometer EKF
-  (:class:`~cfdesign.nav.ekf.StrapdownEKF`);
+  (:class:`~cfdesign.nav.strapdown_ekf.StrapdownEKF`);
 * ``ekf002`` - the planar odometry/gyro/GPS EKF [x, y, θ, α]
-  (:class:`~cfdesign.nav.ekf.PlanarEKF`; needs odometry, ground vehicles only).
+  (:class:`~cfdesign.nav.planar_ekf.PlanarEKF`; needs odometry, ground vehicles only).
 
 Scenarios: ``ground`` - a robot on uneven terrain with a 60-s GPS outage
 (:func:`cfdesign.sim.ground.ground_robot_scenario`); ``helicopter`` - Vasconcelos et al.'s
@@ -76,13 +76,14 @@ def _timed(fn):
 
 
 def _attitude_errors(q_est, q_true, euler_est=None, euler_true=None):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
+    from ..linear import wrap
 
     e = quat.multiply(quat.normalize(q_est), quat.conjugate(q_true))
     total = 2 * np.arccos(np.clip(np.abs(e[:, 0]), 0, 1))
     yaw_est = quat.to_euler(q_est)[:, 0] if euler_est is None else euler_est
     yaw_true = quat.to_euler(q_true)[:, 0] if euler_true is None else euler_true
-    heading = quat.wrap_angle(yaw_est - yaw_true)
+    heading = wrap(yaw_est - yaw_true)
     return _rms_deg(heading), _rms_deg(total)
 
 
@@ -124,7 +125,7 @@ def _ground_noise(s) -> dict:
 
 
 def _helicopter(seed: int, _duration_s: float):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
     from ..sim import helicopter as heli
 
     truth = heli.helicopter_manoeuvre()
@@ -179,7 +180,7 @@ def _run_adaptive(d):
 
 
 def _run_ekf003(d, ground: bool):
-    from ..nav.ekf import StrapdownEKF
+    from ..nav.strapdown_ekf import StrapdownEKF
 
     e = d["errors"]
     f = StrapdownEKF(d["rate"], gyro_noise_std=e["gyro_std"], accel_noise_std=e["accel_std"], gyro_bias_density=1e-4,
@@ -196,7 +197,7 @@ def _run_ekf003(d, ground: bool):
 
 
 def _run_ekf002(d):
-    from ..nav.ekf import PlanarEKF
+    from ..nav.planar_ekf import PlanarEKF
 
     s = d["scenario"]
     dt = 1.0 / d["rate"]
@@ -242,7 +243,7 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
 
 
 def _truth_yaw(q):
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
 
     return quat.to_euler(q)[:, 0]
 

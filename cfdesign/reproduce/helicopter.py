@@ -4,9 +4,9 @@ Pipeline of one run (the paper's Fig. 3), all filters designed by the toolkit:
 
 1. truth and readings: :mod:`cfdesign.sim.helicopter` (straight path, then an ascending
    helix; IMU 50 Hz, GPS 1 Hz, Table 1's sensor errors);
-2. attitude: :class:`cfdesign.nav.attitude.EulerAttitudeFilter` (Euler channels, gyro bias
+2. attitude: :class:`cfdesign.nav.EulerAttitudeFilter` (Euler channels, gyro bias
    in body rates, Magneto-Pendular Sensor with centripetal compensation ``a - w x v_B``);
-3. position: :class:`cfdesign.nav.position.PositionFilter` fed by the accelerometer rotated
+3. position: :class:`cfdesign.nav.PositionFilter` fed by the accelerometer rotated
    with the attitude estimate, gravity removed, and the GPS fixes (periodic gains).
 
 Assumptions where the paper is silent
@@ -67,8 +67,7 @@ SMALL_BIAS_GAINS = Tuning(accel_bias_density=1e-4, gyro_bias_density=1e-6, calib
 
 
 def _filters(tuning: Tuning, errors: heli.SensorErrors, rate_hz: float):
-    from ..nav.attitude import EulerAttitudeFilter
-    from ..nav.position import PositionFilter
+    from ..nav import EulerAttitudeFilter, PositionFilter
 
     attitude = EulerAttitudeFilter(rate_hz, gyro_noise_std=errors.gyro_noise_std_rad_s,
                                    gyro_bias_density=tuning.gyro_bias_density, tilt_noise_std=tuning.mps_noise_std,
@@ -80,18 +79,18 @@ def _filters(tuning: Tuning, errors: heli.SensorErrors, rate_hz: float):
 
 def _mae(truth: heli.HelicopterTrajectory, position, euler) -> np.ndarray:
     """``[position (m), yaw, pitch, roll (deg)]`` mean absolute errors over the run."""
-    from ..nav.quaternion import wrap_angle
+    from ..linear import wrap
 
     n = len(position)
     d = euler - truth.euler_rad[:n]
-    d[:, 0] = wrap_angle(d[:, 0])
+    d[:, 0] = wrap(d[:, 0])
     return np.concatenate([[np.mean(np.abs(position - truth.position_m[:n]))], np.degrees(np.abs(d).mean(axis=0))])
 
 
 def run_once(truth: heli.HelicopterTrajectory, seed: int, tuning: Tuning = NOMINAL,
              errors: heli.SensorErrors = heli.TABLE1, filters=None) -> np.ndarray:
     """One simulated run: ``[position (m), yaw, pitch, roll (deg)]`` mean absolute errors."""
-    from ..nav import quaternion as quat
+    from .. import rotations as quat
 
     attitude, position = filters or _filters(tuning, errors, 1.0 / truth.dt_s)
     r = heli.simulate_readings(truth, seed, errors)
@@ -128,7 +127,7 @@ class Reproduction:
         m = self.manoeuvre
         return {"paper": "helicopter", "runs": len(self.seeds), "seeds": list(self.seeds),
                 "accel_bias": self.accel_bias,
-                "attitude_filter": "cfdesign.nav.attitude.EulerAttitudeFilter",
+                "attitude_filter": "cfdesign.nav.EulerAttitudeFilter",
                 "manoeuvre": {"straight_s": m.straight_s, "helix_s": m.helix_s, "speed_m_s": m.speed_m_s,
                               "turn_rate_rad_s": m.turn_rate_rad_s, "climb_m_s": m.climb_m_s, "rate_hz": m.rate_hz},
                 "rows": rows, "not_worse_than_paper": self.not_worse()}

@@ -1,7 +1,7 @@
 """Simulation: trajectories, sensor models and the scenarios of the papers.
 
 * :mod:`~cfdesign.sim.trajectory` - sampled truth (heading profile, speed); smooth turns;
-  seed 001's rounded square.
+  the rounded square of Carreira et al.
 * :mod:`~cfdesign.sim.sensors` - rate and heading sensors: white noise, constant or
   random-walk bias, drift, heading-dependent magnetic perturbation, sample rate, dropouts.
   Seeded, reproducible, vectorised; noise given with the design's own objects

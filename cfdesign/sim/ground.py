@@ -1,14 +1,16 @@
-"""A ground robot on uneven terrain with GPS outages: truth and low-cost sensor readings (seed 000's setting).
+"""A ground robot on uneven terrain with GPS outages: truth and low-cost sensor readings.
+
+The setting of Alves Neto et al. (adaptive complementary filtering for mobile robot localization).
 
 Frames and conventions (as :mod:`cfdesign.sim.helicopter`)
 -----------------------------------------------------------
 * Earth frame **ENU**, body frame **FLU** (x forward, y left, z up); quaternions ``[w, x, y, z]``
-  body -> ENU; Euler angles ZYX ``[yaw, pitch, roll]`` (:mod:`cfdesign.nav.quaternion`), so a
+  body -> ENU; Euler angles ZYX ``[yaw, pitch, roll]`` (:mod:`cfdesign.rotations`), so a
   positive pitch is nose *down* and the forward axis is ``[cosψ cosθ, sinψ cosθ, -sinθ]``.
 * The accelerometer reads the specific force ``f_b = R^T (a_n - g_n)``, ``g_n = [0, 0, -9.80665]``.
 
-Path and terrain (ours; seed 000 gives no dimensions)
------------------------------------------------------
+Path and terrain (ours; the paper gives no dimensions)
+------------------------------------------------------
 * Horizontal path: a figure-eight (lemniscate of Gerono) ``x = A sin u``, ``y = (A/2) sin 2u``,
   ``u = Ω t``, ``A = 30`` m, ``AΩ = 1.2`` m/s: horizontal speed ``AΩ sqrt(cos²u + cos²2u)``
   between 0.8 and 1.7 m/s (slowest in the lobes' tight ends), heading sweeping through ±π on
@@ -27,7 +29,7 @@ Sensors (a typical low-cost MEMS IMU, consumer GPS; per axis, our figures)
   0.1 °/s after a standstill calibration, signs :data:`~cfdesign.sim.helicopter.BIAS_SIGNS`;
 * accelerometer: white noise 200 µg/√Hz (1.4 mg per sample at 50 Hz), bias 5 mg on each axis;
 * magnetometer: field :data:`MAGNETIC_FIELD_ENU_G` (0.5 G, horizontal, north; heading errors
-  through a dip are left out, as in seed 000's levelled two-axis compass), noise 2 mG per axis;
+  through a dip are left out, as in the paper's levelled two-axis compass), noise 2 mG per axis;
 * odometry: forward speed with a 2 % scale error and white noise 0.05 m/s;
 * GPS at ``gps_rate_hz``: position noise 2.5 m, velocity noise 0.1 m/s per ENU axis; the
   receiver sees 6-10 satellites, and 0-3 during an outage, when it gives no fix.
@@ -46,10 +48,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from ..nav import quaternion as quat
-from ..nav.attitude import euler_rate_matrix_inverse
-from ..nav.position import GRAVITY_ENU
+from .. import rotations as rot
+from ..errors import InputError
+from ..linear import wrap
+from ..rotations import GRAVITY_ENU, euler_rate_matrix_inverse
 from .helicopter import BIAS_SIGNS, MG_M_S2
 from .sensors import cumulative_trapezoid, interval_mean_readings, noisy_samples
 from .trajectory import SampledTimes
@@ -155,14 +157,14 @@ def _euler(t):
     forward = v / np.linalg.norm(v, axis=-1, keepdims=True)
     up = normal / np.linalg.norm(normal, axis=-1, keepdims=True)
     R = np.stack([forward, np.cross(up, forward), up], axis=-1)       # columns: body axes in ENU
-    return quat.to_euler(quat.from_matrix(R))
+    return rot.to_euler(rot.from_matrix(R))
 
 
 def _body_rate(t):
     """``ω = Q(λ)^-1 λ'`` with ``λ'`` by a central difference of the analytic attitude."""
     h = _EULER_STEP_S
     euler = _euler(t)
-    rates = quat.wrap_angle(_euler(t + h) - _euler(t - h)) / (2 * h)
+    rates = wrap(_euler(t + h) - _euler(t - h)) / (2 * h)
     return np.einsum("kij,kj->ki", euler_rate_matrix_inverse(euler), rates), euler
 
 
@@ -170,7 +172,7 @@ def _fine_truth(t):
     """Every truth quantity on the grid ``t``."""
     position, velocity, acceleration, _ = _motion(t)
     omega, euler = _body_rate(t)
-    R = quat.to_matrix(quat.from_euler(euler))
+    R = rot.to_matrix(rot.from_euler(euler))
     force = np.einsum("kji,kj->ki", R, acceleration - GRAVITY_ENU)
     return {"position": position, "velocity": velocity, "acceleration": acceleration, "euler": euler,
             "omega": omega, "force": force}
@@ -198,16 +200,16 @@ def _gps_rows(t, every, outages):
 def _validate(duration_s, imu_rate_hz, gps_rate_hz, outages):
     for name, value in (("duration_s", duration_s), ("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise SpecError(f"{name}: a positive finite number is needed, got {value!r}")
+            raise InputError(f"{name}: a positive finite number is needed, got {value!r}")
     ratio = imu_rate_hz / gps_rate_hz
     if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
-        raise SpecError(f"gps_rate_hz: {gps_rate_hz:g} Hz must divide imu_rate_hz {imu_rate_hz:g} Hz")
+        raise InputError(f"gps_rate_hz: {gps_rate_hz:g} Hz must divide imu_rate_hz {imu_rate_hz:g} Hz")
     try:
         outages = tuple((float(a), float(b)) for a, b in outages)
     except (TypeError, ValueError):
-        raise SpecError(f"outages: (start_s, end_s) pairs are needed, got {outages!r}") from None
+        raise InputError(f"outages: (start_s, end_s) pairs are needed, got {outages!r}") from None
     if any(not a < b for a, b in outages):
-        raise SpecError(f"outages: each (start_s, end_s) needs start < end, got {outages!r}")
+        raise InputError(f"outages: each (start_s, end_s) needs start < end, got {outages!r}")
     return round(ratio), outages
 
 
@@ -236,7 +238,7 @@ def ground_robot_scenario(seed=0, *, duration_s=300.0, imu_rate_hz=50.0, gps_rat
 
     Raises
     ------
-    SpecError
+    InputError
         A non-positive duration or rate, a GPS rate not dividing the IMU rate, bad outages.
     """
     every, outages = _validate(duration_s, imu_rate_hz, gps_rate_hz, outages)
@@ -246,14 +248,14 @@ def ground_robot_scenario(seed=0, *, duration_s=300.0, imu_rate_hz=50.0, gps_rat
     truth = {k: v[::M] for k, v in fine.items()}
     mean = {k: np.diff(cumulative_trapezoid(fine[k], 1.0 / (imu_rate_hz * M))[::M], axis=0) * imu_rate_hz
             for k in ("omega", "force")}
-    quaternion = quat.from_euler(truth["euler"])
+    quaternion = rot.from_euler(truth["euler"])
     speed = np.linalg.norm(truth["velocity"], axis=-1)
     e = errors
     gyro = interval_mean_readings(t, mean["omega"], e.gyro_bias_rad_s * np.array(BIAS_SIGNS),
                            e.gyro_noise_density * math.sqrt(imu_rate_hz), "gyro", seed)
     accel = interval_mean_readings(t, mean["force"], e.accel_bias_m_s2 * np.array(BIAS_SIGNS),
                             e.accel_noise_density * math.sqrt(imu_rate_hz), "accelerometer", seed)
-    field = np.einsum("kji,j->ki", quat.to_matrix(quaternion[1:]), MAGNETIC_FIELD_ENU_G)
+    field = np.einsum("kji,j->ki", rot.to_matrix(quaternion[1:]), MAGNETIC_FIELD_ENU_G)
     odometry = (1 + e.odometry_scale_error) * noisy_samples(speed[1:, None], e.odometry_noise_std_m_s / (
         1 + e.odometry_scale_error), 1, "odometry", seed)[:, 0]
     fix, in_outage = _gps_rows(t[1:], every, outages)
@@ -263,7 +265,7 @@ def ground_robot_scenario(seed=0, *, duration_s=300.0, imu_rate_hz=50.0, gps_rat
     rng = np.random.default_rng([int(seed), zlib.crc32(b"satellites")])
     return GroundScenario(
         t_s=t, position_m=truth["position"], velocity_m_s=truth["velocity"], acceleration_m_s2=truth["acceleration"],
-        quaternion=quaternion, euler_rad=quat.to_euler(quaternion), speed_m_s=speed,
+        quaternion=quaternion, euler_rad=rot.to_euler(quaternion), speed_m_s=speed,
         body_rate_rad_s=truth["omega"], specific_force_m_s2=truth["force"], gyro_rad_s=gyro, accel_m_s2=accel,
         mag=noisy_samples(field, e.mag_noise_std_g, 1, "magnetometer", seed), odometry_speed_m_s=odometry,
         gps_enu_m=gps, gps_velocity_enu_m_s=gps_v, n_satellites=_satellites(t[1:], in_outage, every, rng),

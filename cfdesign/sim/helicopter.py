@@ -1,4 +1,4 @@
-"""Seed 004's helicopter manoeuvre: a straight path, then an ascending helix, and its IMU/GPS readings.
+"""The helicopter manoeuvre of Vasconcelos et al.: a straight path, then an ascending helix, and its IMU/GPS readings.
 
 Frames and conventions
 ----------------------
@@ -6,17 +6,17 @@ Frames and conventions
 * Body frame **FLU** (x forward, y left, z up); attitude as Z-Y-X Euler angles
   ``lambda = (psi, theta, phi)`` (yaw, pitch, roll), ``R_nb = R_z(psi) R_y(theta) R_x(phi)``
   (body -> ENU), quaternions ``[w, x, y, z]`` of the same rotation, as in
-  :mod:`cfdesign.nav.quaternion`.  Yaw is counted counter-clockwise from East.
+  :mod:`cfdesign.rotations`.  Yaw is counted counter-clockwise from East.
 * The accelerometer measures the **specific force** in the body frame,
   ``f_b = R_nb^T (a_n - g_n)``, so a vehicle at rest reads ``+9.80665`` m/s^2 on its z axis
   and the Earth-frame acceleration is ``a_n = R_nb f_b + g_n``.  With this convention the
-  pendular part of the Magneto-Pendular Sensor is seed 004 eq. (2)-(3) unchanged:
+  pendular part of the Magneto-Pendular Sensor is the paper's eq. (2)-(3) unchanged:
   ``f_b = (-g sin(theta), g cos(theta) sin(phi), g cos(theta) cos(phi))`` at rest.
-* Body rates from the attitude derivative: ``lambda' = Q(lambda) omega`` (seed 004 Sec. 2.1),
+* Body rates from the attitude derivative: ``lambda' = Q(lambda) omega`` (Sec. 2.1),
   solved for ``omega``.
 
-The trajectory (seed 004 Sec. 4, Fig. 5 - dimensions not printed; our choices)
--------------------------------------------------------------------------------
+The trajectory (Sec. 4, Fig. 5 - dimensions not printed; our choices)
+---------------------------------------------------------------------
 * 0-20 s, straight level path East at ``speed_m_s = 5`` m/s (cruise from the start; a
   ``start_speed_m_s`` below it accelerates along the smooth profile of
   :func:`cfdesign.sim.trajectory.smooth_turn` in ``accel_s``); the loop starts at 20 s as in
@@ -38,7 +38,7 @@ noise of variance (0.02 deg/s)^2 per sample on each axis, bias signs ``BIAS_SIGN
 accelerometer: noise (0.6 mg)^2 per axis, 1 mg = 9.80665e-3 m/s^2, and a 10-mg bias on the
 body z axis (``ACCEL_BIAS_READINGS["z"]``).  Why z: a horizontal accelerometer bias ``b``
 tilts the pendular attitude by ``b/g`` (0.57 deg per 10 mg) and no filter fed by the same
-accelerometer can see it (the position filter's gravity removal cancels it, seed 004's
+accelerometer can see it (the position filter's gravity removal cancels it, the paper's
 "multiple equilibrium points"); the paper's pitch and roll errors (0.168 and 0.101 deg)
 leave room for at most 2.9 and 1.8 mg on body x and y.  ``"xyz"`` puts 10 mg on every axis.
 Magnetometer: noise (1 uG)^2 per axis on a horizontal 0.5-G field pointing North (ours: the
@@ -56,10 +56,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from ..nav import quaternion as quat
-from ..nav.attitude import euler_rate_matrix_inverse
-from ..nav.position import GRAVITY_ENU
+from .. import rotations as rot
+from ..errors import InputError
+from ..rotations import GRAVITY_ENU, euler_rate_matrix_inverse
 from .sensors import RateSensor, cumulative_trapezoid, interval_mean_readings, noisy_samples
 from .trajectory import SampledTimes, smooth_turn
 
@@ -173,7 +172,7 @@ def _fine_truth(t, m: Manoeuvre) -> dict:
     theta, phi, dtheta, dphi = _thrust_attitude(fh, dfh)
     c, s = np.cos(psi), np.sin(psi)
     euler = np.column_stack([psi, theta, phi])
-    R = quat.to_matrix(quat.from_euler(euler))
+    R = rot.to_matrix(rot.from_euler(euler))
     acc = np.column_stack([dV * c - V * dpsi * s, dV * s + V * dpsi * c, dw])
     omega = np.einsum("kij,kj->ki", euler_rate_matrix_inverse(euler), np.column_stack([dpsi, dtheta, dphi]))
     return {"euler": euler, "omega": omega,
@@ -182,7 +181,7 @@ def _fine_truth(t, m: Manoeuvre) -> dict:
 
 
 def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajectory:
-    """The straight-then-helix manoeuvre of seed 004 Sec. 4 (Fig. 5), sampled at the IMU rate.
+    """The straight-then-helix manoeuvre of Vasconcelos et al. Sec. 4 (Fig. 5), sampled at the IMU rate.
 
     Parameters
     ----------
@@ -196,7 +195,7 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
     m = manoeuvre or Manoeuvre()
     steps = round(m.duration_s * m.rate_hz)
     if steps < 1 or not math.isclose(steps / m.rate_hz, m.duration_s, rel_tol=1e-9) or m.oversample < 1:
-        raise SpecError(f"manoeuvre: duration {m.duration_s:g} s is not a whole number of {1 / m.rate_hz:g}-s samples")
+        raise InputError(f"manoeuvre: duration {m.duration_s:g} s is not a whole number of {1 / m.rate_hz:g}-s samples")
     M = int(m.oversample)
     h = 1.0 / (m.rate_hz * M)
     fine = _fine_truth(np.arange(steps * M + 1) * h, m)
@@ -207,7 +206,7 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
     return HelicopterTrajectory(
         t_s=np.arange(steps + 1) / m.rate_hz, position_m=position[every], velocity_m_s=fine["velocity"][every],
         acceleration_m_s2=fine["acceleration"][every], euler_rad=fine["euler"][every],
-        quaternion=quat.from_euler(fine["euler"][every]), body_rate_rad_s=fine["omega"][every],
+        quaternion=rot.from_euler(fine["euler"][every]), body_rate_rad_s=fine["omega"][every],
         specific_force_m_s2=fine["force"][every], mean_body_rate_rad_s=mean["omega"],
         mean_specific_force_m_s2=mean["force"])
 
@@ -217,7 +216,7 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
 class SensorErrors:
     """Sensor errors per axis (SI): constant biases, white-noise per-sample standard deviations.
 
-    Defaults: seed 004 Table 1 (module docstring).
+    Defaults: Table 1 of Vasconcelos et al. (module docstring).
     """
 
     gyro_bias_rad_s: float = math.radians(0.05)
@@ -240,7 +239,7 @@ class SensorErrors:
         return self.accel_bias_m_s2 * np.array(self.accel_bias_axes, dtype=float)
 
 
-#: seed 004 Table 1 (accelerometer bias on body z: see the module docstring)
+#: Table 1 of Vasconcelos et al. (accelerometer bias on body z: see the module docstring)
 TABLE1 = SensorErrors()
 #: readings of Table 1's "10 mg": on body z only (default), or on every axis with signs +, -, +
 ACCEL_BIAS_READINGS = {"z": (0.0, 0.0, 1.0), "xyz": BIAS_SIGNS}
@@ -272,7 +271,7 @@ def simulate_readings(trajectory: HelicopterTrajectory, seed: int, errors: Senso
     """
     t = trajectory.t_s
     every = RateSensor(rate_hz=errors.gps_rate_hz).every(trajectory.dt_s)
-    R = quat.to_matrix(trajectory.quaternion)
+    R = rot.to_matrix(trajectory.quaternion)
     mag = np.einsum("kji,j->ki", R, np.asarray(field_enu_g, dtype=float))
     return ImuGpsReadings(
         gyro_rad_s=interval_mean_readings(t, trajectory.mean_body_rate_rad_s, errors.gyro_bias,

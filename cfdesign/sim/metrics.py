@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..runtime import wrap
+from ..linear import wrap
 
 __all__ = ["heading_error", "mse", "mean_ci"]
 

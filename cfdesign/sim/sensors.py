@@ -6,8 +6,8 @@ conventions (:mod:`cfdesign.noise`), so a simulation can generate exactly the no
 design assumed:
 
 * a **rate sensor** (gyro) reads the *mean* rate over each sample interval - the
-  delta-angle of an integrating gyro divided by ``T``, the zero-order-hold input of seed 001
-  eq. (25) - plus its bias and white noise.  White noise of per-sample standard deviation
+  delta-angle of an integrating gyro divided by ``T``, the zero-order-hold input of Carreira et
+  al. eq. (25) - plus its bias and white noise.  White noise of per-sample standard deviation
   ``sigma`` at ``f`` Hz is the average over ``1/f`` s of a white noise of PSD
   ``sigma**2 / f``; a random-walk bias of density ``d`` is integrated exactly over each
   interval (mean ``b_k + I_k/T`` with ``Var I_k = d^2 T^3/3``, ``Cov(I_k, b_(k+1) - b_k) =
@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
+from ..errors import InputError
+from ..linear import wrap
 from ..noise import Bias, WhiteNoise
-from ..runtime import wrap
 from .trajectory import Trajectory
 
 __all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate", "cumulative_trapezoid",
@@ -44,8 +44,8 @@ __all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate", "c
 class MagneticPerturbation:
     """Heading-dependent compass error ``amplitude_rad * sin(harmonic * psi + phase_rad)`` (rad).
 
-    ``harmonic = 1`` is a hard-iron-like error, ``2`` a soft-iron-like one.  Seed 001 Sec. V-A:
-    ``20 sin(psi)`` (read as degrees, see :mod:`cfdesign.sim.seed001`).
+    ``harmonic = 1`` is a hard-iron-like error, ``2`` a soft-iron-like one.  Carreira et al. Sec. V-A:
+    ``20 sin(psi)`` (read as degrees, as their robot-heading scenario does).
     """
 
     amplitude_rad: float
@@ -76,7 +76,7 @@ class _Sensor:
             return 1
         ratio = 1.0 / (dt_s * self.rate_hz) if self.rate_hz > 0 else 0.0
         if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
-            raise SpecError(f"rate_hz: {self.rate_hz:g} Hz is not the trajectory rate {1 / dt_s:g} Hz divided by an "
+            raise InputError(f"rate_hz: {self.rate_hz:g} Hz is not the trajectory rate {1 / dt_s:g} Hz divided by an "
                             "integer")
         return round(ratio)
 
@@ -86,7 +86,7 @@ class _Sensor:
     def _keep(self, values, every, rng):
         """NaN where the sensor does not read (off its rate) or the reading is dropped."""
         if not 0.0 <= self.dropout < 1.0:
-            raise SpecError(f"dropout: a probability in [0, 1) is needed, got {self.dropout!r}")
+            raise InputError(f"dropout: a probability in [0, 1) is needed, got {self.dropout!r}")
         out = np.full(len(values), np.nan)
         out[::every] = values[::every]
         if self.dropout:
@@ -197,8 +197,8 @@ def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
         rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
         try:
             out[name] = model.read(trajectory, rng)
-        except SpecError as exc:
-            raise SpecError(f"sensor {name}: {exc}") from None
+        except InputError as exc:
+            raise InputError(f"sensor {name}: {exc}") from None
     return out
 
 

@@ -2,9 +2,9 @@
 sensor's reading integrated into a heading - and the white noise a design assumes for each.
 
 A complementary filter takes one sensor as its rate input and the others as angle
-measurements (MATH.md §1).  Any heading sensor can be the input by differencing its
+measurements (``docs/derivations.md``).  Any heading sensor can be the input by differencing its
 readings over each sample interval, and a gyro can be an angle measurement by dead
-reckoning from a known start.  With ``x[k+1] = x[k] + T u[k]`` (seed 001 eq. (25)) the
+reckoning from a known start.  With ``x[k+1] = x[k] + T u[k]`` (Carreira et al. eq. (25)) the
 differenced heading ``u[k] = (y[k+1] - y[k])/T`` is exactly the sampled relation
 ``(z - 1)/T`` the model implies, so a noise-free reading gives back the truth exactly.
 
@@ -23,8 +23,8 @@ import math
 
 import numpy as np
 
+from ..linear import wrap
 from ..noise import WhiteNoise
-from ..runtime import wrap
 
 __all__ = ["integrate_rate", "difference_heading", "integrated_noise", "differenced_noise", "sinusoid_readings"]
 

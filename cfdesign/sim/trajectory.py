@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SpecError
-from ..runtime import wrap
+from ..errors import InputError
+from ..linear import wrap
 
 __all__ = ["Trajectory", "Segment", "smooth_turn", "from_segments", "rounded_square"]
 
@@ -108,11 +108,11 @@ def from_segments(segments, *, dt_s: float, start_heading_rad: float = 0.0, spee
     """
     segments = [Segment(*s) if not isinstance(s, Segment) else s for s in segments]
     if not segments or dt_s <= 0 or any(s.straight_s < 0 or s.turn_s <= 0 for s in segments):
-        raise SpecError("trajectory: give at least one segment, straight_s >= 0, turn_s > 0 and dt_s > 0")
+        raise InputError("trajectory: give at least one segment, straight_s >= 0, turn_s > 0 and dt_s > 0")
     total = sum(s.duration_s for s in segments)
     steps = round(total / dt_s)
     if steps < 1 or not math.isclose(steps * dt_s, total, rel_tol=1e-9):
-        raise SpecError(f"trajectory: duration {total:g} s is not a whole number of {dt_s:g}-s samples")
+        raise InputError(f"trajectory: duration {total:g} s is not a whole number of {dt_s:g}-s samples")
     t = np.arange(steps + 1) * dt_s
     heading = np.full(steps + 1, float(start_heading_rad))
     start = 0.0
@@ -125,7 +125,7 @@ def from_segments(segments, *, dt_s: float, start_heading_rad: float = 0.0, spee
 
 def rounded_square(*, start_heading_rad: float = 0.0, straight_s: float = 600.0, turn_s: float = 10.0,
                    legs: int = 4, dt_s: float = 0.2, speed_m_s: float = 0.1, left: bool = True) -> Trajectory:
-    """Seed 001 Sec. V-A's path: ``legs`` times straight for ``straight_s``, then 90 deg in ``turn_s``.
+    """The path of Carreira et al. Sec. V-A: ``legs`` times straight for ``straight_s``, then 90 deg in ``turn_s``.
 
     With the defaults (600 s, 10 s, four legs, left turns) the robot is back at its start
     heading after 2440 s.  Start near +-180 deg (e.g. 135 deg) and the heading crosses the

@@ -1,26 +1,31 @@
-"""Small quaternion helpers (numpy, vectorised over leading axes).
+"""Rotations in the ENU frame: quaternions, Euler angles, Euler-rate kinematics, gravity.
 
-Conventions used throughout :mod:`cfdesign.nav`:
+numpy only, vectorised over leading axes.  The one place for the frame conventions of
+:mod:`cfdesign.sim` (truth and sensor models) and :mod:`cfdesign.nav` (the filters), so
+that neither needs the other:
 
 * quaternions are ``[w, x, y, z]`` (scalar first), Hamilton product;
 * an attitude quaternion ``q`` maps body (sensor) coordinates to the local level frame
   **ENU** (x east, y north, z up): ``v_enu = q ⊗ v_body ⊗ conj(q)``;
 * Euler angles are ZYX ``[yaw, pitch, roll]`` of the body relative to ENU:
-  ``R = R_Z(yaw) R_Y(pitch) R_X(roll)`` (body -> ENU), yaw counter-clockwise from east.
+  ``R = R_Z(yaw) R_Y(pitch) R_X(roll)`` (body -> ENU), yaw counter-clockwise from east;
+* gravity in ENU is :data:`GRAVITY_ENU`; an accelerometer reads the specific force
+  ``f_b = R^T (a_n - g_n)``, so ``a_n = R f_b + g_n``.
+
+Angles are wrapped with :func:`cfdesign.linear.wrap`, the one wrap of cfdesign.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["multiply", "conjugate", "normalize", "rotate", "from_rotation_vector", "from_euler",
-           "to_euler", "to_matrix", "from_matrix", "wrap_angle"]
+from .linear import wrap
 
+__all__ = ["GRAVITY_ENU", "multiply", "conjugate", "normalize", "rotate", "from_rotation_vector", "from_euler",
+           "to_euler", "to_matrix", "from_matrix", "euler_rate_matrix", "euler_rate_matrix_inverse"]
 
-def wrap_angle(angle):
-    """Wrap an angle (rad, scalar or array) to ``(-pi, pi]``."""
-    out = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2 * np.pi)
-    return float(out) if np.ndim(out) == 0 else out
+#: gravity in ENU (m/s^2): standard gravity 9.80665 m/s^2 pointing down
+GRAVITY_ENU = np.array([0.0, 0.0, -9.80665])
 
 
 def multiply(p, q):
@@ -67,7 +72,7 @@ def from_rotation_vector(r):
 def from_euler(euler):
     """ZYX Euler angles ``[yaw, pitch, roll]`` (rad, body relative to ENU) -> quaternion ``[w, x, y, z]``.
 
-    ``q = q_Z(yaw) ⊗ q_Y(pitch) ⊗ q_X(roll)``, i.e. ``R = R_Z R_Y R_X`` (seed 004 Sec. 2.2).
+    ``q = q_Z(yaw) ⊗ q_Y(pitch) ⊗ q_X(roll)``, i.e. ``R = R_Z R_Y R_X`` (Vasconcelos et al. Sec. 2.2).
     """
     e = np.asarray(euler, dtype=float)
     cy, sy = np.cos(e[..., 0] / 2), np.sin(e[..., 0] / 2)
@@ -85,7 +90,7 @@ def to_euler(q):
     yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     pitch = np.arcsin(np.clip(2 * (w * y - x * z), -1.0, 1.0))
     roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    return np.stack([wrap_angle(yaw), pitch, roll], axis=-1)
+    return np.stack([wrap(yaw), pitch, roll], axis=-1)
 
 
 def to_matrix(q):
@@ -116,3 +121,31 @@ def from_matrix(R):
     for k, comps in rows.items():
         out = np.where((best == k)[..., None], np.stack(comps, axis=-1), out)
     return normalize(0.5 * out)
+
+
+def euler_rate_matrix(euler):
+    """``Q(λ)``: Euler-angle rates ``λ' = Q(λ) ω`` for ``λ = (ψ, θ, φ)`` (Vasconcelos et al. Sec. 2.1).
+
+    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``; ``ω`` is
+    the body rate (rad/s).  Singular at ``θ = ±90°``.  ``euler`` (..., 3) -> (..., 3, 3).
+    """
+    e = np.asarray(euler, dtype=float)
+    sf, cf = np.sin(e[..., 2]), np.cos(e[..., 2])
+    sec, tan = 1.0 / np.cos(e[..., 1]), np.tan(e[..., 1])
+    zero, one = np.zeros_like(sf), np.ones_like(sf)
+    return np.stack([np.stack([zero, sf * sec, cf * sec], -1),
+                     np.stack([zero, cf, -sf], -1),
+                     np.stack([one, sf * tan, cf * tan], -1)], -2)
+
+
+def euler_rate_matrix_inverse(euler):
+    """``Q(λ)^-1``: body rate from Euler-angle rates, ``ω = Q^-1 λ'`` (defined at every attitude).
+
+    ``Q^-1 = [[-sinθ, 0, 1], [cosθ sinφ, cosφ, 0], [cosθ cosφ, -sinφ, 0]]`` (columns ψ', θ', φ').
+    """
+    e = np.asarray(euler, dtype=float)
+    st, ct, sf, cf = np.sin(e[..., 1]), np.cos(e[..., 1]), np.sin(e[..., 2]), np.cos(e[..., 2])
+    zero, one = np.zeros_like(st), np.ones_like(st)
+    return np.stack([np.stack([-st, zero, one], -1),
+                     np.stack([ct * sf, cf, zero], -1),
+                     np.stack([ct * cf, -sf, zero], -1)], -2)

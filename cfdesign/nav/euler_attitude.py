@@ -1,0 +1,189 @@
+"""The Euler-angle attitude complementary filter of Vasconcelos et al. (Sec. 2, Fig. 2).
+
+Euler channels ``λ = (ψ, θ, φ)`` (yaw, pitch, roll) driven by the gyro through
+``u_λ = Q(λ) ω`` (:func:`cfdesign.rotations.euler_rate_matrix`), corrected by the
+Magneto-Pendular Sensor (:mod:`cfdesign.nav.mps`), with the gyro bias kept in body rates.
+Each channel is the designed ``cf2`` of :mod:`cfdesign.nav.attitude_channel`: one table for
+the tilt channels (pitch, roll), one for yaw.  Use it for vehicles that stay far from
+``θ = ±90°`` (helicopters, cars, fixed wings in normal flight); :func:`cfdesign.nav.estimate_attitude`
+is the singularity-free form.
+
+Frames: attitude of the body (sensor) frame relative to **ENU** (x east, y north, z up);
+Euler angles ZYX ``[yaw, pitch, roll]``; quaternions ``[w, x, y, z]`` map body to ENU.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import rotations as rot
+from ..errors import AttitudeInputError
+from ..linear import wrap_scalar
+from .attitude_channel import channel_gains, channel_tables, design_channel
+from .attitude_inputs import imu_inputs, initial_quaternion, positive, usable_rows
+from .mps import mps_euler
+
+__all__ = ["EulerAttitudeFilter", "EulerEstimate"]
+
+
+@dataclass(frozen=True)
+class EulerEstimate:
+    """Output of :meth:`EulerAttitudeFilter.run`; attitude of the body relative to **ENU**.
+
+    Attributes
+    ----------
+    euler : ndarray (N, 3)
+        ZYX ``[yaw, pitch, roll]`` (rad), yaw wrapped to ``(-pi, pi]``.
+    bias : ndarray (N, 3)
+        Body-rate gyro bias estimate ``b_ω`` (rad/s).
+    quaternion : ndarray (N, 4)
+        The same attitude as ``[w, x, y, z]``, body -> ENU.
+    gains : dict
+        The :class:`~cfdesign.gains.GainTable` per channel group: ``"tilt"`` (pitch, roll)
+        and ``"heading"`` (yaw).
+    """
+
+    euler: np.ndarray
+    bias: np.ndarray
+    quaternion: np.ndarray
+    gains: dict
+
+
+class EulerAttitudeFilter:
+    """The Euler-angle attitude complementary filter with body-rate gyro bias (Vasconcelos et al.).
+
+    Per channel ``λ ∈ (ψ, θ, φ)``, in filter form at every sample ``k`` (Vasconcelos et al.
+    Sec. 2.1, Fig. 2; derivation in ``docs/derivations.md``)::
+
+        e      = y_λ[k] - λ⁻[k]                  (yaw innovation wrapped to (-pi, pi])
+        λ[k]   = λ⁻[k] + k1 e
+        b_ω    = b_ω - Q(λ)^-1 (k2 e)            (bias kept in body rates, Fig. 2's dotted box)
+        λ⁻[k+1] = λ[k] + T Q(λ[k]) (ω[k] - b_ω)  (u_λ = Q(λ) ω)
+
+    with ``y_λ`` the MPS (:func:`cfdesign.nav.mps.mps_euler`, centripetal compensation when a
+    body velocity is given) and ``k1, k2`` the update gains of two designed channel tables
+    (:mod:`cfdesign.nav.attitude_channel`): tilt for pitch and roll, heading for yaw.
+
+    Parameters
+    ----------
+    rate_hz : float
+        IMU (and MPS) sample rate (Hz).
+    gyro_noise_std : float, optional
+        Gyro white noise, rad/s per sample.
+    gyro_bias_density : float, optional
+        Gyro bias random walk, rad/s/sqrt(s).
+    tilt_noise_std, heading_noise_std : float, optional
+        MPS roll/pitch resp. yaw noise, rad per sample.
+    declination_rad : float
+        Magnetic declination (positive east).
+    tables : pair, optional
+        ``(tilt, heading)``: a user's own design instead of the four noise figures, each a
+        :class:`~cfdesign.gains.GainTable` of the ``cf2`` order-2 channel at ``rate_hz`` (e.g.
+        from :func:`cfdesign.design`, :func:`cfdesign.gains.load_gains` or
+        :func:`cfdesign.nav.design_channel`) or a :class:`~cfdesign.spec.FilterSpec` of it.
+        Give either ``tables`` or all four noise figures, which are designed with
+        :func:`cfdesign.nav.design_channel` (no sympy).
+
+    Raises
+    ------
+    AttitudeInputError
+        A missing or invalid noise figure or rate, or both tables and noise figures given.
+    TableMismatchError
+        A table that is not the channel's model or not at ``rate_hz`` (the message names it).
+
+    Notes
+    -----
+    Frame ENU, Euler ZYX of the body relative to ENU.  ``Q(λ)`` is singular at pitch ±90°:
+    use :func:`cfdesign.nav.estimate_attitude` for attitudes that get there.  Missing data: a
+    gyro row with NaN holds the attitude (zero rate); a non-finite or zero accelerometer row
+    skips the whole correction; a non-finite or zero field row skips the yaw correction.
+    """
+
+    def __init__(self, rate_hz, *, gyro_noise_std=None, gyro_bias_density=None, tilt_noise_std=None,
+                 heading_noise_std=None, declination_rad=0.0, tables=None):
+        self.rate_hz = positive("rate_hz", rate_hz)
+        self.declination_rad = float(declination_rad)
+        figures = {"gyro_noise_std": gyro_noise_std, "gyro_bias_density": gyro_bias_density,
+                   "tilt_noise_std": tilt_noise_std, "heading_noise_std": heading_noise_std}
+
+        def design_pair():
+            missing = [name for name, value in figures.items() if value is None]
+            if missing:
+                raise AttitudeInputError(f"{missing[0]} is missing: give the noise figures or "
+                                         "tables=(tilt, heading)")
+            for name, value in figures.items():
+                positive(name, value)
+            return (design_channel(rate_hz, gyro_noise_std, gyro_bias_density, tilt_noise_std),
+                    design_channel(rate_hz, gyro_noise_std, gyro_bias_density, heading_noise_std))
+
+        tilt, heading = channel_tables(tables, [k for k, v in figures.items() if v is not None], design_pair)
+        timing = f"rate_hz {self.rate_hz:g} Hz"
+        k_tilt = channel_gains(tilt, "tables[0] (tilt)", 1.0 / self.rate_hz, timing)
+        k_heading = channel_gains(heading, "tables[1] (heading)", 1.0 / self.rate_hz, timing)
+        self.gains = {"tilt": tilt, "heading": heading}
+        # per channel (ψ, θ, φ)
+        self.k1 = np.array([k_heading[0], k_tilt[0], k_tilt[0]])
+        self.k2 = np.array([k_heading[1], k_tilt[1], k_tilt[1]])
+
+    def run(self, gyr, acc, mag, velocity_body=None, initial=None) -> EulerEstimate:
+        """Filter a log: ``gyr`` (N, 3) rad/s, ``acc`` (N, 3) m/s², ``mag`` (N, 3) or None.
+
+        ``velocity_body`` (N, 3) m/s enables the centripetal compensation; ``initial`` is the
+        initial ``[yaw, pitch, roll]`` (rad, ENU) and defaults to the MPS of the first usable
+        sample.  Returns an :class:`EulerEstimate` (ENU).
+        """
+        gyr, acc, mag, vel = imu_inputs(gyr, acc, mag, velocity_body)
+        acc, mag = usable_rows(acc), usable_rows(mag)
+        gyr = np.where(np.isfinite(gyr).all(axis=1)[:, None], gyr, 0.0)
+        y = None if vel is not None else mps_euler(acc, mag, declination_rad=self.declination_rad).tolist()
+        lam = [float(v) for v in self._initial(acc, mag, initial)]
+        b = [0.0, 0.0, 0.0]
+        T = 1.0 / self.rate_hz
+        gains = (self.k1.tolist(), self.k2.tolist())
+        out_e, out_b = np.empty((len(gyr), 3)), np.empty((len(gyr), 3))
+        for k, w in enumerate(gyr.tolist()):
+            rate = [w[0] - b[0], w[1] - b[1], w[2] - b[2]]
+            yk = y[k] if y is not None else self._mps_one(acc[k], None if mag is None else mag[k], rate, vel[k])
+            lam, b = _euler_correct(lam, b, yk, gains)
+            out_e[k], out_b[k] = lam, b
+            lam = _euler_propagate(lam, [w[0] - b[0], w[1] - b[1], w[2] - b[2]], T)
+        return EulerEstimate(out_e, out_b, rot.normalize(rot.from_euler(out_e)), self.gains)
+
+    def _initial(self, acc, mag, initial):
+        if initial is not None:
+            lam = np.asarray(initial, dtype=float)
+            if lam.shape != (3,) or not np.isfinite(lam).all():
+                raise AttitudeInputError(f"initial must be finite [yaw, pitch, roll] in rad, got {initial!r}")
+            return lam.copy()
+        q0 = initial_quaternion(acc, mag, self.declination_rad, None)
+        return rot.to_euler(q0)
+
+    def _mps_one(self, a, m, rate, v):
+        return mps_euler(a, m, declination_rad=self.declination_rad, rate=np.asarray(rate),
+                         velocity_body=v).tolist()
+
+
+def _euler_propagate(lam, rate, T):
+    """``λ + T Q(λ) ω`` (Vasconcelos et al. Sec. 2.1) in Python floats; yaw wrapped."""
+    psi, theta, phi = lam
+    sf, cf = math.sin(phi), math.cos(phi)
+    ct, tt = math.cos(theta), math.tan(theta)
+    wy, wz = rate[1], rate[2]
+    return [wrap_scalar(psi + T * (sf * wy + cf * wz) / ct), theta + T * (cf * wy - sf * wz),
+            phi + T * (rate[0] + tt * (sf * wy + cf * wz))]
+
+
+def _euler_correct(lam, b, y, gains):
+    """Measurement update ``λ += k1 e``, ``b_ω -= Q(λ)^-1 (k2 e)``; channels with a NaN MPS are skipped."""
+    (k1p, k1t, k1r), (k2p, k2t, k2r) = gains
+    e = [y[0] - lam[0], y[1] - lam[1], y[2] - lam[2]]
+    e = [v if v == v else 0.0 for v in e]                   # NaN: channel not measured
+    e[0] = wrap_scalar(e[0])
+    psi, theta, phi = wrap_scalar(lam[0] + k1p * e[0]), lam[1] + k1t * e[1], lam[2] + k1r * e[2]
+    dpsi, dtheta, dphi = k2p * e[0], k2t * e[1], k2r * e[2]
+    st, ct, sf, cf = math.sin(theta), math.cos(theta), math.sin(phi), math.cos(phi)
+    b = [b[0] - (-st * dpsi + dphi), b[1] - (ct * sf * dpsi + cf * dtheta), b[2] - (ct * cf * dpsi - sf * dtheta)]
+    return [psi, theta, phi], b
