@@ -1,6 +1,6 @@
 """From a specification to optimal gains: structure -> noise model -> Riccati -> GainTable.
 
-The data flow of DESIGN.md: the symbolic structure gives ``F, B, H`` and the gain pattern;
+The data flow: the symbolic structure gives ``F, B, H`` and the gain pattern;
 the sensors' noise gives ``Q`` and ``R``; the Riccati equation (CARE, DARE, or the periodic
 DARE when the sensors run at different rates) gives the optimal gains; the exact proof and a
 stability check are attached to the resulting :class:`~cfdesign.gains.GainTable`.
@@ -12,8 +12,8 @@ of ``Bc`` as ``Qc += b q b^T``; a random-walk bias enters the sensor's bias stat
 (discrete) or its PSD (continuous).
 
 Gain patterns: a structure whose gain matrix is full (CKF³, DCKF³, the position filter) gets
-the Kalman gain (seed 001 eqs. (23), (28); seed 004 Sec. 3).  A sparse pattern (CF³, seed
-001 eq. (13)) cannot express it; its free gains are chosen to minimise the steady-state error
+the Kalman gain (Carreira et al. eqs. (23), (28); Vasconcelos et al. Sec. 3).  A sparse
+pattern (CF³, Carreira et al. eq. (13)) cannot express it; its free gains are chosen to minimise the steady-state error
 variance of the estimate, ``P[0, 0]`` of the Lyapunov equation for that gain - the best the
 structure can do, which the paper notes is not the optimum in general.
 """

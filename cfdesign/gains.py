@@ -6,7 +6,7 @@ gain form, the predicted steady-state covariances, the sensors and how they ente
 it came from (spec hash, toolkit version, solver residuals).  JSON floats are written with
 ``repr`` precision, so a save/load round trip is exact.
 
-Gain forms (DESIGN.md conventions):
+Gain forms (docs/derivations.md, "Gain forms"; :mod:`cfdesign.linear`):
 
 * ``predictor``: ``x[k+1] = F x[k] + B u[k] + K[k] (y[k] - H x[k])``, estimate ``x[k]``;
 * ``filter``: ``x+[k] = x-[k] + K[k] (y[k] - H x-[k])``, ``x-[k+1] = F x+[k] + B u[k]``,

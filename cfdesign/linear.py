@@ -3,8 +3,8 @@
 numpy only: this is the module the runtime, the designer, ``verify``, the analysis and the
 C generator share, so that a gain form means one thing everywhere.  The symbolic engine
 (:mod:`cfdesign.symbolic.observer`) derives the same objects exactly; the tests hold the two
-against each other.  Derivations: ``docs/derivations.md`` (sections "One observer" and
-"Gain forms").
+against each other.  Derivations: ``docs/derivations.md``, sections "One observer" and
+"Gain forms".
 
 Gain forms
 ----------

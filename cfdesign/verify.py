@@ -1,6 +1,6 @@
 """Re-check a gain table numerically: complementarity, stability and (with the spec) the gains.
 
-``verify`` walks the design path backwards (DESIGN.md): from the table's own ``F, B, H, K``
+``verify`` walks the design path backwards: from the table's own ``F, B, H, K``
 and sensor relations it rebuilds every band numerically and checks
 
 (a) complementarity: ``sum_i T_i = 1`` as an exact polynomial identity (coefficients within
@@ -11,9 +11,9 @@ and sensor relations it rebuilds every band numerically and checks
     unit circle) by design, so the monodromy is what must be stable;
 (c) with the spec: re-designing from it gives the same gains (``rtol``).
 
-Band of sensor ``j``: ``T_j = (C_o adj(vI - A) G_j + D_j den) / den * rel_j`` (MATH.md §1)
-with ``rel_j = v**order`` (continuous) or the ZOH chain relation ``N_order / N_0`` (discrete,
-:func:`cfdesign.symbolic.observer.discrete_relation`, here in floating point).  numpy only.
+Band of sensor ``j``: ``T_j = (C_o adj(vI - A) G_j + D_j den) / den * rel_j``
+(docs/derivations.md, "One observer"), with ``rel_j = v**order`` (continuous) or the ZOH
+chain relation ``N_order / N_0`` (discrete), all from :mod:`cfdesign.linear`.  numpy only.
 """
 
 from __future__ import annotations
