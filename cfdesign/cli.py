@@ -186,9 +186,9 @@ def cmd_verify(args) -> int:
     spec = load_spec(args.spec) if args.spec else None
     checks = verify_table(table, spec, args.rtol)
     for check in checks:
-        print(check.line())
+        print(_one_line(check.line(), 2000))
     failed = [c for c in checks if not c.ok]
-    print(f"{table.name}: {len(checks) - len(failed)} of {len(checks)} checks hold")
+    print(f"{_one_line(repr(table.name))}: {len(checks) - len(failed)} of {len(checks)} checks hold")
     return 1 if failed else 0
 
 

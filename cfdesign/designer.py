@@ -35,7 +35,7 @@ from scipy import linalg, optimize
 
 from . import __version__, linear
 from .errors import CfdesignError, SpecError
-from .gains import GainTable, Schedule, SensorPort
+from .gains import MAX_PERIOD, GainTable, Schedule, SensorPort
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import QUANTITY_ORDERS, FilterSpec
@@ -48,8 +48,6 @@ __all__ = ["design", "design_from_structure", "Structure", "numeric_structure", 
            "designed_observer"]
 
 _RATE_RTOL = 1e-9
-#: largest multirate period (base steps) a design may have
-MAX_PERIOD = 10_000
 
 
 def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None) -> tuple:
@@ -332,6 +330,7 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     confirmed by the numeric band identity of the designed gains (:mod:`cfdesign.linear`).
     """
     _check_sensors(spec, structure)
+    _check_wrap(spec, structure)
     structure, fixed = _split_gains(structure, spec.gains)
     inputs = [s.name for s in structure.sensors if s.role == "input"]
     by_row = [s.name for s in sorted((s for s in structure.sensors if s.role == "measurement"),
@@ -371,6 +370,22 @@ def _output(spec, structure, model) -> str:
                             "posterior estimate; use gain_form = 'filter' or output = 'prior'")
         return "prior"
     return spec.output or "posterior"
+
+
+_LINEAR = {"position", "velocity", "acceleration", "jerk"}
+
+
+def _check_wrap(spec, structure):
+    """``wrap_angle`` only for angles: refused when a sensor measures (or a structure's sensor is
+    named after) a linear quantity, or for the position structure."""
+    if not spec.wrap_angle:
+        return
+    linear_sensors = [s.name for s in structure.sensors
+                      if s.name in _LINEAR or (spec.sensor(s.name).measures or "") in _LINEAR]
+    if structure.name == "position" or spec.structure == "position" or linear_sensors:
+        what = f"sensor {linear_sensors[0]!r} measures a" if linear_sensors else "it estimates a"
+        raise SpecError(f"wrap_angle: {structure.name} is not an angle filter ({what} linear quantity); "
+                        "wrapping to (-pi, pi] applies to headings and other angles only")
 
 
 def _split_gains(structure, gains):
@@ -588,7 +603,8 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
             for j, e in enumerate(row):
                 if isinstance(e, str):
                     gains[e] = float(result["K"][0][i, j])
-    return GainTable(
+    _check_covariances(spec, result)
+    table = GainTable(
         name=spec.name, structure=spec.structure, domain=obs.domain, sample_time_s=dt, gain_form=form,
         sensors=tuple(SensorPort(s.name, s.role, s.index, s.order, spec.sensor(s.name).rate_hz)
                       for s in obs.sensors),
@@ -602,6 +618,32 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
                     "python": platform.python_version(), "solver": result["solver"]},
         checks=checks,
     )
+    return _numerically_checked(table)
+
+
+def _numerically_checked(table: GainTable) -> GainTable:
+    """The table with the numeric checks ``cfdesign verify`` applies to it recorded; a table
+    that would fail them is refused here, so design and verify never disagree."""
+    from .verify import numeric_checks
+
+    found = numeric_checks(table)
+    failed = [c for c in found if not c.ok]
+    if failed:
+        raise CfdesignError(f"{table.name}: the designed table fails a check `cfdesign verify` applies ("
+                            f"{failed[0].line()}); the gains are too close to the stability boundary or too "
+                            "badly scaled for double precision")
+    return replace(table, checks={**table.checks, "numeric": {c.name: c.detail for c in found}})
+
+
+def _check_covariances(spec, result):
+    """Predicted covariances must be finite with a non-negative diagonal (tiny fixed gains or
+    near-marginal loops can make the Lyapunov solution meaningless)."""
+    for key in ("P", "P_filtered"):
+        for k, P in enumerate(result[key]):
+            if not np.all(np.isfinite(P)) or np.min(np.diag(P)) < -1e-12 * max(np.abs(P).max(), 1e-300):
+                raise SpecError(f"gains: the predicted error covariance {key}[{k}] cannot be computed reliably "
+                                "(not finite or negative); the gains are too small or too close to the stability "
+                                "boundary for double precision")
 
 
 def designed_observer(spec: FilterSpec, table: GainTable):

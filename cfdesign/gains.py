@@ -19,6 +19,8 @@ At a phase where a measurement sensor has no reading, its column of ``K[k]`` is 
 from __future__ import annotations
 
 import json
+import keyword
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -29,6 +31,12 @@ from .errors import GainTableError
 from .linear import GAIN_FORMS
 
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION"]
+
+#: largest gain table file read (bytes) and largest period and state a table may have: checked
+#: before anything is allocated or computed (the designer caps the period at the same value)
+MAX_TABLE_BYTES = 64_000_000
+MAX_PERIOD = 10_000
+MAX_STATES = 500
 
 #: version of the JSON layout written by :meth:`GainTable.save`
 FORMAT_VERSION = 1
@@ -46,8 +54,20 @@ def validate(data: dict, source: str = "gain table"):
     The JSON schema fixes the fields and types; how the parts fit together (shapes, sensor
     ports, schedule) is checked when the :class:`GainTable` is built from them.
     """
+    _check_sizes(data, source)
     _check_schema(data, source)
     return GainTable._from_json(data, source)
+
+
+def _check_sizes(d, source):
+    """Refuse tables larger than the limits before building arrays from them."""
+    if not isinstance(d, dict):
+        return
+    period, n = len(d.get("K") or []), len(d.get("F") or [])
+    if period > MAX_PERIOD:
+        raise GainTableError(f"{source}: a period of {period} phases is more than {MAX_PERIOD}")
+    if n > MAX_STATES:
+        raise GainTableError(f"{source}: {n} states is more than {MAX_STATES}")
 
 
 def _check_schema(data, source):
@@ -69,6 +89,13 @@ def _check_table(t, source):
         raise GainTableError(f"{source}: domain {t.domain!r} / gain_form {t.gain_form!r} unknown")
     if (t.domain == "s") != (t.gain_form == "continuous"):
         raise GainTableError(f"{source}: gain_form {t.gain_form!r} does not go with domain {t.domain!r}")
+    dt = t.sample_time_s
+    if t.domain == "z" and not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt)
+                                and dt > 0):
+        raise GainTableError(f"{source}: sample_time_s must be a positive number of seconds for a discrete "
+                             f"table, got {dt!r}")
+    if len(t.K) > MAX_PERIOD:
+        raise GainTableError(f"{source}: a period of {len(t.K)} phases is more than {MAX_PERIOD}")
     n = np.shape(t.F)[0] if np.ndim(t.F) == 2 else 0
     if n == 0:
         raise GainTableError(f"{source}: F is empty: a filter needs at least one state")
@@ -94,8 +121,8 @@ def _check_ports(ports, p, m, source):
     if dup:
         raise GainTableError(f"{source}: sensors: duplicate name(s) {', '.join(dup)}")
     for s in ports:
-        if not (isinstance(s.name, str) and s.name.isascii() and s.name.isidentifier()):
-            raise GainTableError(f"{source}: sensors: name {s.name!r} is not an ASCII identifier")
+        if not (isinstance(s.name, str) and s.name.isascii() and s.name.isidentifier()) or keyword.iskeyword(s.name):
+            raise GainTableError(f"{source}: sensors: name {s.name!r} is not an ASCII identifier (or is a keyword)")
         if s.role not in ("input", "measurement") or s.order < 0 or not s.rate_hz > 0:
             raise GainTableError(f"{source}: sensors.{s.name}: role {s.role!r}, order {s.order}, "
                                  f"rate {s.rate_hz} Hz is not a valid port")
@@ -410,6 +437,7 @@ class GainTable:
                 shape = (n, m) if key == "K" else (n, n)
                 kw[key] = [_array(M, shape, f"{source}: {key}[{k}]") for k, M in enumerate(d[key])]
             kw["sensors"] = tuple(SensorPort.from_dict(s) for s in d["sensors"])
+            _check_ports(kw["sensors"], p, m, source)
             names = [s.name for s in sorted(kw["sensors"], key=lambda s: s.index) if s.role == "measurement"]
             kw["schedule"] = Schedule.from_names(names, d["measured"])
         except ValueError as exc:
@@ -439,7 +467,12 @@ def load_gains(path) -> GainTable:
     """Read a gain table written by :meth:`GainTable.save`."""
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_TABLE_BYTES:
+            raise GainTableError(f"{path}: {size} bytes is more than a gain table holds (limit {MAX_TABLE_BYTES})")
         data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
+    except RecursionError:
+        raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except OSError as exc:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:

@@ -32,12 +32,19 @@ from .errors import SpecError
 __all__ = ["WhiteNoise", "Bias", "van_loan", "zoh"]
 
 
+#: noise and bias figures cfdesign accepts (their squares, times any rate, stay normal doubles)
+FIGURE_RANGE = (1e-100, 1e100)
+
+
 def _positive(value, field, allow_zero=True):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SpecError(f"{field} must be a number, got {value!r}")
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         kind = "non-negative" if allow_zero else "positive"
         raise SpecError(f"{field} must be a finite {kind} number, got {value!r}")
+    if value and not FIGURE_RANGE[0] <= value <= FIGURE_RANGE[1]:
+        raise SpecError(f"{field}: {value:g} is outside {FIGURE_RANGE[0]:g} to {FIGURE_RANGE[1]:g}, the range whose "
+                        "squares double precision can hold (check the units)")
     return float(value)
 
 

@@ -28,6 +28,7 @@ design file is only ever read as TOML data: nothing in it is evaluated.
 from __future__ import annotations
 
 import hashlib
+import keyword
 import math
 import sys
 from dataclasses import dataclass
@@ -111,10 +112,32 @@ def example_path(name: str = "robot-heading") -> Path:
     return EXAMPLES_DIR / EXAMPLES[name]
 
 
+#: largest design file read (bytes): a design is a few hundred bytes
+MAX_SPEC_BYTES = 1_000_000
+
+
 def load_spec(path) -> FilterSpec:
-    """Read and validate a TOML design file; errors name the file and the field."""
+    """Read and validate a TOML design file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    FilterSpec
+
+    Raises
+    ------
+    SpecError
+        The file cannot be read, is larger than :data:`MAX_SPEC_BYTES`, is not TOML, or a
+        field is missing or invalid; the message names the file and the field.
+    """
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_SPEC_BYTES:
+            raise SpecError(f"{path}: {size} bytes is more than a design file holds (limit {MAX_SPEC_BYTES})")
         text = path.read_bytes()
     except OSError as exc:
         raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
@@ -122,6 +145,8 @@ def load_spec(path) -> FilterSpec:
         data = tomllib.loads(text.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SpecError(f"{path}: malformed TOML: {exc}") from None
+    except RecursionError:
+        raise SpecError(f"{path}: malformed TOML: nested too deeply") from None
     try:
         return parse_spec(data, sha256=hashlib.sha256(text).hexdigest())
     except SpecError as exc:
@@ -165,8 +190,9 @@ def _gains(table):
 
 def _sensor(name, body) -> SensorSpec:
     field = f"sensors.{name}"
-    if not name.isidentifier():
-        raise SpecError(f"{field}: sensor names must be identifiers (letters, digits, _)")
+    if not (name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
+        raise SpecError(f"{field}: sensor names must be ASCII identifiers (letters, digits, _; not starting "
+                        "with a digit) and not Python keywords: they name log columns and C macros")
     if not isinstance(body, dict):
         raise SpecError(f"{field} must be a table")
     _no_unknown(body, _SENSOR_KEYS, field + ".")

@@ -14,3 +14,26 @@ def shared_dir():
     if not SHARED.is_dir():
         pytest.skip(f"shared data folder not found at {SHARED} (it sits beside the checkout in CI)")
     return SHARED
+
+
+def run_cli(*args) -> tuple:
+    """``cfdesign ARGS`` in this process: ``(exit status, stdout, stderr)``.
+
+    The CLI is a thin layer over the library, so its tests call ``cli.main`` directly rather
+    than paying for a new interpreter; tests of start-up and entry points use a subprocess.
+    """
+    import contextlib
+    import io
+
+    from cfdesign.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in args])
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture
+def cli():
+    """:func:`run_cli` as a fixture."""
+    return run_cli

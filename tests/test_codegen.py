@@ -157,7 +157,7 @@ def test_bad_precision_and_unwritable_folder(tables, tmp_path):
 def test_table_name_cannot_end_the_comment(tables):
     table = dataclasses.replace(tables["position"], name="evil */ int x; /*\nmore")
     header = render_c(table)["position_gains.h"]
-    assert " * source table : evil * / int x; / *?more\n" in header
+    assert " * source table : evil * / int x; / *_more\n" in header
     assert header.count("*/") == header.count("/*")
 
 

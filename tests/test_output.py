@@ -65,5 +65,5 @@ def test_gaps_and_bad_numbers_run_in_batch_like_the_stream():
     names = list(readings)
     stream = np.array([stream_rt.step(**{n: readings[n][k] for n in names}) for k in range(3000)])
     assert np.all(np.isfinite(batch)) and np.max(np.abs(batch - stream)) < 1e-9
-    assert rt.counts == stream_rt.counts == {"non_finite": {"odometry": 2, "compass": 1, "gyro": 2}}
+    assert rt.counts == stream_rt.counts == {"rejected": {"odometry": 2, "compass": 1, "gyro": 2}}
     assert np.all(np.isfinite(rt.x))

@@ -144,7 +144,7 @@ def _fields(table, prefix, precision, output) -> dict:
     shapes = {"F": (n, n), "B": (n, max(p, 1)), "H": (max(m, 1), n), "K": (table.period, n, max(m, 1)),
               "L": (table.period, n, max(m, 1))}
     values = {"F": table.F, "B": table.B, "H": table.H, **gains}
-    arrays = {key: _initializer(_padded(values[key], shape, f"{table.name}: {key}"), suffix)
+    arrays = {key: _initializer(_padded(values[key], shape, f"{table.name}: {key}"), suffix, what=f"a value of {key}")
               for key, shape in shapes.items()}
     active = table.schedule.mask()
     return {
@@ -225,9 +225,13 @@ def _provenance(table) -> dict:
 
 
 def _comment_text(value) -> str:
-    """Text safe inside a C block comment: printable ASCII on one line, no comment delimiters."""
-    text = "".join(c if " " <= c <= "~" else "?" for c in str(value))
-    return text.replace("*/", "* /").replace("/*", "/ *")
+    """Text safe inside a C block comment: printable ASCII on one line, no comment delimiters,
+    no trigraphs (``??/`` would splice lines under -Wtrigraphs)."""
+    text = "".join(c if " " <= c <= "~" else "_" for c in str(value))
+    text = text.replace("*/", "* /").replace("/*", "/ *")
+    while "??" in text:
+        text = text.replace("??", "? ?")
+    return text
 
 
 def _sensor_macros(sensors, prefix) -> str:
@@ -249,21 +253,28 @@ def _padded(values, shape, what):
     return out
 
 
+#: float: the largest finite value and the smallest positive (subnormal) one
+_FLOAT_RANGE = (3.4028234663852886e38, 1.401298464324817e-45)
+
+
 def _literal(value, suffix, what) -> str:
     """A C floating constant with the value's full precision (``repr``: shortest round trip)."""
     value = float(value)
     if not math.isfinite(value):
         raise CfdesignError(f"{what} is not finite; C code needs finite numbers")
+    if suffix == "f" and value and not _FLOAT_RANGE[1] <= abs(value) <= _FLOAT_RANGE[0]:
+        raise CfdesignError(f"{what} = {value!r} is outside the range of float (it would overflow or round to "
+                            "zero); export with --precision double")
     return repr(value) + suffix
 
 
-def _initializer(a, suffix, depth=0) -> str:
+def _initializer(a, suffix, depth=0, what="value") -> str:
     """A brace initializer of a (nested) array, one innermost row per line."""
     if a.ndim == 1:
-        items = [str(int(v)) if a.dtype.kind in "iub" else _literal(v, suffix, "value") for v in a]
+        items = [str(int(v)) if a.dtype.kind in "iub" else _literal(v, suffix, what) for v in a]
         return "{" + ", ".join(items) + "}"
     sep = ",\n" + "    " * (depth + 1)
-    rows = sep.join(_initializer(row, suffix, depth + 1) for row in a)
+    rows = sep.join(_initializer(row, suffix, depth + 1, what) for row in a)
     return "{" + "\n" + "    " * (depth + 1) + rows + "\n" + "    " * depth + "}"
 
 

@@ -29,10 +29,21 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap"]
+__all__ = ["Runtime", "wrap", "usable", "READING_LIMIT"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
+#: readings larger than this in magnitude (SI units: rad, m, rad/s, m/s^2, ...) are not
+#: physical: they are treated as missing and counted, like inf, so that they cannot overflow
+#: the state
+READING_LIMIT = 1e12
+
+
+def usable(a) -> np.ndarray:
+    """``True`` where a reading can be used: finite and within :data:`READING_LIMIT`."""
+    a = np.asarray(a, dtype=float)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(a) & (np.abs(a) <= READING_LIMIT)
 
 
 class Runtime:
@@ -87,7 +98,8 @@ class Runtime:
         self.x = self._x0.copy()
         self.phase = 0
         self.u_last = np.zeros(len(self.inputs))
-        #: readings not used, by kind and sensor: ``non_finite`` (inf, treated as missing) and
+        #: readings not used, by kind and sensor: ``rejected`` (inf, or beyond
+        #: :data:`READING_LIMIT`: treated as missing) and
         #: ``unscheduled`` (a measurement at a phase the schedule does not read: no gain)
         self.counts = {}
 
@@ -96,13 +108,16 @@ class Runtime:
         return {"x": self.x.tolist(), "phase": int(self.phase), "u_last": self.u_last.tolist()}
 
     def restore(self, state: dict):
-        """Continue from a snapshot taken with :meth:`state`."""
-        x = np.array(state["x"], dtype=float)
-        if x.shape != (self.n,) or not 0 <= int(state["phase"]) < self.period:
-            raise CfdesignError(f"state does not fit {self.table.name}: x must have {self.n} entries and "
-                                f"0 <= phase < {self.period}")
-        self.x, self.phase = x, int(state["phase"])
-        self.u_last = np.array(state["u_last"], dtype=float).reshape(len(self.inputs))
+        """Continue from a snapshot taken with :meth:`state`.
+
+        Raises
+        ------
+        CfdesignError
+            The snapshot does not fit this table (keys, sizes, a phase outside the period) or
+            holds a value that is not a finite number; the runtime is left unchanged.
+        """
+        x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name)
+        self.x, self.phase, self.u_last = x, phase, u_last
 
     # ------------------------------------------------------------------ streaming
     def step(self, **readings) -> float:
@@ -114,9 +129,10 @@ class Runtime:
         u = np.array([readings.get(name, np.nan) for name in self.inputs], dtype=float)
         y = np.array([readings.get(name, np.nan) for name in self.measurements], dtype=float)
         u = self._held_inputs(u[None, :])[0]
-        finite = np.isfinite(y)
-        self._count("non_finite", (~finite & ~np.isnan(y))[None, :])
-        self._count("unscheduled", (finite & ~self._active[self.phase])[None, :])
+        good = usable(y)
+        self._count("rejected", (~good & ~np.isnan(y))[None, :])
+        self._count("unscheduled", (good & ~self._active[self.phase])[None, :])
+        y = np.where(good, y, np.nan)
         out = self._advance(u, y)
         self.u_last = u
         return float(out[0])
@@ -140,16 +156,16 @@ class Runtime:
         """Run on whole arrays ``{sensor: (N,) array}``; the state carries over between calls.
 
         Every sensor must be present; NaN marks a missing sample (a slow sensor's column is
-        NaN between its readings).  Returns the (N,) estimates, or ``(estimates, x)`` with
+        NaN between its readings); inf and readings beyond :data:`READING_LIMIT` are treated
+        as missing and counted in :attr:`counts` (``rejected``).  Returns the (N,) estimates, or ``(estimates, x)`` with
         the (N, n) output states (the posterior ``x+[k]`` or the prior ``x[k]``, as
         :attr:`output`) when ``states`` is true.
 
         The work is vectorised (:meth:`_run_vectorised`, or one IIR filter per sensor for a
         single-rate table) over every stretch where each scheduled measurement is present;
         the few steps where one is missing run through :meth:`step`'s recursion.  Missing
-        inputs hold their last value.  Non-finite readings (inf) are treated as missing;
-        readings at phases the schedule does not read have no gain: both are counted in
-        :attr:`counts`.
+        inputs hold their last value.  Readings at phases the schedule does not read have no
+        gain: they are counted in :attr:`counts` (``unscheduled``).
         """
         cols = self._columns(readings)
         u, y = self._split(cols)
@@ -158,8 +174,8 @@ class Runtime:
             return (np.empty(0), np.empty((0, self.n))) if states else np.empty(0)
         u = self._held_inputs(u)
         active = self._active[(self.phase + np.arange(N)) % self.period]
-        finite = np.isfinite(y)
-        self._count("non_finite", ~finite & ~np.isnan(y))
+        finite = usable(y)
+        self._count("rejected", ~finite & ~np.isnan(y))
         self._count("unscheduled", finite & ~active)
         y = np.where(active & finite, y, 0.0)
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
@@ -189,10 +205,10 @@ class Runtime:
 
     def _held_inputs(self, u):
         """Inputs with NaN or inf replaced by the last good value (``u_last`` before the first)."""
-        bad = ~np.isfinite(u)
+        bad = ~usable(u)
         if not bad.any():
             return u
-        self._count("non_finite_inputs", bad & ~np.isnan(u))
+        self._count("rejected_inputs", bad & ~np.isnan(u))
         u = np.vstack([self.u_last[None, :], u])
         good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])
         idx = np.maximum.accumulate(np.where(good, np.arange(len(u))[:, None], 0), axis=0)
@@ -200,8 +216,8 @@ class Runtime:
 
     def _count(self, what, mask):
         if mask.any():
-            names = self.inputs if what == "non_finite_inputs" else self.measurements
-            bucket = self.counts.setdefault("non_finite" if what == "non_finite_inputs" else what, {})
+            names = self.inputs if what == "rejected_inputs" else self.measurements
+            bucket = self.counts.setdefault("rejected" if what == "rejected_inputs" else what, {})
             for name, c in zip(names, mask.sum(axis=0), strict=True):
                 if c:
                     bucket[name] = bucket.get(name, 0) + int(c)
@@ -292,6 +308,28 @@ class Runtime:
             shift = 2 * np.pi * np.round((col[0] - (self.H @ self.x)[i]) / (2 * np.pi))
             out[p + i] = col - shift if shift else col
         return out
+
+
+def _snapshot(state, n, period, p, name):
+    """``(x, phase, u_last)`` of a snapshot, checked (see :meth:`Runtime.restore`)."""
+    def fail(why):
+        raise CfdesignError(f"state does not fit {name}: {why}")
+
+    if not isinstance(state, dict) or not {"x", "phase", "u_last"} <= set(state):
+        fail("a snapshot is a dict with x, phase and u_last (from Runtime.state())")
+    try:
+        x = np.array(state["x"], dtype=float)
+        u_last = np.array(state["u_last"], dtype=float)
+    except (TypeError, ValueError):
+        fail("x and u_last must be lists of numbers")
+    phase = state["phase"]
+    if x.shape != (n,) or u_last.shape != (p,):
+        fail(f"x must have {n} entries and u_last {p}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u_last))):
+        fail("x and u_last must be finite numbers")
+    if isinstance(phase, bool) or not isinstance(phase, (int, np.integer)) or not 0 <= phase < period:
+        fail(f"phase must be an integer with 0 <= phase < {period}, got {phase!r}")
+    return x, int(phase), u_last
 
 
 class _LtiBands:

@@ -1,0 +1,253 @@
+"""Hardening, one property-based test per class of fault: mutated valid inputs may only give a
+documented outcome - a named error with exit status 2, a verify FAIL with exit 1, or a correct
+result - never a traceback, a silent pass, a NaN that spreads, or a lost file."""
+
+import dataclasses
+import json
+import os
+import stat
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import cfdesign
+from cfdesign.errors import CfdesignError, GainTableError, SpecError
+from cfdesign.gains import Schedule, load_gains
+from cfdesign.runtime import Runtime
+from cfdesign.verify import verify_table
+
+FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@pytest.fixture(scope="module")
+def heading():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3")))
+
+
+@pytest.fixture(scope="module")
+def position():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+
+
+# ---------------------------------------------------------------------- 1. verify checks what runs
+def _renamed(table, a, b):
+    names = {a: b, b: a}
+    sensors = tuple(dataclasses.replace(s, name=names.get(s.name, s.name)) for s in table.sensors)
+    meas = [s.name for s in sensors if s.role == "measurement"]
+    per_phase = [[names.get(x, x) for x in table.schedule.names(k)] for k in range(table.period)]
+    return dataclasses.replace(table, sensors=sensors, schedule=Schedule.from_names(meas, per_phase))
+
+
+MUTATIONS = {
+    "swap names": lambda t: _renamed(t, "compass", "odometry"),
+    "gain form": lambda t: dataclasses.replace(t, gain_form="filter" if t.gain_form == "predictor" else "predictor"),
+    "wrap": lambda t: dataclasses.replace(t, wrap_angle=not t.wrap_angle),
+    "output": lambda t: dataclasses.replace(t, output="prior" if t.output == "posterior" else "posterior"),
+    "sample time": lambda t: dataclasses.replace(t, sample_time_s=t.sample_time_s * 1.001),
+    "rate": lambda t: dataclasses.replace(t, sensors=tuple(dataclasses.replace(s, rate_hz=s.rate_hz * 2)
+                                                           if s.name == "gyro" else s for s in t.sensors)),
+    "structure": lambda t: dataclasses.replace(t, structure="cf3"),
+}
+
+
+@FUZZ
+@given(kind=st.sampled_from(sorted(MUTATIONS)), entry=st.tuples(st.integers(0, 1), st.integers(0, 1)),
+       scale=st.sampled_from([1.01, 0.99, 1.0001]))
+def test_verify_spec_fails_any_table_that_runs_a_different_filter(heading, kind, entry, scale):
+    spec = cfdesign.load_spec(cfdesign.example_path("dckf3"))
+    altered = MUTATIONS[kind](heading)
+    failed = [c for c in verify_table(altered, spec) if not c.ok]
+    assert failed and any(c.name.startswith("spec") or "gains" in c.name for c in failed), kind
+    # a changed gain is named with its entry and relative size
+    K = heading.K[0].copy()
+    K[entry] *= scale
+    lines = [c.line() for c in verify_table(dataclasses.replace(heading, K=[K]), spec) if not c.ok]
+    assert lines and f"K[0][{entry[0]},{entry[1]}]" in lines[-1] and f"{abs(scale - 1):.2e}"[:3] in lines[-1]
+
+
+def test_verify_names_the_field_and_cannot_be_forged(heading, tmp_path, cli):
+    spec = cfdesign.example_path("dckf3")
+    t = dataclasses.replace(MUTATIONS["gain form"](heading), name="x\nPASS everything: fine\nPASS")
+    path = t.save(tmp_path / "g.json")
+    code, out, _ = cli("verify", path, "--spec", spec)
+    assert code == 1 and "FAIL spec: gain_form: the table has 'filter', the spec gives 'predictor'" in out
+    assert [line for line in out.splitlines() if line.startswith("PASS everything")] == []
+
+
+# ---------------------------------------------------------------------- 2. bad numbers never poison
+BAD = st.sampled_from([np.inf, -np.inf, np.nan, 1e308, -1e308])
+
+
+@FUZZ
+@given(data=st.data())
+def test_bad_readings_are_missing_counted_and_never_spread(heading, data):
+    rng = np.random.default_rng(0)
+    n = 400
+    readings = {s.name: 0.01 * rng.standard_normal(n) for s in heading.sensors}
+    placed = data.draw(st.lists(st.tuples(st.sampled_from(list(readings)), st.integers(0, n - 1), BAD),
+                                min_size=1, max_size=12))
+    for name, k, value in placed:
+        readings[name][k] = value
+    rt = Runtime(heading)
+    est = rt.run(readings)
+    assert np.all(np.isfinite(rt.x)) and np.all(np.isfinite(est[: min(k for _, k, _ in placed)]))
+    stream = Runtime(heading)
+    ref = np.array([stream.step(**{s: readings[s][k] for s in readings}) for k in range(n)])
+    assert np.allclose(est, ref, rtol=1e-9, atol=1e-9, equal_nan=True)
+    rejected = sum(1 for name, k, v in {(a, b): (a, b, c) for a, b, c in placed}.values() if not np.isnan(v))
+    assert sum(rt.counts.get("rejected", {}).values()) == rejected
+
+
+@FUZZ
+@given(state=st.fixed_dictionaries({"x": st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3),
+                                    "phase": st.one_of(st.integers(-2, 3), st.floats(), st.booleans(), st.text()),
+                                    "u_last": st.lists(st.floats(), max_size=2)}))
+def test_restore_validates_what_it_is_given(heading, state):
+    rt = Runtime(heading)
+    before = rt.state()
+    try:
+        rt.restore(state)
+    except CfdesignError:
+        assert rt.state() == before
+        return
+    assert np.all(np.isfinite(rt.x)) and rt.phase == 0
+
+
+@pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
+def test_json_tables_with_non_numbers_are_refused(heading, tmp_path, token):
+    text = heading.to_json().replace(repr(float(heading.K[0][0, 0])), token, 1)
+    (tmp_path / "g.json").write_text(text)
+    with pytest.raises(GainTableError, match=f"{token} is not a JSON number"):
+        load_gains(tmp_path / "g.json")
+
+
+@FUZZ
+@given(field=st.sampled_from(["std", "density"]), value=st.sampled_from([1e200, 1e-160, 1e300, 1e-300, 1e101]))
+def test_overflowing_noise_figures_are_named(tmp_path_factory, field, value):
+    path = tmp_path_factory.mktemp("spec") / "d.toml"
+    path.write_text(f'structure = "dckf3"\n[sensors.gyro]\nrate_hz = 5.0\nnoise = {{ {field} = {value!r} }}\n'
+                    'bias = { model = "random_walk", density = 1e-4 }\n[sensors.compass]\nrate_hz = 5.0\n'
+                    'noise = { std = 0.1 }\n[sensors.odometry]\nrate_hz = 5.0\nnoise = { std = 0.01 }\n')
+    with pytest.raises(SpecError, match=rf"sensors\.gyro\.noise\.{field}"):
+        cfdesign.design(cfdesign.load_spec(path))
+
+
+# ---------------------------------------------------------------------- 3. outputs are never lost
+def test_failed_design_keeps_the_previous_table(tmp_path, cli):
+    old = tmp_path / "old.json"
+    old.write_text("previous")
+    code, _, err = cli("design", "-o", old, "--bode", tmp_path / "no" / "such" / "dir" / "b.png")
+    assert code == 2 and "cannot write" in err and old.read_text() == "previous"
+    code, _, err = cli("design", "-o", old, "--bode", tmp_path)  # a directory
+    assert code == 2 and "is a directory" in err and old.read_text() == "previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.json"]  # no temporaries left
+
+
+def test_failed_c_export_keeps_the_previous_set(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    out = tmp_path / "c"
+    assert cli("export", table, "--format", "c", "-o", out)[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    (out / "dckf3_filter.c").unlink()
+    (out / "dckf3_filter.c").mkdir()  # the last file of the set cannot be written
+    code, _, err = cli("export", table, "--format", "c", "-o", out, "--precision", "float")
+    assert code == 2 and "is a directory" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == {
+        k: v for k, v in before.items() if k != "dckf3_filter.c"}
+
+
+def test_written_files_follow_the_umask(heading, tmp_path, cli):
+    old = os.umask(0o022)
+    try:
+        table = heading.save(tmp_path / "g.json")
+        cli("export", table, "--format", "csv", "-o", tmp_path / "g.csv")
+    finally:
+        os.umask(old)
+    for p in (tmp_path / "g.json", tmp_path / "g.csv"):
+        assert stat.S_IMODE(p.stat().st_mode) == 0o644
+
+
+# ---------------------------------------------------------------------- 4. semantic checks
+def test_wrap_angle_is_for_angles_only():
+    spec = cfdesign.load_spec(cfdesign.example_path("position"))
+    with pytest.raises(SpecError, match="wrap_angle: position is not an angle filter"):
+        cfdesign.design(dataclasses.replace(spec, wrap_angle=True))
+
+
+@FUZZ
+@given(name=st.sampled_from(["gyrö", "compass", "2x", "class", "ψ"]))
+def test_sensor_names_are_ascii_identifiers_everywhere(heading, tmp_path_factory, name):
+    d = heading.to_dict()
+    d["sensors"] = [dict(s, name=name) if s["name"] == "odometry" else s for s in d["sensors"]]
+    d["measured"] = [[name if x == "odometry" else x for x in m] for m in d["measured"]]
+    path = tmp_path_factory.mktemp("t") / "g.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(GainTableError, match=r"duplicate|identifier|schema"):
+        load_gains(path)
+    spec = {"structure": "dckf3", "sensors": {name: {"rate_hz": 5.0, "noise": {"std": 0.1}}}}
+    if name != "compass":
+        with pytest.raises(SpecError, match="ASCII identifiers"):
+            cfdesign.parse_spec(spec)
+
+
+@FUZZ
+@given(rate=st.sampled_from([0.5, 50.0, 1000.0, 19500.0, 2e5]), example=st.sampled_from(["dckf3", "position"]),
+       form=st.sampled_from(["predictor", "filter"]))
+def test_design_and_verify_agree_at_any_rate(rate, example, form):
+    spec = cfdesign.load_spec(cfdesign.example_path(example))
+    spec = dataclasses.replace(spec, gain_form=form,
+                               sensors=tuple(dataclasses.replace(s, rate_hz=rate) for s in spec.sensors))
+    table = cfdesign.design(spec)
+    assert [c.line() for c in verify_table(table, spec) if not c.ok] == []
+
+
+def test_tiny_fixed_gains_are_a_clear_error():
+    spec = cfdesign.load_spec(cfdesign.example_path("cf3"))
+    with pytest.raises((SpecError, CfdesignError), match="gains"):
+        cfdesign.design(dataclasses.replace(spec, gains={"k1": 1e-300, "k2": 1e-300}))
+
+
+# ---------------------------------------------------------------------- 5. sizes checked first
+def test_huge_periods_and_files_are_refused_before_work(position, tmp_path):
+    d = position.to_dict()
+    d["K"] = d["K"] * 300  # period 15,000
+    path = tmp_path / "g.json"
+    path.write_text(json.dumps(d))
+    with pytest.raises(GainTableError, match="period of 15000 phases is more than 10000"):
+        load_gains(path)
+    (tmp_path / "deep.json").write_text("[" * 100_000)
+    with pytest.raises(GainTableError, match=r"nested too deeply|not valid JSON"):
+        load_gains(tmp_path / "deep.json")
+    (tmp_path / "deep.toml").write_text("a = " + "[" * 100_000)
+    with pytest.raises(SpecError, match="malformed TOML"):
+        cfdesign.load_spec(tmp_path / "deep.toml")
+
+
+def test_float_export_refuses_constants_out_of_float_range(heading):
+    from cfdesign.codegen import render_c
+
+    K = heading.K[0].copy()
+    K[0, 0] = 1e39
+    with pytest.raises(CfdesignError, match="outside the range of float"):
+        render_c(dataclasses.replace(heading, K=[K]), precision="float")
+    text = render_c(dataclasses.replace(heading, name="ends in a trigraph ??/"))
+    assert all("??" not in t for t in text.values())
+
+
+# ---------------------------------------------------------------------- 6. no tracebacks for users
+ARGS = st.lists(st.sampled_from(["design", "verify", "run", "export", "prove", "bode", "--format", "c", "json",
+                                 "-o", "/nonexistent/x", ".", "--spec", "--example", "nope", "dckf3", "--gains",
+                                 "k1=1", "--sample-time", "-1", "--bands", "99", "--order", "0", "x.json", ""]),
+                max_size=6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(argv=ARGS)
+def test_cli_never_shows_a_traceback(argv):
+    from conftest import run_cli
+
+    code, _, err = run_cli(*argv)
+    assert code in (0, 1, 2), (argv, code, err)
+    assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, (argv, err)
