@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import json
+from fractions import Fraction
 import math
 import platform
 import warnings
@@ -50,30 +51,51 @@ __all__ = ["design", "design_from_structure", "Structure", "numeric_structure", 
 _RATE_RTOL = 1e-9
 
 
-def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None) -> tuple:
-    """``(sample_time_s, Schedule)``: base rate = the fastest sensor (or ``1/sample_time_s``),
-    period = lcm of the rate ratios, each measurement read at the phases ``k % ratio == 0``.
+def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None,
+                       offsets_s: dict | None = None) -> tuple:
+    """``(sample_time_s, Schedule)``: the base tick and the phases at which each sensor is read.
+
+    The base rate is the fastest sensor's (or ``1/sample_time_s``).  A sensor at ``rate_hz``
+    reads every ``base/rate`` ticks: when that ratio is a fraction ``p/q`` (a 3 Hz GPS beside a
+    100 Hz IMU: ``100/3``) it reads ``q`` times every ``p`` ticks, at the ticks nearest its
+    arrival times ``j/rate + offset`` (``round(j p/q) + round(offset/T)``: 0, 33, 67 for the GPS).
+    The period is the least common multiple of the ``p``; ``offsets_s`` (s) delays a sensor's
+    first reading (a compass that arrives 0.37 s into each second).
 
     Input sensors drive the model every step and must run at the base rate.  Raises
-    :class:`SpecError` naming the sensor when a ratio is not an integer.
+    :class:`SpecError` naming the sensor when a rate is faster than the base rate or gives a
+    period longer than :data:`MAX_PERIOD`.
     """
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
-    every = {}
+    offsets_s = offsets_s or {}
+    ratios = {}
     for name, rate in rates_hz.items():
-        ratio = base / rate
-        if abs(ratio - round(ratio)) > _RATE_RTOL * ratio or round(ratio) < 1:
-            raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not the base rate {base:g} Hz divided by an "
-                            f"integer (ratio {ratio:.6g})")
-        if name in inputs and round(ratio) != 1:
+        ratio = _ratio(name, base / rate, base, rate)
+        if name in inputs and ratio != 1:
             raise SpecError(f"sensors.{name}.rate_hz: input sensor {name} must run at the base rate {base:g} Hz, "
                             f"not {rate:g} Hz")
         if name not in inputs:
-            every[name] = round(ratio)
-    period = reduce(math.lcm, every.values(), 1)
+            ratios[name] = ratio
+    period = reduce(math.lcm, (r.numerator for r in ratios.values()), 1)
     if period > MAX_PERIOD:
         raise SpecError(f"sensors: the rates give a period of {period} base steps (more than {MAX_PERIOD}); "
                         "choose rates with a smaller common multiple")
-    return 1.0 / base, Schedule.every(list(every), every, period)
+    ticks = {}
+    for name, r in ratios.items():
+        shift = round(offsets_s.get(name, 0.0) * base)
+        ticks[name] = [math.floor(j * r + 0.5) + shift for j in range(period * r.denominator // r.numerator)]
+    return 1.0 / base, Schedule.from_ticks(list(ratios), ticks, period)
+
+
+def _ratio(name, ratio, base, rate) -> Fraction:
+    """``base/rate`` as the fraction ``p/q`` it is (to 1e-9), with a period ``p`` within the cap."""
+    if ratio < 1 - _RATE_RTOL:
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz")
+    frac = Fraction(ratio).limit_denominator(MAX_PERIOD)
+    if abs(frac - ratio) > _RATE_RTOL * ratio or frac.numerator > MAX_PERIOD:
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not a fraction of the base rate {base:g} Hz "
+                        f"with a period of at most {MAX_PERIOD} steps (ratio {ratio:.9g})")
+    return frac
 
 
 @dataclass(frozen=True)
@@ -337,7 +359,8 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
                                      key=lambda s: s.index)]
     rates = {name: spec.sensor(name).rate_hz for name in inputs + by_row}
     if structure.discrete:
-        dt, schedule = multirate_schedule(rates, inputs, spec.sample_time_s)  # rows in H order
+        offsets = {name: spec.sensor(name).offset_s for name in by_row}
+        dt, schedule = multirate_schedule(rates, inputs, spec.sample_time_s, offsets)  # rows in H order
     else:
         if spec.gain_form == "filter":
             raise SpecError("gain_form: 'filter' applies to discrete filters only")
@@ -388,6 +411,44 @@ def _check_wrap(spec, structure):
                         "wrapping to (-pi, pi] applies to headings and other angles only")
 
 
+_DERIVATIVES = {"linear": ("position", "velocity", "acceleration", "jerk", "snap"),
+                "angle": ("angle", "angle_rate", "angle_acceleration", "angle_jerk", "angle_snap"),
+                "heading": ("heading", "heading_rate", "heading_acceleration", "heading_jerk", "heading_snap")}
+
+
+def state_names(structure, spec) -> tuple:
+    """A name per state: the quantity and its derivatives (``heading``, ``heading_rate``;
+    ``position``, ``velocity``), and a bias state after its sensor: ``<sensor>_bias`` when the
+    state is subtracted from the sensor's reading in the model, ``<sensor>_correction`` when it
+    is added (the DCKF3's second state is the rate added to the gyro: minus its bias)."""
+    Fc, Bc = structure.Fc, structure.Bc
+    n = len(Fc)
+    measures = {(spec.sensor(s.name).measures or "") for s in structure.sensors}
+    if spec.wrap_angle:
+        family = "heading"
+    elif structure.name == "position" or measures & _LINEAR or any(s.name in _LINEAR for s in structure.sensors):
+        family = "linear"
+    else:
+        family = "angle"
+    names, order = [None] * n, {0: 0}
+    for s in structure.sensors:
+        if s.role == "input" and s.bias_state is not None:
+            rows = np.flatnonzero(Bc[:, s.index])
+            sign = Fc[rows[0], s.bias_state] * Bc[rows[0], s.index] if rows.size else 1.0
+            names[s.bias_state] = f"{s.name}_{'correction' if sign > 0 else 'bias'}"
+    for _ in range(n):  # state j is the derivative of state i when i' = j
+        for i, d in list(order.items()):
+            for j in np.flatnonzero(Fc[i] == 1.0):
+                order.setdefault(int(j), d + 1)
+    for i in range(n):
+        if names[i] is None:
+            d = order.get(i)
+            names[i] = _DERIVATIVES[family][d] if d is not None and d < 5 else f"x{i}"
+    if len(set(names)) < n:
+        names = [f"{name}_{i}" if names.count(name) > 1 else name for i, name in enumerate(names)]
+    return tuple(names)
+
+
 def _split_gains(structure, gains):
     """``(structure, fixed)``: a partial ``[gains]`` is substituted (the rest stay free and are
     optimised); a complete one is returned as the fixed gains."""
@@ -429,6 +490,12 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="poster
         return _sparse_gains(obs, F, H, Q, R, form, output)
     if not obs.full_pattern:
         raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
+    return _periodic_gains(F, H, Q, R, schedule, form)
+
+
+def _periodic_gains(F, H, Q, R, schedule, form) -> dict:
+    """Kalman gains of every phase of ``schedule`` (periodic DARE), in gain form ``form``."""
+    key = "K_filter" if form == "filter" else "K_predictor"
     rows = [list(schedule.rows(k)) for k in range(schedule.period)]
     sol = periodic_dare(F, [H[r, :] for r in rows], Q, [R[np.ix_(r, r)] for r in rows])
     K = []
@@ -439,6 +506,35 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="poster
     return {"K": K, "P": list(sol.P), "P_filtered": list(sol.P_filtered),
             "solver": {"method": "periodic_dare", "residual": float(sol.residual),
                        "monodromy_multipliers": _pairs(sol.monodromy_multipliers)}}
+
+
+def gains_for_schedule(table: GainTable, schedule: Schedule) -> GainTable:
+    """The table's Kalman gains recomputed for another arrival pattern of its sensors.
+
+    The periodic DARE of the table's own model (``F, H, Q, R``, gain form, output) over
+    ``schedule``: what the sensors really do (each slow sensor at its own offset, a rate that is
+    a fraction of the base rate) instead of what the design assumed.  numpy/scipy only.
+
+    Raises
+    ------
+    CfdesignError
+        The table's gains are not Kalman gains (fixed or sparse: they have no model to be
+        recomputed from), or the pattern leaves the filter undetectable.
+    """
+    method = str(table.provenance.get("solver", {}).get("method", ""))
+    if not (method.startswith("dare") or method.startswith("periodic_dare") or method.startswith("care")):
+        raise CfdesignError(f"{table.name}: its gains are not Kalman gains ({method or 'unknown method'}), so they "
+                            "cannot be recomputed for another arrival pattern")
+    result = _periodic_gains(table.F, table.H, table.Q, table.R, schedule, table.gain_form)
+    _check_covariances(table, result)
+    mult = np.array([complex(*p) for p in result["solver"]["monodromy_multipliers"]])
+    checks = {**{k: v for k, v in table.checks.items() if k not in ("poles", "numeric")},
+              "monodromy_multipliers": _pairs(mult), "stable": bool(np.all(np.abs(mult) < 1))}
+    provenance = {**table.provenance, "solver": result["solver"],
+                  "rescheduled_from": {"period": table.period, "measured": table.schedule.per_phase_names()}}
+    fresh = replace(table, K=result["K"], P=result["P"], P_filtered=result["P_filtered"], schedule=schedule,
+                    gains={}, checks=checks, provenance=provenance)
+    return _numerically_checked(fresh)
 
 
 def _solver_info(sol) -> dict:
@@ -610,7 +706,7 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
                       for s in obs.sensors),
         F=model["F"], B=model["B"], H=model["H"], K=result["K"], P=result["P"],
         P_filtered=result["P_filtered"], schedule=schedule, Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
-        output=output,
+        output=output, states=state_names(obs, spec),
         options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
                  if v is not None},
         provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,
@@ -635,7 +731,7 @@ def _numerically_checked(table: GainTable) -> GainTable:
     return replace(table, checks={**table.checks, "numeric": {c.name: c.detail for c in found}})
 
 
-def _check_covariances(spec, result):
+def _check_covariances(owner, result):
     """Predicted covariances must be finite with a non-negative diagonal (tiny fixed gains or
     near-marginal loops can make the Lyapunov solution meaningless)."""
     for key in ("P", "P_filtered"):

@@ -232,6 +232,28 @@ class Schedule:
         measurements = tuple(measurements)
         return cls.from_names(measurements, [[x for x in measurements if k % every[x] == 0] for k in range(period)])
 
+    @classmethod
+    def from_ticks(cls, measurements, ticks: dict, period: int) -> Schedule:
+        """Sensor ``name`` read at the phases ``ticks[name]`` (taken modulo ``period``)."""
+        measurements = tuple(measurements)
+        sets = {x: {int(t) % period for t in ticks[x]} for x in measurements}
+        return cls.from_names(measurements, [[x for x in measurements if k in sets[x]] for k in range(period)])
+
+    def phases(self, name: str) -> tuple:
+        """The phases at which sensor ``name`` is read, ascending."""
+        i = self.measurements.index(name)
+        return tuple(k for k in range(self.period) if i in self.active[k])
+
+    def shifted(self, offsets: dict) -> Schedule:
+        """The schedule with sensor ``name`` read ``offsets[name]`` phases later (others as they are)."""
+        ticks = {x: [k + int(offsets.get(x, 0)) for k in self.phases(x)] for x in self.measurements}
+        return Schedule.from_ticks(self.measurements, ticks, self.period)
+
+    def rotated(self, phase: int) -> Schedule:
+        """The same schedule started ``phase`` phases later: its phase 0 is this one's ``phase``."""
+        k = phase % self.period
+        return Schedule(self.measurements, self.active[k:] + self.active[:k])
+
     @property
     def period(self) -> int:
         return len(self.active)
@@ -269,6 +291,10 @@ class GainTable:
         Base sample time (s); None for continuous filters.
     gain_form : {'predictor', 'filter', 'continuous'}
         See :mod:`cfdesign.linear` for what each form means.
+    states : tuple of str
+        A name per state (``heading``, ``gyro_correction``, ``position``, ``velocity``,
+        ``accelerometer_bias``): the columns of estimate logs.  Tables written without them
+        get ``x0, x1, ...``.
     output : {'posterior', 'prior'}
         The estimate the runtimes return by default: after each step's readings (posterior,
         covariance ``P_filtered``) or the one-step prediction (prior, ``P``).  Tables written
@@ -326,6 +352,7 @@ class GainTable:
     gains: dict = field(default_factory=dict)
     wrap_angle: bool = False
     output: str = ""
+    states: tuple = ()
     options: dict = field(default_factory=dict)
     provenance: dict = field(default_factory=dict)
     checks: dict = field(default_factory=dict)
@@ -340,6 +367,14 @@ class GainTable:
                                                    for K in self.K)
             object.__setattr__(self, "output", "posterior" if posterior else "prior")
         _check_output(self, self.name)
+        n = len(self.F)
+        if not self.states:
+            object.__setattr__(self, "states", tuple(f"x{i}" for i in range(n)))
+        object.__setattr__(self, "states", tuple(self.states))
+        names = self.states
+        if len(names) != n or len(set(names)) != n or not all(isinstance(s, str) and s.isascii() and s.isidentifier()
+                                                             for s in names):
+            raise GainTableError(f"{self.name}: states must be {n} distinct ASCII identifiers, got {list(names)}")
 
     @property
     def period(self) -> int:
@@ -387,6 +422,7 @@ class GainTable:
         """The JSON form (plain lists and numbers; ``measured`` lists the schedule's names)."""
         d = {f.name: getattr(self, f.name) for f in fields(self)}
         d["sensors"] = [s.to_dict() for s in self.sensors]
+        d["states"] = list(self.states)
         d["measured"] = self.schedule.per_phase_names()
         del d["schedule"]
         for key in ("F", "B", "H", "Q", "R"):

@@ -20,6 +20,7 @@ A design file names a structure and describes each of its sensors::
     noise = { std = 0.0447 }       # u per sample, or { density = ... } in u/sqrt(Hz)
     bias = { model = "random_walk", density = 1e-4 }   # u/sqrt(s); or constant, value
     # port = "compass"             # optional: the structure's sensor this one plays (default: its name)
+    # offset_s = 0.37              # optional: the first reading arrives this long after the base tick 0
 
 Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
 design file is only ever read as TOML data: nothing in it is evaluated.
@@ -65,7 +66,7 @@ EXAMPLES = {
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
              "description", "gains", "wrap_angle", "output"}
-_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port"}
+_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s"}
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,7 @@ class SensorSpec:
     bias: Bias
     measures: str | None = None
     port: str | None = None
+    offset_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -211,8 +213,11 @@ def _sensor(name, body) -> SensorSpec:
                      density=_number(bias, "density", f"{field}.bias.density") or 0.0,
                      value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
                      field=f"{field}.bias")
+    offset = _number(body, "offset_s", f"{field}.offset_s") or 0.0
+    if offset >= 1.0 / rate:
+        raise SpecError(f"{field}.offset_s: {offset:g} s is not less than the sensor's period {1.0 / rate:g} s")
     return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"),
-                      _text(body, "port", field=f"{field}.port"))
+                      _text(body, "port", field=f"{field}.port"), offset)
 
 
 def _no_unknown(table, allowed, prefix):

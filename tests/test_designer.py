@@ -120,8 +120,12 @@ def test_multirate_schedule_lcm_and_errors():
     assert dt == 1 / 20 and s.period == 10 and s.measurements == ("a", "b")
     assert s.names(0) == ["a", "b"] and s.names(2) == ["a"] and s.names(5) == ["b"] and s.rows(7) == ()
     assert s.rows(10) == (0, 1)  # phases wrap around the period
-    with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz.*not the base rate"):
-        multirate_schedule({"imu": 50.0, "gps": 0.7}, inputs=["imu"])
+    dt, s = multirate_schedule({"imu": 50.0, "gps": 0.7}, inputs=["imu"])  # 50/0.7 = 500/7: 7 fixes every 500 ticks
+    assert s.period == 500 and s.phases("gps") == (0, 71, 143, 214, 286, 357, 429)
+    dt, s = multirate_schedule({"imu": 100.0, "gps": 3.0, "baro": 10.0}, inputs=["imu"], offsets_s={"baro": 0.03})
+    assert s.period == 100 and s.phases("gps") == (0, 33, 67) and s.phases("baro")[:2] == (3, 13)
+    with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz.*not a fraction of the base rate"):
+        multirate_schedule({"imu": 50.0, "gps": 50.0 / 3.14159265358979}, inputs=["imu"])
     with pytest.raises(SpecError, match=r"input sensor imu must run at the base rate"):
         multirate_schedule({"imu": 10.0, "gps": 20.0}, inputs=["imu"])
 

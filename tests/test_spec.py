@@ -34,7 +34,7 @@ BAD = [
     (GOOD.replace("std = 0.04", "std = nan"), "sensors.compass.noise.std must be finite"),
     (GOOD.replace("[sensors.compass]", "[sensors.compass]\nmeasures = \"spin\""), "sensors.compass.measures"),
     (GOOD.replace("[sensors.compass]", "[sensors.compass]\nmeasures = \"rate\""), "sensors.compass.measures"),
-    (GOOD.replace("rate_hz = 5.0\nnoise = { std = 0.01 }", "rate_hz = 1.7\nnoise = { std = 0.01 }"),
+    (GOOD.replace("rate_hz = 5.0\nnoise = { std = 0.01 }", "rate_hz = 1.5915494309189535\nnoise = { std = 0.01 }"),
      "sensors.odometry.rate_hz"),
     (GOOD.replace('structure = "dckf3"', ""), "structure: missing field"),
     (GOOD.replace("noise = { std = 0.04 }", ""), "sensors.compass.noise: missing field"),

@@ -1,0 +1,243 @@
+"""Time is data: timestamps to base ticks, and the schedule locked to when sensors really arrive.
+
+A gain table runs on a base tick ``T`` (its ``sample_time_s``) with a periodic schedule: the
+phases at which each measurement sensor is read.  A log says when each reading happened.  Two
+steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
+``docs/logs.md``):
+
+1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``,
+   ``t0`` the log's first time: the nearest tick, so a reading is used at most ``T/2`` before
+   or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
+   does not move it).  Times must be finite and strictly increasing, and the rate of the input
+   sensors' rows must be the table's base rate within 1 %.
+2. **Locking.**  Each slow sensor's arrivals are matched to its phases in the table's
+   schedule, allowing it an offset of its own (the compass arriving at tick 37 of every 100,
+   the odometry at ticks 3, 13, 23, ...).  Where the offsets amount to one rotation of the
+   schedule, the table runs as designed from the matching phase.  Where they do not (each
+   sensor at its own offset), the gains are recomputed for the actual arrival pattern: the
+   periodic DARE of the table's own model over the shifted schedule
+   (:func:`cfdesign.designer.gains_for_schedule`), which is what the design would have given
+   had it known the offsets.  A sensor whose offset wanders (a rate that drifts, arrivals that
+   slip by a tick) gets a new segment with the gains of its new offset, so no reading is left
+   without a gain; only a table without a model to recompute from (fixed gains) leaves the
+   readings off its schedule unused, and those are counted and reported.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import DataError
+
+__all__ = ["RATE_RTOL", "place", "Segment", "Lock", "lock_schedule"]
+
+#: largest relative difference between a log's base rate and the table's
+RATE_RTOL = 0.01
+
+
+def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2):
+    """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
+
+    Parameters
+    ----------
+    time : array_like
+        Row times (s).
+    dt : float
+        The table's base tick (s).
+    base_rows : array_like of bool, optional
+        Rows where every input sensor has a reading: their spacing is the log's base rate,
+        checked against ``1/dt``.  Default: every row.
+    source : str
+        Name of the log, for messages.
+    first_line : int
+        File line of the first row (messages name lines as a spreadsheet does).
+
+    Returns
+    -------
+    ndarray of int64
+        The tick of every row, ``0`` for the first.
+
+    Raises
+    ------
+    DataError
+        A time that is not finite, not increasing or repeated (naming the line), or a base
+        rate more than :data:`RATE_RTOL` off the table's (naming both).
+    """
+    t = np.asarray(time, dtype=float)
+    if not t.size:
+        return np.zeros(0, dtype=np.int64)
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise DataError(f"{source} line {first_line + bad[0]}: time {t[bad[0]]!r} is not a finite number of seconds")
+    d = np.diff(t)
+    back = np.flatnonzero(d <= 0)
+    if back.size:
+        i = back[0] + 1
+        what = "repeats" if d[back[0]] == 0 else "goes back from"
+        raise DataError(f"{source} line {first_line + i}: time {t[i]!r} {what} {t[i - 1]!r} on the line before "
+                        "(times must increase)")
+    check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
+    return np.rint((t - t[0]) / dt).astype(np.int64)
+
+
+def check_rate(t, dt, source):
+    """The median spacing of ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates)."""
+    if len(t) < 3:
+        return
+    spacing = float(np.median(np.diff(t)))
+    if abs(spacing - dt) > RATE_RTOL * dt:
+        raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (median spacing {spacing:.6g} s) "
+                        f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Ticks ``[start, stop)`` run with one schedule: the table's own with its phase 0 at tick
+    ``rotation`` (``offsets`` None), or the table's schedule with each sensor shifted by
+    ``offsets`` phases (gains recomputed)."""
+
+    start: int
+    stop: int
+    rotation: int = 0
+    offsets: tuple | None = None
+
+
+@dataclass(frozen=True)
+class Lock:
+    """How a log's arrivals meet a table's schedule.
+
+    Attributes
+    ----------
+    segments : list of Segment
+        Covering every tick of the log, in order.
+    offsets : dict
+        ``{sensor: ticks late}`` for the longest-lived configuration (for the report).
+    rate_hz : dict
+        ``{sensor: arrivals per second}`` measured in the log.
+    notes : list of str
+        One line each for what a user should know (offsets, recomputed gains, rate mismatches).
+    """
+
+    segments: list
+    offsets: dict = field(default_factory=dict)
+    rate_hz: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    @property
+    def recomputed(self) -> bool:
+        return any(s.offsets is not None for s in self.segments)
+
+
+def _pattern(schedule, name):
+    """``(phases, step)``: the sensor's phases and the smallest shift that maps them onto
+    themselves (its own period: 10 for a 10-tick sensor in a 100-tick schedule)."""
+    P = schedule.period
+    phases = np.array(schedule.phases(name), dtype=np.int64)
+    members = set(phases.tolist())
+    step = next(g for g in range(1, P + 1) if all((p + g) % P in members for p in members))
+    return phases, step
+
+
+def _offset_runs(ticks, phases, step, period):
+    """``[(first tick, offset mod step)]``: runs of arrivals consistent with one offset."""
+    if len(phases) * step == period:  # read every `step` ticks: the offset is the tick mod step
+        off = (ticks - phases[0]) % step
+        change = np.flatnonzero(np.diff(off)) + 1
+        starts = np.concatenate([[0], change])
+        return [(int(ticks[i]), int(off[i])) for i in starts]
+    runs, current = [], None
+    for t in ticks.tolist():  # a general pattern (e.g. 0, 33, 67 of 100): intersect candidates
+        cand = {int((t - p) % step) for p in phases}
+        if current is not None and current & cand:
+            current &= cand
+            continue
+        current = cand
+        runs.append([t, current])
+    return [(t, min(c)) for t, c in runs]
+
+
+def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True) -> Lock:
+    """Match each measurement sensor's arrival ticks to the table's schedule (module docstring).
+
+    Parameters
+    ----------
+    table : GainTable
+    arrivals : dict
+        ``{sensor: ascending int array of ticks}`` where the log has a reading.
+    n_ticks : int
+        Ticks in the log.
+    recompute : bool
+        Allow recomputed gains (False: rotations of the table's schedule only).
+
+    Returns
+    -------
+    Lock
+    """
+    sched, P, dt = table.schedule, table.period, table.sample_time_s
+    notes, rates, patterns = [], {}, {}
+    for name in sched.measurements:
+        ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
+        if len(ticks) > 1:
+            rates[name] = (len(ticks) - 1) / ((ticks[-1] - ticks[0]) * dt) if ticks[-1] > ticks[0] else math.inf
+        phases, step = _pattern(sched, name)
+        expected = len(phases) / (P * dt)
+        if name in rates and abs(rates[name] - expected) > 0.05 * expected:
+            notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz: "
+                         "readings off its schedule have no gain")
+            ticks = ticks[:0]
+        patterns[name] = (ticks, phases, step)
+    runs = {name: _offset_runs(t, ph, st, P) for name, (t, ph, st) in patterns.items() if len(t) and st < P + 1}
+    breaks = sorted({t for r in runs.values() for t, _ in r} | {0})
+    segments, life = [], {}
+    for a, b in zip(breaks, [*breaks[1:], n_ticks], strict=True):
+        if a >= n_ticks:
+            break
+        offs = {name: _current(r, a) for name, r in runs.items()}
+        seg = _segment(a, b, offs, patterns, P, recompute)
+        segments.append(seg)
+        life[tuple(sorted(offs.items()))] = life.get(tuple(sorted(offs.items())), 0) + (b - a)
+    segments = _merged(segments)
+    main = dict(max(life, key=life.get)) if life else {}
+    late = {k: v for k, v in main.items() if v}
+    if late:
+        notes.insert(0, "readings arrive " + ", ".join(f"{k} {v} ticks" for k, v in late.items())
+                     + " after the table's schedule: " + ("gains recomputed for the arrival pattern (periodic DARE "
+                                                            "of the table's model)" if any(s.offsets for s in segments)
+                                                            else "the schedule is locked to the arrivals"))
+    if len(segments) > 1:
+        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
+                     "sensor): each stretch runs with the gains of its own pattern")
+    return Lock(segments or [Segment(0, n_ticks)], main, rates, notes)
+
+
+def _current(runs, tick):
+    """The offset of the run in force at ``tick`` (the first run's before it starts)."""
+    i = bisect.bisect_right([t for t, _ in runs], tick) - 1
+    return runs[max(i, 0)][1]
+
+
+def _segment(a, b, offs, patterns, P, recompute):
+    """A rotation of the table when every sensor's offset is one shift of the whole schedule."""
+    if not offs:
+        return Segment(a, b)
+    for c in sorted({o for o in offs.values()}):
+        if all((o - c) % patterns[n][2] == 0 for n, o in offs.items()):
+            return Segment(a, b, rotation=c)
+    if not recompute:
+        slowest = max(offs, key=lambda n: patterns[n][2])
+        return Segment(a, b, rotation=offs[slowest])
+    return Segment(a, b, offsets=tuple(sorted(offs.items())))
+
+
+def _merged(segments):
+    out = []
+    for s in segments:
+        if out and (out[-1].rotation, out[-1].offsets) == (s.rotation, s.offsets) and out[-1].stop == s.start:
+            out[-1] = Segment(out[-1].start, s.stop, s.rotation, s.offsets)
+        else:
+            out.append(s)
+    return out
