@@ -32,42 +32,63 @@ def two_sum(a, b):
 def _beta(k):
     """Exponent gap of the splitting for inner dimension ``k``.
 
-    Slices carry at most ``54 - beta`` bits on a common grid, so a sum of ``k`` products of
-    two slices needs at most ``108 - 2 beta + log2 k <= 53`` bits: it is exact in double.
+    A slice carries at most ``53 - beta`` bits (plus one for rounding up) on the grid of its
+    row or column; products of slices at one level (``a1 b2 + a2 b1``, ...) share a grid, so
+    a sum of up to ``3k`` of them needs at most ``108 - 2 beta + log2(3k) <= 53`` bits: it is
+    exact in double, in any summation order.
     """
-    return int(np.ceil((55 + np.log2(max(k, 1))) / 2))
+    return int(np.ceil((56 + np.log2(3 * max(k, 1))) / 2))
 
 
-def _extract(M, axis, beta):
-    """``M = hi + rest`` exactly, ``hi`` on the grid ``2^(e + beta - 53)`` of its row (axis=1)
-    or column (axis=0), where ``2^e`` bounds that row or column (Rump's ExtractVector)."""
-    mu = np.max(np.abs(M), axis=axis, keepdims=True)
+def _slices(M, mu, axis, beta):
+    """``M = M1 + M2 + M3 + M4`` exactly; ``M1..M3`` on grids ``2^(53 - beta)`` apart.
+
+    The grid of each row (``axis=1``) or column (``axis=0``) starts from the power of two
+    above its largest entry ``mu`` (Rump, Ogita and Oishi's ExtractVector with a fixed
+    sequence of shifts).  Returns the slices ``[M1, M2, M3]`` and the remainders
+    ``[M - M1, M - M1 - M2, M4]``.
+    """
     sigma = np.ldexp(1.0, np.frexp(mu)[1] + beta)
-    hi = (M + sigma) - sigma
-    return hi, M - hi
+    step = 2.0 ** (beta - 53)
+    hi, rest, r = [], [], M
+    for _ in range(3):
+        q = (r + sigma) - sigma
+        r = r - q
+        hi.append(q)
+        rest.append(r)
+        sigma = sigma * step
+    return hi, rest
 
 
 def dd_dot(a, b):
     """``a @ b`` of two double matrices as a pair ``(hi, lo)``.
 
-    Each factor is cut into three slices and a remainder below ``2^-(3 (53 - beta))`` of its
-    row (column) maximum: ``a = a1 + a2 + a3 + a4``.  The six slice products ``a_i b_j`` with
-    ``i + j <= 4`` are exact and summed error-free; the rest is a remainder product about
-    ``2^-60`` times smaller, which double precision evaluates well below ``u^2`` of the row
-    and column maxima.
+    With ``a = a1 + a2 + a3 + a4`` and ``b = b1 + b2 + b3 + b4`` (:func:`_slices`), the three
+    levels ``a1 b1``, ``a1 b2 + a2 b1`` and ``a1 b3 + a2 b2 + a3 b1`` are each one exact BLAS
+    product of stacked slices and are summed error-free; what is left is about ``2^-60``
+    of the row and column maxima and needs only double precision.
     """
-    beta = _beta(a.shape[1])
-    a1, ar2 = _extract(a, 1, beta)
-    a2, ar3 = _extract(ar2, 1, beta)
-    a3, a4 = _extract(ar3, 1, beta)
-    b1, br2 = _extract(b, 0, beta)
-    b2, br3 = _extract(br2, 0, beta)
-    b3, b4 = _extract(br3, 0, beta)
-    s, err = a1 @ b1, 0.0
-    for p in (a1 @ b2, a2 @ b1, a1 @ b3, a2 @ b2, a3 @ b1):
-        s, e = two_sum(s, p)
-        err = err + e
-    return two_sum(s, err + (a1 @ b4 + a2 @ br3 + a3 @ br2 + a4 @ b))
+    k = a.shape[1]
+    mu_a = np.max(np.abs(a), axis=1, keepdims=True, initial=0.0)
+    mu_b = np.max(np.abs(b), axis=0, keepdims=True, initial=0.0)
+    big = max(mu_a.max(initial=0.0), mu_b.max(initial=0.0))
+    scale = 0
+    if not 2.0**-900 < big < 2.0**900:  # keep the grids clear of overflow and underflow
+        if not big > 0 or not np.isfinite(big):
+            return a @ b, np.zeros((a.shape[0], b.shape[1]))
+        scale = -int(np.frexp(big)[1])
+        a, b, mu_a, mu_b = (np.ldexp(x, scale) for x in (a, b, mu_a, mu_b))
+    beta = _beta(k)
+    (a1, a2, a3), (_, _, a4) = _slices(a, mu_a, 1, beta)
+    (b1, b2, b3), (br2, br3, b4) = _slices(b, mu_b, 0, beta)
+    As = np.hstack([a1, a2, a3])
+    Bs = np.vstack([b3, b2, b1])
+    s, e1 = two_sum(As[:, :k] @ b1, As[:, :2 * k] @ Bs[k:])
+    s, e2 = two_sum(s, As @ Bs)
+    hi, lo = two_sum(s, e1 + e2 + (As @ np.vstack([b4, br3, br2]) + a4 @ b))
+    if scale:
+        hi, lo = np.ldexp(hi, -2 * scale), np.ldexp(lo, -2 * scale)
+    return hi, lo
 
 
 def dd(a):

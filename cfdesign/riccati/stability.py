@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .lyapunov import correction, omega_std
+from .lyapunov import ClosedLoop
 from .problem import EPS, Problem, distance, gain, herm
 
 __all__ = ["Stability", "stability", "closed_loop_eigenvalues"]
@@ -53,51 +53,70 @@ def _eigen_margin(p: Problem, K, K2):
     return lam, float(d[i]), float(unc)
 
 
-def _lyapunov_radius(p: Problem, K, K2):
+def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
     """Certified stability radius of the closed loop and the uncertainty of the closed loop.
 
     ``Y = Omega^-1(I)`` positive definite proves the closed loop stable (Lyapunov), and every
     perturbation smaller than ``1/(2||Y||)`` (CARE) or ``sqrt(||Ac||^2 + 1/||Y||) - ||Ac||``
-    (DARE) keeps it so.  Both are evaluated after a diagonal balancing similarity.  The
-    uncertainty is rounding plus four times the change of ``B K`` when the gain moves to
-    ``K2`` (at a double root Newton only halves the error, so what remains is about a step).
-    Returns (radius, uncertainty); radius 0 when no certificate exists.
+    (DARE) keeps it so.  Both are evaluated after the diagonal balancing similarity of
+    ``cl``.  The uncertainty is rounding, plus the distance from the factorised closed loop
+    (gain ``cl.K``) to the one at ``K``, plus four times the change of ``B K`` when the gain
+    moves to ``K2`` (at a double root Newton only halves the error, so what remains is about
+    a step).  Returns (radius, uncertainty); radius 0 when no certificate exists.
     """
-    M = p.closed_loop(K)
-    scale = sla.matrix_balance(M, permute=False, separate=True)[1][0]
-    Ms = M / scale[:, None] * scale[None, :]
+    scale, Ms = cl.scale, cl.Ms
     Bs, Ks = p.e_solve(p.B) / scale[:, None], K * scale[None, :]
     As = p.e_solve(p.A) / scale[:, None] * scale[None, :]
     unc = 10 * EPS * (np.linalg.norm(As) + np.linalg.norm(Bs) * np.linalg.norm(Ks))
     unc += 4 * np.linalg.norm(Bs @ ((K2 - K) * scale[None, :]))
+    if cl.K is not K:
+        unc += np.linalg.norm(Bs @ ((K - cl.K) * scale[None, :]))
     try:
-        Y = omega_std(p.kind, Ms, np.eye(p.n))
-        if not np.linalg.eigvalsh(Y)[0] > 0:
-            return 0.0, float(unc)
+        ev = np.linalg.eigvalsh(cl.solve_balanced(np.eye(p.n)))
     except (np.linalg.LinAlgError, ValueError):
-        return 0.0, float(unc)
-    ynorm = np.linalg.norm(Y, 2)
+        return 0.0, float(unc), None
+    if not ev[0] > 0:
+        return 0.0, float(unc), None
+    ynorm = ev[-1]
     if p.kind == "care":
-        return 0.5 / ynorm, float(unc)
-    ac = np.linalg.norm(Ms + np.eye(p.n), 2)
-    return (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac), float(unc)  # no cancellation
+        return 0.5 / ynorm, float(unc), ynorm
+    Ac = Ms + np.eye(p.n)
+    ac = np.sqrt(np.linalg.eigvalsh(Ac.T @ Ac)[-1])  # ||Ac||_2
+    return (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac), float(unc), ynorm  # no cancellation
 
 
-def stability(p: Problem, X, K, D):
-    """Classify the closed loop at ``X``, allowing for the uncertainty of ``X``.
+def stability(p: Problem, X, K, D, cl: ClosedLoop):
+    """Classify the closed loop at ``X`` (gain ``K``), allowing for the uncertainty of ``X``.
 
     'stable' when the Lyapunov radius exceeds the closed-loop uncertainty, or when the
     eigenvalue margin exceeds its own uncertainty (this resolves badly scaled, highly
     non-normal closed loops for which the norm-wise radius is pessimistic); 'unstable'
     when an eigenvalue is outside by more than its uncertainty; 'marginal' otherwise.
+    The eigenvalue test (left and right eigenvectors, and the eigenvalues at the next
+    Newton gain) is only run when the Lyapunov certificate does not settle the question.
+
+    ``cl`` is the closed loop factorised at ``K`` or, after a last Newton step too small to
+    refactorise for, at the gain before it; the certificate then allows for the difference,
+    and the eigenvalues reported are those of the factorised closed loop.
     """
     with np.errstate(all="ignore"):
         K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)
-    lam, margin, unc_eig = _eigen_margin(p, K, K2)
-    robust, unc = _lyapunov_radius(p, K, K2)
-    status = "stable" if robust > unc or margin > unc_eig else ("unstable" if margin < -unc_eig else "marginal")
-    try:
-        onorm = np.linalg.norm(correction(p, K, np.eye(p.n)), 2)
-    except (np.linalg.LinAlgError, ValueError):
-        onorm = np.inf
+    robust, unc, ynorm = _lyapunov_radius(p, cl, K, K2)
+    if robust > unc:
+        status = "stable"
+        if p.E is None:
+            lam, margin = cl.eigenvalues, cl.margin
+        else:  # the pencil's own eigenvalues (QZ), rather than those of E^-1 (A - BK)
+            lam = closed_loop_eigenvalues(p, K)
+            margin = float(np.min(distance(p.kind, lam)))
+    else:
+        lam, margin, unc_eig = _eigen_margin(p, K, K2)
+        status = "stable" if margin > unc_eig else ("unstable" if margin < -unc_eig else "marginal")
+    if ynorm is not None and cl.unscaled and p.E is None:
+        onorm = ynorm  # Omega^-1(I) is the Y of the certificate
+    else:
+        try:
+            onorm = np.max(np.abs(np.linalg.eigvalsh(cl.correction(np.eye(p.n)))))
+        except (np.linalg.LinAlgError, ValueError):
+            onorm = np.inf
     return Stability(lam, margin, status, float(onorm), float(robust), float(unc))

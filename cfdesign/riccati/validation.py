@@ -83,11 +83,19 @@ def problem_data(kind, A, B, Q, R, S, E):
     R = matrix("R", R, (m, m), hermitian=True)
     S = np.zeros((n, m)) if S is None else matrix("S", S, (n, m))
     E = None if E is None else matrix("E", E, (n, n))
-    if E is not None and np.linalg.cond(E) > 1 / (n * EPS):
-        raise RiccatiError(f"E must be nonsingular (condition number {np.linalg.cond(E):.3g})")
-    if kind == "care" and np.linalg.cond(R) > 1 / (m * EPS):
-        raise RiccatiError(f"R must be nonsingular for the CARE (condition number {np.linalg.cond(R):.3g})")
+    if E is not None and _cond(E) > 1 / (n * EPS):
+        raise RiccatiError(f"E must be nonsingular (condition number {_cond(E):.3g})")
+    if kind == "care" and _cond(R) > 1 / (m * EPS):
+        raise RiccatiError(f"R must be nonsingular for the CARE (condition number {_cond(R):.3g})")
     return A, B, Q, R, S, E
+
+
+def _cond(M):
+    """2-norm condition number (``inf`` when singular), as :func:`numpy.linalg.cond`."""
+    s = np.linalg.svd(M, compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = s[0] / s[-1] if s.size else 0.0
+    return np.inf if np.isnan(c) else c
 
 
 # --------------------------------------------------------------------------------------
