@@ -13,13 +13,11 @@ calls rather than a loop in Python.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-import scipy.linalg as sla
 
-from ..errors import AccuracyError
-from .problem import EPS
-
-__all__ = ["two_sum", "dd", "dd_dot", "dd_add", "dd_mul", "dd_t", "dd_val", "dd_solve"]
+__all__ = ["two_sum", "dd", "dd_dot", "dd_add", "dd_mul", "dd_t", "dd_val"]
 
 
 def two_sum(a, b):
@@ -37,7 +35,7 @@ def _beta(k):
     a sum of up to ``3k`` of them needs at most ``108 - 2 beta + log2(3k) <= 53`` bits: it is
     exact in double, in any summation order.
     """
-    return int(np.ceil((56 + np.log2(3 * max(k, 1))) / 2))
+    return math.ceil((56 + math.log2(3 * max(k, 1))) / 2)
 
 
 def _slices(M, mu, axis, beta):
@@ -69,9 +67,11 @@ def dd_dot(a, b):
     of the row and column maxima and needs only double precision.
     """
     k = a.shape[1]
-    mu_a = np.max(np.abs(a), axis=1, keepdims=True, initial=0.0)
-    mu_b = np.max(np.abs(b), axis=0, keepdims=True, initial=0.0)
-    big = max(mu_a.max(initial=0.0), mu_b.max(initial=0.0))
+    if not (k and a.size and b.size):
+        return a @ b, np.zeros((a.shape[0], b.shape[1]))
+    mu_a = np.abs(a).max(axis=1, keepdims=True)
+    mu_b = np.abs(b).max(axis=0, keepdims=True)
+    big = max(mu_a.max(), mu_b.max())
     scale = 0
     if not 2.0**-900 < big < 2.0**900:  # keep the grids clear of overflow and underflow
         if not big > 0 or not np.isfinite(big):
@@ -97,46 +97,43 @@ def dd(a):
 
 
 def dd_add(x, y, sign=1.0):
-    """``x + sign * y``."""
+    """``x + sign * y`` for doubles or pairs.
+
+    The result is not renormalised: its low part may be as large as the rounding error of
+    the high part plus the low parts of the inputs, which keeps every later operation here
+    exact to the same order (``hi + lo`` is what counts).
+    """
     if not isinstance(y, tuple):
         if not isinstance(x, tuple):
-            return two_sum(x, sign * y)
-        s, e = two_sum(x[0], sign * y)
-        return two_sum(s, e + x[1])
-    x = dd(x)
+            return two_sum(x, y if sign == 1.0 else sign * y)
+        s, e = two_sum(x[0], y if sign == 1.0 else sign * y)
+        return s, e + x[1]
+    if not isinstance(x, tuple):
+        s, e = two_sum(x, sign * y[0])
+        return s, e + sign * y[1]
     s, e = two_sum(x[0], sign * y[0])
-    return two_sum(s, e + x[1] + sign * y[1])
+    return s, (e + x[1]) + sign * y[1]
 
 
 def dd_mul(x, y):
     """``x @ y`` for doubles or pairs (the product of the low parts is below the precision kept)."""
-    if not isinstance(x, tuple) and not isinstance(y, tuple):
-        return dd_dot(x, y)
-    x, y = dd(x), dd(y)
+    if not isinstance(x, tuple):
+        if not isinstance(y, tuple):
+            return dd_dot(x, y)
+        hi, lo = dd_dot(x, y[0])
+        return hi, lo + x @ y[1]
+    if not isinstance(y, tuple):
+        hi, lo = dd_dot(x[0], y)
+        return hi, lo + x[1] @ y
     hi, lo = dd_dot(x[0], y[0])
-    return two_sum(hi, lo + x[0] @ y[1] + x[1] @ y[0])
+    return hi, lo + (x[0] @ y[1] + x[1] @ y[0])
 
 
 def dd_t(x):
     """Transpose."""
-    x = dd(x)
-    return x[0].T, x[1].T
+    return (x[0].T, x[1].T) if isinstance(x, tuple) else x.T
 
 
 def dd_val(x):
     """Rounded to double."""
-    x = dd(x)
-    return x[0] + x[1]
-
-
-def dd_solve(W, Y):
-    """``W^-1 Y`` with two steps of iterative refinement on a double-double residual."""
-    Wd = dd_val(W)
-    if np.linalg.cond(Wd) > 1 / (Wd.shape[0] * EPS):
-        raise AccuracyError(f"the matrix to invert in the gain is singular (condition {np.linalg.cond(Wd):.3g})")
-    lu = sla.lu_factor(Wd, check_finite=False)
-    G = sla.lu_solve(lu, dd_val(Y), check_finite=False)
-    for _ in range(2):
-        r = dd_add(Y, dd_mul(W, G), -1.0)
-        G = dd_add(G, sla.lu_solve(lu, dd_val(r), check_finite=False))
-    return G
+    return x[0] + x[1] if isinstance(x, tuple) else x

@@ -118,17 +118,23 @@ class ClosedLoop:
         """Smallest distance of a closed-loop eigenvalue to the boundary."""
         return float(np.min(self.distances, initial=np.inf))
 
-    def solve_balanced(self, Wb):
-        """``Z`` with ``Ms'Z + Z Ms = -Wb`` (CARE) or ``(I + Ms)'Z(I + Ms) - Z = -Wb`` (DARE)."""
+    def solve_balanced(self, Wb, schur_basis=False):
+        """``Z`` with ``Ms'Z + Z Ms = -Wb`` (CARE) or ``(I + Ms)'Z(I + Ms) - Z = -Wb`` (DARE).
+
+        ``Wb=None`` stands for the identity.  With ``schur_basis`` the solution is returned
+        as ``U'ZU`` (same eigenvalues, two products fewer).
+        """
         T, U = self.T, self.U
-        C = U.T @ Wb @ U
+        C = np.eye(T.shape[0]) if Wb is None else U.T @ Wb @ U
         if self.p.kind == "dare":  # (2I + Ms)^-1 = (I - Cayley)/2 in the Schur basis
             I_T = np.eye(T.shape[0]) - T
             C = 0.5 * (I_T.T @ C @ I_T)
         Z, sc, info = lapack.dtrsyl(T, T, -C, trana="T")
         if info < 0:
             raise ValueError(f"the triangular Sylvester solve failed (dtrsyl info {info})")
-        return herm(U @ (Z / sc) @ U.T)
+        if sc != 1.0:
+            Z = Z / sc
+        return herm(Z if schur_basis else U @ Z @ U.T)
 
     def solve_std(self, W):
         """The linearised Riccati equation in standard coordinates ``Y = E'DE`` with right-hand side ``W``.

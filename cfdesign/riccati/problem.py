@@ -14,6 +14,7 @@ validation works on real matrices.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -55,6 +56,31 @@ class Problem:
     @property
     def n(self):
         return self.A.shape[0]
+
+    @cached_property
+    def AB(self):
+        """``[A B]``."""
+        return np.hstack([self.A, self.B])
+
+    @cached_property
+    def ABE(self):
+        """``[A B E]``."""
+        return np.hstack([self.A, self.B, self.E])
+
+    @cached_property
+    def has_S(self):
+        """Whether the cross weight ``S`` is nonzero."""
+        return bool(np.any(self.S))
+
+    @cached_property
+    def EinvA(self):
+        """``E^-1 A``."""
+        return self.e_solve(self.A)
+
+    @cached_property
+    def EinvB(self):
+        """``E^-1 B``."""
+        return self.e_solve(self.B)
 
     def e_solve(self, M, transpose=False):
         """``E^-1 M`` (or ``E^-T M``); ``M`` itself when ``E`` is the identity."""
@@ -103,7 +129,7 @@ def from_standard(p: Problem, Y):
 
 def gain(p: Problem, X):
     """Gain in plain double precision (for trial points)."""
-    Eref = np.eye(p.n) if p.E is None else p.E
+    BX = p.B.T @ X
     if p.kind == "care":
-        return np.linalg.solve(p.R, p.B.T @ X @ Eref + p.S.T)
-    return np.linalg.solve(p.R + p.B.T @ X @ p.B, p.B.T @ X @ p.A + p.S.T)
+        return np.linalg.solve(p.R, (BX if p.E is None else BX @ p.E) + p.S.T)
+    return np.linalg.solve(p.R + BX @ p.B, BX @ p.A + p.S.T)

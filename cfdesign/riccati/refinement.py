@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from ..errors import AccuracyError
-from .extended import dd, dd_add, dd_dot, dd_mul, dd_t, dd_val
+from .extended import dd_add, dd_dot, dd_mul, dd_t, dd_val, two_sum
 from .lyapunov import ClosedLoop
 from .problem import EPS, TINY, Problem, herm, rel
 
@@ -51,34 +51,32 @@ def _block(x, rows, cols):
 
 
 def _gain_term(W, Lt):
-    """``G = W^-1 L'`` and ``N = L W^-1 L'`` (double-double) from double-double ``W`` and ``L'``.
+    """``G = W^-1 L'`` and ``N = L W^-1 L'`` (double-double) from ``W`` (double or pair) and ``L'`` (pair).
 
     With ``G0`` from an LU solve and the residual ``r = L' - W G0`` in double-double, the
     identity ``N = L G0 + G0' r + r' W^-1 r`` is exact, and its last two terms are small
     enough for double precision; ``G = G0 + W^-1 r`` is one step of iterative refinement
     (two when ``W`` is ill-conditioned).  ``W G0`` and ``L G0`` are one stacked product.
     """
-    W, Lt = dd(W), dd(Lt)
-    Wd = dd_val(W)
+    Wh, Wl = W if isinstance(W, tuple) else (W, None)
+    Lh, Ll = Lt
+    Wd = Wh if Wl is None else Wh + Wl
     m = Wd.shape[0]
     lu, piv, info = lapack.dgetrf(Wd)
-    rcond = lapack.dgecon(lu, np.linalg.norm(Wd, 1))[0] if info == 0 else 0.0
+    rcond = lapack.dgecon(lu, np.abs(Wd).sum(axis=0).max(initial=0.0))[0] if info == 0 else 0.0
     if not rcond >= m * EPS:  # 1-norm condition estimate above 1 / (m eps)
         raise AccuracyError(f"the matrix to invert in the gain is singular (condition {1 / max(rcond, TINY):.3g})")
-    cond = 1 / rcond
-
-    def solve(rhs):
-        return lapack.dgetrs(lu, piv, rhs)[0]
-
-    G0, delta = solve(dd_val(Lt)), 0.0
-    for _ in range(2 if cond > 1e8 else 1):
-        G0 = G0 + delta
-        hi, lo = dd_dot(np.vstack([W[0], Lt[0].T]), G0)
-        lo = lo + np.vstack([W[1] @ G0, Lt[1].T @ G0])
-        r = dd_val(dd_add(Lt, (hi[:m], lo[:m]), -1.0))  # L' - W G0
-        delta = solve(r)
-    N = dd_add((hi[m:], lo[m:]), G0.T @ r + r.T @ delta)
-    return G0 + delta, N
+    G0, delta = lapack.dgetrs(lu, piv, Lh + Ll)[0], None
+    stacked = np.vstack([Wh, Lh.T])
+    for _ in range(2 if rcond < 1e-8 else 1):
+        if delta is not None:
+            G0 = G0 + delta
+        hi, lo = dd_dot(stacked, G0)
+        WG_lo = lo[:m] if Wl is None else lo[:m] + Wl @ G0
+        r = (Lh - hi[:m]) + (Ll - WG_lo)  # L' - W G0: the high parts agree to rounding, r is small
+        delta = lapack.dgetrs(lu, piv, r)[0]
+    s, e = two_sum(hi[m:], Ll.T @ G0 + G0.T @ r + r.T @ delta)  # L G0 = hi + lo + Ll' G0
+    return G0 + delta, (s, e + lo[m:])
 
 
 def evaluate(p: Problem, X) -> Evaluation:
@@ -90,22 +88,23 @@ def evaluate(p: Problem, X) -> Evaluation:
     n, m = p.B.shape
     top, mid = slice(0, n), slice(n, n + m)
     if p.kind == "care":
-        Z = X if p.E is None else dd_dot(X, p.E)
-        P = dd_mul(np.hstack([p.A, p.B]).T, Z)  # [[A'XE], [B'XE]]
+        P = dd_mul(p.AB.T, X if p.E is None else dd_dot(X, p.E))  # [[A'XE], [B'XE]]
         T = _block(P, top, slice(None))
         lin = dd_add(T, dd_t(T))
-        Lt = dd_add(_block(P, mid, slice(None)), p.S.T)  # L' = B'XE + S'
+        Lt = _block(P, mid, slice(None))  # L' = B'XE + S'
         W = p.R
         terms = 2 * np.linalg.norm(dd_val(T))
     else:
-        V = np.hstack([p.A, p.B] if p.E is None else [p.A, p.B, p.E])
+        V = p.AB if p.E is None else p.ABE
         P = dd_mul(V.T, dd_dot(X, V))  # V'XV
         T1 = _block(P, top, top)
         T2 = X if p.E is None else _block(P, slice(n + m, None), slice(n + m, None))
         lin = dd_add(T1, T2, -1.0)
-        Lt = dd_add(_block(P, mid, top), p.S.T)  # L' = B'XA + S'
+        Lt = _block(P, mid, top)  # L' = B'XA + S'
         W = dd_add(_block(P, mid, mid), p.R)  # R + B'XB
         terms = np.linalg.norm(dd_val(T1)) + np.linalg.norm(dd_val(T2))
+    if p.has_S:
+        Lt = dd_add(Lt, p.S.T)
     G, N = _gain_term(W, Lt)
     res = dd_val(dd_add(dd_add(lin, p.Q), N, -1.0))
     theta = terms + np.linalg.norm(p.Q) + np.linalg.norm(dd_val(N))

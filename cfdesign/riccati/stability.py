@@ -65,14 +65,17 @@ def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
     a step).  Returns (radius, uncertainty); radius 0 when no certificate exists.
     """
     scale, Ms = cl.scale, cl.Ms
-    Bs, Ks = p.e_solve(p.B) / scale[:, None], K * scale[None, :]
-    As = p.e_solve(p.A) / scale[:, None] * scale[None, :]
+    if cl.unscaled:
+        As, Bs, Ks = p.EinvA, p.EinvB, K
+    else:
+        Bs, Ks = p.EinvB / scale[:, None], K * scale[None, :]
+        As = p.EinvA / scale[:, None] * scale[None, :]
     unc = 10 * EPS * (np.linalg.norm(As) + np.linalg.norm(Bs) * np.linalg.norm(Ks))
     unc += 4 * np.linalg.norm(Bs @ ((K2 - K) * scale[None, :]))
     if cl.K is not K:
         unc += np.linalg.norm(Bs @ ((K - cl.K) * scale[None, :]))
     try:
-        ev = np.linalg.eigvalsh(cl.solve_balanced(np.eye(p.n)))
+        ev = np.linalg.eigvalsh(cl.solve_balanced(None, schur_basis=True))
     except (np.linalg.LinAlgError, ValueError):
         return 0.0, float(unc), None
     if not ev[0] > 0:
@@ -81,8 +84,14 @@ def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
     if p.kind == "care":
         return 0.5 / ynorm, float(unc), ynorm
     Ac = Ms + np.eye(p.n)
-    ac = np.sqrt(np.linalg.eigvalsh(Ac.T @ Ac)[-1])  # ||Ac||_2
-    return (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac), float(unc), ynorm  # no cancellation
+    absAc = np.abs(Ac)  # first with an upper bound of ||Ac||_2 (a smaller, still valid radius)
+    for ac in (min(np.linalg.norm(Ac), np.sqrt(absAc.sum(axis=0).max() * absAc.sum(axis=1).max())), None):
+        if ac is None:
+            ac = np.sqrt(np.linalg.eigvalsh(Ac.T @ Ac)[-1])  # ||Ac||_2
+        radius = (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac)  # no cancellation
+        if radius > unc:
+            break
+    return radius, float(unc), ynorm
 
 
 def stability(p: Problem, X, K, D, cl: ClosedLoop):

@@ -41,11 +41,12 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
         raise RiccatiError(f"{name} must be {want} (got {rows}x{cols})")
     if not np.all(np.isfinite(M)):
         raise RiccatiError(f"{name} contains NaN or Inf")
-    if hermitian:
-        gap = np.max(np.abs(M - M.conj().T), initial=0.0)
-        if gap > 1e-10 * max(np.max(np.abs(M), initial=0.0), TINY):
+    if hermitian and M.size:
+        Mh = M.conj().T if np.iscomplexobj(M) else M.T
+        gap = np.abs(M - Mh).max()
+        if gap > 1e-10 * max(np.abs(M).max(), TINY):
             raise RiccatiError(f"{name} must be symmetric (Hermitian): max |{name} - {name}'| = {gap:.3g}")
-        M = herm(M)
+        M = 0.5 * (M + Mh)
     return M
 
 
