@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import warnings
+from fractions import Fraction
 from pathlib import Path
 
 import mpmath as mp
@@ -25,6 +26,10 @@ from cfdesign.errors import (
     RiccatiError,
 )
 from cfdesign.riccati import care, dare, kalman_continuous, kalman_discrete
+from cfdesign.riccati.extended import dd_dot
+from cfdesign.riccati.lyapunov import ClosedLoop
+from cfdesign.riccati.problem import Problem
+from cfdesign.riccati.refinement import evaluate, update
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 
@@ -306,6 +311,75 @@ def test_fallbacks_when_scipy_fails(monkeypatch):
     assert (sc.method, sd.method) == ("sign", "doubling")
     assert sc.relative_residual < 1e-14 and sd.relative_residual < 1e-14
     assert sc.stability_margin > 0 and sd.stability_margin > 0
+
+
+# ---------------------------------------------------------------------------------------
+# the building blocks: double-double products, residual updates, the closed-loop solves
+# ---------------------------------------------------------------------------------------
+def _exact_product(a, b):
+    A = [[Fraction(x) for x in row] for row in a]
+    B = [[Fraction(x) for x in row] for row in b]
+    return [[sum(A[i][k] * B[k][j] for k in range(a.shape[1])) for j in range(b.shape[1])] for i in range(a.shape[0])]
+
+
+@pytest.mark.parametrize("grading", [0.0, 2.0, 6.0])
+def test_double_double_product_against_exact_rationals(grading):
+    """The split BLAS product is accurate to far below u^2 of the row and column maxima, graded data included."""
+    rng = np.random.default_rng(7)
+    a = rng.normal(size=(4, 9)) * np.exp(grading * rng.normal(size=(4, 9)))
+    b = rng.normal(size=(9, 3)) * np.exp(grading * rng.normal(size=(9, 3)))
+    hi, lo = dd_dot(a, b)
+    exact = _exact_product(a, b)
+    scale = np.abs(a).max(axis=1)[:, None] * np.abs(b).max(axis=0)[None, :]
+    err = max(float(abs(Fraction(hi[i, j]) + Fraction(lo[i, j]) - exact[i][j]) / Fraction(scale[i, j]))
+              for i in range(4) for j in range(3))
+    assert err <= 1e-30
+    assert np.array_equal(hi, a @ b) or np.max(np.abs(hi - a @ b) / scale) <= 1e-15
+
+
+@pytest.mark.parametrize("kind", ["care", "dare"])
+@pytest.mark.parametrize("with_e", [False, True])
+def test_residual_update_matches_a_fresh_evaluation(kind, with_e):
+    """After a small step the residual and gain are updated in double precision; they must agree
+    with a full double-double evaluation at the new point (descriptor E and cross term S included)."""
+    rng = np.random.default_rng(3)
+    n, m = 5, 2
+    A, B = rng.normal(size=(n, n)) / (2 if kind == "care" else 3), rng.normal(size=(n, m))
+    S = 0.1 * rng.normal(size=(n, m))
+    E = np.eye(n) + 0.1 * rng.normal(size=(n, n)) if with_e else None
+    p = Problem(kind, A, B, np.eye(n), np.diag([1.0, 2.0]), S, E)
+    X = (care if kind == "care" else dare)(A, B, np.eye(n), np.diag([1.0, 2.0]), S, E).X
+    D = rng.normal(size=(n, n))
+    Xn = X + 1e-9 * np.abs(X).max() * (D + D.T)
+    ev = evaluate(p, X)
+    up, fresh = update(p, X, ev, Xn), evaluate(p, Xn)
+    # errs by about u * (step size) relative to the terms: 1e-6 of what a double evaluation would
+    assert np.linalg.norm(up.res - fresh.res) <= 1e-22 * fresh.theta
+    assert np.abs(up.K - fresh.K).max() <= 4 * np.finfo(float).eps * np.abs(fresh.K).max()  # both rounded
+
+
+@pytest.mark.parametrize("kind", ["care", "dare"])
+def test_closed_loop_solves_the_linearised_equation(kind):
+    """ClosedLoop (balanced real Schur form + triangular Sylvester solve) against the Kronecker form."""
+    rng = np.random.default_rng(5)
+    n = 6
+    A = rng.normal(size=(n, n)) * np.logspace(0, 3, n)[None, :] / np.logspace(0, 3, n)[:, None]  # badly scaled
+    B, E = rng.normal(size=(n, 2)), np.eye(n) + 0.2 * rng.normal(size=(n, n))
+    p = Problem(kind, A / (1 if kind == "care" else 3 * np.abs(A).max()), B, np.eye(n), np.eye(2), np.zeros((n, 2)), E)
+    K = (care if kind == "care" else dare)(p.A, p.B, p.Q, p.R, None, p.E).K
+    cl = ClosedLoop(p, K)
+    W = rng.normal(size=(n, n))
+    W = W + W.T
+    D = cl.correction(W)
+    Ac = p.A - p.B @ K
+    if kind == "care":
+        op = np.kron(Ac.T, E.T) + np.kron(E.T, Ac.T)  # vec(E' D Ac) + vec(Ac' D E), row-major
+    else:
+        op = np.kron(Ac.T, Ac.T) - np.kron(E.T, E.T)
+    ref = np.linalg.solve(op, -W.ravel()).reshape(n, n)
+    assert np.allclose(D, ref, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    lam = sla.eigvals(Ac, E)
+    assert np.allclose(np.sort_complex(cl.eigenvalues), np.sort_complex(lam), rtol=1e-10, atol=1e-12)
 
 
 # ---------------------------------------------------------------------------------------
