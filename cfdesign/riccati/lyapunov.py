@@ -18,11 +18,13 @@ AX + XB = C") and four matrix products.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.linalg as sla
 from scipy.linalg import lapack
 
-from .problem import Problem, from_standard, herm
+from .problem import TINY, Problem, from_standard, herm
 
 __all__ = ["stein", "ClosedLoop"]
 
@@ -149,3 +151,37 @@ class ClosedLoop:
     def correction(self, W):
         """The Newton correction ``D`` with ``Omega(D) = -W`` (original coordinates)."""
         return from_standard(self.p, self.solve_std(W))
+
+    @cached_property
+    def certificate(self):
+        """Eigenvalues (ascending) of ``Z = Omega^-1(I)`` in the balanced coordinates, or None.
+
+        ``Z`` positive definite proves the closed loop stable (Lyapunov); None when the solve
+        fails.
+        """
+        try:
+            return np.linalg.eigvalsh(self.solve_balanced(None, schur_basis=True))
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+
+    @cached_property
+    def omega_inv_norm(self):
+        """``||Omega^-1(I)||_2`` in the original coordinates (``inf`` when the solve fails)."""
+        if self.unscaled and self.p.E is None:
+            ev = self.certificate
+            return np.inf if ev is None else float(max(abs(ev[0]), abs(ev[-1])))
+        try:
+            return float(np.max(np.abs(np.linalg.eigvalsh(self.correction(np.eye(self.p.n))))))
+        except (np.linalg.LinAlgError, ValueError):
+            return np.inf
+
+    def condition(self, theta, X):
+        """Relative condition number ``||Omega^-1|| theta / ||X||`` of the equation at the factorised gain.
+
+        ``||Omega^-1|| = ||Omega^-1(I)||_2`` holds when ``Omega^-1`` is a positive map, i.e. when the
+        closed loop is stable; ``inf`` when the certificate does not show that.
+        """
+        ev = self.certificate
+        if ev is None or not ev[0] > 0:
+            return np.inf
+        return self.omega_inv_norm * theta / max(np.linalg.norm(X), TINY)

@@ -34,7 +34,10 @@ from .problem import EPS, TINY, Problem, herm, rel
 __all__ = ["Evaluation", "evaluate", "update", "newton_refine", "MAX_NEWTON"]
 
 MAX_NEWTON = 12
-_UPDATE_BELOW = 1e-10  # bound on size * (condition estimate) for updating the residual instead of re-evaluating
+# Below this bound on (step size) * (condition number) the residual is updated rather than
+# re-evaluated (its error then moves X by less than 1e-6 u ||X||) and the factorisation of the
+# closed loop is kept (the chord correction then agrees with Newton's to six digits).
+_UPDATE_BELOW = 1e-6
 
 
 @dataclass(frozen=True)
@@ -138,9 +141,9 @@ def newton_refine(p: Problem, X, max_steps):
     """Newton (Kleinman / Hewer) refinement in defect-correction form.
 
     A step is kept if it does not increase the residual beyond rounding level.  After a
-    step small enough for the residual update (``size * cond <= 1e-10``) the closed loop
+    step small enough for the residual update (``size * cond <= 1e-6``) the closed loop
     is not factorised again: the gain moved by so little that the correction computed with
-    the previous factorisation (a chord step) agrees with Newton's to ten digits.
+    the previous factorisation (a chord step) agrees with Newton's to six digits.
 
     Returns the refined ``X``, its evaluation, the number of accepted steps, the relative
     size of the last correction (the forward error estimate), that correction, and the
@@ -160,8 +163,8 @@ def newton_refine(p: Problem, X, max_steps):
             return X, ev, steps, size, D, cl
         Xn = herm(X + D)
         # the update errs by about u * size relative to the terms, i.e. by cond * u * size in X,
-        # with size / (relative residual) as the condition estimate (free: both are at hand)
-        small = size * size <= _UPDATE_BELOW * np.linalg.norm(ev.res) / max(ev.theta, TINY)
+        # and the chord correction differs from Newton's by about cond * size (relative)
+        small = size * cl.condition(ev.theta, X) <= _UPDATE_BELOW
         try:
             evn = update(p, X, ev, Xn) if small else evaluate(p, Xn)
         except (AccuracyError, np.linalg.LinAlgError):

@@ -31,7 +31,7 @@ class RiccatiSolution:
         Gain, ``u = -K x``: ``R^-1 (B'XE + S')`` (CARE) or ``(R + B'XB)^-1 (B'XA + S')`` (DARE).
     closed_loop_eigenvalues : ndarray, shape (n,)
         Eigenvalues of the pencil ``(A - B K, E)``.  When the last Newton step only polished
-        ``X`` (a step below ``1e-10 / condition``), they are computed at the gain before that
+        ``X`` (a step below ``1e-6 / condition``), they are computed at the gain before that
         step, which moved the closed loop by less than ``||B dK||`` (a few units of the
         forward error of the starting estimate); the stability check allows for it.
     stability_margin : float

@@ -74,15 +74,12 @@ def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
     unc += 4 * np.linalg.norm(Bs @ ((K2 - K) * scale[None, :]))
     if cl.K is not K:
         unc += np.linalg.norm(Bs @ ((K - cl.K) * scale[None, :]))
-    try:
-        ev = np.linalg.eigvalsh(cl.solve_balanced(None, schur_basis=True))
-    except (np.linalg.LinAlgError, ValueError):
-        return 0.0, float(unc), None
-    if not ev[0] > 0:
-        return 0.0, float(unc), None
+    ev = cl.certificate
+    if ev is None or not ev[0] > 0:
+        return 0.0, float(unc)
     ynorm = ev[-1]
     if p.kind == "care":
-        return 0.5 / ynorm, float(unc), ynorm
+        return 0.5 / ynorm, float(unc)
     Ac = Ms + np.eye(p.n)
     absAc = np.abs(Ac)  # first with an upper bound of ||Ac||_2 (a smaller, still valid radius)
     for ac in (min(np.linalg.norm(Ac), np.sqrt(absAc.sum(axis=0).max() * absAc.sum(axis=1).max())), None):
@@ -91,7 +88,7 @@ def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
         radius = (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac)  # no cancellation
         if radius > unc:
             break
-    return radius, float(unc), ynorm
+    return radius, float(unc)
 
 
 def stability(p: Problem, X, K, D, cl: ClosedLoop):
@@ -110,7 +107,7 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
     """
     with np.errstate(all="ignore"):
         K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)
-    robust, unc, ynorm = _lyapunov_radius(p, cl, K, K2)
+    robust, unc = _lyapunov_radius(p, cl, K, K2)
     if robust > unc:
         status = "stable"
         if p.E is None:
@@ -121,11 +118,4 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
     else:
         lam, margin, unc_eig = _eigen_margin(p, K, K2)
         status = "stable" if margin > unc_eig else ("unstable" if margin < -unc_eig else "marginal")
-    if ynorm is not None and cl.unscaled and p.E is None:
-        onorm = ynorm  # Omega^-1(I) is the Y of the certificate
-    else:
-        try:
-            onorm = np.max(np.abs(np.linalg.eigvalsh(cl.correction(np.eye(p.n)))))
-        except (np.linalg.LinAlgError, ValueError):
-            onorm = np.inf
-    return Stability(lam, margin, status, float(onorm), float(robust), float(unc))
+    return Stability(lam, margin, status, cl.omega_inv_norm, float(robust), float(unc))
