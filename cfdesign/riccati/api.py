@@ -3,12 +3,14 @@
 Every solver
 
 1. validates its data (shapes, finiteness, symmetry) with messages that name the matrix;
-2. runs the PBH (Hautus) test on the modes that matter and names the offending mode;
-3. takes scipy's Schur / QZ solution as a first estimate (a matrix-sign or doubling
+2. takes scipy's Schur / QZ solution as a first estimate (a matrix-sign or doubling
    fallback where scipy fails), then refines it by Newton's method (Kleinman for the CARE,
    Hewer for the DARE) with the residual evaluated in double-double arithmetic;
-4. checks the closed loop and returns a frozen, named result, or raises an error of the
-   :class:`~cfdesign.errors.RiccatiError` family.
+3. certifies the closed loop and returns a frozen, named result;
+4. when no certified stabilising solution comes out (or only a marginal one), runs the PBH
+   (Hautus) tests and names the offending mode, or raises another error of the
+   :class:`~cfdesign.errors.RiccatiError` family.  A certified stabilising gain is itself
+   the proof that those tests pass, so a solvable problem does not pay for them.
 """
 
 from __future__ import annotations
@@ -73,17 +75,22 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
 
     Notes
     -----
-    Checks before solving: (A, B) must be stabilisable (PBH test on every eigenvalue of
-    ``(A, E)`` on or right of the axis).  When the weight ``[[Q, S], [S', R]]`` is positive
-    semidefinite and ``R`` positive definite, a mode on the axis that the reduced weight
-    ``Q - S R^-1 S'`` cannot see (pair ``A - B R^-1 S'``) rules out a stabilising solution and
-    raises :class:`NotDetectableError`; an unobservable *unstable* mode does not (the
-    stabilising solution then exists and is returned).  Indefinite weights (H-infinity type
-    data) are accepted; the solver decides.
+    The closed loop is certified stable by a Lyapunov radius or by its eigenvalue margin,
+    each compared with the uncertainty left in ``X``; an eigenvalue on the axis within that
+    uncertainty gives ``marginal=True`` and a RuntimeWarning.
 
-    After solving: the closed loop is certified stable by a Lyapunov radius or by its
-    eigenvalue margin, each compared with the uncertainty left in ``X``; an eigenvalue on the
-    axis within that uncertainty gives ``marginal=True`` and a RuntimeWarning.
+    Mode checks (run when no certified stabilising solution is found, or it is marginal):
+    (A, B) must be stabilisable (PBH test on every eigenvalue of ``(A, E)`` on or right of
+    the axis).  When the weight ``[[Q, S], [S', R]]`` is positive semidefinite and ``R``
+    positive definite, a mode on the axis that the reduced weight ``Q - S R^-1 S'`` cannot
+    see (pair ``A - B R^-1 S'``) rules out a stabilising solution and raises
+    :class:`NotDetectableError`; an unobservable *unstable* mode does not (the stabilising
+    solution then exists and is returned).  Indefinite weights (H-infinity type data) are
+    accepted; the solver decides.
+
+    Cost: scipy's solver, one double-double residual, one real Schur factorisation of the
+    closed loop per Newton step that moves the gain noticeably, and a few triangular
+    Sylvester solves with it (see :mod:`cfdesign.riccati.refinement`).
     """
     return _solve("care", A, B, Q, R, S, E, refine, rtol)
 

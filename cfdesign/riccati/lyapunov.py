@@ -97,7 +97,10 @@ class ClosedLoop:
 
     def __init__(self, p: Problem, K):
         self.p, self.K = p, K
-        Ms, scale = _balance(p.closed_loop(K))
+        M = p.closed_loop(K)
+        if not np.all(np.isfinite(M)):  # LAPACK would complain on stderr
+            raise np.linalg.LinAlgError("the closed loop is not finite")
+        Ms, scale = _balance(M)
         self.scale, self.Ms = scale, Ms
         self.unscaled = bool(np.all(scale == 1.0))
         if p.kind == "care":

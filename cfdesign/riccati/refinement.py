@@ -65,6 +65,8 @@ def _gain_term(W, Lt):
     Lh, Ll = Lt
     Wd = Wh if Wl is None else Wh + Wl
     m = Wd.shape[0]
+    if not (np.all(np.isfinite(Wd)) and np.all(np.isfinite(Lh))):
+        raise AccuracyError("the gain overflows")
     lu, piv, info = lapack.dgetrf(Wd)
     rcond = lapack.dgecon(lu, np.abs(Wd).sum(axis=0).max(initial=0.0))[0] if info == 0 else 0.0
     if not rcond >= m * EPS:  # 1-norm condition estimate above 1 / (m eps)
