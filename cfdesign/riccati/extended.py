@@ -71,13 +71,14 @@ def dd_dot(a, b):
         return a @ b, np.zeros((a.shape[0], b.shape[1]))
     mu_a = np.abs(a).max(axis=1, keepdims=True)
     mu_b = np.abs(b).max(axis=0, keepdims=True)
-    big = max(mu_a.max(), mu_b.max())
+    big_a, big_b = mu_a.max(), mu_b.max()
     scale = 0
-    if not 2.0**-900 < big < 2.0**900:  # keep the grids clear of overflow and underflow
-        if not big > 0 or not np.isfinite(big):
+    if not (2.0**-900 < big_a < 2.0**900 and 2.0**-900 < big_b < 2.0**900):  # keep the grids clear of
+        if not (big_a > 0 and big_b > 0 and np.isfinite(big_a) and np.isfinite(big_b)):  # over/underflow
             return a @ b, np.zeros((a.shape[0], b.shape[1]))
-        scale = -int(np.frexp(big)[1])
-        a, b, mu_a, mu_b = (np.ldexp(x, scale) for x in (a, b, mu_a, mu_b))
+        sa, sb = -int(np.frexp(big_a)[1]), -int(np.frexp(big_b)[1])  # exact power-of-two scalings
+        a, mu_a, b, mu_b = np.ldexp(a, sa), np.ldexp(mu_a, sa), np.ldexp(b, sb), np.ldexp(mu_b, sb)
+        scale = sa + sb
     beta = _beta(k)
     (a1, a2, a3), (_, _, a4) = _slices(a, mu_a, 1, beta)
     (b1, b2, b3), (br2, br3, b4) = _slices(b, mu_b, 0, beta)
@@ -87,7 +88,7 @@ def dd_dot(a, b):
     s, e2 = two_sum(s, As @ Bs)
     hi, lo = two_sum(s, e1 + e2 + (As @ np.vstack([b4, br3, br2]) + a4 @ b))
     if scale:
-        hi, lo = np.ldexp(hi, -2 * scale), np.ldexp(lo, -2 * scale)
+        hi, lo = np.ldexp(hi, -scale), np.ldexp(lo, -scale)
     return hi, lo
 
 
