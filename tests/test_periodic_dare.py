@@ -1,4 +1,4 @@
-"""Tests of cfdesign.riccati.periodic_dare (filter form, seed 004 sec. 3), each checked
+"""Tests of cfdesign.riccati.periodic_dare (filter form, Vasconcelos et al. sec. 3), each checked
 against two independent computations: the recursion iterated to convergence and, for one
 slow sensor, the lifted standard DARE solved by scipy."""
 
@@ -19,7 +19,7 @@ G0 = 9.81
 
 
 def position_model(dt=T, accel_sigma=0.6e-3 * G0, bias_sigma=1e-4):
-    """Per-axis position filter of seed 004: state [p, v, b_a], accelerometer as input.
+    """Per-axis position filter of Vasconcelos et al.: state [p, v, b_a], accelerometer as input.
 
     Q: accelerometer white noise through the input matrix [dt^2/2, dt, 0] (variance
     accel_sigma^2 per sample) plus a random-walk accelerometer bias (bias_sigma^2 dt).
@@ -31,7 +31,7 @@ def position_model(dt=T, accel_sigma=0.6e-3 * G0, bias_sigma=1e-4):
 
 
 GPS_H = np.array([[1.0, 0.0, 0.0]])
-GPS_R = np.array([[10.0]])  # GPS noise variance 10 m^2 (seed 004 Table 1)
+GPS_R = np.array([[10.0]])  # GPS noise variance 10 m^2 (Vasconcelos et al. Table 1)
 
 
 def gps_schedule(period=N):

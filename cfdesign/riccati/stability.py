@@ -1,0 +1,121 @@
+"""Certification of the closed loop at a computed solution, allowing for its uncertainty.
+
+A closed loop is 'stable' when a Lyapunov certificate (a stability radius) or the
+eigenvalue margin exceeds the uncertainty left in ``X``; 'unstable' when an eigenvalue is
+outside the stable region by more than its uncertainty; 'marginal' otherwise.  A marginal
+solution is never passed off as stabilising.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .lyapunov import ClosedLoop
+from .problem import EPS, Problem, distance, gain, herm
+
+__all__ = ["Stability", "stability", "closed_loop_eigenvalues"]
+
+
+@dataclass(frozen=True)
+class Stability:
+    eigenvalues: np.ndarray
+    margin: float  # eigenvalue distance to the boundary
+    status: str  # 'stable' | 'marginal' | 'unstable'
+    omega_inv_norm: float  # ||Omega^-1(I)||_2
+    robust: float  # certified distance to instability of the closed loop
+    uncertainty: float  # uncertainty of the closed-loop matrix
+
+
+def closed_loop_eigenvalues(p: Problem, K):
+    """Eigenvalues of the pencil ``(A - BK, E)``."""
+    M = p.A - p.B @ K
+    return sla.eigvals(M) if p.E is None else sla.eigvals(M, p.E)
+
+
+def _eigen_margin(p: Problem, K, K2):
+    """Eigenvalues of (A - BK, E), their margin and its first-order uncertainty.
+
+    The uncertainty is the larger of the rounding bound ``10 eps kappa ||A - BK||`` (kappa:
+    condition number of the eigenvalue nearest the boundary) and four times the change of
+    the margin when the gain moves to ``K2`` (the gain after one more Newton step).
+    """
+    Eref = np.eye(p.n) if p.E is None else p.E
+    lam, vl, vr = sla.eig(p.A - p.B @ K, Eref, left=True, right=True)
+    d = distance(p.kind, lam)
+    i = int(np.argmin(d))
+    kappa = np.linalg.norm(vl[:, i]) * np.linalg.norm(vr[:, i]) / max(abs(vl[:, i].conj() @ Eref @ vr[:, i]), 1e-300)
+    with np.errstate(all="ignore"):
+        d2 = distance(p.kind, closed_loop_eigenvalues(p, K2)) if np.all(np.isfinite(K2)) else np.array([np.inf])
+    unc = max(10 * EPS * kappa * np.linalg.norm(p.A - p.B @ K), 4 * abs(np.min(d2) - d[i]))
+    return lam, float(d[i]), float(unc)
+
+
+def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
+    """Certified stability radius of the closed loop and the uncertainty of the closed loop.
+
+    ``Y = Omega^-1(I)`` positive definite proves the closed loop stable (Lyapunov), and every
+    perturbation smaller than ``1/(2||Y||)`` (CARE) or ``sqrt(||Ac||^2 + 1/||Y||) - ||Ac||``
+    (DARE) keeps it so.  Both are evaluated after the diagonal balancing similarity of
+    ``cl``.  The uncertainty is rounding, plus the distance from the factorised closed loop
+    (gain ``cl.K``) to the one at ``K``, plus four times the change of ``B K`` when the gain
+    moves to ``K2`` (at a double root Newton only halves the error, so what remains is about
+    a step).  Returns (radius, uncertainty); radius 0 when no certificate exists.
+    """
+    scale, Ms = cl.scale, cl.Ms
+    if cl.unscaled:
+        As, Bs, Ks = p.EinvA, p.EinvB, K
+    else:
+        Bs, Ks = p.EinvB / scale[:, None], K * scale[None, :]
+        As = p.EinvA / scale[:, None] * scale[None, :]
+    unc = 10 * EPS * (np.linalg.norm(As) + np.linalg.norm(Bs) * np.linalg.norm(Ks))
+    unc += 4 * np.linalg.norm(Bs @ ((K2 - K) * scale[None, :]))
+    if cl.K is not K:
+        unc += np.linalg.norm(Bs @ ((K - cl.K) * scale[None, :]))
+    ev = cl.certificate
+    if ev is None or not ev[0] > 0:
+        return 0.0, float(unc)
+    ynorm = ev[-1]
+    if p.kind == "care":
+        return 0.5 / ynorm, float(unc)
+    Ac = Ms + np.eye(p.n)
+    absAc = np.abs(Ac)  # first with an upper bound of ||Ac||_2 (a smaller, still valid radius)
+    for ac in (min(np.linalg.norm(Ac), np.sqrt(absAc.sum(axis=0).max() * absAc.sum(axis=1).max())), None):
+        if ac is None:
+            ac = np.sqrt(np.linalg.eigvalsh(Ac.T @ Ac)[-1])  # ||Ac||_2
+        radius = (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac)  # no cancellation
+        if radius > unc:
+            break
+    return radius, float(unc)
+
+
+def stability(p: Problem, X, K, D, cl: ClosedLoop):
+    """Classify the closed loop at ``X`` (gain ``K``), allowing for the uncertainty of ``X``.
+
+    'stable' when the Lyapunov radius exceeds the closed-loop uncertainty, or when the
+    eigenvalue margin exceeds its own uncertainty (this resolves badly scaled, highly
+    non-normal closed loops for which the norm-wise radius is pessimistic); 'unstable'
+    when an eigenvalue is outside by more than its uncertainty; 'marginal' otherwise.
+    The eigenvalue test (left and right eigenvectors, and the eigenvalues at the next
+    Newton gain) is only run when the Lyapunov certificate does not settle the question.
+
+    ``cl`` is the closed loop factorised at ``K`` or, after a last Newton step too small to
+    refactorise for, at the gain before it; the certificate then allows for the difference,
+    and the eigenvalues reported are those of the factorised closed loop.
+    """
+    with np.errstate(all="ignore"):
+        K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)
+    robust, unc = _lyapunov_radius(p, cl, K, K2)
+    if robust > unc:
+        status = "stable"
+        if p.E is None:
+            lam, margin = cl.eigenvalues, cl.margin
+        else:  # the pencil's own eigenvalues (QZ), rather than those of E^-1 (A - BK)
+            lam = closed_loop_eigenvalues(p, K)
+            margin = float(np.min(distance(p.kind, lam)))
+    else:
+        lam, margin, unc_eig = _eigen_margin(p, K, K2)
+        status = "stable" if margin > unc_eig else ("unstable" if margin < -unc_eig else "marginal")
+    return Stability(lam, margin, status, cl.omega_inv_norm, float(robust), float(unc))

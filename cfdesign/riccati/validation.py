@@ -1,0 +1,171 @@
+"""Data checks and PBH (Hautus) mode tests, with messages that name the matrix or the mode.
+
+Every message names what is wrong in the user's terms: ``"Q must be 3x3 (got 2x3)"``,
+``"mode at z = 1.5 is unstable and not reachable from B (PBH test)"``.  The estimator
+helpers solve the dual problem (``A = F'``, ``B = H'``) and phrase the same findings as
+observability from ``H`` and excitation by the process noise ``Q``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..errors import NotDetectableError, NotStabilisableError, RiccatiError
+from .problem import EPS, TINY, distance, herm
+
+__all__ = ["matrix", "min_eig", "is_psd", "covariance_data", "problem_data", "fmt_mode", "unreachable_mode",
+           "check_modes"]
+
+
+def matrix(name, value, shape=(None, None), *, hermitian=False):
+    """Validate one matrix and return it as a 2-D float or complex array.
+
+    ``shape`` entries of None are free; 'square' requires a square matrix.  Messages name
+    the matrix: ``"Q must be 3x3 (got 2x3)"``.
+    """
+    try:
+        M = np.array(value, dtype=complex if np.iscomplexobj(value) else float)
+    except (TypeError, ValueError) as exc:
+        raise RiccatiError(f"{name} must be a numeric matrix ({exc})") from None
+    want_r, want_c = (None, None) if shape == "square" else shape
+    if M.ndim < 2:  # a scalar is 1x1; a vector is a row where a row fits, else a column
+        M = M.reshape((1, -1) if want_c == M.size and want_r in (None, 1) else (-1, 1))
+    if M.ndim != 2:
+        raise RiccatiError(f"{name} must be a 2-D matrix (got {M.ndim} dimensions)")
+    rows, cols = M.shape
+    if shape == "square":
+        want_r, want_c = rows, rows
+    if (want_r is not None and rows != want_r) or (want_c is not None and cols != want_c):
+        want = f"{want_r if want_r is not None else rows}x{want_c if want_c is not None else cols}"
+        raise RiccatiError(f"{name} must be {want} (got {rows}x{cols})")
+    if not np.all(np.isfinite(M)):
+        raise RiccatiError(f"{name} contains NaN or Inf")
+    if hermitian and M.size:
+        Mh = M.conj().T if np.iscomplexobj(M) else M.T
+        gap = np.abs(M - Mh).max()
+        if gap > 1e-10 * max(np.abs(M).max(), TINY):
+            raise RiccatiError(f"{name} must be symmetric (Hermitian): max |{name} - {name}'| = {gap:.3g}")
+        M = 0.5 * (M + Mh)
+    return M
+
+
+def min_eig(M):
+    """Smallest eigenvalue of a Hermitian matrix (``inf`` for an empty one)."""
+    return np.linalg.eigvalsh(M)[0] if M.size else np.inf
+
+
+def is_psd(M):
+    """Positive semidefinite up to rounding (``min eig >= -100 n eps ||M||_2``)."""
+    return min_eig(M) >= -100 * M.shape[0] * EPS * max(np.linalg.norm(M, 2), TINY)
+
+
+def covariance_data(F, H, Q, R):
+    """Estimator data: ``F`` square, ``H`` (p, n), ``Q`` PSD and ``R`` PD covariances."""
+    F = matrix("F", F, "square")
+    n = F.shape[0]
+    H = matrix("H", H, (None, n))
+    Q = matrix("Q", Q, (n, n), hermitian=True)
+    R = matrix("R", R, (H.shape[0], H.shape[0]), hermitian=True)
+    if not is_psd(Q):
+        raise RiccatiError(f"Q (process noise covariance) must be positive semidefinite (min eig {min_eig(Q):.3g})")
+    if min_eig(R) <= 0:
+        raise RiccatiError(f"R (measurement noise covariance) must be positive definite (min eig {min_eig(R):.3g})")
+    return F, H, Q, R
+
+
+def problem_data(kind, A, B, Q, R, S, E):
+    """Validate the data of a CARE/DARE; returns ``(A, B, Q, R, S, E)`` with ``S`` filled in."""
+    A = matrix("A", A, "square")
+    n = A.shape[0]
+    B = matrix("B", B, (n, None))
+    m = B.shape[1]
+    Q = matrix("Q", Q, (n, n), hermitian=True)
+    R = matrix("R", R, (m, m), hermitian=True)
+    S = np.zeros((n, m)) if S is None else matrix("S", S, (n, m))
+    E = None if E is None else matrix("E", E, (n, n))
+    if E is not None and _cond(E) > 1 / (n * EPS):
+        raise RiccatiError(f"E must be nonsingular (condition number {_cond(E):.3g})")
+    if kind == "care" and _cond(R) > 1 / (m * EPS):
+        raise RiccatiError(f"R must be nonsingular for the CARE (condition number {_cond(R):.3g})")
+    return A, B, Q, R, S, E
+
+
+def _cond(M):
+    """2-norm condition number (``inf`` when singular), as :func:`numpy.linalg.cond`."""
+    s = np.linalg.svd(M, compute_uv=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = s[0] / s[-1] if s.size else 0.0
+    return np.inf if np.isnan(c) else c
+
+
+# --------------------------------------------------------------------------------------
+# PBH checks
+# --------------------------------------------------------------------------------------
+def fmt_mode(kind, lam):
+    """``s = -1.5`` or ``z = 0.3+0.4j``: a mode as the user would write it."""
+    var = "s" if kind == "care" else "z"
+    lam = complex(lam)
+    if abs(lam.imag) <= 1e-12 * max(1.0, abs(lam)):
+        return f"{var} = {float(f'{lam.real:.6g}')!r}"
+    return f"{var} = {float(f'{lam.real:.6g}')!r}{'+' if lam.imag >= 0 else '-'}{float(f'{abs(lam.imag):.6g}')!r}j"
+
+
+def unreachable_mode(kind, A, E, B, boundary_only=False):
+    """PBH test: an eigenvalue of (A, E) on/beyond the boundary with rank [A - lam E, B] < n.
+
+    ``B`` is rescaled to the norm of ``A`` first, so only exact rank loss counts (a small but
+    nonzero ``B`` is not rejected: the solution then simply is ill-conditioned).  Returns
+    ``(lam, distance)`` of the first such mode, or None.
+    """
+    n = A.shape[0]
+    Eref = np.eye(n) if E is None else E
+    lam = sla.eigvals(A) if E is None else sla.eigvals(A, E)
+    d = distance(kind, lam)
+    scale = max(1.0, np.max(np.abs(lam), initial=0.0)) if kind == "care" else 1.0
+    tol_b = 100 * n * EPS * scale
+    bnorm = np.linalg.norm(B)
+    Bs = B * (max(np.linalg.norm(A), np.linalg.norm(Eref)) / bnorm) if bnorm > 0 else B
+    tested = []
+    for lam_i, d_i in zip(lam, d, strict=True):
+        if (abs(d_i) if boundary_only else d_i) > tol_b or any(abs(lam_i - t) <= tol_b for t in tested):
+            continue
+        tested.append(lam_i)
+        M = np.hstack([A - lam_i * Eref, Bs])
+        smin = np.linalg.svd(M, compute_uv=False)[-1] if n else 1.0
+        if smin <= 100 * n * EPS * np.linalg.norm(M):
+            return lam_i, d_i
+    return None
+
+
+def _raise_mode(cls, kind, lam, d, what):
+    where = "unstable" if d < 0 and abs(d) > 1e-9 else (
+        "on the imaginary axis" if kind == "care" else "on the unit circle")
+    raise cls(f"mode at {fmt_mode(kind, lam)} is {where} and {what} (PBH test)")
+
+
+def check_modes(kind, A, B, Q, R, S, E, dual):
+    """Stabilisability of (A, B); for a PSD weight, no unobservable boundary mode of (A_r, Q_r).
+
+    Raises :class:`NotStabilisableError` or :class:`NotDetectableError` naming the mode;
+    ``dual`` phrases the messages for the estimator problem (``A = F'``, ``B = H'``).
+    """
+    hit = unreachable_mode(kind, A, E, B)
+    if hit is not None:
+        cls, what = (NotDetectableError, "not observable from H") if dual else (
+            NotStabilisableError, "not reachable from B")
+        _raise_mode(cls, kind, *hit, what)
+    W = np.block([[Q, S], [S.conj().T, R]])
+    if min_eig(R) <= 0 or not is_psd(W):
+        return  # indefinite weights: no PBH criterion; the solver decides
+    RiS = np.linalg.solve(R, S.conj().T)
+    Ar, Qr = A - B @ RiS, herm(Q - S @ RiS)
+    Eh = None if E is None else E.conj().T
+    hit = unreachable_mode(kind, Ar.conj().T, Eh, Qr, boundary_only=True)
+    if hit is not None:
+        lam, d = hit
+        if dual:
+            _raise_mode(NotStabilisableError, kind, np.conj(lam), d,
+                        "not excited by the process noise Q, so no stabilising solution exists")
+        _raise_mode(NotDetectableError, kind, np.conj(lam), d,
+                    "not observable from the weight Q, so no stabilising solution exists")
