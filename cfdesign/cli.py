@@ -193,33 +193,64 @@ def cmd_verify(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .export import read_readings, write_estimates
     from .gains import load_gains
-    from .runtime import Runtime
+    from .logs import run_log, run_logs
 
     table = load_gains(args.table)
-    runtime = Runtime(table, output="prior" if args.prediction else None)
-    time, readings = read_readings(args.data, runtime.inputs + runtime.measurements)
-    est, states = _run_blocks(runtime, readings)
-    write_estimates(args.output, time, est, states)
-    print(f"wrote {args.output} ({len(est)} samples)")
+    logs = _log_paths(args.data)
+    options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
+               "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
+    if len(logs) > 1 or args.workers or args.scheduler or Path(args.output).is_dir():
+        if args.plot:
+            raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
+        suffix = ".parquet" if args.format == "parquet" else ".csv"
+        rows = run_logs(table, logs, args.output, workers=args.workers, scheduler=args.scheduler, suffix=suffix,
+                        **options)
+        failed = [r for r in rows if "error" in r]
+        for r in failed:
+            print(f"cfdesign: {r['log']}: {r['error']}", file=sys.stderr)
+        print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}")
+        return 2 if failed else 0
+    result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)
+    for note in result.notes:
+        print(f"cfdesign: {note}", file=sys.stderr)
+    if result.without_gain:
+        detail = "; ".join(f"{kind}: " + ", ".join(f"{k} {v}" for k, v in per.items())
+                           for kind, per in result.unused.items())
+        print(f"cfdesign: {result.without_gain} readings were not used ({detail})", file=sys.stderr)
+    for state, rms in result.rms.items():
+        print(f"RMS error of {state}: {rms:.6g}")
+    print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0
 
 
-def _run_blocks(runtime, readings, block=100_000):
-    """Run in blocks (state carried) with a progress bar on long inputs."""
-    import numpy as np
-    from tqdm import tqdm
+def _log_paths(items) -> list:
+    """Files named, globbed or in named directories (CSV and Parquet), in a stable order."""
+    import glob
 
-    N = len(next(iter(readings.values()))) if readings else 0
-    est, states = np.empty(N), np.empty((N, runtime.n))
-    with tqdm(total=N, unit="sample", disable=None if N > block else True, file=sys.stderr) as bar:
-        for start in range(0, N, block):
-            part = {k: v[start:start + block] for k, v in readings.items()}
-            e, x = runtime.run(part, states=True)
-            est[start:start + len(e)], states[start:start + len(e)] = e, x
-            bar.update(len(e))
-    return est, states
+    out = []
+    for item in items:
+        p = Path(item)
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
+        elif any(c in item for c in "*?["):
+            found = sorted(Path(q) for q in glob.glob(item))
+        else:
+            found = [p]
+        if not found:
+            raise CfdesignError(f"no log files in {item}")
+        out += found
+    return out
+
+
+def _pairs(items, option, form) -> dict:
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise CfdesignError(f"{option} {item!r} is not of the form {form}")
+        out[key.strip()] = value.strip()
+    return out
 
 
 _FIGURE_FORMATS = ("png", "pdf", "svg")
@@ -292,13 +323,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance for the gain comparison")
     p.set_defaults(run=cmd_verify)
 
-    p = sub.add_parser("run", help="run a gain table on a CSV log of sensor readings")
+    p = sub.add_parser("run", help="run a gain table on logs (CSV or Parquet) of timestamped sensor readings",
+                       description="Each row is placed on the table's base tick by its time (nearest tick); slow "
+                                   "sensors' columns are empty between readings; the schedule locks to when they "
+                                   "arrive.  Readings not used are reported on stderr.")
     p.add_argument("table", help="gain table (JSON)")
-    p.add_argument("data", help="CSV with one column per sensor (named as in the table) and an optional time")
-    p.add_argument("-o", "--output", required=True, help="CSV of estimates to write")
+    p.add_argument("data", nargs="+", help="log file(s), a directory or a glob; one column per sensor (named as in "
+                                           "the table, or --map), a time column, any others (passed through)")
+    p.add_argument("-o", "--output", required=True, help="estimates file (.csv or .parquet); a directory (created "
+                                                         "if missing) for several logs, with summary.csv")
+    p.add_argument("--time", metavar="COLUMN", help="time column in seconds (default: 'time' or 't' if present; "
+                                                    "without one, each row is one base tick)")
+    p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
+    p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
+                   help="a true value to compare with: prints the RMS error (repeatable)")
+    p.add_argument("--std", action="store_true", help="also write <state>_std, the predicted standard deviations")
+    p.add_argument("--plot", metavar="FILE.png", help="draw the estimates (against the references, with the "
+                                                     "predicted +-2 sigma band)")
     p.add_argument("--prediction", action="store_true",
                    help="write the one-step prediction instead of the table's output (by default the estimate "
                         "after each step's readings)")
+    p.add_argument("--workers", type=int, help="several logs: Dask worker processes (default: the CPUs)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="several logs: an existing Dask scheduler")
+    p.add_argument("--format", choices=["csv", "parquet"], default="csv", help="several logs: estimate file format")
     p.set_defaults(run=cmd_run)
 
     from .reproduce import add_parser as add_reproduce

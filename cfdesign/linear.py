@@ -422,18 +422,22 @@ def identity_residual(bands: dict) -> float:
     Equal denominators are multiplied in once; the result is 0 for an exact identity and
     about the rounding level for a numerically complementary set.
     """
-    common = np.ones(1)
+    dens = []  # the distinct denominators (bands of one filter share them exactly)
     for _, d in bands.values():
-        if not _same_poly(common, d):
-            common = np.polymul(common, d)
+        if not any(len(d) == len(e) and np.array_equal(d, e) for e in dens):
+            dens.append(d)
+    common = _product(dens)
     total, scale = -common, np.abs(common).max()
     for num, d in bands.values():
-        q, _ = np.polydiv(common, d)
-        term = np.polymul(num, q)
+        others = [e for e in dens if not (len(d) == len(e) and np.array_equal(d, e))]
+        term = np.convolve(num, _product(others))
         total = np.polyadd(total, term)
         scale = max(scale, np.abs(term).max())
     return float(np.abs(total).max(initial=0.0) / scale)
 
 
-def _same_poly(a, b):
-    return len(a) == len(b) and np.allclose(a, b, rtol=1e-14, atol=0)
+def _product(polys):
+    out = np.ones(1)
+    for p in polys:
+        out = np.convolve(out, p)
+    return out

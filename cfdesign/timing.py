@@ -26,7 +26,6 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 from __future__ import annotations
 
 import bisect
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -72,14 +71,15 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         return np.zeros(0, dtype=np.int64)
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        raise DataError(f"{source} line {first_line + bad[0]}: time {t[bad[0]]!r} is not a finite number of seconds")
+        raise DataError(f"{source} line {first_line + bad[0]}: time {float(t[bad[0]])!r} is not a finite number "
+                        "of seconds")
     d = np.diff(t)
     back = np.flatnonzero(d <= 0)
     if back.size:
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
-        raise DataError(f"{source} line {first_line + i}: time {t[i]!r} {what} {t[i - 1]!r} on the line before "
-                        "(times must increase)")
+        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
+                        "line before (times must increase)")
     check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return np.rint((t - t[0]) / dt).astype(np.int64)
 
@@ -181,10 +181,10 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     notes, rates, patterns = [], {}, {}
     for name in sched.measurements:
         ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
-        if len(ticks) > 1:
-            rates[name] = (len(ticks) - 1) / ((ticks[-1] - ticks[0]) * dt) if ticks[-1] > ticks[0] else math.inf
         phases, step = _pattern(sched, name)
         expected = len(phases) / (P * dt)
+        if len(ticks) >= 10:  # the typical spacing: gaps (a dropped reading) do not change it
+            rates[name] = 1.0 / (max(float(np.median(np.diff(ticks))), 1.0) * dt)
         if name in rates and abs(rates[name] - expected) > 0.05 * expected:
             notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz: "
                          "readings off its schedule have no gain")

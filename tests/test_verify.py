@@ -126,35 +126,3 @@ def test_csv_export_has_every_gain(tables, tmp_path):
     rows = (tmp_path / "g.csv").read_text().splitlines()
     assert rows[0] == "phase,state,gps" and len(rows) == 1 + 50 * 3
     assert float(rows[1].split(",")[2]) == tables["position"].K[0][0, 0]
-
-
-def test_cli_run_matches_runtime_and_rejects_bad_csv(tables, tmp_path):
-    table = tables["dckf3"]
-    src = table.save(tmp_path / "g.json")
-    rng = np.random.default_rng(3)
-    N = 500
-    data = {n: rng.normal(size=N) * 0.1 for n in ("gyro", "compass", "odometry")}
-    lines = ["time,gyro,compass,odometry"] + [
-        f"{0.2 * k},{float(data['gyro'][k])!r},{'' if k % 4 == 0 else repr(float(data['compass'][k]))},"
-        f"{float(data['odometry'][k])!r}"
-        for k in range(N)]
-    (tmp_path / "log.csv").write_text("\n".join(lines) + "\n")
-    r = cli("run", str(src), str(tmp_path / "log.csv"), "-o", str(tmp_path / "est.csv"))
-    assert r.returncode == 0, r.stderr
-    out = np.loadtxt(tmp_path / "est.csv", delimiter=",", skiprows=1)
-    data["compass"][::4] = np.nan
-    ref = cfdesign.Runtime(table).run(data)
-    assert np.max(np.abs(out[:, 1] - ref)) < 1e-12 and np.allclose(out[:, 0], 0.2 * np.arange(N))
-    bad = {
-        "missing.csv": "time,gyro,compass\n0,1,2\n",
-        "text.csv": "gyro,compass,odometry\n1,2,3\n1,abc,3\n",
-        "ragged.csv": "gyro,compass,odometry\n1,2,3\n1,2\n",
-        "extra.csv": "gyro,compass,odometry,baro\n1,2,3,4\n",
-    }
-    for name, text in bad.items():
-        (tmp_path / name).write_text(text)
-        out_path = tmp_path / f"out_{name}"
-        r = cli("run", str(src), str(tmp_path / name), "-o", str(out_path))
-        assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr, (name, r.stderr)
-        assert not out_path.exists() and not list(tmp_path.glob(f".out_{name}*"))
-    assert "line 3" in cli("run", str(src), str(tmp_path / "text.csv"), "-o", "x.csv", cwd=tmp_path).stderr

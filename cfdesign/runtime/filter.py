@@ -177,17 +177,16 @@ class Runtime:
         finite = usable(y)
         self._count("rejected", ~finite & ~np.isnan(y))
         self._count("unscheduled", finite & ~active)
-        y = np.where(active & finite, y, 0.0)
+        y = np.where(active & finite, y, np.nan)  # NaN: not read at this tick
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
         if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
-            return self._run_loop(u, np.where(active & finite, y, np.nan), states)
+            return self._run_loop(u, y, states)
         pieces, start = [], 0
         for k in [*irregular, N]:
             if k > start:
                 pieces.append(self._run_regular(u[start:k], y[start:k], states))
             if k < N:
-                pieces.append(self._run_loop(u[k:k + 1], np.where(active[k] & finite[k], y[k], np.nan)[None],
-                                             states))
+                pieces.append(self._run_loop(u[k:k + 1], y[k:k + 1], states))
             start = k + 1
         if len(pieces) == 1:
             return pieces[0]
@@ -196,11 +195,13 @@ class Runtime:
         return np.concatenate(pieces)
 
     def _run_regular(self, u, y, states):
-        """A stretch where every scheduled measurement is present (and inputs are held)."""
+        """A stretch where every scheduled measurement is present (NaN where it is not read)
+        and the inputs are held: angle readings unwrapped, then the vectorised paths."""
+        y = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
         if self.period == 1 and not states:
             lti = _LtiBands.of(self)
             if lti is not None:
-                return lti.run(self, self._unwrapped_columns([*u.T, *y.T]))
+                return lti.run(self, [*u.T, *y.T])
         return self._run_vectorised(u, y, states)
 
     def _held_inputs(self, u):
@@ -254,7 +255,6 @@ class Runtime:
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
         once, vectorised over the blocks (``L`` a multiple of the period)."""
         N = len(u)
-        y = self._unwrapped(y)
         L = self.period * max(1, _BLOCK // self.period)
         P = -(-N // L)
         pad = P * L - N
@@ -293,21 +293,20 @@ class Runtime:
         return acc, np.einsum("jnq,pjq->pn", np.array(M), W)
 
     def _unwrapped(self, y):
-        """Angle readings made continuous and brought within pi of the current estimate."""
+        """Angle readings (NaN where none) made continuous over the readings present and the
+        first brought within pi of the current estimate, so that the linear batch paths see no
+        2 pi jumps (consecutive readings must differ by less than pi)."""
         if not self._wrap_rows.any():
             return y
-        p = len(self.inputs)
-        cols = self._unwrapped_columns([*np.zeros((p, len(y))), *y.T])
-        return np.column_stack(cols[p:])
-
-    def _unwrapped_columns(self, cols):
-        p = len(self.inputs)
-        out = list(cols)
+        y = y.copy()
         for i in np.flatnonzero(self._wrap_rows):
-            col = _unwrap(out[p + i])
+            seen = np.flatnonzero(~np.isnan(y[:, i]))
+            if not seen.size:
+                continue
+            col = _unwrap(y[seen, i])
             shift = 2 * np.pi * np.round((col[0] - (self.H @ self.x)[i]) / (2 * np.pi))
-            out[p + i] = col - shift if shift else col
-        return out
+            y[seen, i] = col - shift if shift else col
+        return y
 
 
 def _snapshot(state, n, period, p, name):

@@ -1,0 +1,765 @@
+"""Running a gain table on the logs people have: timestamped, gapped, big, many.
+
+A log is a table with one column per sensor (named as in the gain table, or mapped to it),
+usually a time column (seconds), and any other columns, which are passed through.  A slow
+sensor's column is empty (NaN) between its readings - the natural way to log - and its
+readings arrive when they arrive: :mod:`cfdesign.timing` places every row on the table's base
+tick by its time and locks the table's schedule to the actual arrivals (recomputing the gains
+for the actual pattern where each sensor has its own offset).  The filter then runs at batch
+speed (:class:`cfdesign.runtime.Runtime`), in blocks of rows so that a 10-million-row log runs
+in bounded memory, and the estimates are written with the time column and a column per state
+(``heading``, ``gyro_correction``, ...), optionally with their predicted standard deviations.
+
+Reading and writing use pandas (CSV; Parquet through pyarrow), an optional dependency:
+``pip install "cfdesign[logs]"``.  Many logs run in parallel on Dask: :func:`run_logs`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CfdesignError, DataError
+from .files import open_atomic, write_bytes, write_text
+from .linear import wrap
+
+__all__ = ["LogResult", "run_log", "run_logs", "read_log", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
+
+#: column names taken as the time (seconds) when none is given
+TIME_COLUMNS = ("time", "t")
+#: rows read, run and written at a time
+BLOCK_ROWS = 1_000_000
+#: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
+ONE_PASS_BYTES = 200_000_000
+
+
+def _pandas():
+    try:
+        import pandas as pd
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise CfdesignError('reading logs needs pandas: pip install "cfdesign[logs]"') from None
+    return pd
+
+
+# ---------------------------------------------------------------------------- results
+@dataclass
+class LogResult:
+    """What running a table on a log gave.
+
+    Attributes
+    ----------
+    estimates : pandas.DataFrame or None
+        One row per log row: the time column (if any), a column per state (the table's
+        :attr:`~cfdesign.gains.GainTable.states`), ``<state>_std`` columns when asked for,
+        and the log's other columns.  None when the estimates were written to a file only.
+    samples : int
+        Rows run.
+    rms : dict
+        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]).
+    unused : dict
+        Readings not used, by reason and sensor: ``rejected`` (inf, or beyond the runtime's
+        :data:`~cfdesign.runtime.filter.READING_LIMIT`), ``unscheduled`` (no gain at its
+        tick), ``same_tick`` (a second reading of a sensor on one base tick).
+    notes : list of str
+        What a user should know: offsets found, gains recomputed, rate mismatches.
+    output : Path or None
+        The file written.
+    """
+
+    estimates: object
+    samples: int
+    rms: dict = field(default_factory=dict)
+    unused: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    output: Path | None = None
+    source: str = ""
+
+    @property
+    def without_gain(self) -> int:
+        """Readings not used for any reason (the number ``cfdesign run`` reports)."""
+        return sum(sum(v.values()) for v in self.unused.values())
+
+    def summary(self) -> dict:
+        """One row of a fleet's summary table."""
+        row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
+        row.update({f"rms_{k}": v for k, v in self.rms.items()})
+        return row
+
+
+# ---------------------------------------------------------------------------- columns
+@dataclass(frozen=True)
+class _Columns:
+    """Which log column feeds what."""
+
+    sensors: dict          # sensor -> column
+    time: str | None
+    references: dict       # state -> column
+    extra: list            # passed through
+
+    @property
+    def read(self) -> list:
+        cols = [*self.sensors.values(), *self.references.values()]
+        return [c for c in ([self.time] if self.time else []) + cols + self.extra if c]
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None) -> _Columns:
+    header = [str(h).strip() for h in header]
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise DataError(f"{source}: duplicate column(s) {', '.join(dup)}")
+    mapping = dict(mapping or {})
+    unknown = sorted(set(mapping) - set(table.sensor_names()))
+    if unknown:
+        raise DataError(f"--map {unknown[0]}: {table.name} has no sensor {unknown[0]!r} "
+                        f"(sensors: {', '.join(table.sensor_names())})")
+    sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
+    missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
+    if missing:
+        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {', '.join(header)}); "
+                        "name them as the table's sensors or map them with --map SENSOR=COLUMN")
+    if time is None:
+        time = next((c for c in TIME_COLUMNS if c in header), None)
+    elif time not in header:
+        raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
+    refs = _references(table, reference, header, source)
+    used = {time, *sensors.values(), *refs.values()}
+    return _Columns(sensors, time, refs, [h for h in header if h not in used])
+
+
+def _references(table, reference, header, source) -> dict:
+    """``{state: column}`` from ``COLUMN`` (the first state) or ``STATE=COLUMN`` items."""
+    out = {}
+    for item in ([reference] if isinstance(reference, str) else list(reference or [])):
+        state, sep, col = item.partition("=")
+        state, col = (state, col) if sep else (table.states[0], state)
+        if state not in table.states:
+            raise DataError(f"--reference {item}: {table.name} has no state {state!r} "
+                            f"(states: {', '.join(table.states)})")
+        if col not in header:
+            raise DataError(f"{source}: no reference column {col!r} (columns: {', '.join(header)})")
+        out[state] = col
+    return out
+
+
+def _numeric(df, columns, source, first_line):
+    """The columns as float arrays; a cell that is not a number is an error naming its line."""
+    pd = _pandas()
+    out = {}
+    for c in columns:
+        s = df[c]
+        if s.dtype.kind in "fiub":
+            out[c] = s.to_numpy(dtype=float)
+            continue
+        text = s.astype("string").str.strip()
+        values = pd.to_numeric(text.where(text != ""), errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy() & (text != "").to_numpy())
+        if bad.size:
+            raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is not a number: {s.iloc[bad[0]]!r}")
+        out[c] = values.to_numpy(dtype=float)
+    return out
+
+
+# ---------------------------------------------------------------------------- reading
+def read_log(path, columns=None, *, chunksize=None):
+    """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.parquet`` / ``.pq`` is read as Parquet, anything else as CSV.
+    columns : list of str, optional
+        Read only these.
+    chunksize : int, optional
+        Yield blocks of this many rows instead of one DataFrame.
+
+    Returns
+    -------
+    pandas.DataFrame or iterator of DataFrame
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, is empty, or has no rows.
+    """
+    pd = _pandas()
+    path = Path(path)
+    parquet = path.suffix.lower() in (".parquet", ".pq")
+    try:
+        if parquet:
+            return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
+        return pd.read_csv(path, usecols=columns, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
+                           low_memory=False)
+    except FileNotFoundError:
+        raise DataError(f"cannot read {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
+    except pd.errors.EmptyDataError:
+        raise DataError(f"{path}: empty file (expected a header row naming the columns)") from None
+    except (pd.errors.ParserError, ValueError) as exc:
+        raise DataError(f"{path}: not a readable log: {_first_line(exc)}") from None
+
+
+def _first_line(exc) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+
+
+def _parquet_blocks(path, columns, rows):
+    import pyarrow.parquet as pq
+
+    with pq.ParquetFile(path) as f:
+        for batch in f.iter_batches(batch_size=rows, columns=columns):
+            yield batch.to_pandas()
+
+
+def _header(path) -> list:
+    pd = _pandas()
+    path = Path(path)
+    if path.suffix.lower() in (".parquet", ".pq"):
+        import pyarrow.parquet as pq
+
+        try:
+            return list(pq.read_schema(path).names)
+        except (OSError, ValueError) as exc:
+            raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    try:
+        return [str(c).strip() for c in pd.read_csv(path, nrows=0, encoding="utf-8-sig").columns]
+    except FileNotFoundError:
+        raise DataError(f"cannot read {path}: no such file") from None
+    except pd.errors.EmptyDataError:
+        raise DataError(f"{path}: empty file (expected a header row naming the columns)") from None
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError, ValueError) as exc:
+        raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+
+
+# ---------------------------------------------------------------------------- the run
+class _Pass:
+    """Placement of rows on ticks, carried from block to block (times checked across blocks)."""
+
+    def __init__(self, table, cols, source):
+        self.table, self.cols, self.source = table, cols, source
+        self.t0 = None
+        self.last_time = None
+        self.rows = 0
+
+    def ticks(self, values):
+        """Ticks of a block's rows (``row index`` when the log has no time column)."""
+        n = len(next(iter(values.values()))) if values else 0
+        if self.cols.time is None:
+            ticks = self.rows + np.arange(n, dtype=np.int64)
+        else:
+            from .timing import place
+
+            t = values[self.cols.time]
+            if self.t0 is None and n:
+                self.t0 = t[0]
+            both = t if self.last_time is None else np.concatenate([[self.last_time], t])
+            base = np.ones(len(both), dtype=bool)
+            for s in self.table.inputs:
+                col = values[self.cols.sensors[s.name]]
+                base[len(both) - n:] &= ~np.isnan(col)
+            place(both, self.table.sample_time_s, base_rows=base, source=self.source,
+                  first_line=2 + self.rows - (0 if self.last_time is None else 1))
+            ticks = np.rint((t - self.t0) / self.table.sample_time_s).astype(np.int64)
+            if n:
+                self.last_time = t[-1]
+        self.rows += n
+        return ticks
+
+
+def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
+            prediction=False, plot=None, start="reading", block_rows=None, progress=False,
+            source=None) -> LogResult:
+    """Run a discrete gain table on a timestamped log (module docstring).
+
+    Parameters
+    ----------
+    table : GainTable
+    data : str, Path or pandas.DataFrame
+        A CSV or Parquet file, or a DataFrame.
+    output : str or Path, optional
+        Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
+        no DataFrame (bounded memory for big logs).
+    time : str, optional
+        The time column (seconds); default ``time`` or ``t`` when present, else every row is
+        one base tick.
+    mapping : dict, optional
+        ``{sensor: column}`` where the log names a sensor differently.
+    reference : str or list of str, optional
+        ``COLUMN`` (a reference for the first state, e.g. the true heading) or
+        ``STATE=COLUMN`` items: the RMS error of each is in the result.
+    std : bool
+        Add ``<state>_std`` columns: the predicted standard deviation at each row's phase.
+    prediction : bool
+        Output the one-step prediction instead of the table's output.
+    plot : str or Path, optional
+        Also draw :func:`plot_log` to this image file.
+    start : {'reading', 'zero'}
+        The initial state: the quantity from the first reading of a sensor that measures it
+        directly (the others zero), or all zero (as :class:`~cfdesign.runtime.Runtime`).
+    block_rows : int, optional
+        Rows per block (default :data:`BLOCK_ROWS`).
+    progress : bool
+        A progress bar on stderr for long logs.
+    source : str, optional
+        The log's name in messages.
+
+    Returns
+    -------
+    LogResult
+
+    Raises
+    ------
+    DataError
+        A missing or non-numeric column (naming the line), bad times (naming the line), a base
+        rate more than 1 % off the table's, an empty log.
+    OutputError
+        The output cannot be written; nothing is left half-written.
+    """
+    if table.domain != "z":
+        raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
+    block_rows = block_rows or BLOCK_ROWS
+    frame, source = _source(data, source)
+    header = list(frame.columns) if frame is not None else _header(data)
+    cols = _columns(table, header, source, time, mapping, reference)
+    blocks = _blocks(data, frame, cols, block_rows)
+    lock, n_rows = _lock(table, blocks, cols, source)
+    if n_rows == 0:
+        raise DataError(f"{source}: the log has a header but no rows")
+    if start not in ("reading", "zero"):
+        raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
+    runner = _Runner(table, lock, "prior" if prediction else None, start == "reading")
+    writer = _Writer(output, keep=output is None or plot is not None)
+    place = _Pass(table, cols, source)
+    with _progress(n_rows, progress) as bar, writer:
+        for block in _blocks(data, frame, cols, block_rows)():
+            values = _numeric(block, cols.read, source, 2 + place.rows)
+            ticks = place.ticks(values)
+            states, phases, _ = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            writer.write(_estimates(table, runner, block, cols, values, states, phases, std))
+            bar.update(len(ticks))
+    est = writer.frame()
+    result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, lock.notes,
+                       Path(output) if output else None, source)
+    if plot is not None:
+        write_bytes(plot, _png(plot_log(table, est, cols.references, cols.time)))
+    return result
+
+
+def _source(data, source):
+    pd = _pandas()
+    if isinstance(data, pd.DataFrame):
+        return data, source or "log"
+    return None, source or str(data)
+
+
+def _blocks(data, frame, cols, rows):
+    """A function giving the log's blocks each time it is called (two passes need two)."""
+    if frame is not None:
+        return lambda: (frame.iloc[i:i + rows] for i in range(0, max(len(frame), 1), rows))
+    path = Path(data)
+    if os.path.getsize(path) < ONE_PASS_BYTES:
+        whole = read_log(path, cols.read)
+        return lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))
+    return lambda: read_log(path, cols.read, chunksize=rows)
+
+
+def _lock(table, blocks, cols, source):
+    """First pass: check times and collect the ticks at which each measurement arrives."""
+    from .timing import lock_schedule
+
+    place = _Pass(table, cols, source)
+    arrivals = {s.name: [] for s in table.measurements}
+    last = -1
+    for block in blocks():
+        values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
+                          2 + place.rows)
+        ticks = place.ticks(values)
+        for s in table.measurements:
+            arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
+        last = int(ticks[-1]) if len(ticks) else last
+    arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
+    return lock_schedule(table, arrivals, last + 1), place.rows
+
+
+class _Runner:
+    """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
+
+    def __init__(self, table, lock, output, from_reading=True):
+        from .runtime import Runtime
+
+        self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
+        self._Runtime = Runtime
+        self.runtimes = {}
+        self.counts = {}
+        self.x, self.u_last = None, None
+        self.next_tick = 0
+
+    def _runtime(self, seg):
+        key = (seg.rotation, seg.offsets) if seg.offsets else ("rotation",)
+        if key not in self.runtimes:
+            table = self.table
+            if seg.offsets:
+                from .designer import gains_for_schedule
+
+                table = gains_for_schedule(self.table, self.table.schedule.shifted(dict(seg.offsets)))
+            self.runtimes[key] = self._Runtime(table, output=self.output)
+        return self.runtimes[key]
+
+    def _phase(self, seg, tick):
+        return (tick - seg.rotation) % self.table.period if not seg.offsets else tick % self.table.period
+
+    def run(self, ticks, readings):
+        """Output states and phases at ``ticks`` (ascending, may repeat or skip) from the rows'
+        readings; rows on a tick already run (a block boundary inside one tick) get that
+        tick's estimate and their readings are counted as ``same_tick``."""
+        n = self.table.F.shape[0]
+        if not len(ticks):
+            return np.zeros((0, n)), np.zeros(0, np.int64), self.counts
+        late = ticks < self.next_tick
+        if late.any():
+            _merge(self.counts, {"same_tick": {k: int(np.sum(~np.isnan(v[late]))) for k, v in readings.items()
+                                               if np.any(~np.isnan(v[late]))}})
+            states, phases, _ = self.run(ticks[~late], {k: v[~late] for k, v in readings.items()})
+            out, ph = np.empty((len(ticks), n)), np.empty(len(ticks), dtype=np.int64)
+            out[late], ph[late] = self.last_out, self.last_phase
+            out[~late], ph[~late] = states, phases
+            return out, ph, self.counts
+        first, last = self.next_tick, int(ticks[-1])
+        dense = self._dense(ticks, readings, first, last)
+        if self.x is None and self.from_reading:
+            self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
+        out = np.empty((last - first + 1, self.table.F.shape[0]))
+        phases = np.empty(last - first + 1, dtype=np.int64)
+        for seg in self.lock.segments:
+            a, b = max(seg.start, first), min(seg.stop, last + 1)
+            if a >= b:
+                continue
+            rt = self._runtime(seg)
+            if self.x is not None:
+                rt.x, rt.u_last = self.x.copy(), self.u_last.copy()
+            rt.phase = self._phase(seg, a)
+            rt.counts = {}
+            part = {k: v[a - first:b - first] for k, v in dense.items()}
+            _, xs = rt.run(part, states=True)
+            out[a - first:b - first] = xs
+            phases[a - first:b - first] = (rt.phase - (b - a) + np.arange(b - a)) % rt.period
+            self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
+            _merge(self.counts, rt.counts)
+            self.current = rt
+        self.next_tick = last + 1
+        self.last_out, self.last_phase = out[-1].copy(), phases[-1]
+        return out[ticks - first], phases[ticks - first], self.counts
+
+    def _start(self, dense):
+        """The quantity from the first reading of a sensor whose row of H picks it (state 0)."""
+        x = np.zeros(self.table.F.shape[0])
+        direct = [s.name for s in self.table.measurements
+                  if np.array_equal(self.table.H[s.index], np.eye(len(x))[0])]
+        firsts = [(int(np.flatnonzero(~np.isnan(dense[n]))[0]), n) for n in direct if np.any(~np.isnan(dense[n]))]
+        if firsts:
+            x[0] = dense[min(firsts)[1]][min(firsts)[0]]
+        return x
+
+    def _dense(self, ticks, readings, first, last):
+        """One value per tick: rows on the same tick merged (a second reading counted)."""
+        n = last - first + 1
+        dense = {}
+        for name, col in readings.items():
+            arr = np.full(n, np.nan)
+            ok = ~np.isnan(col)
+            idx = ticks[ok] - first
+            arr[idx] = col[ok]
+            twice = len(idx) - len(np.unique(idx))
+            if twice:
+                _merge(self.counts, {"same_tick": {name: twice}})
+            dense[name] = arr
+        return dense
+
+
+
+def _merge(into, counts):
+    for kind, per in counts.items():
+        bucket = into.setdefault(kind, {})
+        for name, c in per.items():
+            bucket[name] = bucket.get(name, 0) + c
+
+
+def _estimates(table, runner, block, cols, values, states, phases, std):
+    pd = _pandas()
+    out = {}
+    if cols.time:
+        out[cols.time] = block[cols.time].to_numpy()
+    for i, name in enumerate(table.states):
+        out[name] = states[:, i]
+    if std or cols.references:
+        run_table = runner.current.table
+        covs = run_table.P_filtered if runner.current.output == "posterior" else run_table.P
+        diag = np.sqrt(np.maximum(np.array([np.diag(P) for P in covs]), 0.0))[phases % run_table.period]
+        for i, name in enumerate(table.states):
+            out[f"{name}_std"] = diag[:, i]
+    for state, col in cols.references.items():
+        out[f"{state}_reference"] = values[col]
+    for c in cols.extra:
+        out[c] = block[c].to_numpy()
+    frame = pd.DataFrame(out)
+    frame.attrs["drop_std"] = not std
+    frame.attrs["wrap"] = table.states[0] if table.wrap_angle else None
+    return frame
+
+
+class _Writer:
+    """Blocks of estimates to a file (atomically) and/or kept in memory."""
+
+    def __init__(self, path, keep):
+        self.path, self.keep = (Path(path) if path else None), keep
+        self.frames, self.errors = [], {}
+        self._ctx = self._fh = self._parquet = None
+
+    def __enter__(self):
+        if self.path is not None:
+            parquet = self.path.suffix.lower() in (".parquet", ".pq")
+            self._ctx = open_atomic(self.path, "wb" if parquet else "w", **({} if parquet else {"newline": ""}))
+            self._fh = self._ctx.__enter__()
+            self._is_parquet = parquet
+        return self
+
+    def __exit__(self, *exc):
+        if self._parquet is not None:
+            self._parquet.close()
+        if self._ctx is not None:
+            self._ctx.__exit__(*exc)
+        return False
+
+    def write(self, frame):
+        self._errors(frame)
+        shown = frame.drop(columns=[c for c in frame.columns if c.endswith("_std")]) if frame.attrs.get(
+            "drop_std") else frame
+        shown = shown.drop(columns=[c for c in shown.columns if c.endswith("_reference")])
+        if self.keep:
+            self.frames.append(frame)
+        if self._fh is None:
+            return
+        if self._is_parquet:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            tab = pa.Table.from_pandas(shown, preserve_index=False)
+            if self._parquet is None:
+                self._parquet = pq.ParquetWriter(self._fh, tab.schema)
+            self._parquet.write_table(tab)
+        else:
+            shown.to_csv(self._fh, index=False, header=self._fh.tell() == 0, lineterminator="\n")
+
+    def _errors(self, frame):
+        for col in frame.columns:
+            if col.endswith("_reference"):
+                state = col[: -len("_reference")]
+                err = frame[state].to_numpy() - frame[col].to_numpy()
+                if frame.attrs.get("wrap") == state:
+                    err = wrap(err)
+                ok = np.isfinite(err)
+                s, n = self.errors.get(state, (0.0, 0))
+                self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
+
+    def frame(self):
+        if not self.frames:
+            return None
+        pd = _pandas()
+        return pd.concat(self.frames, ignore_index=True)
+
+
+def _rms(errors):
+    return {state: math.sqrt(s / n) if n else math.nan for state, (s, n) in errors.items()}
+
+
+class _NoBar:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        pass
+
+
+def _progress(total, show):
+    if not show or total < BLOCK_ROWS:
+        return _NoBar()
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="row", file=sys.stderr)
+
+
+# ---------------------------------------------------------------------------- plots
+def plot_log(table, estimates, references=None, time=None):
+    """Every state over time with its predicted +-2 sigma band; against its reference where given.
+
+    Parameters
+    ----------
+    table : GainTable
+    estimates : pandas.DataFrame
+        :attr:`LogResult.estimates` (with the ``<state>_std`` and ``<state>_reference``
+        columns that :func:`run_log` adds when references are given).
+    references : dict, optional
+        ``{state: column}``: these states get a panel of the error inside the +-2 sigma band.
+    time : str, optional
+        The time column (else the row number is the x axis).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib.pyplot as plt
+
+    refs = references or {}
+    rows = sum(2 if s in refs else 1 for s in table.states)
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
+    x = estimates[time].to_numpy() if time else np.arange(len(estimates))
+    ax_iter = iter(axes[:, 0])
+    wrapped = table.states[0] if table.wrap_angle else None
+    for name in table.states:
+        ax = next(ax_iter)
+        est = estimates[name].to_numpy()
+        ax.plot(x, _broken(est) if name == wrapped else est, lw=0.8, label=f"{name} (estimate)")
+        if name in refs:
+            ref = estimates[f"{name}_reference"].to_numpy()
+            ax.plot(x, _broken(ref) if name == wrapped else ref, lw=0.8, ls="--", label="reference")
+            ax2 = next(ax_iter)
+            err = est - estimates[f"{name}_reference"].to_numpy()
+            err = wrap(err) if table.wrap_angle and name == table.states[0] else err
+            band = 2 * estimates[f"{name}_std"].to_numpy() if f"{name}_std" in estimates else None
+            ax2.plot(x, err, lw=0.6, color="C3", label="error")
+            if band is not None:
+                ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
+            ok = np.isfinite(err)
+            ax2.set_ylabel(f"{name} error")
+            ax2.set_title(f"RMS {np.sqrt(np.mean(err[ok] ** 2)):.3g}", fontsize=9, loc="right")
+            ax2.legend(loc="upper right", fontsize=8)
+        elif f"{name}_std" in estimates:
+            band = 2 * estimates[f"{name}_std"].to_numpy()
+            ax.fill_between(x, est - band, est + band, color="0.85", label="predicted ±2σ")
+        ax.set_ylabel(name)
+        ax.legend(loc="upper right", fontsize=8)
+    axes[-1, 0].set_xlabel(f"{time} (s)" if time else "row")
+    fig.suptitle(table.name, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _broken(angle):
+    """An angle with NaN at its +-pi wraps, so the plot has no vertical lines there."""
+    out = np.array(angle, dtype=float)
+    out[1:][np.abs(np.diff(out)) > np.pi] = np.nan
+    return out
+
+
+def _png(fig) -> bytes:
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, dpi=110, format="png")
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
+
+
+# ---------------------------------------------------------------------------- many logs
+def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv", **options) -> list:
+    """Run a table on many logs in parallel on Dask; write one estimate file per log and a
+    summary table (``summary.csv``: one row per log) in ``outdir`` (created if missing).
+
+    Parameters
+    ----------
+    table : GainTable
+    paths : list of str or Path
+    outdir : str or Path
+    workers : int, optional
+        Processes of a local Dask cluster (default: the number of CPUs).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:8786``) instead of a local cluster.
+    suffix : str
+        Extension of the estimate files (``.csv`` or ``.parquet``).
+    **options
+        As :func:`run_log` (time, mapping, reference, std, prediction).
+
+    Returns
+    -------
+    list of dict
+        The summary rows, in the order of ``paths``.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise CfdesignError('running many logs needs Dask: pip install "cfdesign[fleet]"') from None
+    outdir = Path(outdir)
+    try:
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
+    targets = [outdir / (Path(p).stem + suffix) for p in paths]
+    if len(set(targets)) < len(targets):
+        raise DataError("two logs have the same name; their estimates would overwrite each other")
+    text = table.to_json()
+    if scheduler:
+        client, cluster = Client(scheduler), None
+    else:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
+                   for p, t in zip(paths, targets, strict=True)]
+        rows = client.gather(futures, errors="skip")
+        done = {r["log"]: r for r in rows}
+        rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
+                for p, f in zip(paths, futures, strict=True)]
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    write_text(outdir / "summary.csv", _summary_csv(rows))
+    return rows
+
+
+def _failure(future) -> str:
+    try:
+        exc = future.exception()
+    except Exception as e:  # noqa: BLE001 - a cancelled future reports why
+        exc = e
+    return str(exc).splitlines()[0] if exc else "failed"
+
+
+def _run_one(table_json, path, target, options):
+    import json
+
+    from .gains import GainTable
+
+    table = GainTable.from_dict(json.loads(table_json))
+    return run_log(table, path, output=target, source=path, **options).summary()
+
+
+def _summary_csv(rows) -> str:
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    lines = [",".join(keys)]
+    for r in rows:
+        lines.append(",".join(_cell(r.get(k, "")) for k in keys))
+    return "\n".join(lines) + "\n"
+
+
+def _cell(v) -> str:
+    if isinstance(v, float):
+        return repr(v)
+    text = str(v)
+    return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text or "\n" in text) else text

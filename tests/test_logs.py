@@ -1,0 +1,236 @@
+"""Real logs: timestamps placed on ticks, sensors locked to when they arrive, gapped columns at
+batch speed, bad logs refused on one line, nothing half-written, Parquet, blocks, many logs."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import cfdesign
+from cfdesign.errors import DataError
+from cfdesign.linear import wrap
+from cfdesign.logs import run_log
+from cfdesign.runtime import Runtime
+from cfdesign.sim.gaussian import model_log
+from cfdesign.spec import parse_spec
+
+HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
+    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
+    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
+
+
+@pytest.fixture(scope="module")
+def heading():
+    return cfdesign.design(parse_spec(HEADING))
+
+
+def heading_log(odometry_row, compass_row, n=30_000, seed=0, jitter=0.03):
+    """A turning robot at 100 Hz: gyro every row, odometry every 10th row from ``odometry_row``,
+    compass every 100th from ``compass_row`` (empty cells between), timestamps jittered by
+    ``jitter`` ticks (std), headings wrapped.  Returns the log and the true heading."""
+    rng = np.random.default_rng(seed)
+    dt = 0.01
+    t = np.arange(n) * dt
+    psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t  # crosses +-pi many times
+    gyro = np.gradient(psi, dt) + 0.01 * rng.standard_normal(n) + 0.002
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[odometry_row::10] = psi[odometry_row::10] + 0.005 * rng.standard_normal(len(odo[odometry_row::10]))
+    com[compass_row::100] = psi[compass_row::100] + 0.05 * rng.standard_normal(len(com[compass_row::100]))
+    log = pd.DataFrame({"time": t + jitter * dt * rng.standard_normal(n), "gyro": gyro, "odometry": wrap(odo),
+                        "compass": wrap(com), "truth": wrap(psi), "lap": np.arange(n) // 1000})
+    return log, psi
+
+
+def rms_after(est, truth, start=3000):
+    return float(np.sqrt(np.mean(wrap(est[start:] - truth[start:]) ** 2)))
+
+
+# ---------------------------------------------------------------------- the issue's example
+def test_sensors_at_their_own_offsets_run_as_well_as_aligned_ones(heading, tmp_path, cli):
+    """100 Hz gyro, 10 Hz odometry at rows 3, 13, ..., 1 Hz compass at rows 37, 137, ..., jittered
+    timestamps, gapped columns, through the CLI: RMS within 1.25x of the aligned log's."""
+    aligned, psi = heading_log(0, 0)
+    offset, _ = heading_log(3, 37)
+    table = heading.save(tmp_path / "g.json")
+    rms = {}
+    for name, log in (("aligned", aligned), ("offset", offset)):
+        log.to_csv(tmp_path / f"{name}.csv", index=False)
+        code, _, err = cli("run", table, tmp_path / f"{name}.csv", "-o", tmp_path / f"{name}_est.csv")
+        assert code == 0, err
+        est = pd.read_csv(tmp_path / f"{name}_est.csv")
+        assert list(est.columns) == ["time", "heading", "gyro_correction", "truth", "lap"]  # extras passed through
+        rms[name] = rms_after(est["heading"].to_numpy(), psi)
+        if name == "offset":
+            assert "compass 37 ticks, odometry 3 ticks" in err and "gains recomputed" in err
+    assert rms["offset"] <= 1.25 * rms["aligned"], rms
+    assert rms["aligned"] < 3 * heading.predicted_std  # and it is the designed accuracy
+    # without locking the readings off the schedule would have been lost (1.9 rad in the issue)
+    rt = Runtime(heading)
+    lost = rt.run({k: offset[k].to_numpy() for k in ("gyro", "odometry", "compass")})
+    assert rms_after(lost, psi) > 20 * rms["offset"] and rt.counts["unscheduled"]["compass"] == 300
+
+
+def test_a_reading_without_a_gain_is_reported(heading, tmp_path, cli):
+    """A compass logged at 10 Hz into a table that reads it at 1 Hz: the extra readings have no
+    gain; cfdesign run says so on stderr, the Python result counts them."""
+    log, _ = heading_log(0, 0, n=3000)
+    log["compass"] = np.where(np.arange(3000) % 10 == 0, log["truth"], np.nan)
+    log.to_csv(tmp_path / "fast.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "fast.csv", "-o", tmp_path / "e.csv")
+    assert code == 0
+    assert "compass arrives at 10 Hz but the table reads it at 1 Hz" in err
+    assert "270 readings were not used (unscheduled: compass 270)" in err
+    assert run_log(heading, log).unused == {"unscheduled": {"compass": 270}}
+
+
+def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
+    """A 3 Hz GPS with a 100 Hz IMU (position filter): period 100 with fixes at ticks 0, 33, 67;
+    on a simulated log with timestamps, the position RMS is within 1.3x of the predicted std."""
+    spec = tmp_path / "gps.toml"
+    spec.write_text('name = "imu 100 Hz + gps 3 Hz"\nstructure = "position"\ngain_form = "filter"\n'
+                    '[sensors.accelerometer]\nrate_hz = 100.0\nnoise = { std = 0.05 }\n'
+                    'bias = { model = "random_walk", density = 1e-3 }\n'
+                    '[sensors.gps]\nrate_hz = 3.0\nnoise = { std = 2.0 }\n')
+    assert cli("design", spec, "-o", tmp_path / "g.json")[0] == 0
+    assert cli("verify", tmp_path / "g.json", "--spec", spec)[0] == 0
+    table = cfdesign.load_gains(tmp_path / "g.json")
+    assert table.period == 100 and table.schedule.phases("gps") == (0, 33, 67)
+    x, readings = model_log(table, 60_000, seed=3)
+    rng = np.random.default_rng(4)
+    log = pd.DataFrame({"t": np.arange(60_000) * 0.01 + 2e-4 * rng.standard_normal(60_000), **readings,
+                        "true_position": x[:, 0], "true_velocity": x[:, 1]})
+    log.to_parquet(tmp_path / "log.parquet")
+    code, out, err = cli("run", tmp_path / "g.json", tmp_path / "log.parquet", "-o", tmp_path / "est.parquet",
+                         "--reference", "true_position", "--reference", "velocity=true_velocity", "--std")
+    assert code == 0, err
+    est = pd.read_parquet(tmp_path / "est.parquet")
+    assert {"position_std", "velocity_std", "accelerometer_bias_std"} <= set(est.columns)
+    err_p = est["position"].to_numpy()[5000:] - x[5000:, 0]
+    predicted = np.sqrt(np.mean([table.P_filtered[k][0, 0] for k in np.arange(5000, 60_000) % 100]))
+    assert np.sqrt(np.mean(err_p ** 2)) <= 1.3 * predicted
+    assert "RMS error of position:" in out and "RMS error of velocity:" in out
+
+
+def test_a_drifting_sensor_is_followed(heading):
+    """The compass's clock runs 0.5 % fast: its arrivals slip through the schedule, each stretch
+    runs with the gains of its own pattern, no reading is lost."""
+    log, psi = heading_log(0, 0, n=40_000, jitter=0.0)
+    com = np.full(40_000, np.nan)
+    arrivals = np.round(np.arange(0, 40_000, 100 / 1.005)).astype(int)
+    com[arrivals] = psi[arrivals]
+    log["compass"] = wrap(com)
+    result = run_log(heading, log, reference="truth")
+    assert result.unused == {} and any("changes" in n for n in result.notes)
+    assert rms_after(result.estimates["heading"].to_numpy(), psi) < 3 * heading.predicted_std
+
+
+# ---------------------------------------------------------------------- the logs people have
+def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
+    log, _ = heading_log(0, 0, n=500)
+    text = log.to_csv(index=False, lineterminator="\r\n")
+    (tmp_path / "excel.csv").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    a = run_log(heading, tmp_path / "excel.csv").estimates
+    b = run_log(heading, log).estimates
+    assert list(a.columns) == list(b.columns) and np.allclose(a["heading"], b["heading"], atol=0)
+
+
+def test_map_and_the_python_api_take_dataframes(heading):
+    log, _ = heading_log(0, 0, n=2000)
+    renamed = log.rename(columns={"gyro": "gz", "compass": "mag_heading"})
+    a = run_log(heading, renamed, mapping={"gyro": "gz", "compass": "mag_heading"}).estimates
+    b = run_log(heading, log).estimates
+    assert np.array_equal(a["heading"].to_numpy(), b["heading"].to_numpy())
+    # the runtime takes a DataFrame as it takes a dict of arrays (rows = ticks)
+    c = Runtime(heading, x0=[log["compass"][0], 0.0]).run(log)  # run_log starts from the first reading
+    assert np.max(np.abs(wrap(c - b["heading"].to_numpy()))) < 1e-6
+    with pytest.raises(DataError, match=r"--map spin: .* has no sensor 'spin'"):
+        run_log(heading, log, mapping={"spin": "gz"})
+
+
+def test_blocks_equal_one_pass_also_across_a_tick_split_between_blocks(heading):
+    """An event log (a row per reading, several rows on one tick) run in blocks of 777 rows
+    gives what one block gives."""
+    log, _ = heading_log(0, 0, n=3000, jitter=0.0)
+    events = []
+    for lag, name in ((1e-4, "odometry"), (2e-4, "compass")):
+        rows = log[log[name].notna()]
+        ev = rows[["time", name]].copy()
+        ev["time"] += lag  # logged just after the IMU row: the same tick
+        events.append(ev)
+    imu = log.drop(columns=["odometry", "compass"])
+    event_log = pd.concat([imu, *events]).sort_values("time", kind="stable").reset_index(drop=True)
+    one = run_log(heading, event_log).estimates
+    blocks = run_log(heading, event_log, block_rows=777).estimates
+    assert len(one) == len(event_log) and np.allclose(one["heading"], blocks["heading"], atol=1e-12)
+    assert np.allclose(run_log(heading, log).estimates["heading"].to_numpy(),
+                       one["heading"].to_numpy()[event_log["gyro"].notna().to_numpy()], atol=1e-9)
+
+
+BAD_LOGS = {
+    "empty.csv": ("", "empty file"),
+    "header.csv": ("time,gyro,compass,odometry\n", "header but no rows"),
+    "missing.csv": ("time,gyro,compass\n0,1,2\n", r"missing column\(s\) odometry"),
+    "text.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,abc,3\n", "line 3: column 'compass' is not a number"),
+    "rate.csv": ("time,gyro,compass,odometry\n" + "".join(f"{0.1 * k},1,2,3\n" for k in range(5)),
+                 "base rate is 10 Hz .* the table runs at 5 Hz"),
+    "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
+    "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
+    "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_LOGS))
+def test_bad_logs_one_line_exit_2_nothing_written(name, tmp_path, cli):
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3"))).save(tmp_path / "g.json")
+    text, message = BAD_LOGS[name]
+    (tmp_path / name).write_text(text)
+    (tmp_path / "out.csv").write_text("previous")
+    code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "out.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert pytest.importorskip("re").search(message, err), err
+    assert (tmp_path / "out.csv").read_text() == "previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["g.json", name, "out.csv"])
+
+
+def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for i in range(3):
+        heading_log(i, 10 * i, n=1500, seed=i)[0].to_csv(folder / f"robot{i}.csv", index=False)
+    (folder / "broken.csv").write_text("time,gyro\n0,1\n")
+    code, _, err = cli("run", table, folder, "-o", tmp_path / "out", "--workers", "2", "--reference", "truth")
+    assert code == 2 and "broken.csv: " in err and "missing column(s) compass, odometry" in err
+    summary = pd.read_csv(tmp_path / "out" / "summary.csv")
+    assert list(summary["log"].map(lambda p: p.split("/")[-1])) == ["broken.csv", "robot0.csv", "robot1.csv",
+                                                                    "robot2.csv"]
+    assert summary["samples"].tolist() == [0, 1500, 1500, 1500] and summary["rms_heading"].notna().sum() == 3
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["robot0.csv", "robot1.csv", "robot2.csv",
+                                                                    "summary.csv"]
+
+
+def test_plot_of_a_run(heading, tmp_path, cli):
+    log, _ = heading_log(3, 37, n=3000)
+    log.to_csv(tmp_path / "log.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv", "--reference", "truth",
+                       "--plot", tmp_path / "run.png")
+    assert code == 0, err
+    assert (tmp_path / "run.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_no_time_column_means_one_row_per_tick(heading):
+    log, _ = heading_log(0, 0, n=1000)
+    with_time = run_log(heading, log, start="zero").estimates["heading"].to_numpy()
+    without = run_log(heading, log.drop(columns=["time"]), start="zero").estimates["heading"].to_numpy()
+    assert np.allclose(with_time, without, atol=1e-12)
+    ref = Runtime(heading).run(log)
+    assert np.allclose(ref, without, atol=1e-9)
+
+
+def test_python_result_fields(heading):
+    log, _ = heading_log(0, 0, n=5000)
+    r = run_log(heading, log, reference="truth", std=True)
+    assert r.samples == 5000 and set(r.rms) == {"heading"} and r.without_gain == 0
+    assert {"heading_std", "gyro_correction_std"} <= set(r.estimates.columns)
