@@ -1,0 +1,141 @@
+"""Running tables on logs: speed against the plainest pipeline, memory on a big log, a fleet on Dask.
+
+    python benchmarks/bench_logs.py [--rows 1000000] [--big-rows 10000000] [--logs 8]
+
+Prints, from one run:
+
+1. ``cfdesign run`` on a 1M-row heading log (gyro 100 Hz, odometry 10 Hz and compass 1 Hz
+   in gapped columns at their own offsets, jittered timestamps) against the same job done as
+   plainly as possible in the same run: ``pandas.read_csv`` + one ``scipy.signal.lfilter`` per
+   column + ``DataFrame.to_csv`` (the baseline; it ignores time, gaps and offsets);
+2. the peak memory (max RSS) of ``cfdesign run`` on a ``--big-rows`` log, in a child process;
+3. ``--logs`` logs run with 1 and 2 Dask workers: the speed-up.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
+    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
+    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
+
+
+def write_log(path, rows, seed=0, chunk=1_000_000):
+    """A heading log in blocks (bounded memory): odometry at rows 3, 13, ..., compass at 37, 137, ..."""
+    import pandas as pd
+
+    rng = np.random.default_rng(seed)
+    with open(path, "w", newline="") as fh:
+        for start in range(0, rows, chunk):
+            k = np.arange(start, min(start + chunk, rows))
+            t = k * 0.01
+            psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t
+            odo = np.where(k % 10 == 3, psi + 0.005 * rng.standard_normal(len(k)), np.nan)
+            com = np.where(k % 100 == 37, psi + 0.05 * rng.standard_normal(len(k)), np.nan)
+            wrap = lambda a: a - 2 * np.pi * np.ceil((a - np.pi) / (2 * np.pi))  # noqa: E731
+            frame = pd.DataFrame({"time": t + 3e-4 * rng.standard_normal(len(k)),
+                                  "gyro": 0.3 + 0.3 * np.cos(0.05 * t) + 0.01 * rng.standard_normal(len(k)),
+                                  "odometry": wrap(odo), "compass": wrap(com)})
+            frame.to_csv(fh, index=False, header=start == 0, lineterminator="\n")
+
+
+def baseline(log, out, table):
+    """read_csv + one lfilter per column + to_csv: the plainest pipeline, in this process."""
+    import pandas as pd
+    from scipy.signal import lfilter
+
+    from cfdesign.verify import band_polynomials
+
+    t0 = time.perf_counter()
+    df = pd.read_csv(log)
+    bands, _ = band_polynomials(table)
+    est = None
+    for name, (num, den) in bands.items():
+        y = lfilter(num, den, np.nan_to_num(df[name].to_numpy()))
+        est = y if est is None else est + y
+    pd.DataFrame({"time": df["time"], "heading": est, "gyro_correction": est}).to_csv(out, index=False)
+    return time.perf_counter() - t0
+
+
+def ours(table_path, log, out):
+    from cfdesign.cli import main
+
+    t0 = time.perf_counter()
+    assert main(["run", str(table_path), str(log), "-o", str(out)]) == 0
+    return time.perf_counter() - t0
+
+
+def peak_memory(table_path, log, out) -> float:
+    """Max RSS (MB) of ``cfdesign run`` in a child process."""
+    code = ("import resource, sys\nfrom cfdesign.cli import main\n"
+            f"assert main(['run', {str(table_path)!r}, {str(log)!r}, '-o', {str(out)!r}]) == 0\n"
+            "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
+    t0 = time.perf_counter()
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return int(res.stdout.strip().splitlines()[-1]) / 1024, time.perf_counter() - t0
+
+
+def fleet(table_path, folder, out, workers) -> float:
+    from cfdesign.cli import main
+
+    t0 = time.perf_counter()
+    assert main(["run", str(table_path), str(folder), "-o", str(out), "--workers", str(workers)]) == 0
+    return time.perf_counter() - t0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rows", type=int, default=1_000_000)
+    ap.add_argument("--big-rows", type=int, default=10_000_000)
+    ap.add_argument("--logs", type=int, default=8)
+    ap.add_argument("--fleet-rows", type=int, default=500_000)
+    args = ap.parse_args(argv)
+
+    import cfdesign
+    from cfdesign.spec import parse_spec
+
+    table = cfdesign.design(parse_spec(HEADING))
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        tpath = table.save(tmp / "g.json")
+        print(f"machine: {os.cpu_count()} CPUs; threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+
+        write_log(tmp / "log.csv", args.rows)
+        base = min(baseline(tmp / "log.csv", tmp / "base.csv", table) for _ in range(2))
+        mine = min(ours(tpath, tmp / "log.csv", tmp / "est.csv") for _ in range(2))
+        print(f"\n1. {args.rows:,} rows: cfdesign run {mine:.2f} s; read_csv + lfilter + to_csv {base:.2f} s; "
+              f"ratio {mine / base:.2f}x (target <= 1.5x)")
+
+        if args.big_rows:
+            write_log(tmp / "big.csv", args.big_rows)
+            size = (tmp / "big.csv").stat().st_size / 1e6
+            mb, secs = peak_memory(tpath, tmp / "big.csv", tmp / "big_est.csv")
+            print(f"\n2. {args.big_rows:,} rows ({size:.0f} MB of CSV): peak memory {mb:.0f} MB (target < 1000 MB), "
+                  f"{secs:.1f} s")
+            (tmp / "big.csv").unlink()
+            (tmp / "big_est.csv").unlink(missing_ok=True)
+
+        folder = tmp / "fleet"
+        folder.mkdir()
+        for i in range(args.logs):
+            write_log(folder / f"robot{i}.csv", args.fleet_rows, seed=i)
+        one = fleet(tpath, folder, tmp / "out1", 1)
+        two = fleet(tpath, folder, tmp / "out2", 2)
+        print(f"\n3. {args.logs} logs of {args.fleet_rows:,} rows: 1 worker {one:.2f} s, 2 workers {two:.2f} s: "
+              f"speed-up {one / two:.2f}x (target >= 1.6x)")
+    print(f"\n(this process: max RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)")
+
+
+if __name__ == "__main__":
+    main()
