@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from math import factorial
 
 import numpy as np
 
@@ -262,8 +261,11 @@ def zoh_chain(m: int, dt: float):
     ``F[i, j] = dt^(j-i) / (j-i)!`` (``j >= i``), ``B[i] = dt^(m-i) / (m-i)!``: the exact
     discretisation of ``m`` integrators in a row with the input held over each sample.
     """
-    F = np.array([[dt ** (j - i) / factorial(j - i) if j >= i else 0.0 for j in range(m)] for i in range(m)])
-    B = np.array([dt ** (m - i) / factorial(m - i) for i in range(m)])
+    c = [1.0]  # dt^k / k!, built up so that long chains neither overflow nor lose digits
+    for k in range(1, m + 1):
+        c.append(c[-1] * dt / k)
+    F = np.array([[c[j - i] if j >= i else 0.0 for j in range(m)] for i in range(m)])
+    B = np.array([c[m - i] for i in range(m)])
     return F.reshape(m, m), B
 
 
@@ -383,17 +385,14 @@ def band_responses(real: Realisation, ports, domain: str, dt, omega, row: int = 
         ``{name: complex ndarray}`` over ``omega``.
     """
     omega = np.asarray(omega, dtype=float)
-    n = len(real.A)
-    if domain == "s":
-        v = 1j * omega
-        M = v[:, None, None] * np.eye(n) - real.A
+    if domain == "s":  # vI - A = shift I + base
+        v = shift = 1j * omega
+        base = -real.A
     else:  # zI - A = (z - 1) I + (I - A), both parts accurate near z = 1
-        v1 = np.expm1(1j * omega * dt)
-        v = 1.0 + v1
-        delta = np.eye(n) - real.A if real.delta is None else real.delta
-        M = v1[:, None, None] * np.eye(n) + delta
-    X = np.linalg.solve(M, np.broadcast_to(real.G, (len(v), *real.G.shape)))
-    T = np.einsum("i,kij->kj", real.C[row], X) + real.D[row]
+        shift = np.expm1(1j * omega * dt)
+        v = 1.0 + shift
+        base = np.eye(len(real.A)) - real.A if real.delta is None else real.delta
+    T = _resolvent_outputs(base, shift, real.G, real.C[row]) + real.D[row]
     orders = [s.order for s in ports]
     if domain == "s":
         rel = {d: v**d for d in set(orders)}
@@ -401,11 +400,35 @@ def band_responses(real: Realisation, ports, domain: str, dt, omega, row: int = 
         M = max(orders, default=0)
         if M:
             Fd, Bd = zoh_chain(M, dt)
-            Gc = np.linalg.solve(v1[:, None, None] * np.eye(M) + (np.eye(M) - Fd),
+            Gc = np.linalg.solve(shift[:, None, None] * np.eye(M) + (np.eye(M) - Fd),
                                  np.broadcast_to(Bd[:, None], (len(v), M, 1)))[..., 0]
             Gc = np.concatenate([Gc, np.ones((len(v), 1))], axis=1)
         rel = {d: np.ones(len(v)) if d == 0 else Gc[:, d] / Gc[:, 0] for d in set(orders)}
     return {s.name: T[:, j] * rel[s.order] for j, s in enumerate(ports)}
+
+
+def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
+    """``c (shift_k I + base)^-1 G`` for every shift: ``(len(shift), q)``.
+
+    Small states: one batched solve.  Larger ones (n > 12): one complex Schur form
+    ``base = Z S Z^H`` (O(n^3), scipy) and a triangular solve per frequency (O(n^2)), so the cost
+    is that of one factorisation, not one per frequency.
+    """
+    n = len(base)
+    if n <= 12:
+        X = np.linalg.solve(shift[:, None, None] * np.eye(n) + base, np.broadcast_to(G, (len(shift), *G.shape)))
+        return np.einsum("i,kij->kj", c, X)
+    from scipy.linalg import schur, solve_triangular
+
+    S, Z = schur(base.astype(complex), output="complex")
+    W, cz = Z.conj().T @ G, c @ Z
+    out = np.empty((len(shift), G.shape[1]), dtype=complex)
+    diag = np.diag_indices(n)
+    for k, s in enumerate(shift):
+        M = S.copy()
+        M[diag] += s
+        out[k] = cz @ solve_triangular(M, W, check_finite=False)
+    return out
 
 
 def complementarity_error(responses: dict) -> float:

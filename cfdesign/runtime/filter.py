@@ -33,6 +33,9 @@ __all__ = ["Runtime", "wrap", "usable", "READING_LIMIT"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
+#: states up to this size run the IIR and long-block batch paths; larger ones step block by block
+_SMALL = 12
+_NAN = float("nan")
 #: readings larger than this in magnitude (SI units: rad, m, rad/s, m/s^2, ...) are not
 #: physical: they are treated as missing and counted, like inf, so that they cannot overflow
 #: the state
@@ -90,18 +93,68 @@ class Runtime:
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
         self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(self.n)
+        from .step import compile_step
+
+        self._step, self.step_source = compile_step(table, self.output, READING_LIMIT)
+        self._names = {name: i for i, name in enumerate(self.inputs + self.measurements)}
         self.reset()
 
     # ------------------------------------------------------------------ state
     def reset(self):
         """Back to the initial state, phase 0, no input received, counts cleared."""
-        self.x = self._x0.copy()
-        self.phase = 0
-        self.u_last = np.zeros(len(self.inputs))
-        #: readings not used, by kind and sensor: ``rejected`` (inf, or beyond
-        #: :data:`READING_LIMIT`: treated as missing) and
-        #: ``unscheduled`` (a measurement at a phase the schedule does not read: no gain)
-        self.counts = {}
+        self._S = [*map(float, self._x0), 0]   # the state floats, then the phase
+        self._U = [0.0] * len(self.inputs)       # the last inputs received
+        self._rej = [0] * len(self._names)       # rejected readings, inputs then measurements
+        self._uns = [0] * len(self.measurements)  # readings at phases the schedule does not read
+
+    @property
+    def x(self) -> np.ndarray:
+        """The state before the next step (a copy; assign to change it)."""
+        return np.array(self._S[: self.n])
+
+    @x.setter
+    def x(self, value):
+        self._S[: self.n] = [float(v) for v in np.asarray(value, dtype=float).reshape(self.n)]
+
+    @property
+    def phase(self) -> int:
+        """The phase of the next step in the table's period."""
+        return self._S[self.n]
+
+    @phase.setter
+    def phase(self, value):
+        self._S[self.n] = int(value) % self.period
+
+    @property
+    def u_last(self) -> np.ndarray:
+        """The last input received of each input sensor (held while one is missing)."""
+        return np.array(self._U)
+
+    @u_last.setter
+    def u_last(self, value):
+        self._U[:] = [float(v) for v in np.asarray(value, dtype=float).reshape(len(self.inputs))]
+
+    @property
+    def counts(self) -> dict:
+        """Readings not used, by kind and sensor: ``rejected`` (inf, or beyond
+        :data:`READING_LIMIT`: treated as missing) and ``unscheduled`` (a measurement at a phase
+        the schedule does not read: it has no gain)."""
+        names = self.inputs + self.measurements
+        out = {}
+        rej = {names[i]: c for i, c in enumerate(self._rej) if c}
+        uns = {self.measurements[i]: c for i, c in enumerate(self._uns) if c}
+        if rej:
+            out["rejected"] = rej
+        if uns:
+            out["unscheduled"] = uns
+        return out
+
+    @counts.setter
+    def counts(self, value):
+        if value:
+            raise CfdesignError("counts can only be cleared (assign {})")
+        self._rej[:] = [0] * len(self._rej)
+        self._uns[:] = [0] * len(self._uns)
 
     def state(self) -> dict:
         """A JSON-ready snapshot (``x``, ``phase``, ``u_last``) for :meth:`restore`."""
@@ -121,21 +174,47 @@ class Runtime:
 
     # ------------------------------------------------------------------ streaming
     def step(self, **readings) -> float:
-        """Advance one base-rate step; returns the estimate of the common quantity at this step."""
-        unknown = set(readings) - set(self.inputs) - set(self.measurements)
-        if unknown:
-            raise CfdesignError(f"unknown sensor(s) {', '.join(sorted(unknown))}; "
-                                f"{self.table.name} reads {', '.join(self.inputs + self.measurements)}")
-        u = np.array([readings.get(name, np.nan) for name in self.inputs], dtype=float)
-        y = np.array([readings.get(name, np.nan) for name in self.measurements], dtype=float)
-        u = self._held_inputs(u[None, :])[0]
-        good = usable(y)
-        self._count("rejected", (~good & ~np.isnan(y))[None, :])
-        self._count("unscheduled", (good & ~self._active[self.phase])[None, :])
-        y = np.where(good, y, np.nan)
-        out = self._advance(u, y)
-        self.u_last = u
-        return float(out[0])
+        """Advance one base-rate step with this step's readings; returns the estimate.
+
+        Parameters
+        ----------
+        **readings : float
+            ``sensor=value`` in the sensor's units (rad, rad/s, m, m/s^2, ...); a sensor left
+            out or given as NaN has no reading this step (a missing input holds its last
+            value), an inf or a value beyond :data:`READING_LIMIT` is treated as missing and
+            counted in :attr:`counts`.
+
+        Returns
+        -------
+        float
+            The estimate of the common quantity (state 0): after this step's readings, or
+            the prediction (:attr:`output`).
+
+        Raises
+        ------
+        CfdesignError
+            A sensor the table does not have.
+
+        Notes
+        -----
+        Straight-line Python specialised to the table when the runtime is built
+        (:mod:`cfdesign.runtime.step`, source in :attr:`step_source`): about a microsecond a
+        step for the three-sensor heading filter.
+        """
+        names = self._names
+        args = [_NAN] * len(names)
+        for key, value in readings.items():
+            i = names.get(key)
+            if i is None:
+                raise CfdesignError(f"unknown sensor {key!r}; {self.table.name} reads "
+                                    f"{', '.join(self.inputs + self.measurements)}")
+            args[i] = float(value)
+        return self._step(self._S, self._U, self._rej, self._uns, *args)
+
+    def step_values(self, *values) -> float:
+        """:meth:`step` with the readings in order, inputs then measurements (as :attr:`inputs`
+        and :attr:`measurements` list them), NaN for none: the fastest call."""
+        return self._step(self._S, self._U, self._rej, self._uns, *values)
 
     def _advance(self, u, y) -> np.ndarray:
         """One step of the recursion in the module docstring; returns the output state."""
@@ -198,7 +277,7 @@ class Runtime:
         """A stretch where every scheduled measurement is present (NaN where it is not read)
         and the inputs are held: angle readings unwrapped, then the vectorised paths."""
         y = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
-        if self.period == 1 and not states:
+        if self.period == 1 and not states and self.n <= _SMALL:
             lti = _LtiBands.of(self)
             if lti is not None:
                 return lti.run(self, [*u.T, *y.T])
@@ -217,11 +296,13 @@ class Runtime:
 
     def _count(self, what, mask):
         if mask.any():
-            names = self.inputs if what == "rejected_inputs" else self.measurements
-            bucket = self.counts.setdefault("rejected" if what == "rejected_inputs" else what, {})
-            for name, c in zip(names, mask.sum(axis=0), strict=True):
-                if c:
-                    bucket[name] = bucket.get(name, 0) + int(c)
+            per = mask.sum(axis=0)
+            if what == "unscheduled":
+                target, start = self._uns, 0
+            else:
+                target, start = self._rej, 0 if what == "rejected_inputs" else len(self.inputs)
+            for i, c in enumerate(per):
+                target[start + i] += int(c)
 
     def _columns(self, readings) -> list:
         """One contiguous float array per sensor: inputs (by column of B), then measurements."""
@@ -242,20 +323,27 @@ class Runtime:
         return u, y
 
     def _run_loop(self, u, y, states):
+        """Step by step (inputs held and readings cleaned already by :meth:`run`)."""
         N = len(u)
+        if not states:  # the compiled step
+            step, S, U, R, W = self._step, self._S, self._U, self._rej, self._uns
+            rows = np.hstack([u, y]).tolist()
+            return np.array([step(S, U, R, W, *row) for row in rows], dtype=float).reshape(N)
         est, xs = np.empty(N), np.empty((N, self.n))
-        for k in range(N):  # inputs are held already (run)
+        for k in range(N):
             xs[k] = self._advance(u[k], y[k])
             est[k] = xs[k, 0]
             self.u_last = u[k]
-        return (est, xs) if states else est
+        return est, xs
 
     def _run_vectorised(self, u, y, states):
         """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
         once, vectorised over the blocks (``L`` a multiple of the period)."""
         N = len(u)
-        L = self.period * max(1, _BLOCK // self.period)
+        # blocks of whole periods; long blocks pay off for small states only (the lifting
+        # costs L products of n x n matrices)
+        L = self.period * (max(1, _BLOCK // self.period) if self.n <= _SMALL else 1)
         P = -(-N // L)
         pad = P * L - N
         phases = [self._phases[(self.phase + j) % self.period] for j in range(L)]
@@ -376,7 +464,9 @@ class _LtiBands:
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
-            rt.x[0] = wrap_scalar(rt.x[0])
+            x = rt.x
+            x[0] = wrap_scalar(x[0])
+            rt.x = x
             linear.wrap_inplace(est)
         return est
 
@@ -398,10 +488,18 @@ def _unwrap(col):
 
 
 def _boundary_states(Phi, C, x0):
-    """``X[p+1] = Phi X[p] + C[p]``, ``X[0] = x0``, for all p at once with scipy's lfilter."""
+    """``X[p+1] = Phi X[p] + C[p]``, ``X[0] = x0``: for all p at once with scipy's lfilter (small
+    states, many blocks), else block by block (O(n^2) each; never O(n^4))."""
+    n, P = len(x0), len(C)
+    if n > 6 or P < 4 * n * n:
+        out = np.empty((P, n))
+        x = np.asarray(x0, dtype=float)
+        for p in range(P):
+            out[p] = x
+            x = Phi @ x + C[p]
+        return out
     from scipy.signal import lfilter
 
-    n, P = len(x0), len(C)
     den = linear.characteristic_polynomial(Phi)
     # Z[k+1] = Phi Z[k] + S[k], Z[0] = 0, S = [x0, C[0], C[1], ...]: then X[p] = Z[p + 1]
     S = np.vstack([x0[None, :], C])

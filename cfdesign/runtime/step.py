@@ -1,0 +1,130 @@
+"""The streaming step specialised to one table: straight-line Python on floats.
+
+:meth:`cfdesign.runtime.Runtime.step` is called once per sample from a robot loop or a ROS
+callback, where numpy's per-call overhead (a dozen small arrays) costs more than the filter
+itself.  This module writes the step of one table as straight-line Python on plain floats - the
+recursion of :mod:`cfdesign.linear` (``e = y - H x``, ``x+ = x + L e``, ``x <- F x + B u + Kp e``)
+with the table's numbers written in as constants, the products with zero coefficients left out,
+the gains of a multirate table looked up per phase - the same operations, in the same order, as
+the generated C (:mod:`cfdesign.codegen`).
+
+The source is built from numbers only: each constant is the ``repr`` of a finite float, every
+other name is fixed by this module; no text from the table (its name, its sensor names) enters
+it, so compiling it evaluates nothing a user wrote.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..linear import gain_pair, wrap_scalar
+
+__all__ = ["compile_step"]
+
+
+def _num(v: float) -> str:
+    v = float(v)
+    if not math.isfinite(v):  # a table is checked at load; this guards the source anyway
+        raise ValueError(f"constant {v!r} is not finite")
+    return repr(v)
+
+
+def _dot(coeffs, names, lookup=None) -> str:
+    """``c0*n0 + c1*n1 ...`` over the non-zero coefficients (``lookup[i]`` when per phase)."""
+    terms = []
+    for i, (c, name) in enumerate(zip(coeffs, names, strict=True)):
+        if c == 0:
+            continue
+        coef = f"{lookup}[{i}]" if lookup else (None if c == 1.0 else _num(c))
+        terms.append(f"{coef}*{name}" if coef else name)
+    return " + ".join(terms) or "0.0"
+
+
+def compile_step(table, output: str, limit: float):
+    """A function ``step(S, U, REJ, UNS, u_0, ..., y_0, ...) -> estimate`` for ``table``.
+
+    ``S`` holds the state floats and the phase (last), ``U`` the last inputs (held when one is
+    missing), ``REJ``/``UNS`` per-sensor counters of rejected readings (inf, NaN is simply
+    missing, or beyond ``limit``) and of readings at a phase the schedule does not read.  The
+    estimate is the posterior ``x[0] + (L e)[0]`` or the prior ``x[0]`` (``output``).
+    """
+    F, B, H = table.F, table.B, table.H
+    n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period
+    pairs = [gain_pair(F, K, table.gain_form) for K in table.K]
+    Kp = [kp for kp, _ in pairs]
+    L = [l0 for _, l0 in pairs]
+    posterior = output == "posterior"
+    if posterior and any(l0 is None for l0 in L):
+        raise ValueError("a posterior estimate needs an invertible F")
+    active = table.schedule.mask()
+    wrap_rows = [bool(table.wrap_angle) and s.order == 0 for s in table.measurements]
+    xs, us, es = [f"x{i}" for i in range(n)], [f"u{j}" for j in range(p)], [f"e{i}" for i in range(m)]
+    ys = [f"y{i}" for i in range(m)]
+    lines = [f"def step(S, U, REJ, UNS, {', '.join(us + ys)}):" if us + ys else "def step(S, U, REJ, UNS):"]
+    add = lines.append
+    add(f"    {', '.join(xs)}, = S[:{n}]" if n > 1 else "    x0 = S[0]")
+    if P > 1:
+        add(f"    ph = S[{n}]")
+    for j in range(p):  # an input outside the limit (inf) or missing (NaN) holds the last one
+        add(f"    if -LIM <= u{j} <= LIM:")
+        add(f"        U[{j}] = u{j}")
+        add("    else:")
+        add(f"        if u{j} == u{j}:")
+        add(f"            REJ[{j}] += 1")
+        add(f"        u{j} = U[{j}]")
+    single = P == 1
+    if m and not single:
+        add("    K = KP[ph]")
+        add("    A = AC[ph]")
+        if posterior:
+            add("    L = LP[ph]")
+    for i in range(m):
+        add(f"    e{i} = 0.0")
+        add(f"    if -LIM <= y{i} <= LIM:")
+        if single and not active[0, i]:
+            add(f"        UNS[{i}] += 1")
+        else:
+            pad = "        " if single else "            "
+            if not single:
+                add(f"        if A[{i}]:")
+            add(f"{pad}e{i} = y{i} - ({_dot(H[i], xs)})")
+            if wrap_rows[i]:
+                add(f"{pad}if e{i} > PI or e{i} <= -PI:")
+                add(f"{pad}    e{i} = WRAP(e{i})")
+            if not single:
+                add("        else:")
+                add(f"            UNS[{i}] += 1")
+        add(f"    elif y{i} == y{i}:")
+        add(f"        REJ[{p + i}] += 1")
+    if posterior:
+        row = [L[0][0, i] for i in range(m)] if single else [any(l0[0, i] != 0 for l0 in L) for i in range(m)]
+        add(f"    est = x0 + ({_dot(row, es, None if single else 'L')})" if any(row) else "    est = x0")
+    else:
+        add("    est = x0")
+    for r in range(n):
+        terms = [_dot(F[r], xs)]
+        if B[r].any():
+            terms.append(_dot(B[r], us))
+        if m:
+            if single:
+                terms.append(_dot(Kp[0][r], es))
+            else:
+                used = [any(k[r, i] != 0 for k in Kp) for i in range(m)]
+                flat = [f"K[{r * m + i}]*e{i}" for i in range(m) if used[i]]
+                terms.append(" + ".join(flat) or "0.0")
+        add(f"    n{r} = " + " + ".join(f"({t})" for t in terms))
+    if table.wrap_angle:
+        add("    if n0 > PI or n0 <= -PI:")
+        add("        n0 = WRAP(n0)")
+        add("    if est > PI or est <= -PI:")
+        add("        est = WRAP(est)")
+    add(f"    S[:{n}] = {', '.join(f'n{r}' for r in range(n))},")
+    if P > 1:
+        add(f"    S[{n}] = (ph + 1) % {P}")
+    add("    return est")
+    namespace = {"LIM": float(limit), "PI": math.pi, "WRAP": wrap_scalar,
+                 "KP": [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
+                 "LP": [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
+                 "AC": [tuple(bool(v) for v in row) for row in active]}
+    exec(compile("\n".join(lines), f"<cfdesign step of a {n}-state table>", "exec"), namespace)  # noqa: S102
+    return namespace["step"], "\n".join(lines)
