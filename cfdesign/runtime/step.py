@@ -126,5 +126,5 @@ def compile_step(table, output: str, limit: float):
                  "KP": [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  "LP": [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  "AC": [tuple(bool(v) for v in row) for row in active]}
-    exec(compile("\n".join(lines), f"<cfdesign step of a {n}-state table>", "exec"), namespace)  # noqa: S102
+    exec(compile("\n".join(lines), f"<cfdesign step of a {n}-state table>", "exec"), namespace)
     return namespace["step"], "\n".join(lines)
