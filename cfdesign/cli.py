@@ -222,6 +222,31 @@ def _run_blocks(runtime, readings, block=100_000):
     return est, states
 
 
+def cmd_noise(args) -> int:
+    from .allan import adev_plot, identify_noise, noise_toml, read_log_columns
+
+    if (args.rate_hz is None) == (args.time is None):
+        raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
+    if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
+        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
+    if not columns:
+        raise CfdesignError("cfdesign noise: name at least one --column")
+    rate, data = read_log_columns(args.log, columns, args.time)
+    rate = args.rate_hz if rate is None else rate
+    fits = [identify_noise(data[c], rate, name=c) for c in columns]
+    for fit in fits:
+        print(fit.summary(args.unit))
+    outputs = {}
+    if args.output:
+        outputs[args.output] = noise_toml(fits, source=str(args.log), unit=args.unit)
+    if args.plot:
+        outputs[args.plot] = _figure_bytes(adev_plot(fits, unit=args.unit), args.plot)
+    for path in write_files(outputs):
+        print(f"wrote {path}")
+    return 0
+
+
 _FIGURE_FORMATS = ("png", "pdf", "svg")
 
 
@@ -300,6 +325,17 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the one-step prediction instead of the table's output (by default the estimate "
                         "after each step's readings)")
     p.set_defaults(run=cmd_run)
+
+    p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
+    p.add_argument("log", help="CSV log with a header row, sensor at rest")
+    p.add_argument("--column", action="append", required=True,
+                   help="column to analyse (repeat, or comma-separate, for several axes)")
+    p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
+    p.add_argument("--time", help="time column (s) to take the rate from, instead of --rate-hz")
+    p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
+    p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
+    p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")
+    p.set_defaults(run=cmd_noise)
 
     from .reproduce import add_parser as add_reproduce
 
