@@ -152,6 +152,12 @@ def _summary(table) -> str:
     lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
     lines.append(f"  complementary (exact proof): {c['complementary']}; stable: {c['stable']}")
     solver = table.provenance["solver"]
+    if "crossover_hz" in solver:
+        lines.append("  crossovers: " + ", ".join(f"{a}/{b} at {f:g} Hz (magnitude ratio {r:.6f})"
+                                                  for a, b, f, r in solver["crossovers"]))
+    if solver.get("kalman_predicted_variance") is not None:
+        lines.append(f"  predicted std of these gains: {solver['predicted_variance'] ** 0.5:.6g}; Kalman optimum for "
+                     f"the same sensors: {solver['kalman_predicted_variance'] ** 0.5:.6g}")
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
     return "\n".join(lines)

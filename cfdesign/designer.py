@@ -281,7 +281,7 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
                 raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}; "
                                 "choose a structure that estimates it (e.g. cf2 order 2, dckf3, position)")
             if s.bias_state is not None:
-                if x.bias.psd == 0 and spec.gains is None:
+                if x.bias.psd == 0 and spec.gains is None and getattr(spec, "crossover", None) is None:
                     raise SpecError(f"sensors.{s.name}.bias: {obs.name} estimates the {s.name} bias, which needs "
                                     "model = 'random_walk' with a density (a constant bias gives the bias state no "
                                     "process noise, so no stabilising optimal gain exists)")
@@ -348,11 +348,12 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     model = structure.model(dt)
     output = _output(spec, structure, model)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete)
-    if structure.discrete:
-        _, Q = van_loan(model["Fc"], Qc, dt)
+    Q = van_loan(model["Fc"], Qc, dt)[1] if structure.discrete else Qc
+    if spec.crossover is not None:
+        result = _crossover_result(structure, model, Q, R, schedule, spec, output, dt)
+    elif structure.discrete:
         result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed, output)
     else:
-        Q = Qc
         result = _continuous_gains(structure, model, Q, R, fixed)
     return _table(spec, structure, model, Q, R, dt, schedule, result, output)
 
@@ -518,6 +519,36 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed, output):
         raise SpecError(f"gains: the given gains do not stabilise {obs.name}")
     return _gain_result(K, F, H, Q, R, form, {"method": "fixed gains from the spec; error from the Lyapunov equation"},
                         _kalman_gain(F, H, Q, R, form), output)
+
+
+def _crossover_result(obs, model, Q, R, schedule, spec, output, dt):
+    """Gains from the spec's ``[crossover]`` (:mod:`cfdesign.crossover`), their predicted error
+    (Lyapunov) beside the Kalman optimum for the same sensors (None where the noise model has
+    no stabilising optimum, e.g. a constant bias)."""
+    from .crossover import crossover_check, crossover_gains
+    from .errors import RiccatiError
+
+    if schedule.period != 1:
+        raise SpecError("crossover: applies to single-rate filters (the bands of a multirate table change "
+                        "with the phase)")
+    form = spec.gain_form if obs.discrete else "continuous"
+    hz, damping = spec.crossover["hz"], spec.crossover["damping"]
+    gains = crossover_gains(obs, model, dt, form, output, hz, damping)
+    F, H = model["F"], model["H"]
+    free = _free_names(obs.pattern)
+    K = _pattern_gain(obs.pattern, free, [gains[e] for e in free])
+    solver = {"method": "crossover design (cfdesign.crossover): adjacent bands of equal magnitude at "
+                        + ", ".join(f"{f:g} Hz" for f in hz) + "; error from the Lyapunov equation",
+              "crossover_hz": list(hz), "damping": damping,
+              "crossovers": [list(c) for c in crossover_check(obs, model, K, form, output, dt, hz)]}
+    try:
+        optimum = _kalman_gain(F, H, Q, R, form)
+    except RiccatiError as exc:
+        P, P_filtered = _covariances(F, H, K, Q, R, form)
+        mine = P_filtered if output == "posterior" else P
+        solver.update(kalman_predicted_variance=None, kalman_note=str(exc), predicted_variance=float(mine[0, 0]))
+        return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
+    return _gain_result(K, F, H, Q, R, form, solver, optimum, output)
 
 
 def _sparse_gains(obs, F, H, Q, R, form, output):
