@@ -44,7 +44,8 @@ def parse_gains(text: str) -> dict:
 def _structure(args):
     from .symbolic import structure
 
-    return structure(args.structure, order=args.order, bands=args.bands)
+    return structure(args.structure, order=args.order, bands=args.bands, full=getattr(args, "full", None) or None,
+                     discrete=getattr(args, "discrete", None) or None)
 
 
 def _numeric(args):
@@ -278,6 +279,8 @@ def _add_structure(p):
     p.add_argument("structure", help="cf2, cf3, ckf3, dckf3, cfn or position")
     p.add_argument("--order", type=int, help="cf2 only: 1 (angle + rate) or 2 (with gyro-bias state)")
     p.add_argument("--bands", type=int, help="cfn only: number of bands/sensors n (2..7)")
+    p.add_argument("--full", action="store_true", help="cfn only: a full gain matrix (cfn --bands 3 --full is CKF3)")
+    p.add_argument("--discrete", action="store_true", help="cf2, cf3, cfn, position: the ZOH model in z")
 
 
 def build_parser() -> argparse.ArgumentParser:

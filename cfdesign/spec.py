@@ -9,8 +9,12 @@ A design file names a structure and describes each of its sensors::
     # wrap_angle = true            # a heading: angle readings and the estimate live in (-pi, pi]
     # output = "posterior"         # discrete: the estimate after each step's readings (default),
     #                              # or "prior", the one-step prediction
-    # discrete = true              # cf2, cf3, cfn: continuous unless true
+    # discrete = true              # cf2, cf3, cfn, chain: continuous unless true
     # order = 2                    # cf2 only;  bands = 4  # cfn only
+    # full = true                  # cfn only: a full gain matrix (cfn with 3 bands and full = true is the CKF3)
+    # structure = "chain"          # a general kinematic chain: order = the inputs' derivative order,
+    #                              # every sensor says what it measures (any number per order:
+    #                              # two gyros); role = "input" | "measurement" optional
     # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones;
     # k1 = 12.6                    # a subset fixes those gains and optimises the others
     # [crossover]                  # optional: gains that put the band crossovers here instead
@@ -67,8 +71,8 @@ EXAMPLES = {
     "position": "position_imu_gps.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
-             "description", "gains", "wrap_angle", "output", "crossover"}
-_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port"}
+             "description", "gains", "wrap_angle", "output", "crossover", "full"}
+_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "role"}
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,8 @@ class SensorSpec:
     bias: Bias
     measures: str | None = None
     port: str | None = None
+    #: ``input`` or ``measurement`` (structure ``chain``; inferred from ``measures`` when left out)
+    role: str | None = None
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,8 @@ class FilterSpec:
     output: str | None = None
     #: ``{'hz': (f1, ...), 'damping': zeta or None}``: a design by crossover (:mod:`cfdesign.crossover`)
     crossover: dict | None = None
+    #: cfn: a full gain matrix instead of the sparse CF3 pattern
+    full: bool | None = None
 
     def sensor(self, name: str) -> SensorSpec:
         for x in self.sensors:
@@ -182,6 +190,7 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
         wrap_angle=bool(_flag(data, "wrap_angle")),
         output=_choice(data, "output", ("posterior", "prior", None), None),
         crossover=_crossover(data),
+        full=_flag(data, "full"),
     )
 
 
@@ -241,7 +250,8 @@ def _sensor(name, body) -> SensorSpec:
                      value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
                      field=f"{field}.bias")
     return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"),
-                      _text(body, "port", field=f"{field}.port"))
+                      _text(body, "port", field=f"{field}.port"),
+                      _choice(body, "role", ("input", "measurement", None), None, f"{field}.role"))
 
 
 def _no_unknown(table, allowed, prefix):
