@@ -86,7 +86,7 @@ def cmd_bode(args) -> int:
     from .plot import bode_plot
 
     obs = _numeric(args)
-    for path in write_files({args.output: _figure_bytes(bode_plot(obs), args.output)}):
+    for path in write_files({args.output: _figure_bytes(bode_plot(obs, hz=args.hz), args.output)}):
         print(f"wrote {path}")
     return 0
 
@@ -107,14 +107,14 @@ def cmd_design(args) -> int:
     if args.output:
         outputs[args.output] = table.to_json()
     if args.bode:
-        outputs[args.bode] = _bode_png(spec, table, args.bode)
+        outputs[args.bode] = _bode_png(spec, table, args.bode, getattr(args, "hz", False))
     print(_summary(table))
     for path in write_files(outputs):
         print(f"wrote {path}")
     return 0
 
 
-def _bode_png(spec, table, target) -> bytes:
+def _bode_png(spec, table, target, hz=False) -> bytes:
     """The Bode plot of a designed single-rate filter, rendered in memory."""
     from .designer import designed_observer
     from .plot import bode_plot
@@ -122,7 +122,7 @@ def _bode_png(spec, table, target) -> bytes:
     if table.period != 1:
         raise CfdesignError(f"{table.name} is multirate (period {table.period}): its bands change with the phase, "
                             "so there is no single Bode plot; leave out --bode")
-    return _figure_bytes(bode_plot(designed_observer(spec, table)), target)
+    return _figure_bytes(bode_plot(designed_observer(spec, table), hz=hz), target)
 
 
 def _summary(table) -> str:
@@ -299,6 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gains", required=True, help="gain values, e.g. k1=2,k2=1")
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
     p.add_argument("-o", "--output", required=True, help="PNG (or PDF/SVG) file to write")
+    p.add_argument("--hz", action="store_true", help="frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_bode)
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
@@ -307,6 +308,7 @@ def build_parser() -> argparse.ArgumentParser:
                                       "position")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
+    p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_design)
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
