@@ -254,6 +254,17 @@ def cmd_noise(args) -> int:
     return 0
 
 
+def cmd_discretize(args) -> int:
+    from .discretize import discretize_table
+    from .gains import load_gains
+
+    table = discretize_table(load_gains(args.table), args.rate_hz, args.gain_form)
+    print(_summary(table))
+    for path in write_files({args.output: table.to_json()}):
+        print(f"wrote {path}")
+    return 0
+
+
 _FIGURE_FORMATS = ("png", "pdf", "svg")
 
 
@@ -347,6 +358,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
     p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")
     p.set_defaults(run=cmd_noise)
+
+    p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
+    p.add_argument("table", help="continuous gain table (JSON)")
+    p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
+    p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor")
+    p.add_argument("-o", "--output", required=True, help="discrete gain table (JSON) to write")
+    p.set_defaults(run=cmd_discretize)
 
     from .reproduce import add_parser as add_reproduce
 
