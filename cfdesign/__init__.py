@@ -25,10 +25,11 @@ _LAZY = {
     "cfdesign.gains": ["GainTable", "load_gains"],
     "cfdesign.designer": ["design", "multirate_schedule"],
     "cfdesign.runtime": ["Runtime"],
+    "cfdesign.allan": ["identify_noise", "NoiseFit"],
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 _MODULES = {"riccati", "runtime", "symbolic", "analysis", "plot", "noise", "spec", "gains", "designer", "testing",
-            "sim", "reproduce", "verify", "codegen", "export", "nav"}
+            "sim", "reproduce", "verify", "codegen", "export", "nav", "allan"}
 
 __all__ = ["__version__", "CfdesignError", "SpecError", "StructureError", "GainError", "ProofError",
            "RiccatiError", *_WHERE, *sorted(_MODULES)]

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["transfer_functions", "FrequencyResponse", "frequency_response", "default_frequencies"]
+__all__ = ["transfer_functions", "named_transfer_functions", "FrequencyResponse", "frequency_response",
+           "default_frequencies"]
 
 
 def transfer_functions(observer) -> dict:
@@ -18,13 +19,24 @@ def transfer_functions(observer) -> dict:
 
     Continuous bands are in ``s``; discrete ones carry ``dt`` = the sample time (s).  The
     ``'sum'`` entry is the exact sum reduced by the symbolic proof (``1`` when the filter is
-    complementary), not a numerically added model of inflated order.
+    complementary), not a numerically added model of inflated order.  Each is named after its
+    sensor (:func:`named_transfer_functions`).
     """
+    dt = float(observer.sample_time) if observer.discrete else 0
+    return named_transfer_functions(observer.band_coefficients(), dt, observer.name,
+                                    observer.sum_coefficients())
+
+
+def named_transfer_functions(coefficients: dict, dt, label: str = "", total=None) -> dict:
+    """``{sensor: control.TransferFunction}`` from band polynomials, each named after its sensor:
+    system ``'T_<sensor>'``, input ``'<sensor>'`` (the common quantity seen through that
+    sensor), output ``'estimate'``; ``'sum'`` (input ``'quantity'``) when ``total`` is given."""
     import control
 
-    dt = float(observer.sample_time) if observer.discrete else 0
-    out = {name: control.tf(num, den, dt) for name, (num, den) in observer.band_coefficients().items()}
-    out["sum"] = control.tf(*observer.sum_coefficients(), dt)
+    out = {name: control.tf(num, den, dt or 0, inputs=[name], outputs=["estimate"], name=f"T_{name}")
+           for name, (num, den) in coefficients.items()}
+    if total is not None:
+        out["sum"] = control.tf(*total, dt or 0, inputs=["quantity"], outputs=["estimate"], name="sum")
     return out
 
 

@@ -44,7 +44,8 @@ def parse_gains(text: str) -> dict:
 def _structure(args):
     from .symbolic import structure
 
-    return structure(args.structure, order=args.order, bands=args.bands)
+    return structure(args.structure, order=args.order, bands=args.bands, full=getattr(args, "full", None) or None,
+                     discrete=getattr(args, "discrete", None) or None)
 
 
 def _numeric(args):
@@ -85,7 +86,7 @@ def cmd_bode(args) -> int:
     from .plot import bode_plot
 
     obs = _numeric(args)
-    for path in write_files({args.output: _figure_bytes(bode_plot(obs), args.output)}):
+    for path in write_files({args.output: _figure_bytes(bode_plot(obs, hz=args.hz), args.output)}):
         print(f"wrote {path}")
     return 0
 
@@ -106,14 +107,14 @@ def cmd_design(args) -> int:
     if args.output:
         outputs[args.output] = table.to_json()
     if args.bode:
-        outputs[args.bode] = _bode_png(spec, table, args.bode)
+        outputs[args.bode] = _bode_png(spec, table, args.bode, getattr(args, "hz", False))
     print(_summary(table))
     for path in write_files(outputs):
         print(f"wrote {path}")
     return 0
 
 
-def _bode_png(spec, table, target) -> bytes:
+def _bode_png(spec, table, target, hz=False) -> bytes:
     """The Bode plot of a designed single-rate filter, rendered in memory."""
     from .designer import designed_observer
     from .plot import bode_plot
@@ -121,7 +122,7 @@ def _bode_png(spec, table, target) -> bytes:
     if table.period != 1:
         raise CfdesignError(f"{table.name} is multirate (period {table.period}): its bands change with the phase, "
                             "so there is no single Bode plot; leave out --bode")
-    return _figure_bytes(bode_plot(designed_observer(spec, table)), target)
+    return _figure_bytes(bode_plot(designed_observer(spec, table), hz=hz), target)
 
 
 def _summary(table) -> str:
@@ -152,6 +153,12 @@ def _summary(table) -> str:
     lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
     lines.append(f"  complementary (exact proof): {c['complementary']}; stable: {c['stable']}")
     solver = table.provenance["solver"]
+    if "crossover_hz" in solver:
+        lines.append("  crossovers: " + ", ".join(f"{a}/{b} at {f:g} Hz (magnitude ratio {r:.6f})"
+                                                  for a, b, f, r in solver["crossovers"]))
+    if solver.get("kalman_predicted_variance") is not None:
+        lines.append(f"  predicted std of these gains: {solver['predicted_variance'] ** 0.5:.6g}; Kalman optimum for "
+                     f"the same sensors: {solver['kalman_predicted_variance'] ** 0.5:.6g}")
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
     return "\n".join(lines)
@@ -253,6 +260,42 @@ def _pairs(items, option, form) -> dict:
     return out
 
 
+def cmd_noise(args) -> int:
+    from .allan import adev_plot, identify_noise, noise_toml, read_log_columns
+
+    if (args.rate_hz is None) == (args.time is None):
+        raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
+    if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
+        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
+    if not columns:
+        raise CfdesignError("cfdesign noise: name at least one --column")
+    rate, data = read_log_columns(args.log, columns, args.time)
+    rate = args.rate_hz if rate is None else rate
+    fits = [identify_noise(data[c], rate, name=c) for c in columns]
+    for fit in fits:
+        print(fit.summary(args.unit))
+    outputs = {}
+    if args.output:
+        outputs[args.output] = noise_toml(fits, source=str(args.log), unit=args.unit)
+    if args.plot:
+        outputs[args.plot] = _figure_bytes(adev_plot(fits, unit=args.unit), args.plot)
+    for path in write_files(outputs):
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_discretize(args) -> int:
+    from .discretize import discretize_table
+    from .gains import load_gains
+
+    table = discretize_table(load_gains(args.table), args.rate_hz, args.gain_form)
+    print(_summary(table))
+    for path in write_files({args.output: table.to_json()}):
+        print(f"wrote {path}")
+    return 0
+
+
 _FIGURE_FORMATS = ("png", "pdf", "svg")
 
 
@@ -278,6 +321,8 @@ def _add_structure(p):
     p.add_argument("structure", help="cf2, cf3, ckf3, dckf3, cfn or position")
     p.add_argument("--order", type=int, help="cf2 only: 1 (angle + rate) or 2 (with gyro-bias state)")
     p.add_argument("--bands", type=int, help="cfn only: number of bands/sensors n (2..7)")
+    p.add_argument("--full", action="store_true", help="cfn only: a full gain matrix (cfn --bands 3 --full is CKF3)")
+    p.add_argument("--discrete", action="store_true", help="cf2, cf3, cfn, position: the ZOH model in z")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -296,6 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--gains", required=True, help="gain values, e.g. k1=2,k2=1")
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
     p.add_argument("-o", "--output", required=True, help="PNG (or PDF/SVG) file to write")
+    p.add_argument("--hz", action="store_true", help="frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_bode)
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
@@ -304,6 +350,7 @@ def build_parser() -> argparse.ArgumentParser:
                                       "position")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
+    p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_design)
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
@@ -347,6 +394,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="several logs: an existing Dask scheduler")
     p.add_argument("--format", choices=["csv", "parquet"], default="csv", help="several logs: estimate file format")
     p.set_defaults(run=cmd_run)
+
+    p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
+    p.add_argument("log", help="CSV log with a header row, sensor at rest")
+    p.add_argument("--column", action="append", required=True,
+                   help="column to analyse (repeat, or comma-separate, for several axes)")
+    p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
+    p.add_argument("--time", help="time column (s) to take the rate from, instead of --rate-hz")
+    p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
+    p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
+    p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")
+    p.set_defaults(run=cmd_noise)
+
+    p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
+    p.add_argument("table", help="continuous gain table (JSON)")
+    p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
+    p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor")
+    p.add_argument("-o", "--output", required=True, help="discrete gain table (JSON) to write")
+    p.set_defaults(run=cmd_discretize)
 
     from .reproduce import add_parser as add_reproduce
 

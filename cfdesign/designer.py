@@ -221,9 +221,19 @@ def build_structure(spec: FilterSpec):
     from .errors import StructureError
     from .symbolic.filters import STRUCTURE_OPTIONS, STRUCTURES, structure
 
+    if spec.structure == "chain":
+        obs = _chain_observer(spec)
+        if spec.sample_time_s is not None and not obs.discrete:
+            raise SpecError("sample_time_s: the chain is continuous (set discrete = true)")
+        _check_sensors(spec, obs)
+        return obs
     if spec.structure not in STRUCTURES:
-        raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of {', '.join(STRUCTURES)}")
-    options = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete}
+        raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of "
+                        f"{', '.join([*STRUCTURES, 'chain'])}")
+    if any(x.role is not None for x in spec.sensors):
+        raise SpecError(f"sensors.{next(x.name for x in spec.sensors if x.role)}.role: applies to structure "
+                        f"chain only ({spec.structure} fixes each sensor's role)")
+    options = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete, "full": spec.full}
     for key, value in options.items():
         if value is not None and key not in STRUCTURE_OPTIONS[spec.structure]:
             raise SpecError(f"{key}: does not apply to structure {spec.structure}")
@@ -241,19 +251,103 @@ def build_structure(spec: FilterSpec):
 
 
 @functools.lru_cache(maxsize=128)
-def _cached_structure(name, order, bands, discrete, ports) -> Structure:
+def _cached_structure(name, order, bands, discrete, ports, full=None) -> Structure:
     from .symbolic.filters import structure
 
-    obs = structure(name, order=order, bands=bands, discrete=discrete)
+    obs = structure(name, order=order, bands=bands, discrete=discrete, full=full)
     return Structure.from_observer(obs.renamed(dict(ports)) if ports else obs)
+
+
+@functools.lru_cache(maxsize=128)
+def _cached_chain(order, inputs, measurements, weights, bias, discrete) -> Structure:
+    from fractions import Fraction
+
+    from .symbolic.filters import chain
+
+    return Structure.from_observer(chain(order, inputs, measurements, weights=[Fraction(w) for w in weights],
+                                         bias=bias, discrete=discrete))
 
 
 def numeric_structure(spec: FilterSpec) -> Structure:
     """:func:`build_structure` as a :class:`Structure` (cached: the symbolic work, proof
     included, runs once per structure, options and ports)."""
+    if spec.structure == "chain":
+        order, inputs, measurements, weights, bias = _chain_layout(spec)
+        return _cached_chain(order, tuple(inputs), tuple(measurements), tuple(str(w) for w in weights), bias,
+                             bool(spec.discrete))
     build_structure(spec)  # checks the spec against the structure (cheap: no band is derived)
     ports = tuple(sorted((x.port, x.name) for x in spec.sensors if x.port is not None))
-    return _cached_structure(spec.structure, spec.order, spec.bands, spec.discrete, ports)
+    return _cached_structure(spec.structure, spec.order, spec.bands, spec.discrete, ports, spec.full)
+
+
+def _chain_layout(spec: FilterSpec) -> tuple:
+    """``(order, inputs, measurements, weights, bias)`` of a ``chain`` design file.
+
+    Each sensor's derivative order comes from ``measures``; sensors of the chain's ``order``
+    are inputs (unless ``role`` says otherwise, which is refused), lower orders measurements.
+    The inputs are combined with the minimum-variance weights of their white noise,
+    ``w_i = (1 / q_i) / sum_j (1 / q_j)`` (``q`` the PSD), exact rationals summing to one; a
+    rate-correction (bias) state is added when an input has a random-walk bias.
+    """
+    from fractions import Fraction
+
+    if spec.order is None:
+        raise SpecError("order: missing field (chain: the derivative order of the input sensors, e.g. 1 for "
+                        "gyros driving an angle, 2 for accelerometers driving a position)")
+    for key, value in (("bands", spec.bands), ("full", spec.full)):
+        if value is not None:
+            raise SpecError(f"{key}: does not apply to structure chain")
+    inputs, measurements = [], []
+    for x in spec.sensors:
+        field = f"sensors.{x.name}"
+        if x.port is not None:
+            raise SpecError(f"{field}.port: does not apply to structure chain (its sensors are named by the file)")
+        if x.measures is None:
+            raise SpecError(f"{field}.measures: missing field (a chain places each sensor by what it measures: "
+                            f"{', '.join(QUANTITY_ORDERS)})")
+        order = QUANTITY_ORDERS.get(x.measures)
+        if order is None:
+            raise SpecError(f"{field}.measures: unknown sensor kind {x.measures!r} "
+                            f"(known: {', '.join(QUANTITY_ORDERS)})")
+        role = x.role or ("input" if order == spec.order else "measurement")
+        if role == "input" and order != spec.order:
+            raise SpecError(f"{field}.role: an input of a chain of order {spec.order} measures derivative order "
+                            f"{spec.order}, not {x.measures!r} (order {order})")
+        if role == "measurement" and order >= spec.order:
+            raise SpecError(f"{field}.measures: a measurement of a chain of order {spec.order} has a lower "
+                            f"derivative order, not {x.measures!r} (order {order}); raise the chain's order")
+        if role == "input":
+            inputs.append(x)
+        else:
+            measurements.append((x.name, order))
+    if not inputs:
+        raise SpecError(f"sensors: a chain of order {spec.order} needs an input sensor measuring derivative order "
+                        f"{spec.order} (e.g. measures = \"rate\" for order 1)")
+    if not measurements:
+        raise SpecError("sensors: a chain needs at least one measurement sensor of a lower derivative order")
+    inverse = [1 / Fraction(x.noise.psd(x.rate_hz)) if x.noise.psd(x.rate_hz) > 0 else None for x in inputs]
+    if any(v is None for v in inverse):
+        weights = [Fraction(1, len(inputs))] * len(inputs) if all(v is None for v in inverse) else \
+            [Fraction(0 if v is not None else 1) for v in inverse]
+        weights = [w / sum(weights) for w in weights]
+    else:
+        weights = [v / sum(inverse) for v in inverse]
+    if any(w == 0 for w in weights):
+        raise SpecError("sensors: an input with zero noise beside a noisy one would take all the weight; give it "
+                        "its noise figure")
+    bias = any(x.bias.model == "random_walk" for x in inputs)
+    return spec.order, [x.name for x in inputs], measurements, weights, bias
+
+
+def _chain_observer(spec: FilterSpec):
+    from .errors import StructureError
+    from .symbolic.filters import chain
+
+    order, inputs, measurements, weights, bias = _chain_layout(spec)
+    try:
+        return chain(order, inputs, measurements, weights=weights, bias=bias, discrete=bool(spec.discrete))
+    except StructureError as exc:
+        raise SpecError(f"structure chain: {exc}") from None
 
 
 def _apply_ports(spec, obs):
@@ -303,11 +397,17 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
                 raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}; "
                                 "choose a structure that estimates it (e.g. cf2 order 2, dckf3, position)")
             if s.bias_state is not None:
-                if x.bias.psd == 0 and spec.gains is None:
+                shared = [t for t in obs.sensors if t.bias_state == s.bias_state]
+                if (x.bias.psd == 0 and spec.gains is None and getattr(spec, "crossover", None) is None
+                        and all(spec.sensor(t.name).bias.psd == 0 for t in shared)):
                     raise SpecError(f"sensors.{s.name}.bias: {obs.name} estimates the {s.name} bias, which needs "
                                     "model = 'random_walk' with a density (a constant bias gives the bias state no "
                                     "process noise, so no stabilising optimal gain exists)")
-                Qc[s.bias_state, s.bias_state] += x.bias.psd
+                # the bias enters as the reading does: scaled by the input's weight against the bias state's
+                # own entry (1 for the named filters; w_i for the inputs of a weighted chain)
+                col, state = np.abs(model["Bc"][:, s.index]), np.abs(model["Fc"][:, s.bias_state])
+                weight = col.max() / state.max() if state.max() > 0 else 1.0
+                Qc[s.bias_state, s.bias_state] += x.bias.psd * weight**2
         elif x.bias.model == "random_walk":
             raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}, so a "
                             "random-walk bias there cannot be designed for (a constant bias is allowed: it "
@@ -371,11 +471,12 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     model = structure.model(dt)
     output = _output(spec, structure, model)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete)
-    if structure.discrete:
-        _, Q = van_loan(model["Fc"], Qc, dt)
+    Q = van_loan(model["Fc"], Qc, dt)[1] if structure.discrete else Qc
+    if spec.crossover is not None:
+        result = _crossover_result(structure, model, Q, R, schedule, spec, output, dt)
+    elif structure.discrete:
         result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed, output)
     else:
-        Q = Qc
         result = _continuous_gains(structure, model, Q, R, fixed)
     return _table(spec, structure, model, Q, R, dt, schedule, result, output)
 
@@ -620,6 +721,36 @@ def _fixed_gains(obs, F, H, Q, R, form, fixed, output):
                         _kalman_gain(F, H, Q, R, form), output)
 
 
+def _crossover_result(obs, model, Q, R, schedule, spec, output, dt):
+    """Gains from the spec's ``[crossover]`` (:mod:`cfdesign.crossover`), their predicted error
+    (Lyapunov) beside the Kalman optimum for the same sensors (None where the noise model has
+    no stabilising optimum, e.g. a constant bias)."""
+    from .crossover import crossover_check, crossover_gains
+    from .errors import RiccatiError
+
+    if schedule.period != 1:
+        raise SpecError("crossover: applies to single-rate filters (the bands of a multirate table change "
+                        "with the phase)")
+    form = spec.gain_form if obs.discrete else "continuous"
+    hz, damping = spec.crossover["hz"], spec.crossover["damping"]
+    gains = crossover_gains(obs, model, dt, form, output, hz, damping)
+    F, H = model["F"], model["H"]
+    free = _free_names(obs.pattern)
+    K = _pattern_gain(obs.pattern, free, [gains[e] for e in free])
+    solver = {"method": "crossover design (cfdesign.crossover): adjacent bands of equal magnitude at "
+                        + ", ".join(f"{f:g} Hz" for f in hz) + "; error from the Lyapunov equation",
+              "crossover_hz": list(hz), "damping": damping,
+              "crossovers": [list(c) for c in crossover_check(obs, model, K, form, output, dt, hz)]}
+    try:
+        optimum = _kalman_gain(F, H, Q, R, form)
+    except RiccatiError as exc:
+        P, P_filtered = _covariances(F, H, K, Q, R, form)
+        mine = P_filtered if output == "posterior" else P
+        solver.update(kalman_predicted_variance=None, kalman_note=str(exc), predicted_variance=float(mine[0, 0]))
+        return {"K": [K], "P": [P], "P_filtered": [P_filtered], "solver": solver}
+    return _gain_result(K, F, H, Q, R, form, solver, optimum, output)
+
+
 def _sparse_gains(obs, F, H, Q, R, form, output):
     """Minimise the error variance of the estimate the table outputs over the free entries of
     the pattern."""
@@ -711,8 +842,8 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
         F=model["F"], B=model["B"], H=model["H"], K=result["K"], P=result["P"],
         P_filtered=result["P_filtered"], schedule=schedule, Q=Q, R=R, gains=gains, wrap_angle=spec.wrap_angle,
         output=output, states=state_names(obs, spec),
-        options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete))
-                 if v is not None},
+        options={k: v for k, v in (("order", spec.order), ("bands", spec.bands), ("discrete", spec.discrete),
+                                   ("full", spec.full)) if v is not None},
         provenance={"spec_sha256": spec.sha256, "cfdesign_version": __version__,
                     "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                     "python": platform.python_version(), "solver": result["solver"]},

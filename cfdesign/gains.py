@@ -417,6 +417,65 @@ class GainTable:
     def sensor_names(self, role: str | None = None) -> list:
         return [s.name for s in self.sensors if role is None or s.role == role]
 
+    # ------------------------------------------------------------------ python-control and plots
+    def transfer_functions(self, output: str | None = None) -> dict:
+        """``{sensor: control.TransferFunction}`` of every band of a single-rate table, plus ``'sum'``.
+
+        Each band is named after its sensor (system ``T_<sensor>``, input ``<sensor>``, output
+        ``estimate``) and computed from the table's own ``F, B, H, K`` for the estimate it
+        outputs (or ``output``); ``dt`` is the sample time.  ``'sum'`` is exactly 1 when the
+        bands pass the complementarity identity (:func:`cfdesign.linear.identity_residual`).
+        numpy and python-control only.
+
+        Raises
+        ------
+        GainTableError
+            A multirate table (its bands change with the phase: see :meth:`bode` and
+            :func:`cfdesign.plot.lifted_system`).
+        """
+        from .analysis import named_transfer_functions
+        from .verify import IDENTITY_RTOL, band_polynomials
+
+        if self.period != 1:
+            raise GainTableError(f"{self.name} is multirate (period {self.period}): its bands change with the phase; "
+                                 "cfdesign.plot.lifted_system(table) gives the lifted system at the period rate")
+        bands = band_polynomials(self, 0, output)[0]
+        exact = linear.identity_residual(bands) <= IDENTITY_RTOL
+        total = (np.ones(1), np.ones(1)) if exact else None
+        tfs = named_transfer_functions(bands, self.sample_time_s if self.domain == "z" else 0, self.name, total)
+        if not exact:
+            import functools
+            import operator
+
+            tfs["sum"] = functools.reduce(operator.add, tfs.values())
+        return tfs
+
+    def bode(self, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
+        """Bode diagram (matplotlib figure) of the table: :func:`cfdesign.plot.table_bode_plot`
+        (the bands and crossovers; for multirate tables the per-phase gains and the lifted
+        system's response at the period rate)."""
+        from .plot import table_bode_plot
+
+        return table_bode_plot(self, omega, hz=hz, title=title, fig=fig)
+
+    def observer(self):
+        """The symbolic :class:`~cfdesign.symbolic.observer.Observer` of a single-rate table, with
+        its gains: bands, exact proof, poles and zeros of the estimate the table outputs
+        (posterior tables as the filter-form update gain, prior tables as the predictor gain).
+        Needs sympy."""
+        from .symbolic.observer import Observer, Sensor
+
+        if self.period != 1:
+            raise GainTableError(f"{self.name} is multirate (period {self.period}): its bands change with the phase")
+        sensors = [Sensor(s.name, s.order, s.role, s.index) for s in self.sensors]
+        if self.domain == "s":
+            return Observer(self.F, self.B, self.H, self.K[0], sensors, name=self.name).with_gain_matrix(self.K[0])
+        Kp, L = linear.gain_pair(self.F, self.K[0], self.gain_form)
+        form, K = ("filter", L) if self.output == "posterior" else ("predictor", Kp)
+        obs = Observer(_exact(self.F), _exact(self.B), _exact(self.H), _exact(K), sensors, domain="z",
+                       sample_time=self.sample_time_s, gain_form=form, name=self.name)
+        return obs
+
     # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict:
         """The JSON form (plain lists and numbers; ``measured`` lists the schedule's names)."""
@@ -479,6 +538,12 @@ class GainTable:
         except ValueError as exc:
             raise GainTableError(f"{source}: {exc}") from None
         return cls(**kw)
+
+
+def _exact(M):
+    from .symbolic.observer import exact_number
+
+    return [[exact_number(float(v)) for v in row] for row in np.asarray(M, dtype=float)]
 
 
 def _array(value, shape, what) -> np.ndarray:

@@ -6,7 +6,7 @@ import numpy as np
 
 from .analysis import frequency_response
 
-__all__ = ["bode_plot"]
+__all__ = ["bode_plot", "table_bode_plot", "lifted_system"]
 
 
 def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
@@ -33,9 +33,14 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     -------
     matplotlib.figure.Figure
     """
+    resp = frequency_response(observer, omega)
+    return _draw_bands(resp, hz, title or _default_title(observer), fig)
+
+
+def _draw_bands(resp, hz, title, fig):
+    """Bode diagram of a :class:`~cfdesign.analysis.FrequencyResponse` (bands, sum, crossovers)."""
     import matplotlib.pyplot as plt
 
-    resp = frequency_response(observer, omega)
     scale, unit = (1 / (2 * np.pi), "Hz") if hz else (1.0, "rad/s")
     f = resp.omega * scale
     fig = fig or plt.figure(figsize=(8, 6.5))
@@ -55,7 +60,7 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
                    ha="right", va="bottom", color="0.25", transform=ax_ph.get_xaxis_transform())
     if crossovers:
         ax_mag.plot([], [], ":", color="0.5", marker="o", ms=4, label="crossover")
-    _finish_axes(ax_mag, ax_ph, resp, unit, title or _default_title(observer))
+    _finish_axes(ax_mag, ax_ph, resp, unit, title)
     fig.tight_layout()
     return fig
 
@@ -75,3 +80,86 @@ def _finish_axes(ax_mag, ax_ph, resp, unit, title):
     ax_ph.set_xlabel(f"frequency ({unit})" + (" - up to Nyquist" if resp.dt else ""))
     for ax in (ax_mag, ax_ph):
         ax.grid(True, which="both", alpha=0.3)
+
+
+def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
+    """Bode diagram of a gain table, from its own ``F, B, H, K`` (numpy; no sympy).
+
+    Single-rate tables: every band of the estimate the table outputs, their sum and the
+    crossovers, as :func:`bode_plot` draws them for an observer.  Multirate tables have no
+    single set of bands (they change with the phase): the figure shows the gains of every
+    phase, and the frequency response of the lifted system at the period rate
+    (:func:`lifted_system`, evaluated with ``control.frequency_response``) from each sensor's
+    reading, held over the period, to the estimate at phase 0.
+    """
+    from .analysis import FrequencyResponse, default_frequencies
+    from .verify import band_polynomials
+
+    if table.period == 1:
+        coefficients = band_polynomials(table)[0]
+        dt = table.sample_time_s if table.domain == "z" else None
+        omega = default_frequencies(coefficients, dt) if omega is None else np.asarray(omega, dtype=float)
+        from . import linear
+
+        bands = {k: linear.response(num, den, omega, dt) for k, (num, den) in coefficients.items()}
+        resp = FrequencyResponse(omega, bands, dt, coefficients)
+        kind = f"discrete, T = {dt:g} s, {table.output}" if dt else "continuous"
+        return _draw_bands(resp, hz, title or f"Bode diagram of {table.name} ({kind})", fig)
+    return _multirate_figure(table, omega, hz, title, fig)
+
+
+def lifted_system(table):
+    """The lifted system of a multirate table over one period, as a ``control.StateSpace``.
+
+    With every reading ``w`` held over the period and ``x[k+1] = A_k x + G_k w`` at phase
+    ``k`` (:func:`cfdesign.linear.realisation` with the phase's gain), one period maps
+    ``x[0]`` to ``Phi x[0] + sum_k (A_{N-1} ... A_{k+1}) G_k w`` with the monodromy matrix
+    ``Phi``; the output is the table's estimate at phase 0, ``C_0 x + D_0 w``.  Sample time
+    ``N T``; inputs named after the sensors, output ``'estimate'``.
+    """
+    import control
+
+    from .verify import phase_realisation
+
+    phases = [phase_realisation(table, k) for k in range(table.period)]
+    n = len(table.F)
+    Phi, Bl = np.eye(n), np.zeros_like(phases[0].G)
+    for real in phases:
+        Phi, Bl = real.A @ Phi, real.A @ Bl + real.G
+    return control.ss(Phi, Bl, phases[0].C[:1], phases[0].D[:1], table.period * table.sample_time_s,
+                      inputs=[s.name for s in table.sensors], outputs=["estimate"], name="lifted")
+
+
+def _multirate_figure(table, omega, hz, title, fig):
+    import control
+    import matplotlib.pyplot as plt
+
+    fig = fig or plt.figure(figsize=(8, 7.5))
+    ax_k, ax_mag = fig.subplots(2, 1)
+    K = np.array(table.K)
+    phases = np.arange(table.period)
+    for j, s in enumerate(table.measurements):
+        for i in range(K.shape[1]):
+            if np.any(K[:, i, j]):
+                ax_k.step(phases, K[:, i, j], where="post", label=f"K[{i}, {s.name}]")
+    ax_k.set_xlabel("phase (base-rate steps)")
+    ax_k.set_ylabel("gain")
+    ax_k.set_title(title or f"{table.name}: gains per phase (period {table.period})")
+    ax_k.grid(True, alpha=0.3)
+    ax_k.legend(fontsize=8)
+    sys = lifted_system(table)
+    nyquist = np.pi / sys.dt
+    omega = np.logspace(np.log10(nyquist) - 4, np.log10(0.999 * nyquist), 400) if omega is None else omega
+    scale, unit = (1 / (2 * np.pi), "Hz") if hz else (1.0, "rad/s")
+    for j, name in enumerate(sys.input_labels):
+        resp = control.frequency_response(sys[0, j], omega)
+        with np.errstate(divide="ignore"):
+            ax_mag.semilogx(resp.omega * scale, 20 * np.log10(np.abs(resp.magnitude).ravel()),
+                            label=f"{name} -> estimate")
+    ax_mag.set_xlabel(f"frequency ({unit}) - up to the period's Nyquist")
+    ax_mag.set_ylabel("magnitude (dB)")
+    ax_mag.set_title(f"lifted system at the period rate (T = {sys.dt:g} s), readings held over a period")
+    ax_mag.grid(True, which="both", alpha=0.3)
+    ax_mag.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

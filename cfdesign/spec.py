@@ -9,10 +9,17 @@ A design file names a structure and describes each of its sensors::
     # wrap_angle = true            # a heading: angle readings and the estimate live in (-pi, pi]
     # output = "posterior"         # discrete: the estimate after each step's readings (default),
     #                              # or "prior", the one-step prediction
-    # discrete = true              # cf2, cf3, cfn: continuous unless true
+    # discrete = true              # cf2, cf3, cfn, chain: continuous unless true
     # order = 2                    # cf2 only;  bands = 4  # cfn only
+    # full = true                  # cfn only: a full gain matrix (cfn with 3 bands and full = true is the CKF3)
+    # structure = "chain"          # a general kinematic chain: order = the inputs' derivative order,
+    #                              # every sensor says what it measures (any number per order:
+    #                              # two gyros); role = "input" | "measurement" optional
     # [gains]                      # optional: fixed (hand-tuned) gains instead of optimal ones;
     # k1 = 12.6                    # a subset fixes those gains and optimises the others
+    # [crossover]                  # optional: gains that put the band crossovers here instead
+    # hz = 0.5                     # Hz; two bands: one frequency, three bands: [0.05, 2.0]
+    # damping = 0.707              # cf2 order 2 only: damping ratio of the closed-loop poles
 
     [sensors.gyro]
     measures = "rate"              # optional check against the structure
@@ -65,8 +72,8 @@ EXAMPLES = {
     "position": "position_imu_gps.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
-             "description", "gains", "wrap_angle", "output"}
-_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s"}
+             "description", "gains", "wrap_angle", "output", "crossover", "full"}
+_SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s", "role"}
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,8 @@ class SensorSpec:
     measures: str | None = None
     port: str | None = None
     offset_s: float = 0.0
+    #: ``input`` or ``measurement`` (structure ``chain``; inferred from ``measures`` when left out)
+    role: str | None = None
 
 
 @dataclass(frozen=True)
@@ -99,6 +108,10 @@ class FilterSpec:
     gains: dict | None = None
     wrap_angle: bool = False
     output: str | None = None
+    #: ``{'hz': (f1, ...), 'damping': zeta or None}``: a design by crossover (:mod:`cfdesign.crossover`)
+    crossover: dict | None = None
+    #: cfn: a full gain matrix instead of the sparse CF3 pattern
+    full: bool | None = None
 
     def sensor(self, name: str) -> SensorSpec:
         for x in self.sensors:
@@ -178,7 +191,32 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
         gains=_gains(data.get("gains")),
         wrap_angle=bool(_flag(data, "wrap_angle")),
         output=_choice(data, "output", ("posterior", "prior", None), None),
+        crossover=_crossover(data),
+        full=_flag(data, "full"),
     )
+
+
+def _crossover(data):
+    """``[crossover]``: ``hz`` (a frequency or an ascending list, Hz) and an optional ``damping``."""
+    table = data.get("crossover")
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise SpecError("crossover must be a table: [crossover] hz = 0.5")
+    _no_unknown(table, {"hz", "damping"}, "crossover.")
+    if data.get("gains") is not None:
+        raise SpecError("crossover: give either [gains] or [crossover], not both")
+    hz = table.get("hz")
+    if hz is None:
+        raise SpecError("crossover.hz: missing field (a frequency in Hz, or a list for three or more bands)")
+    values = hz if isinstance(hz, list) else [hz]
+    if not values:
+        raise SpecError("crossover.hz: give at least one frequency")
+    freqs = tuple(_number({"hz": v}, "hz", f"crossover.hz[{i}]" if isinstance(hz, list) else "crossover.hz",
+                          positive=True) for i, v in enumerate(values))
+    if any(freqs[i + 1] <= freqs[i] for i in range(len(freqs) - 1)):
+        raise SpecError(f"crossover.hz: the frequencies must increase, got {list(freqs)}")
+    return {"hz": freqs, "damping": _number(table, "damping", "crossover.damping", positive=True)}
 
 
 def _gains(table):
@@ -217,7 +255,8 @@ def _sensor(name, body) -> SensorSpec:
     if offset >= 1.0 / rate:
         raise SpecError(f"{field}.offset_s: {offset:g} s is not less than the sensor's period {1.0 / rate:g} s")
     return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"),
-                      _text(body, "port", field=f"{field}.port"), offset)
+                      _text(body, "port", field=f"{field}.port"), offset,
+                      _choice(body, "role", ("input", "measurement", None), None, f"{field}.role"))
 
 
 def _no_unknown(table, allowed, prefix):

@@ -26,7 +26,7 @@ import sympy as sp
 from ..errors import StructureError
 from .observer import Observer, Sensor, T, integrator_chain, s, z, zoh
 
-__all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "position", "ckf3_printed", "dckf3_printed",
+__all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "chain", "position", "ckf3_printed", "dckf3_printed",
            "eq32_denominator", "STRUCTURES", "STRUCTURE_OPTIONS", "structure"]
 
 #: names of the derivatives of the common quantity, by order (sensor names of cfn)
@@ -92,6 +92,75 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     sensors += [Sensor.measurement(DERIVATIVE_NAMES[j], j, j) for j in reversed(range(m))]
     label = f"cfn({n}{', full' if full else ''})"
     return _observer(*integrator_chain(m), sp.eye(m), K, sensors, label, discrete)
+
+
+def chain(order: int, inputs, measurements, *, weights=None, bias: bool = False, discrete: bool = False,
+          name: str = "chain") -> Observer:
+    """A general kinematic chain: states by derivative order, any number of sensors of each order.
+
+    State ``[psi, psi', ..., psi^(order-1)]`` (plus a rate-correction state ``c`` when
+    ``bias``); the ``order``-th derivative drives the chain.  Every sensor of that order is an
+    input and the chain is driven by their weighted sum,
+
+        psi^(order) = sum_i w_i u_i (+ c),   sum_i w_i = 1,
+
+    so two gyros of a heading chain (``order = 1``) are averaged with weights ``w_i`` (by default
+    equal; the designer passes the minimum-variance weights ``w_i ~ 1 / q_i`` of their white
+    noise).  With exact readings every ``u_i`` equals the true derivative, so the estimation error
+    is autonomous and the bands sum to one for every gain and every weights that sum to one
+    (``docs/derivations.md``, "One observer"; "A general kinematic chain").  ``bias`` adds the
+    rate-correction state of :func:`cf2` order 2 (``c' = 0``, ``c`` minus the inputs' common bias).
+
+    Sensors of lower order are measurements: row ``j`` of ``H`` picks the state of the sensor's
+    order (two compasses give two equal rows).  The gain is full (``k{i}{j}``), so the Kalman
+    gain fits it.
+
+    Parameters
+    ----------
+    order : int
+        Derivative order of the input sensors (1: rate inputs to an angle, 2: accelerations).
+    inputs : sequence of str
+        Input sensor names (order ``order``), at least one.
+    measurements : sequence of (str, int)
+        ``(name, derivative order < order)``, at least one.
+    weights : sequence of numbers, optional
+        One per input, summing to one (taken exactly); default equal weights.
+    bias, discrete : bool
+    name : str
+    """
+    if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= len(DERIVATIVE_NAMES) - 1:
+        raise StructureError(f"chain order must be an integer from 1 to {len(DERIVATIVE_NAMES) - 1}, got {order!r}")
+    inputs, measurements = list(inputs), [(str(n), o) for n, o in measurements]
+    if not inputs:
+        raise StructureError(f"a chain of order {order} needs at least one input sensor of order {order}")
+    if not measurements:
+        raise StructureError("a chain needs at least one measurement sensor (of order below the inputs')")
+    for m_name, m_order in measurements:
+        if isinstance(m_order, bool) or not isinstance(m_order, int) or not 0 <= m_order < order:
+            raise StructureError(f"sensor {m_name!r}: a measurement of a chain of order {order} must have a "
+                                 f"derivative order from 0 to {order - 1}, got {m_order!r}")
+    if weights is None:
+        weights = [sp.Rational(1, len(inputs))] * len(inputs)
+    from .observer import exact_number
+
+    weights = [exact_number(w, f"weight of {n}") for n, w in zip(inputs, weights, strict=True)]
+    if any(w <= 0 for w in weights) or sum(weights) != 1:
+        raise StructureError(f"chain input weights must be positive and sum to 1 exactly, got {weights}")
+    n = order + (1 if bias else 0)
+    Fc = sp.zeros(n, n)
+    for i in range(order - 1):
+        Fc[i, i + 1] = 1
+    if bias:
+        Fc[order - 1, order] = 1
+    Bc = sp.zeros(n, len(inputs))
+    for j, w in enumerate(weights):
+        Bc[order - 1, j] = w
+    H = sp.Matrix([[1 if c == o else 0 for c in range(n)] for _, o in measurements])
+    m = len(measurements)
+    K = sp.Matrix(n, m, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}" if n < 10 and m < 10 else f"k{i + 1}_{j + 1}"))
+    sensors = [Sensor.input(x, order, column=j, bias_state=order if bias else None) for j, x in enumerate(inputs)]
+    sensors += [Sensor.measurement(x, o, row) for row, (x, o) in enumerate(measurements)]
+    return _observer(Fc, Bc, H, K, sensors, name, discrete)
 
 
 def cf3(*, discrete: bool = False) -> Observer:

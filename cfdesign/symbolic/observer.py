@@ -185,6 +185,9 @@ def _chain_transfers(Fd, Bd):
 
 
 def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
+    if hasattr(value, "dt") and hasattr(value, "ninputs"):  # a python-control system, not a matrix
+        raise StructureError(f"{name} is a python-control {type(value).__name__}, not a matrix; build the observer "
+                             "with Observer.from_statespace(sys, K, sensors)")
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
@@ -293,6 +296,36 @@ class Observer:
         elif continuous is not None:
             continuous = (_matrix("Fc", continuous[0], n, n), _matrix("Bc", continuous[1], n, B.shape[1]))
         self.continuous = continuous
+
+    @classmethod
+    def from_statespace(cls, sys, K, sensors, *, gain_form="predictor", name=None) -> Observer:
+        """An observer of the model of a ``control.StateSpace``: ``F = A``, ``B``, ``H = C``.
+
+        Continuous systems (``dt = 0``) give an ``s`` observer; discrete ones a ``z`` observer
+        with ``sample_time = dt`` (a number; ``dt = True``, unspecified, is refused).  ``D``
+        must be zero (the engine's measurements read the state only).  ``sensors`` name every
+        input (column of ``B``) and output (row of ``C``), as :class:`Sensor` objects; ``K``
+        is the gain (symbols or numbers, ``n x outputs``).
+
+        Raises
+        ------
+        StructureError
+            ``sys`` is not a state-space system, has a feedthrough, or an unspecified sample time.
+        """
+        import control
+
+        if not isinstance(sys, control.StateSpace):
+            raise StructureError(f"from_statespace needs a control.StateSpace, got {type(sys).__name__} "
+                                 "(control.ss(tf) converts a transfer function)")
+        if np.any(np.asarray(sys.D) != 0):
+            raise StructureError(f"{sys.name}: D must be zero (measurements read the state, no feedthrough)")
+        if sys.dt is True:
+            raise StructureError(f"{sys.name}: discrete with an unspecified sample time (dt=True); give dt in seconds")
+        discrete = bool(sys.dt)
+        to_exact = lambda M: [[exact_number(float(v), "entry") for v in row] for row in np.asarray(M)]  # noqa: E731
+        return cls(to_exact(sys.A), to_exact(sys.B), to_exact(sys.C), K, sensors, domain="z" if discrete else "s",
+                   sample_time=float(sys.dt) if discrete else None, gain_form=gain_form,
+                   name=name or sys.name)
 
     # ------------------------------------------------------------------ structure
     def _check_sensors(self, sensors):

@@ -1,0 +1,628 @@
+r"""Noise identification from a static recording: overlapping Allan deviation and its fits.
+
+A sensor that sits still reads its own errors.  The Allan variance of such a recording,
+computed for averaging times ``tau``, separates the error terms by their slopes on a log-log
+plot (IEEE Std 952-1997, Annex C; N. El-Sheimy, H. Hou, X. Niu, *Analysis and modeling of
+inertial sensors using Allan variance*, IEEE Trans. Instrum. Meas. 57(1), 2008):
+
+.. math::
+
+    \sigma^2(\tau) = \underbrace{\frac{3 Q^2}{\tau^2}}_{\text{quantisation}}
+                   + \underbrace{\frac{N^2}{\tau}}_{\text{white noise}}
+                   + \underbrace{\frac{2\ln 2}{\pi} B^2}_{\text{bias instability}}
+                   + \underbrace{\frac{K^2 \tau}{3}}_{\text{rate random walk}}
+                   + \underbrace{\frac{R^2 \tau^2}{2}}_{\text{rate ramp}} .
+
+* ``N`` (white noise density, ``u/sqrt(Hz)``) is the ADEV of the slope -1/2 asymptote read at
+  ``tau = 1 s``; it is the design file's ``noise = { density = N }`` (two-sided PSD ``N^2``,
+  the convention of :mod:`cfdesign.noise`: ``sigma^2 = N^2 f`` per sample at rate ``f``).
+* ``K`` (rate random walk, ``u/sqrt(s)``) is the slope +1/2 asymptote read at ``tau = 3 s``;
+  it is ``bias = { model = "random_walk", density = K }`` (the bias rate of change is white
+  with PSD ``K^2``).
+* ``B`` (bias instability, ``u``) is the flat part divided by ``sqrt(2 ln 2 / pi) = 0.664``.
+  A design file has no entry for it (the filters model a random-walk bias); it is reported.
+
+Method (:func:`identify_noise`):
+
+1. the overlapping Allan deviation at octave-spaced ``tau = m / f``, ``m = 1, 2, 4, ...``
+   (D. W. Allan's estimator with all overlapping differences; W. J. Riley, *Handbook of
+   Frequency Stability Analysis*, NIST SP 1065, 2008, eq. (11)) from the phase
+   ``x = cumsum(y) / f`` of the readings ``y``;
+2. the equivalent degrees of freedom (EDF) of each point by the simple formulas of Howe,
+   Allan and Barnes (*Properties of signal sources and measurement methods*, 1981; Riley
+   SP 1065 Table 5) for the noise type that dominates there;
+3. a weighted non-negative least-squares fit of the five-term model above in the variance
+   domain (``sigma^2`` is linear in ``Q^2, N^2, B^2, K^2, R^2``), each point weighted by the
+   inverse of its variance ``2 sigma^4 / edf``, re-weighted with the model until it settles;
+4. each term is reported only where the data show it: it must be significant (more than two
+   standard errors above zero), it must *dominate* the fitted variance (at least half of it)
+   over a ``tau`` range holding at least two points, and over that range the measured
+   log-log slope must agree with the model's (the slope check).  Otherwise the term is
+   ``None`` with the reason (for example: a recording too short for the random walk to
+   dominate at any ``tau`` it can resolve);
+5. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
+   ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
+
+Why not allantools: its ``oadev`` computes the same deviation (the tests and
+``benchmarks/bench_noise.py`` hold the two against each other to 1e-12), but the package has
+no fit of ``N, B, K`` and installs pytest and numpydoc as run-time requirements; the estimator
+itself is a few lines of numpy.  It is the optional ``noise`` extra, used by the benchmark.
+
+numpy and scipy only; matplotlib only in :meth:`NoiseFit.plot`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataError, InputError
+
+__all__ = ["oadev", "octave_taus", "edf_simple", "identify_noise", "NoiseFit", "NoiseTerm", "TERMS",
+           "read_log_columns", "noise_toml", "adev_plot"]
+
+#: the terms of the Allan variance model: name -> (symbol, slope of the ADEV, basis of the variance, unit)
+TERMS = {
+    "quantization": ("Q", -1.0, lambda t: 3.0 / t**2, "u*s"),
+    "white": ("N", -0.5, lambda t: 1.0 / t, "u/sqrt(Hz)"),
+    "bias_instability": ("B", 0.0, lambda t: np.full_like(t, 2.0 * math.log(2.0) / math.pi), "u"),
+    "random_walk": ("K", 0.5, lambda t, dt=0.0: t / 3.0 + dt**2 / (6.0 * t), "u/sqrt(s)"),
+    "rate_ramp": ("R", 1.0, lambda t: t**2 / 2.0, "u/s"),
+}
+#: the noise type (power-law exponent alpha of the frequency PSD) each term is, for the EDF
+_ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": -2, "rate_ramp": -2}
+#: fewest samples a recording must have
+MIN_SAMPLES = 16
+#: share of the fitted variance a term must reach to dominate
+DOMINANCE = 0.5
+#: confidence level of the intervals
+CONFIDENCE = 0.95
+
+
+# ---------------------------------------------------------------------------- the deviation
+def octave_taus(n_samples: int, rate_hz: float) -> np.ndarray:
+    """Averaging factors ``m = 1, 2, 4, ...`` up to ``(n_samples - 1) // 2`` (ints)."""
+    top = (n_samples - 1) // 2
+    return 2 ** np.arange(int(math.log2(top)) + 1) if top >= 1 else np.zeros(0, dtype=int)
+
+
+def oadev(y, rate_hz: float, m=None):
+    """Overlapping Allan deviation of rate readings ``y`` sampled at ``rate_hz``.
+
+    .. math:: \\sigma^2(\\tau) = \\frac{1}{2\\tau^2 (M - 2m)} \\sum_{i=0}^{M-2m-1}
+              (x_{i+2m} - 2x_{i+m} + x_i)^2,\\qquad x_i = \\frac{1}{f}\\sum_{j<i} y_j
+
+    with ``M = len(y) + 1`` phase points and ``tau = m / f`` (Riley, NIST SP 1065, eq. (11);
+    the same as ``allantools.oadev(y, rate, 'freq', taus)``).
+
+    Parameters
+    ----------
+    y : array_like
+        Readings at a constant rate, in the sensor's unit ``u`` (rad/s for a gyro).
+    rate_hz : float
+    m : array_like of int, optional
+        Averaging factors; default :func:`octave_taus`.
+
+    Returns
+    -------
+    (tau_s, adev, m) : tuple of ndarray
+    """
+    y = np.asarray(y, dtype=float)
+    m = octave_taus(len(y), rate_hz) if m is None else np.asarray(m, dtype=int)
+    x = np.concatenate([[0.0], np.cumsum(y - y.mean())]) / rate_hz  # the mean changes no difference
+    M = len(x)
+    out = np.empty(len(m))
+    for k, mk in enumerate(m):
+        d = x[2 * mk:] - 2 * x[mk:M - mk] + x[:M - 2 * mk]
+        tau = mk / rate_hz
+        out[k] = math.sqrt(np.dot(d, d) / (2 * tau**2 * (M - 2 * mk)))
+    return m / rate_hz, out, m
+
+
+def edf_simple(n_phase: int, m, alpha: int):
+    """EDF of the overlapping Allan variance, the simple formulas of Howe, Allan and Barnes
+    (Riley, NIST SP 1065, Table 5), for ``n_phase`` phase points, averaging factor ``m`` and
+    frequency-noise exponent ``alpha`` (2 white PM, 0 white FM, -1 flicker FM, -2 random-walk FM).
+    ``allantools.edf_simple`` gives the same values except for flicker FM at ``m = 1``, where it
+    drops the square of ``(N - 2)`` in Riley's ``2 (N - 2)^2 / (2.3 N - 4.9)``."""
+    N, m = float(n_phase), np.asarray(m, dtype=float)
+    if alpha >= 1:  # white (and flicker) PM
+        return (N + 1) * (N - 2 * m) / (2 * (N - m))
+    if alpha == 0:
+        return (3 * (N - 1) / (2 * m) - 2 * (N - 2) / N) * 4 * m**2 / (4 * m**2 + 5)
+    if alpha == -1:
+        return np.where(m == 1, 2 * (N - 2) ** 2 / (2.3 * N - 4.9), 5 * N**2 / (4 * m * (N + 3 * m)))
+    return (N - 2) / m * ((N - 1) ** 2 - 3 * m * (N - 1) + 4 * m**2) / (N - 3) ** 2
+
+
+# ---------------------------------------------------------------------------- the fit
+@dataclass(frozen=True)
+class NoiseTerm:
+    """One identified term of the Allan variance.
+
+    Attributes
+    ----------
+    name : str
+        ``white``, ``bias_instability``, ``random_walk``, ``quantization`` or ``rate_ramp``.
+    symbol : str
+        ``N``, ``B``, ``K``, ``Q``, ``R``.
+    value : float
+        In ``unit`` (the sensor's unit ``u`` per ...).
+    ci : (float, float)
+        95 % confidence interval.
+    tau_range_s : (float, float)
+        The averaging times over which the term dominates and was checked.
+    slope : float
+        The measured log-log slope over that range (the term's own is ``nominal_slope``).
+    nominal_slope : float
+    edf : float
+        Equivalent degrees of freedom of the estimate.
+    unit : str
+    """
+
+    name: str
+    symbol: str
+    value: float
+    ci: tuple
+    tau_range_s: tuple
+    slope: float
+    nominal_slope: float
+    edf: float
+    unit: str
+
+    def line(self, unit: str = "u") -> str:
+        unit_text = self.unit.replace("u", unit, 1)
+        return (f"{self.symbol} = {self.value:.4g} {unit_text} (95% CI {self.ci[0]:.4g} to {self.ci[1]:.4g}; "
+                f"slope {self.slope:+.2f}, expected {self.nominal_slope:+.1f}, over tau "
+                f"{self.tau_range_s[0]:.3g} to {self.tau_range_s[1]:.3g} s)")
+
+
+@dataclass(frozen=True)
+class NoiseFit:
+    """The Allan deviation of one recording and the terms identified in it.
+
+    Attributes
+    ----------
+    name : str
+        The column (sensor) name.
+    rate_hz, duration_s : float
+    tau_s, adev, edf : ndarray
+        The octave-spaced overlapping Allan deviation and each point's EDF.
+    terms : dict
+        ``{term name: NoiseTerm}`` for the terms the data show.
+    missing : dict
+        ``{term name: reason}`` for the terms of the model that are not reported.
+    model_variance : ndarray
+        The fitted Allan variance at ``tau_s`` (all significant terms).
+    """
+
+    name: str
+    rate_hz: float
+    duration_s: float
+    tau_s: np.ndarray
+    adev: np.ndarray
+    edf: np.ndarray
+    terms: dict
+    missing: dict
+    coefficients: dict = field(default_factory=dict)
+
+    # the three figures of a design file
+    @property
+    def white_density(self) -> float | None:
+        """``N`` in ``u/sqrt(Hz)``: the design file's ``noise.density``; None when not shown."""
+        return self._value("white")
+
+    @property
+    def bias_instability(self) -> float | None:
+        """``B`` in ``u`` (reported; a design file has no entry for it); None when not shown."""
+        return self._value("bias_instability")
+
+    @property
+    def random_walk_density(self) -> float | None:
+        """``K`` in ``u/sqrt(s)``: the design file's ``bias.density``; None when not shown."""
+        return self._value("random_walk")
+
+    def _value(self, name):
+        term = self.terms.get(name)
+        return None if term is None else term.value
+
+    def adev_ci(self, level: float = 0.683) -> tuple:
+        """``(low, high)`` chi-square interval of every ADEV point (Riley SP 1065 eq. (43))."""
+        from scipy.stats import chi2
+
+        lo = self.adev * np.sqrt(self.edf / chi2.ppf(0.5 + level / 2, self.edf))
+        hi = self.adev * np.sqrt(self.edf / chi2.ppf(0.5 - level / 2, self.edf))
+        return lo, hi
+
+    def model_adev(self, tau_s, terms=None) -> np.ndarray:
+        """The fitted ADEV (the reported terms, or only ``terms``) at ``tau_s``."""
+        tau_s = np.asarray(tau_s, dtype=float)
+        names = self.terms if terms is None else terms
+        A = _basis(tau_s, 1.0 / self.rate_hz if terms is None else 0.0)
+        return np.sqrt(sum((self.coefficients[k] * A[:, list(TERMS).index(k)] for k in names), np.zeros_like(tau_s)))
+
+    def design_entries(self) -> dict:
+        """``{'noise': {'density': N}, 'bias': {'model': 'random_walk', 'density': K}}`` with
+        the entries the data support (a design file's ``[sensors.NAME]`` fields)."""
+        out = {}
+        if self.white_density is not None:
+            out["noise"] = {"density": self.white_density}
+        if self.random_walk_density is not None:
+            out["bias"] = {"model": "random_walk", "density": self.random_walk_density}
+        return out
+
+    def summary(self, unit: str = "u") -> str:
+        """Plain text: one line per term found, one per term not shown with its reason."""
+        unit = _comment(unit)
+        lines = [f"{_comment(self.name)}: {self.duration_s:.6g} s at {self.rate_hz:.6g} Hz, Allan deviation at "
+                 f"{len(self.tau_s)} octave-spaced tau from {self.tau_s[0]:.3g} to {self.tau_s[-1]:.3g} s"]
+        for key in TERMS:
+            if key in self.terms:
+                lines.append(f"  {_LABELS[key]}: {self.terms[key].line(unit)}")
+            elif key in _REPORTED:
+                lines.append(f"  {_LABELS[key]}: not identified ({self.missing[key]})")
+        return "\n".join(lines)
+
+    def plot(self, ax=None, unit: str = "u"):
+        """Log-log Allan deviation with 68 % intervals and the fitted asymptotes (matplotlib)."""
+        return adev_plot([self], ax=ax, unit=unit)
+
+
+_LABELS = {"quantization": "quantization noise Q", "white": "white noise density N",
+           "bias_instability": "bias instability B", "random_walk": "rate random walk K",
+           "rate_ramp": "rate ramp R"}
+_REPORTED = ("white", "bias_instability", "random_walk")
+
+
+def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
+    """Identify white noise ``N``, bias instability ``B`` and rate random walk ``K`` of a
+    static recording from its overlapping Allan deviation (method: module docstring).
+
+    Parameters
+    ----------
+    x : array_like
+        Readings of one axis at a constant rate, sensor at rest, in its unit ``u`` (rad/s
+        for a gyro, m/s^2 for an accelerometer).  Finite values only.
+    rate_hz : float
+        Sample rate (Hz).
+    name : str
+        Label (the column name).
+
+    Returns
+    -------
+    NoiseFit
+        ``white_density`` (N, u/sqrt(Hz)), ``random_walk_density`` (K, u/sqrt(s)),
+        ``bias_instability`` (B, u), each None when the recording does not show the term
+        (``missing`` says why), with 95 % confidence intervals and the tau ranges used.
+
+    Raises
+    ------
+    InputError
+        Fewer than :data:`MIN_SAMPLES` readings, a value that is not finite, a constant
+        recording, or a rate that is not positive.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> fit = identify_noise(0.01 * rng.standard_normal(100_000), 100.0)
+    >>> round(fit.white_density, 4), fit.random_walk_density   # 0.01 / sqrt(100)
+    (0.001, None)
+    """
+    y = np.asarray(x, dtype=float).ravel()
+    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
+            math.isfinite(rate_hz) and rate_hz > 0):
+        raise InputError(f"{name}: rate_hz must be a positive number of hertz, got {rate_hz!r}")
+    if len(y) < MIN_SAMPLES:
+        raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation (at least {MIN_SAMPLES})")
+    bad = np.flatnonzero(~np.isfinite(y))
+    if bad.size:
+        raise InputError(f"{name}: reading {bad[0]} is not finite ({y[bad[0]]}); the Allan deviation needs a "
+                         "complete recording (cut it at the gap)")
+    if np.ptp(y) == 0:
+        raise InputError(f"{name}: the readings are constant: no noise to identify (quantised to one level?)")
+    tau, adev, m = oadev(y, float(rate_hz))
+    keep = adev > 0
+    tau, adev, m = tau[keep], adev[keep], m[keep]
+    active, dropped = list(TERMS), {}
+    while True:  # fit, drop the terms the data do not show, refit with the rest
+        coef, cov, edf, used = _fit(tau, adev**2, m, len(y) + 1, active, 1.0 / rate_hz)
+        terms, missing = _terms(tau, adev, edf, coef, cov, used, len(y) / rate_hz, 1.0 / rate_hz)
+        gone = [k for k in active if k not in terms]
+        if not gone:
+            break
+        dropped.update({k: missing[k] for k in gone})
+        active = [k for k in active if k in terms]
+    missing = {**dropped, **missing}
+    coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
+    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _basis(tau, dt=0.0):
+    """Columns: each term's variance per unit coefficient; the random walk of sampled readings
+    has ``K^2 (tau / 3 + dt^2 / (6 tau))`` exactly (the second part vanishes for long tau)."""
+    return np.column_stack([TERMS[k][2](tau, dt) if k == "random_walk" else TERMS[k][2](tau) for k in TERMS])
+
+
+def _edf(model_parts, m, n_phase):
+    """EDF of every point for the noise type that dominates the model there."""
+    dominant = np.argmax(model_parts, axis=1)
+    names = list(TERMS)
+    out = np.array([float(edf_simple(n_phase, mk, _ALPHA[names[d]])) for mk, d in zip(m, dominant, strict=True)])
+    return np.maximum(out, 1.0)
+
+
+def _fit(tau, var, m, n_phase, active, dt):
+    """Weighted NNLS of the variance model with the ``active`` terms; ``(coef, cov, edf, used)``."""
+    from scipy.optimize import nnls
+
+    A = _basis(tau, dt) * np.array([k in active for k in TERMS], dtype=float)
+    model = var.copy()
+    edf = np.asarray(edf_simple(n_phase, m, 0), dtype=float).clip(1.0)
+    coef = np.zeros(A.shape[1])
+    for _ in range(8):
+        w = np.sqrt(edf / 2.0) / model  # 1 / std of each variance estimate
+        scale = np.abs(A * w[:, None]).max(axis=0)
+        scale[scale == 0] = 1.0
+        sol, _ = nnls(A * w[:, None] / scale, var * w, maxiter=50 * A.shape[1])
+        new = sol / scale
+        parts = A * new
+        model_new = np.maximum(parts.sum(axis=1), 1e-300)
+        edf = _edf(parts, m, n_phase)
+        if np.allclose(new, coef, rtol=1e-6, atol=0):
+            coef, model = new, model_new
+            break
+        coef, model = new, model_new
+    used = coef > 0
+    w = np.sqrt(edf / 2.0) / model
+    Aw = (A * w[:, None])[:, used]
+    cov = np.zeros((A.shape[1], A.shape[1]))
+    if used.any():
+        cov[np.ix_(used, used)] = np.linalg.pinv(Aw.T @ Aw)
+    return coef, cov, edf, used
+
+
+def _terms(tau, adev, edf, coef, cov, used, duration, dt):
+    from scipy.stats import chi2
+
+    A = _basis(tau, dt)
+    parts = A * coef
+    model = np.maximum(parts.sum(axis=1), 1e-300)
+    terms, missing = {}, {}
+    for i, key in enumerate(TERMS):
+        symbol, slope, _, unit = TERMS[key]
+        if not used[i]:
+            missing[key] = _absent_reason(key, tau, duration)
+            continue
+        se = math.sqrt(max(cov[i, i], 0.0))
+        if coef[i] <= 2 * se:
+            missing[key] = (f"not significant: {symbol}^2 = {coef[i]:.3g} is within two standard errors "
+                            f"({se:.2g}) of zero")
+            continue
+        share = parts[:, i] / model
+        dom = np.flatnonzero(share >= DOMINANCE)
+        if dom.size < 2:
+            where = "at any tau" if dom.size == 0 else f"at more than one tau ({tau[dom[0]]:.3g} s)"
+            missing[key] = (f"it does not dominate the Allan deviation {where} from {tau[0]:.3g} to "
+                            f"{tau[-1]:.3g} s" + _longer_hint(key, duration))
+            continue
+        lo, hi = dom[0], dom[-1]
+        sel = np.arange(lo, hi + 1)
+        measured = _slope(tau[sel], adev[sel], edf[sel])
+        expected = _slope(tau[sel], np.sqrt(model[sel]), edf[sel])
+        slope_se = _slope_se(tau[sel], edf[sel])
+        if abs(measured - expected) > 3 * slope_se + 0.1:
+            missing[key] = (f"the slope check fails: the measured slope {measured:+.2f} over tau {tau[lo]:.3g} to "
+                            f"{tau[hi]:.3g} s differs from the model's {expected:+.2f} (expected near {slope:+.1f})")
+            continue
+        # EDF: the fit treats the octave points as independent, but overlapping estimates
+        # share data (strongly so for the random walk); the interval takes the term's best
+        # single point instead, nu = max edf_i share_i^2 (as if its points were fully correlated)
+        nu = min(2 * coef[i] ** 2 / max(cov[i, i], 1e-300), float(np.max(edf[sel] * share[sel] ** 2)))
+        lo_var = coef[i] * nu / chi2.ppf(0.5 + CONFIDENCE / 2, nu)
+        hi_var = coef[i] * nu / chi2.ppf(0.5 - CONFIDENCE / 2, nu)
+        terms[key] = NoiseTerm(key, symbol, math.sqrt(coef[i]), (math.sqrt(lo_var), math.sqrt(hi_var)),
+                               (float(tau[lo]), float(tau[hi])), float(measured), slope, float(nu), unit)
+    return terms, missing
+
+
+def _absent_reason(key, tau, duration):
+    return f"the fit gives it no share of the Allan variance from {tau[0]:.3g} to {tau[-1]:.3g} s" + \
+        _longer_hint(key, duration)
+
+
+def _longer_hint(key, duration):
+    if key in ("random_walk", "rate_ramp", "bias_instability"):
+        return f"; a recording longer than {duration:.3g} s may show it"
+    return ""
+
+
+def _slope(tau, adev, edf):
+    """Weighted log-log slope (var of log sigma about 1 / (2 edf))."""
+    if len(tau) < 2:
+        return float("nan")
+    w = 2 * edf
+    X, Y = np.log(tau), np.log(adev)
+    xm, ym = np.average(X, weights=w), np.average(Y, weights=w)
+    return float(np.sum(w * (X - xm) * (Y - ym)) / np.sum(w * (X - xm) ** 2))
+
+
+def _slope_se(tau, edf):
+    w = 2 * edf
+    X = np.log(tau)
+    xm = np.average(X, weights=w)
+    return float(1.0 / math.sqrt(np.sum(w * (X - xm) ** 2)))
+
+
+# ---------------------------------------------------------------------------- output
+def _key(name: str) -> str:
+    """A design-file sensor name from a column name (an ASCII identifier)."""
+    import keyword
+
+    key = "".join(c if (c.isascii() and c.isalnum()) else "_" for c in name).strip("_") or "sensor"
+    if key[0].isdigit() or keyword.iskeyword(key):
+        key = "s_" + key
+    return key
+
+
+def _comment(text: str) -> str:
+    return "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
+
+
+def noise_toml(fits, source: str = "", unit: str = "u") -> str:
+    """Design-file entries (TOML) for every fit: ``[sensors.NAME]`` with ``rate_hz``,
+    ``noise = { density = N }`` and ``bias = { model = "random_walk", density = K }`` where
+    the recording shows them, the rest as comments saying why not."""
+    unit = _comment(unit)
+    lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
+             "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
+             "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
+             "# Add measures = \"...\" and copy the tables into your design file.", ""]
+    for fit in fits:
+        key = _key(fit.name)
+        lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
+        lines.append(f"rate_hz = {fit.rate_hz!r}")
+        white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
+        if white is not None:
+            lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz); "
+                         + _ci_text(white))
+        else:
+            lines.append(f"# noise: not identified ({_comment(fit.missing['white'])})")
+        if rw is not None:
+            lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s); "
+                         + _ci_text(rw))
+        else:
+            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])})")
+        if bi is not None:
+            lines.append(f"# bias instability B = {bi.value:.4g} {unit} ({_ci_text(bi)}); the design "
+                         "models the bias as a random walk")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _ci_text(term):
+    return (f"95% CI {term.ci[0]:.4g} to {term.ci[1]:.4g}, fitted over tau {term.tau_range_s[0]:.3g} to "
+            f"{term.tau_range_s[1]:.3g} s")
+
+
+def adev_plot(fits, ax=None, unit: str = "u"):
+    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes; returns the figure."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7.5, 5))
+    else:
+        fig = ax.figure
+    for fit in fits:
+        lo, hi = fit.adev_ci()
+        pts = ax.errorbar(fit.tau_s, fit.adev, yerr=[fit.adev - lo, hi - fit.adev], fmt="o", ms=4, capsize=2,
+                          label=f"{fit.name}: overlapping ADEV")
+        color = pts[0].get_color()
+        grid = np.logspace(np.log10(fit.tau_s[0]), np.log10(fit.tau_s[-1]), 200)
+        if fit.terms:
+            ax.loglog(grid, fit.model_adev(grid), "-", color=color, lw=1.5, alpha=0.7, label=f"{fit.name}: fit")
+        for key, term in fit.terms.items():
+            asym = fit.model_adev(grid, [key])
+            ax.loglog(grid, asym, "--", color=color, lw=1, alpha=0.8)
+            a, b = term.tau_range_s
+            mid = math.sqrt(a * b)
+            ax.annotate(f"{term.symbol}={term.value:.3g}", (mid, float(fit.model_adev([mid], [key])[0])),
+                        fontsize=8, color=color, textcoords="offset points", xytext=(0, 6))
+        for key, read_at in (("white", 1.0), ("random_walk", 3.0)):
+            if key in fit.terms:
+                ax.plot([read_at], [fit.terms[key].value], "x", color=color, ms=8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("averaging time tau (s)")
+    ax.set_ylabel(f"Allan deviation ({unit})")
+    ax.set_title("Allan deviation and fitted asymptotes (x: N read at 1 s, K at 3 s)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+# ---------------------------------------------------------------------------- reading a log
+#: largest CSV read for noise identification (bytes)
+MAX_LOG_BYTES = 2_000_000_000
+
+
+def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
+    """``(rate_hz or None, {column: array})`` from a CSV log with a header row.
+
+    The small reader ``cfdesign noise`` uses (to be swapped for the shared log reader):
+    every named column must exist and hold a number on every row; with ``time_column`` the
+    rate is ``1 / median(diff(time))`` and the times must increase steadily (no gap longer
+    than 1.5 steps, no step shorter than half of one).
+
+    Raises
+    ------
+    DataError
+        One line naming the file and the column or line.
+    """
+    path = Path(path)
+    wanted = list(columns) + ([time_column] if time_column else [])
+    try:
+        if path.stat().st_size > MAX_LOG_BYTES:
+            raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
+        fh = open(path, newline="", encoding="utf-8")
+    except OSError as exc:
+        raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
+    with fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise DataError(f"{path}: empty file (expected a header naming the columns)") from None
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise DataError(f"{path}: not a readable CSV file: {exc}") from None
+        missing = [c for c in wanted if c not in header]
+        if missing:
+            raise DataError(f"{path}: no column {_comment(missing[0])!r} (header: "
+                            f"{_comment(', '.join(header))[:300]})")
+        dup = [c for c in wanted if header.count(c) > 1]
+        if dup:
+            raise DataError(f"{path}: column {_comment(dup[0])!r} appears twice in the header")
+        index = [header.index(c) for c in wanted]
+        values = [[] for _ in wanted]
+        line = 1
+        try:
+            for line, row in enumerate(reader, start=2):
+                if not row:
+                    continue
+                for j, col in enumerate(index):
+                    cell = row[col].strip() if col < len(row) else ""
+                    try:
+                        v = float(cell)
+                    except ValueError:
+                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is not a number: "
+                                        f"{_comment(cell)[:40]!r}") from None
+                    if not math.isfinite(v):
+                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is {cell!r}; the "
+                                        "Allan deviation needs a complete recording (cut the log at the gap)")
+                    values[j].append(v)
+        except (UnicodeDecodeError, csv.Error) as exc:
+            raise DataError(f"{path} line {line}: not readable CSV: {exc}") from None
+    data = {c: np.array(v) for c, v in zip(wanted, values, strict=True)}
+    rate = None
+    if time_column:
+        rate = _rate_from_time(path, time_column, data.pop(time_column))
+    return rate, {c: data[c] for c in columns}
+
+
+def _rate_from_time(path, name, t) -> float:
+    if len(t) < 2:
+        raise DataError(f"{path}: column {_comment(name)!r} has fewer than two times")
+    dt = np.diff(t)
+    step = float(np.median(dt))
+    if not step > 0:
+        raise DataError(f"{path}: column {_comment(name)!r} does not increase")
+    bad = np.flatnonzero((dt > 1.5 * step) | (dt < 0.5 * step))
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(f"{path} line {i + 3}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
+                        f"step is {step:.6g} s; the Allan deviation needs evenly sampled data (cut the log at the gap)")
+    return float((len(t) - 1) / (t[-1] - t[0]))

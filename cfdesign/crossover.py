@@ -1,0 +1,246 @@
+r"""Design by crossover: gains that put the hand-over between adjacent bands where asked.
+
+A crossover is the frequency where two adjacent bands have equal magnitude
+(:meth:`cfdesign.analysis.FrequencyResponse.crossovers` finds them on a designed filter; this
+module goes the other way).  Bands are ordered by the derivative order of their sensor (the
+angle or position sensor is the low-pass band, the top derivative the high-pass one), and
+crossover ``i`` is between bands ``i`` and ``i + 1``.
+
+Continuous closed forms (``docs/derivations.md``, section "Design by crossover"; derived by
+:func:`cfdesign.symbolic.crossover.crossover_solution` with sympy, and pinned by the tests):
+
+* ``cf2`` order 1, ``T_angle = k/(s + k)``, ``T_rate = s/(s + k)``: ``|k| = |j w_c|`` gives
+  ``k = w_c``;
+* ``cf2`` order 2, ``T_angle = (k1 s + k2)/d``, ``T_rate = s^2/d``: with the closed-loop poles of
+  damping ``zeta`` (``k1 = 2 zeta w_n``, ``k2 = w_n^2``), ``k2^2 + k1^2 w_c^2 = w_c^4`` gives
+
+  .. math:: w_n = w_c \sqrt{\sqrt{1 + 4\zeta^4} - 2\zeta^2};
+
+* ``cfn`` / ``cf3`` (the sparse pattern of Carreira et al. eq. (13) extended),
+  ``T_j = k_{n-1-j} s^j / d``: ``|T_j| = |T_{j+1}|`` at ``w_j`` gives
+  ``k_{n-1-j} = k_{n-2-j} w_j`` with ``k_0 = 1``, so ``k_i = w_{n-2} w_{n-3} ... w_{n-1-i}``
+  (for the CF³: ``k1 = w_1``, ``k2 = w_0 w_1``).
+
+Discrete filters have ZOH relations, so the magnitudes on the unit circle differ from the
+continuous ones: the gains are solved numerically (Brent's method or a least-squares Newton
+iteration on the log-magnitude differences, started from the continuous closed form times
+``T``, the per-step gain it approximates), the
+damping of cf2 order 2 is imposed on the poles ``z = e^{sT}`` (Ackermann's formula), and the
+result is checked with the band responses of :mod:`cfdesign.linear` for the estimate the table
+outputs.
+
+numpy and scipy only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import linear
+from .errors import SpecError
+
+__all__ = ["crossover_gains", "crossover_check", "continuous_crossover_gains", "DEFAULT_DAMPING", "CROSSOVER_RTOL"]
+
+#: damping ratio of the closed-loop poles of cf2 order 2 unless the design file gives one
+DEFAULT_DAMPING = 1 / math.sqrt(2)
+#: the solved bands must have equal magnitude at each crossover to this relative tolerance
+CROSSOVER_RTOL = 1e-6
+
+
+def _ports(structure):
+    return sorted(structure.sensors, key=lambda s: (s.role != "input", s.index))
+
+
+def _bands_by_order(structure):
+    """Sensor names by derivative order (one sensor per order), low-pass first."""
+    orders = [s.order for s in structure.sensors]
+    if len(set(orders)) != len(orders):
+        raise SpecError(f"crossover: {structure.name} has two sensors of the same derivative order; a crossover "
+                        "design needs one band per order (use optimal gains or [gains])")
+    return [s.name for s in sorted(structure.sensors, key=lambda s: s.order)]
+
+
+def _kind(structure):
+    """``('cf2-1' | 'cf2-2' | 'chain', gain names in solve order)`` or a SpecError."""
+    pattern, gains = structure.pattern, structure.gains
+    n_meas, n_states = len(structure.H), len(structure.Fc)
+    if n_meas == 1 and all(isinstance(row[0], str) for row in pattern) and len(gains) == n_states:
+        if n_states == 1:
+            return "cf2-1", gains
+        if n_states == 2 and len(structure.sensors) == 2:
+            return "cf2-2", [pattern[0][0], pattern[1][0]]
+    # the sparse chain pattern: only the last row free, entry j of it drives band j
+    last = pattern[-1]
+    if (all(not isinstance(e, str) and e == 0 for row in pattern[:-1] for e in row)
+            and all(isinstance(e, str) for e in last) and len(set(last)) == len(last)
+            and np.allclose(structure.H, np.eye(n_states)) and len(structure.sensors) == n_states + 1):
+        return "chain", list(last)  # last[j] gains the sensor of order j
+    raise SpecError(f"crossover: not available for {structure.name} (its {len(gains)} gains are not fixed by "
+                    "crossover frequencies alone); crossover designs take cf2, cf3 and cfn with sparse gains")
+
+
+def continuous_crossover_gains(structure, hz, damping=None) -> dict:
+    """The continuous closed forms (module docstring) for ``hz`` (ascending, Hz)."""
+    kind, names = _kind(structure)
+    w = [2 * math.pi * f for f in hz]
+    _count(structure, hz)
+    if kind != "cf2-2" and damping is not None:
+        raise SpecError(f"crossover.damping: applies to cf2 order 2 only ({structure.name} has no free shape)")
+    if kind == "cf2-1":
+        return {names[0]: w[0]}
+    if kind == "cf2-2":
+        zeta = DEFAULT_DAMPING if damping is None else damping
+        wn = w[0] * math.sqrt(math.sqrt(1 + 4 * zeta**4) - 2 * zeta**2)
+        return {names[0]: 2 * zeta * wn, names[1]: wn**2}
+    # chain: k_i = w_{m-1} ... w_{m-i}, name of k_i = last[m - i] (m = number of states)
+    m = len(names)
+    out, prod = {}, 1.0
+    for i in range(1, m + 1):
+        prod *= w[m - i]
+        out[names[m - i]] = prod
+    return out
+
+
+def _count(structure, hz):
+    bands = _bands_by_order(structure)
+    if len(hz) != len(bands) - 1:
+        raise SpecError(f"crossover.hz: {structure.name} has {len(bands)} bands ({', '.join(bands)}), so "
+                        f"{len(bands) - 1} crossover frequenc{'y' if len(bands) == 2 else 'ies'}; got {len(hz)}")
+    return bands
+
+
+def crossover_check(structure, model, K, form, output, dt, hz) -> list:
+    """``[(band_a, band_b, hz, |T_a| / |T_b|)]`` at each requested crossover (1 when met)."""
+    bands = _bands_by_order(structure)
+    real = linear.realisation(model["F"], model["B"], model["H"], K, form, output)
+    omega = 2 * np.pi * np.asarray(hz, dtype=float)
+    resp = linear.band_responses(real, _ports(structure), "z" if dt else "s", dt, omega)
+    return [(bands[i], bands[i + 1], float(hz[i]), float(abs(resp[bands[i]][i]) / abs(resp[bands[i + 1]][i])))
+            for i in range(len(hz))]
+
+
+def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dict:
+    """Gains ``{name: value}`` whose adjacent bands have equal magnitude at ``hz``.
+
+    Parameters
+    ----------
+    structure : cfdesign.designer.Structure
+        cf2 (order 1 or 2), cf3 or a sparse cfn, continuous or discrete.
+    model : dict
+        ``F, B, H`` (discrete at ``dt``).
+    dt : float or None
+        Sample time (s) of a discrete design.
+    form : {'continuous', 'predictor', 'filter'}
+    output : {'prior', 'posterior'}
+        The estimate whose bands are meant (discrete tables).
+    hz : sequence of float
+        Crossover frequencies, ascending, in Hz.
+    damping : float, optional
+        cf2 order 2: damping ratio of the closed-loop poles (default ``1/sqrt(2)``).
+
+    Raises
+    ------
+    SpecError
+        The structure does not take a crossover design, the count of frequencies is not the
+        number of bands minus one, a frequency is at or above Nyquist, or no stabilising gain
+        meets them (the message names the crossover).
+    """
+    hz = [float(f) for f in hz]
+    _count(structure, hz)
+    if dt and hz[-1] >= 0.5 / dt:
+        raise SpecError(f"crossover.hz: {hz[-1]:g} Hz is not below the Nyquist frequency {0.5 / dt:g} Hz")
+    start = continuous_crossover_gains(structure, hz, damping)
+    if not dt:
+        gains = start
+    else:
+        kind, names = _kind(structure)
+        if kind == "cf2-2":
+            gains = _discrete_damped(structure, model, dt, form, output, hz, damping, names)
+        else:
+            gains = _discrete_square(structure, model, dt, form, output, hz, names, start)
+    K = _gain_matrix(structure, gains)
+    if not linear.is_stable(np.linalg.eigvals(linear.closed_loop(model["F"], model["H"], K, form)),
+                            "z" if dt else "s"):
+        raise SpecError(f"crossover: the gains that put the crossovers at {_hz(hz)} do not stabilise "
+                        f"{structure.name}")
+    for a, b, f, ratio in crossover_check(structure, model, K, form, output, dt, hz):
+        if not abs(ratio - 1) <= CROSSOVER_RTOL:
+            raise SpecError(f"crossover.hz: no gains of {structure.name} put the {a}/{b} crossover at {f:g} Hz "
+                            f"(closest: magnitude ratio {ratio:.4g}); choose frequencies further apart or "
+                            "further below Nyquist")
+    return gains
+
+
+def _hz(hz):
+    return ", ".join(f"{f:g} Hz" for f in hz)
+
+
+def _gain_matrix(structure, gains):
+    return np.array([[gains[e] if isinstance(e, str) else float(e) for e in row] for row in structure.pattern])
+
+
+def _log_ratios(structure, model, dt, form, output, hz, gains):
+    K = _gain_matrix(structure, gains)
+    return np.array([math.log(r) for *_, r in crossover_check(structure, model, K, form, output, dt, hz)])
+
+
+def _discrete_square(structure, model, dt, form, output, hz, names, start):
+    """As many gains as crossovers: Newton (least squares) on log gains from the continuous start."""
+    from scipy.optimize import least_squares
+
+    def residual(logk):
+        gains = dict(zip(names, np.exp(logk), strict=True))
+        with np.errstate(all="ignore"):
+            try:
+                r = _log_ratios(structure, model, dt, form, output, hz, gains)
+            except (ValueError, np.linalg.LinAlgError):
+                return np.full(len(hz), 1e3)
+        return r if np.all(np.isfinite(r)) else np.full(len(hz), 1e3)
+
+    x0 = np.log([start[n] * dt for n in names])  # a continuous gain k is about k T per step
+    sol = least_squares(residual, x0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
+    return dict(zip(names, (float(v) for v in np.exp(sol.x)), strict=True))
+
+
+def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
+    """cf2 order 2: poles ``e^{sT}`` of ``s^2 + 2 zeta w_n s + w_n^2``; ``w_n`` by Brent's method."""
+    from scipy.optimize import brentq
+
+    zeta = DEFAULT_DAMPING if damping is None else damping
+    F, H = model["F"], model["H"]
+
+    def gains_for(wn):
+        s = np.roots([1.0, 2 * zeta * wn, wn**2])
+        target = np.real(np.poly(np.exp(s * dt)))
+        Kp = _ackermann(F, H, target)
+        K = Kp if form == "predictor" else np.linalg.solve(F, Kp)
+        return dict(zip(names, (float(v) for v in K[:, 0]), strict=True))
+
+    def f(logwn):
+        return _log_ratios(structure, model, dt, form, output, hz, gains_for(math.exp(logwn)))[0]
+
+    wc = 2 * math.pi * hz[0]
+    lo, hi = math.log(wc * 1e-3), math.log(min(wc * 1e3, 10 * math.pi / dt))
+    grid = np.linspace(lo, hi, 121)
+    with np.errstate(all="ignore"):
+        vals = np.array([f(x) for x in grid])
+    idx = np.flatnonzero(np.isfinite(vals[:-1]) & np.isfinite(vals[1:]) & (np.sign(vals[:-1]) != np.sign(vals[1:])))
+    if not idx.size:
+        raise SpecError(f"crossover.hz: no damping-{zeta:g} gains of {structure.name} put the crossover at "
+                        f"{hz[0]:g} Hz at this sample rate")
+    # the root nearest the continuous solution
+    wn_c = math.log(wc * math.sqrt(math.sqrt(1 + 4 * zeta**4) - 2 * zeta**2))
+    i = idx[np.argmin(np.abs(grid[idx] - wn_c))]
+    return gains_for(math.exp(brentq(f, grid[i], grid[i + 1], xtol=1e-14)))
+
+
+def _ackermann(F, H, coeffs):
+    """Predictor gain ``Kp`` (n x 1) with ``det(zI - F + Kp H)`` = the monic ``coeffs``."""
+    n = len(F)
+    obs = np.vstack([H @ np.linalg.matrix_power(F, i) for i in range(n)])
+    pF = sum(c * np.linalg.matrix_power(F, n - i) for i, c in enumerate(coeffs))
+    e = np.zeros((n, 1))
+    e[-1, 0] = 1.0
+    return pF @ np.linalg.solve(obs, e)

@@ -1,0 +1,165 @@
+"""Noise identification (cfdesign.allan, ``cfdesign noise``) on synthetic recordings with known
+white noise density N and rate random walk K (the Allan-variance model of IEEE Std 952 and
+El-Sheimy et al., *Analysis and modeling of inertial sensors using Allan variance*)."""
+
+import math
+import sys
+
+import numpy as np
+import pytest
+
+from cfdesign.allan import edf_simple, identify_noise, noise_toml, oadev
+from cfdesign.errors import InputError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+N_TRUE, K_TRUE, RATE = 1.7e-4, 2.0e-5, 100.0  # rad/s/sqrt(Hz), rad/s/sqrt(s), Hz
+
+
+def gyro(seconds, N=N_TRUE, K=K_TRUE, rate=RATE, seed=0):
+    """A gyro at rest: white noise of density N (per-sample std N sqrt(f)) plus a random-walk bias."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate)
+    y = N * math.sqrt(rate) * rng.standard_normal(n)
+    if K:
+        y += np.cumsum(K / math.sqrt(rate) * rng.standard_normal(n))
+    return y
+
+
+@pytest.fixture(scope="module")
+def two_hours():
+    return gyro(7200)
+
+
+def test_two_hours_at_100_hz_recovers_N_and_K(two_hours):
+    fit = identify_noise(two_hours, RATE, "gyro_x")
+    assert fit.white_density == pytest.approx(N_TRUE, rel=0.10)
+    assert fit.random_walk_density == pytest.approx(K_TRUE, rel=0.25)
+    for key, true in (("white", N_TRUE), ("random_walk", K_TRUE)):
+        term = fit.terms[key]
+        assert term.ci[0] <= true <= term.ci[1]
+        assert term.tau_range_s[0] < term.tau_range_s[1]
+    assert fit.bias_instability is None and "bias_instability" in fit.missing
+    assert fit.terms["white"].tau_range_s[0] == pytest.approx(0.01)
+    assert fit.design_entries() == {"noise": {"density": fit.white_density},
+                                    "bias": {"model": "random_walk", "density": fit.random_walk_density}}
+
+
+def test_white_only_returns_only_white():
+    fit = identify_noise(gyro(600, K=0, seed=1), RATE)
+    assert fit.white_density == pytest.approx(N_TRUE, rel=0.05)
+    assert set(fit.terms) == {"white"}
+    assert fit.random_walk_density is None and fit.design_entries() == {"noise": {"density": fit.white_density}}
+
+
+def test_random_walk_only_returns_only_the_random_walk():
+    fit = identify_noise(gyro(600, N=0, seed=2), RATE)
+    assert set(fit.terms) == {"random_walk"}
+    assert fit.random_walk_density == pytest.approx(K_TRUE, rel=0.25)
+    assert fit.white_density is None
+
+
+def test_a_recording_too_short_for_the_random_walk_says_so():
+    fit = identify_noise(gyro(60, seed=3), RATE)  # the random walk dominates only beyond ~15 s averaging
+    assert fit.random_walk_density is None
+    assert "longer" in fit.missing["random_walk"]
+    assert "not identified" in fit.summary("rad/s")
+    assert "# bias: no random walk identified" in noise_toml([fit])
+
+
+def test_overlapping_adev_matches_allantools(two_hours):
+    allantools = pytest.importorskip("allantools")
+    tau, adev, m = oadev(two_hours[:200_000], RATE)
+    t2, ad2, _, _ = allantools.oadev(two_hours[:200_000], rate=RATE, data_type="freq", taus=tau)
+    assert np.allclose(t2, tau) and np.allclose(ad2, adev, rtol=1e-12, atol=0)
+    for alpha in (2, 0, -2):
+        ours = edf_simple(200_001, m, alpha)
+        theirs = [allantools.edf_simple(200_001, int(k), alpha) for k in m]
+        assert np.allclose(ours, theirs, rtol=1e-12)
+
+
+def test_white_noise_closed_form():
+    """White samples of std s at rate f: AVAR(m) = s^2 / m, i.e. N = s / sqrt(f) (cfdesign.noise's convention)."""
+    rng = np.random.default_rng(4)
+    y = 0.3 * rng.standard_normal(400_000)
+    _tau, adev, m = oadev(y, 50.0)
+    assert np.allclose(adev[:8] ** 2 * m[:8] / 0.09, 1, rtol=0.02)
+
+
+@pytest.mark.parametrize("x, rate, message", [
+    (np.ones(10), 100.0, "too few"),
+    (np.r_[np.zeros(50), np.nan], 100.0, "not finite"),
+    (np.zeros(100), 100.0, "constant"),
+    (np.arange(100.0), 0.0, "rate_hz"),
+])
+def test_bad_recordings(x, rate, message):
+    with pytest.raises(InputError, match=message):
+        identify_noise(x, rate)
+
+
+def _log(path, columns, rate=RATE, time=True):
+    n = len(next(iter(columns.values())))
+    head = (["time"] if time else []) + list(columns)
+    rows = [",".join(head)]
+    for i in range(n):
+        rows.append(",".join(([f"{i / rate:.6f}"] if time else []) + [repr(float(v[i])) for v in columns.values()]))
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_cli_three_axes_to_design_file_entries(cli, tmp_path):
+    axes = {f"gyro_{a}": gyro(300, seed=10 + i) for i, a in enumerate("xyz")}
+    log = _log(tmp_path / "static.csv", axes)
+    code, out, err = cli("noise", log, "--column", "gyro_x,gyro_y", "--column", "gyro_z", "--time", "time",
+                         "-o", tmp_path / "noise.toml", "--plot", tmp_path / "adev.png", "--unit", "rad/s")
+    assert code == 0, err
+    assert out.count("white noise density N: N =") == 3 and "rad/s/sqrt(Hz)" in out
+    data = tomllib.loads((tmp_path / "noise.toml").read_text())
+    assert set(data["sensors"]) == set(axes)
+    for entry in data["sensors"].values():
+        assert entry["rate_hz"] == pytest.approx(RATE)
+        assert entry["noise"]["density"] == pytest.approx(N_TRUE, rel=0.1)
+    assert (tmp_path / "adev.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_noise_entries_design_a_filter(cli, tmp_path):
+    """The loop: a static log -> cfdesign noise -> a design file -> design -> verify."""
+    from cfdesign.designer import design
+    from cfdesign.spec import parse_spec
+
+    log = _log(tmp_path / "gyro.csv", {"gyro": gyro(600, seed=7)}, time=False)
+    assert cli("noise", log, "--column", "gyro", "--rate-hz", 100, "-o", tmp_path / "n.toml")[0] == 0
+    text = (tmp_path / "n.toml").read_text()
+    sensors = tomllib.loads(text)["sensors"]
+    sensors["gyro"].setdefault("bias", {"model": "random_walk", "density": K_TRUE})  # 600 s may not show K
+    sensors["gyro"]["port"] = "rate"
+    spec = parse_spec({"structure": "cf2", "order": 2, "discrete": True,
+                       "sensors": {**sensors, "angle": {"rate_hz": 100.0, "noise": {"std": 0.01}}}})
+    table = design(spec)
+    assert table.checks["complementary"] and table.checks["stable"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--column", "nope", "--rate-hz", "100"], "no column 'nope'"),
+    (["--column", "gyro"], "--rate-hz R or --time"),
+    (["--column", "gyro", "--rate-hz", "100", "--time", "time"], "one of them"),
+    (["--column", "gyro", "--rate-hz", "-1"], "positive"),
+])
+def test_cli_errors_are_one_line(cli, tmp_path, args, message):
+    log = _log(tmp_path / "g.csv", {"gyro": gyro(10)})
+    code, _out, err = cli("noise", log, *args)
+    assert code == 2 and message in err and err.count("\n") == 1
+
+
+def test_cli_bad_cells_and_times_name_the_line(cli, tmp_path):
+    log = tmp_path / "bad.csv"
+    log.write_text("time,gyro\n0,0.1\n0.01,abc\n")
+    code, _, err = cli("noise", log, "--column", "gyro", "--rate-hz", 100)
+    assert code == 2 and "line 3" in err and "'gyro'" in err
+    log.write_text("time,gyro\n" + "".join(f"{t},{0.1 * (-1) ** i}\n"
+                                            for i, t in enumerate([0, 0.01, 0.02, 0.5, 0.51] + [0.52] * 0)))
+    code, _, err = cli("noise", log, "--column", "gyro", "--time", "time")
+    assert code == 2 and "line 5" in err and "evenly sampled" in err

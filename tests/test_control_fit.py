@@ -1,0 +1,79 @@
+"""python-control fit: named transfer functions, Observer.from_statespace, GainTable.transfer_functions,
+.bode and .observer."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import cfdesign
+from cfdesign.errors import GainTableError, StructureError
+from cfdesign.symbolic import Observer, Sensor
+
+
+@pytest.fixture(scope="module")
+def dckf3():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3")))
+
+
+def test_observer_transfer_functions_carry_the_sensor_names():
+    tfs = cfdesign.transfer_functions(cfdesign.cf2(2).with_gains(k1=2, k2=1))
+    assert tfs["angle"].input_labels == ["angle"] and tfs["angle"].output_labels == ["estimate"]
+    assert tfs["rate"].name == "T_rate" and tfs["sum"].input_labels == ["quantity"]
+
+
+def test_from_statespace_builds_the_same_observer():
+    import control
+
+    sensors = [Sensor.input("gyro", "rate", bias_state=1), Sensor.measurement("compass", "angle", 0)]
+    K = sp.Matrix(sp.symbols("k1 k2"))
+    obs = Observer.from_statespace(control.ss([[0, 1], [0, 0]], [[1], [0]], [[1, 0]], [[0]], name="heading"),
+                                   K, sensors)
+    assert obs.proof().holds and obs.name == "heading"
+    assert sp.simplify(obs.bands["compass"] - cfdesign.cf2(2).bands["angle"]) == 0
+    disc = Observer.from_statespace(control.ss([[1, 0.1], [0, 1]], [[0.1], [0]], [[1, 0]], [[0]], 0.1), K, sensors)
+    assert disc.discrete and disc.sample_time == sp.Rational(1, 10) and disc.proof().holds
+    with pytest.raises(StructureError, match="from_statespace"):
+        Observer(control.ss([[0]], [[1]], [[1]], [[0]]), [[1]], [[1]], [[1]], sensors)
+    with pytest.raises(StructureError, match=r"needs a control\.StateSpace"):
+        Observer.from_statespace(control.tf([1], [1, 1]), K, sensors)
+    with pytest.raises(StructureError, match="D must be zero"):
+        Observer.from_statespace(control.ss([[0]], [[1]], [[1]], [[1]]), [[sp.Symbol("k")]], sensors[:1])
+
+
+def test_gain_table_transfer_functions_observer_and_bode(dckf3):
+    tfs = dckf3.transfer_functions()
+    assert set(tfs) == {"gyro", "compass", "odometry", "sum"} and tfs["sum"].dcgain() == 1
+    assert tfs["compass"].dt == dckf3.sample_time_s and tfs["compass"].input_labels == ["compass"]
+    obs = dckf3.observer()
+    assert obs.proof().holds
+    w = np.logspace(-2, 0.5, 7)
+    for name, tf in tfs.items():
+        if name != "sum":
+            num, den = obs.band_coefficients()[name]
+            from cfdesign.linear import response
+
+            assert np.allclose(tf(np.exp(1j * w * dckf3.sample_time_s)), response(num, den, w, dckf3.sample_time_s),
+                               rtol=1e-8)
+    fig = dckf3.bode(hz=True)
+    assert "Hz" in fig.axes[-1].get_xlabel()
+
+
+def test_multirate_table_bode_and_lifted_system():
+    from cfdesign.plot import lifted_system
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    sys = lifted_system(table)
+    assert sys.dt == pytest.approx(table.period * table.sample_time_s)
+    assert sys.input_labels == ["accelerometer", "gps"]
+    assert np.allclose(np.abs(np.linalg.eigvals(sys.A)),
+                       np.abs([complex(*p) for p in table.checks["monodromy_multipliers"]]))
+    assert abs(sys[0, 1].dcgain()) == pytest.approx(1.0, rel=1e-9)  # a held GPS fix is the position
+    fig = table.bode()
+    assert len(fig.axes) == 2
+    with pytest.raises(GainTableError, match="multirate"):
+        table.transfer_functions()
+
+
+def test_cli_bode_in_hz(cli, tmp_path):
+    code, _, err = cli("bode", "cf2", "--order", "2", "--gains", "k1=2,k2=1", "--hz", "-o", tmp_path / "b.png")
+    assert code == 0, err

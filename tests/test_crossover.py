@@ -1,0 +1,134 @@
+"""Design by crossover (cfdesign.crossover): adjacent bands of equal magnitude at the frequencies
+a design file asks for, continuous and discrete (docs/derivations.md, "Design by crossover")."""
+
+import math
+
+import numpy as np
+import pytest
+
+from cfdesign import linear
+from cfdesign.designer import design, numeric_structure
+from cfdesign.errors import SpecError
+from cfdesign.spec import parse_spec
+from cfdesign.verify import band_polynomials, verify_table
+
+GYRO = {"measures": "rate", "rate_hz": 100.0, "noise": {"density": 1.7e-4},
+        "bias": {"model": "random_walk", "density": 2e-5}}
+ANGLE = {"measures": "angle", "rate_hz": 100.0, "noise": {"std": 0.01}}
+CHAIN = {"acceleration": {"rate_hz": 100.0, "noise": {"density": 0.01}},
+         "velocity": {"rate_hz": 100.0, "noise": {"std": 0.05}},
+         "position": {"rate_hz": 100.0, "noise": {"std": 0.5}}}
+
+
+def cf2_spec(hz=0.5, **top):
+    return parse_spec({"structure": "cf2", "order": 2, "crossover": {"hz": hz}, **top,
+                       "sensors": {"rate": GYRO, "angle": ANGLE}})
+
+
+def magnitudes(table, hz):
+    """``{sensor: |T(j w)|}`` at ``hz`` from the table's own band polynomials (cfdesign.verify)."""
+    bands, _ = band_polynomials(table)
+    w = 2 * np.pi * np.asarray(hz, dtype=float)
+    return {name: np.abs(linear.response(num, den, w, table.sample_time_s)) for name, (num, den) in bands.items()}
+
+
+@pytest.mark.parametrize("top", [{}, {"discrete": True}, {"discrete": True, "gain_form": "filter"},
+                                 {"discrete": True, "output": "prior"}],
+                         ids=["continuous", "discrete-predictor", "discrete-filter", "discrete-prior"])
+def test_cf2_order2_crossover_at_half_a_hertz(top):
+    table = design(cf2_spec(**top))
+    mag = magnitudes(table, [0.5])
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=0.01)
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-9)  # solved, not approximated
+    below, above = magnitudes(table, [0.05]), magnitudes(table, [5.0])
+    assert below["angle"][0] > below["rate"][0] and above["rate"][0] > above["angle"][0]
+    solver = table.provenance["solver"]
+    assert solver["crossover_hz"] == [0.5]
+    assert solver["kalman_predicted_variance"] <= solver["predicted_variance"]
+    assert table.checks["complementary"] and table.checks["stable"]
+
+
+@pytest.mark.parametrize("discrete", [False, True])
+def test_three_band_crossovers_at_both_frequencies(discrete):
+    table = design(parse_spec({"structure": "cf3", "discrete": discrete, "crossover": {"hz": [0.05, 2.0]},
+                               "sensors": CHAIN}))
+    mag = magnitudes(table, [0.05, 2.0])
+    assert mag["position"][0] == pytest.approx(mag["velocity"][0], rel=1e-6)
+    assert mag["velocity"][1] == pytest.approx(mag["acceleration"][1], rel=1e-6)
+
+
+def test_closed_forms_are_the_sympy_solutions():
+    import sympy as sp
+
+    from cfdesign.crossover import continuous_crossover_gains
+    from cfdesign.symbolic import cf2, cf3, cfn
+    from cfdesign.symbolic.crossover import crossover_solution
+
+    hz = [0.05, 0.4, 3.0]
+    for obs, spec, n, damping in [(cf2(1), {"structure": "cf2", "order": 1}, 1, None),
+                                  (cf2(2), {"structure": "cf2", "order": 2}, 1, 0.4),
+                                  (cf3(), {"structure": "cf3"}, 2, None),
+                                  (cfn(4), {"structure": "cfn", "bands": 4}, 3, None)]:
+        w = [2 * math.pi * f for f in hz[-n:]]
+        exact = crossover_solution(obs, [sp.nsimplify(x) for x in w],
+                                   None if damping is None else sp.nsimplify(damping))
+        names = [x.name for x in obs.sensors]
+        sensors = {x: {"rate_hz": 10.0, "noise": {"std": 0.1}} for x in names}
+        structure = numeric_structure(parse_spec({**spec, "sensors": sensors}))
+        numeric = continuous_crossover_gains(structure, hz[-n:], damping)
+        assert {k.name: float(v) for k, v in exact.items()} == pytest.approx(numeric, rel=1e-12)
+
+
+def test_damping_shapes_the_poles():
+    table = design(parse_spec(
+        {"structure": "cf2", "order": 2, "crossover": {"hz": 0.5, "damping": 1.0},
+         "sensors": {"rate": GYRO, "angle": ANGLE}}))
+    poles = [complex(*p) for p in table.checks["poles"]]
+    assert all(abs(p.imag) < 1e-6 * abs(p) for p in poles)  # critically damped: a double real pole
+
+
+def test_constant_bias_designs_without_a_kalman_optimum():
+    gyro = {**GYRO, "bias": {"model": "constant", "value": 0.01}}
+    table = design(parse_spec({"structure": "cf2", "order": 2, "discrete": True, "crossover": {"hz": 1.0},
+                               "sensors": {"rate": gyro, "angle": ANGLE}}))
+    assert table.provenance["solver"]["kalman_predicted_variance"] is None
+    assert magnitudes(table, [1.0])["rate"][0] == pytest.approx(magnitudes(table, [1.0])["angle"][0], rel=1e-9)
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"structure": "cf2", "order": 2, "crossover": {"hz": [0.1, 1.0]}}, "1 crossover frequency; got 2"),
+    ({"structure": "cf2", "order": 2, "crossover": {"hz": [1.0, 0.1]}}, "must increase"),
+    ({"structure": "cf2", "order": 2, "crossover": {"hz": 0.5}, "gains": {"k1": 1.0}}, "not both"),
+    ({"structure": "cf2", "order": 2, "crossover": {"hz": -1}}, "positive"),
+    ({"structure": "cf2", "order": 2, "crossover": {"hz": 0.5, "shape": 1}}, "unknown field"),
+    ({"structure": "cf2", "order": 2, "discrete": True, "crossover": {"hz": 60.0}}, "Nyquist"),
+    ({"structure": "cf2", "order": 1, "crossover": {"hz": 0.5, "damping": 0.5}}, "cf2 order 2 only"),
+])
+def test_crossover_errors_name_the_field(data, message):
+    with pytest.raises(SpecError, match=message):
+        design(parse_spec({**data, "sensors": {"rate": {k: v for k, v in GYRO.items() if k != "bias"}
+                                               if data.get("order") == 1 else GYRO, "angle": ANGLE}}))
+
+
+def test_full_gain_structures_are_refused():
+    with pytest.raises(SpecError, match="crossover: dckf3 has two sensors of the same derivative order"):
+        design(parse_spec({"structure": "dckf3", "crossover": {"hz": [0.1, 1.0]}, "sensors": {
+            "gyro": GYRO, "compass": ANGLE, "odometry": ANGLE}}))
+    with pytest.raises(SpecError, match="not available for ckf3"):
+        design(parse_spec({"structure": "ckf3", "crossover": {"hz": [0.1, 1.0]}, "sensors": CHAIN}))
+
+
+def test_cli_design_and_verify_a_crossover_table(cli, tmp_path):
+    spec = tmp_path / "x.toml"
+    spec.write_text('structure = "cf2"\norder = 2\ndiscrete = true\n[crossover]\nhz = 0.5\n'
+                    '[sensors.rate]\nrate_hz = 100.0\nnoise = { density = 1.7e-4 }\n'
+                    'bias = { model = "random_walk", density = 2e-5 }\n'
+                    '[sensors.angle]\nrate_hz = 100.0\nnoise = { std = 0.01 }\n')
+    code, out, err = cli("design", spec, "-o", tmp_path / "g.json")
+    assert code == 0, err
+    assert "angle/rate at 0.5 Hz" in out and "Kalman optimum" in out
+    code, out, err = cli("verify", tmp_path / "g.json", "--spec", spec)
+    assert code == 0, out + err
+    from cfdesign.gains import load_gains
+
+    assert all(c.ok for c in verify_table(load_gains(tmp_path / "g.json")))

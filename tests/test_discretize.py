@@ -1,0 +1,58 @@
+"""A continuous gain table discretised for a rate (cfdesign.discretize), against re-designing at it."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from cfdesign.designer import design
+from cfdesign.discretize import discretize_table
+from cfdesign.errors import GainTableError
+from cfdesign.gains import load_gains
+from cfdesign.runtime import Runtime
+from cfdesign.spec import parse_spec
+from cfdesign.verify import verify_table
+
+
+def spec(discrete=False, rate=100.0):
+    return parse_spec({"structure": "cf2", "order": 2, "discrete": discrete, "sensors": {
+        "rate": {"rate_hz": rate, "noise": {"density": 1.7e-3}, "bias": {"model": "random_walk", "density": 2e-4}},
+        "angle": {"rate_hz": rate, "noise": {"density": 0.01}}}})
+
+
+@pytest.fixture(scope="module")
+def continuous():
+    return design(spec())
+
+
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+def test_discretised_table_verifies_and_runs(continuous, form):
+    table = discretize_table(continuous, 200.0, form)
+    assert table.domain == "z" and table.sample_time_s == 1 / 200 and table.gain_form == form
+    assert all(c.ok for c in verify_table(table))
+    poles = np.linalg.eigvals(continuous.F - continuous.K[0] @ continuous.H)
+    got = sorted(np.log([complex(*p) for p in table.checks["poles"]]) * 200, key=lambda c: c.imag)
+    assert np.allclose(got, sorted(poles, key=lambda c: c.imag), rtol=0.02)  # e^{lambda T} + O(T^2)
+    est = Runtime(table).run({"rate": np.full(400, 0.1), "angle": 0.1 * np.arange(400) / 200})
+    assert est[-1] == pytest.approx(0.1 * 399 / 200, abs=1e-3)
+
+
+def test_discretising_approaches_redesigning_as_the_rate_grows(continuous):
+    gaps = []
+    for rate in (20.0, 200.0, 2000.0):
+        mine = discretize_table(continuous, rate, "predictor")
+        fresh = design(replace(spec(True, rate)))
+        gaps.append(np.abs(mine.K[0] - fresh.K[0]).max() / np.abs(fresh.K[0]).max())
+        assert fresh.predicted_std <= mine.predicted_std * (1 + 1e-9)  # the DARE gain is optimal at that rate
+    assert gaps[0] > gaps[1] > gaps[2] and gaps[2] < 0.01
+
+
+def test_cli_discretize(cli, continuous, tmp_path):
+    continuous.save(tmp_path / "c.json")
+    code, _out, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 200, "-o", tmp_path / "d.json")
+    assert code == 0, err
+    assert load_gains(tmp_path / "d.json").sample_time_s == pytest.approx(0.005)
+    code, _, err = cli("discretize", tmp_path / "d.json", "--rate-hz", 200, "-o", tmp_path / "e.json")
+    assert code == 2 and "already discrete" in err
+    with pytest.raises(GainTableError, match="do not stabilise"):
+        discretize_table(continuous, 0.01)
