@@ -10,11 +10,17 @@ sinusoid plus noise:
    the same data (the DCKF3's three bands as IIR filters, summed; target run >= 0.5 x
    lfilter; the periodic table has no LTI bands);
 2. streaming: ``Runtime.step`` per sample beside a plain Python loop doing the same arithmetic
-   with floats, and ``Runtime.run`` on blocks of 10,000 samples with the state carried over
-   (target > 1e6 samples/s);
+   with floats and beside ``imufusion.Ahrs.update`` (Fusion's Python binding, a compiled 9D AHRS:
+   target step <= 1.0x its time; ``pip install imufusion``), and ``Runtime.run`` on blocks of
+   10,000 samples with the state carried over (target > 1e6 samples/s);
 3. compiled C (``cfdesign.codegen.write_c``, ``cc -std=c99 -O2``): ns per step over
    10,000,000 chained steps (target < 10 ns for the DCKF3), beside two baselines in the same
    program and loop: a call that only copies the inputs, and a one-pole IIR.
+
+4. a large state: ``Runtime.run`` of an n = 200 table on 500 samples (target < 1 s) and
+   ``verify_table`` on it;
+5. start-up: ``cfdesign --version`` beside ``python -c "import numpy"`` (target <= 1.5x), and
+   whether ``cfdesign run`` imports matplotlib or sympy (it must not).
 
 Prints figures only; no assertions on time.
 """
@@ -23,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import platform
 import shutil
 import subprocess
@@ -174,50 +181,138 @@ def batch_rows(table, data, N):
 
 # ---------------------------------------------------------------------- (ii) streaming
 def plain_python_filter(table):
-    """The runtime's step with Python floats and lists only (no numpy): the streaming baseline."""
+    """The same filter as generic Python on floats and lists (no numpy, no specialisation): the
+    streaming baseline a user would write by hand."""
+    from cfdesign.linear import gain_pair, wrap_scalar
+
+    pairs = [gain_pair(table.F, K, table.gain_form) for K in table.K]
     F, B, H = (np.asarray(a, dtype=float).tolist() for a in (table.F, table.B, table.H))
-    K = [np.asarray(k, dtype=float).tolist() for k in table.K]
+    Kp = [kp.tolist() for kp, _ in pairs]
+    L0 = [lo[0].tolist() for _, lo in pairs]
+    active = table.schedule.mask().tolist()
     rt = Runtime(table)
     p, n, N_ = len(rt.inputs), len(F), range(len(F))
-    angle = {s.name for s in table.sensors if s.order == 0}
-    wrapped = [bool(table.wrap_angle) and name in angle for name in rt.measurements]
-    pi, tau, state = math.pi, 2 * math.pi, {"x": [0.0] * n, "u": [0.0] * p, "phase": 0}
+    wrapped = [bool(table.wrap_angle) and s.order == 0 for s in table.measurements]
+    state = {"x": [0.0] * n, "u": [0.0] * p, "phase": 0}
 
     def step(row):
-        x, u, Kp = state["x"], state["u"], K[state["phase"]]
-        u = [v if v == v else u[j] for j, v in enumerate(row[:p])]
-        e = [0.0 if y != y else y - sum(h * xj for h, xj in zip(Hi, x, strict=True))
-             for y, Hi in zip(row[p:], H, strict=True)]
-        e = [pi - (pi - v) % tau if w else v for v, w in zip(e, wrapped, strict=True)]
-        c = [sum(k * v for k, v in zip(Kp[r], e, strict=True)) for r in N_]
-        if table.gain_form == "filter":
-            x = [a + b for a, b in zip(x, c, strict=True)]
-            c = [0.0] * n
-        est = x[0]
+        x, ph = state["x"], state["phase"]
+        u = [v if v == v else state["u"][j] for j, v in enumerate(row[:p])]
+        e = [y - sum(h * xj for h, xj in zip(Hi, x, strict=True)) if y == y and a else 0.0
+             for y, Hi, a in zip(row[p:], H, active[ph], strict=True)]
+        e = [wrap_scalar(v) if w else v for v, w in zip(e, wrapped, strict=True)]
+        est = x[0] + sum(g * v for g, v in zip(L0[ph], e, strict=True))
         x = [sum(f * xj for f, xj in zip(F[r], x, strict=True)) + sum(b * uj for b, uj in zip(B[r], u, strict=True))
-             + c[r] for r in N_]
+             + sum(k * v for k, v in zip(Kp[ph][r], e, strict=True)) for r in N_]
         if table.wrap_angle:
-            x[0], est = pi - math.fmod(math.fmod(pi - x[0], tau) + tau, tau), pi - math.fmod(
-                math.fmod(pi - est, tau) + tau, tau)
-        state.update(x=x, u=u, phase=(state["phase"] + 1) % len(K))
+            x[0], est = wrap_scalar(x[0]), wrap_scalar(est)
+        state.update(x=x, u=u, phase=(ph + 1) % len(Kp))
         return est
 
     return step
+
+
+def imufusion_step():
+    """``imufusion.Ahrs.update`` (Fusion, a full 9D AHRS in C, through its Python binding) per
+    sample, as a user calls it: the per-sample cost a Python robot loop pays for a compiled filter."""
+    try:
+        import imufusion
+    except ImportError:
+        return None
+    ahrs = imufusion.Ahrs()
+    g, a, m = np.array([0.01, 0.02, 0.03]), np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.0, 0.5])
+    n = 200_000
+    t0 = time.perf_counter()
+    for _ in range(n):
+        ahrs.update(g, a, m, 0.01) if _FUSION_DT else ahrs.update(g, a, m)
+    return (time.perf_counter() - t0) / n
+
+
+def _fusion_takes_dt():
+    try:
+        import imufusion
+
+        imufusion.Ahrs().update(np.zeros(3), np.array([0.0, 0.0, 1.0]), np.ones(3), 0.01)
+        return True
+    except (ImportError, TypeError):
+        return False
+
+
+_FUSION_DT = _fusion_takes_dt()
 
 
 def streaming_rows(table, data, N):
     rt = Runtime(table)
     names = rt.inputs + rt.measurements
     rows = list(zip(*(c.tolist() for c in columns(table, data)), strict=True))
-    t_step, est_step = timed(lambda: [rt.step(**dict(zip(names, r, strict=True))) for r in rows])
+    kwargs = [dict(zip(names, r, strict=True)) for r in rows]
+    t_step, est_step = timed(lambda: [rt.step(**kw) for kw in kwargs])
+    rt2 = Runtime(table)
+    t_values, _ = timed(lambda: [rt2.step_values(*r) for r in rows])
     plain = plain_python_filter(table)
     t_plain, est_plain = timed(lambda: [plain(r) for r in rows])
     agree = float(np.max(np.abs(wrap(np.subtract(est_plain, est_step)))))
     blocks = Runtime(table)
     t_block, _ = timed(lambda: [blocks.run({k: v[i:i + BLOCK] for k, v in data.items()}) for i in range(0, N, BLOCK)])
-    return [("Runtime.step per sample", N / t_step, f"{1e6 * t_step / N:.1f} us/step"),
-            ("plain Python floats loop", N / t_plain, f"{1e6 * t_plain / N:.1f} us/step (agrees to {agree:.0e})"),
-            (f"Runtime.run, {BLOCK:,}-sample blocks", N / t_block, "target > 1e6/s")], t_step / N
+    out = [("Runtime.step(**readings)", N / t_step, f"{1e6 * t_step / N:.2f} us/step"),
+           ("Runtime.step_values(*readings)", N / t_values, f"{1e6 * t_values / N:.2f} us/step"),
+           ("plain Python floats loop", N / t_plain, f"{1e6 * t_plain / N:.2f} us/step (agrees to {agree:.0e}); "
+                                                      f"step is {t_plain / t_step:.1f}x faster"),
+           (f"Runtime.run, {BLOCK:,}-sample blocks", N / t_block, "target > 1e6/s")]
+    fusion = imufusion_step()
+    if fusion is not None:
+        out.append(("imufusion.Ahrs.update (Fusion, C)", 1 / fusion,
+                    f"{1e6 * fusion:.2f} us/update; Runtime.step = {t_step / N / fusion:.2f}x (target <= 1.0x)"))
+    else:
+        out.append(("imufusion.Ahrs.update", None, "skipped: pip install imufusion"))
+    return out, t_step / N
+
+
+def large_state_rows():
+    """``Runtime`` on an n = 200 chain table, 500 samples (target < 1 s), and verify."""
+    from cfdesign import linear
+    from cfdesign.gains import GainTable, Schedule, SensorPort
+    from cfdesign.verify import verify_table
+
+    n, dt = 200, 0.01
+    F, b = linear.zoh_chain(n, dt)
+    K = np.zeros((n, 1))
+    K[0, 0], K[1, 0] = 0.5, 0.01
+    table = GainTable(name="chain 200", structure="custom", domain="z", sample_time_s=dt, gain_form="filter",
+                      sensors=(SensorPort("u", "input", 0, n, 100.0), SensorPort("y", "measurement", 0, 0, 100.0)),
+                      F=F, B=b[:, None], H=np.eye(n)[:1], K=[K], P=[np.eye(n)], P_filtered=[np.eye(n)],
+                      schedule=Schedule.from_names(["y"], [["y"]]), Q=np.eye(n), R=np.eye(1),
+                      states=tuple(f"d{i}" for i in range(n)))
+    rng = np.random.default_rng(0)
+    data = {"u": rng.standard_normal(500), "y": rng.standard_normal(500)}
+    t_run, _ = timed(lambda: Runtime(table).run(data))
+    t_verify, _ = timed(lambda: verify_table(table))
+    return [("Runtime(table).run, 500 samples", 500 / t_run, f"{t_run:.3f} s including set-up (target < 1 s)"),
+            ("verify_table", None, f"{t_verify:.3f} s")]
+
+
+def startup_rows():
+    """``cfdesign --version`` beside ``python -c "import numpy"`` (best of 7 each), and what
+    ``cfdesign run`` imports."""
+    def best(cmd):
+        times = []
+        for _ in range(7):
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True, capture_output=True)
+            times.append(time.perf_counter() - t0)
+        return min(times)
+
+    t_numpy = best([sys.executable, "-c", "import numpy"])
+    t_version = best([sys.executable, "-m", "cfdesign", "--version"])
+    probe = ("import sys\nfrom cfdesign.cli import build_parser\nbuild_parser(['run'])\n"
+             "import cfdesign.logs, cfdesign.runtime, cfdesign.gains, cfdesign.timing\n"
+             "print(int('matplotlib' in sys.modules), int('sympy' in sys.modules))")
+    mpl, sym = subprocess.run([sys.executable, "-c", probe], check=True, capture_output=True,
+                              text=True).stdout.split()
+    return [("cfdesign --version", None, f"{1e3 * t_version:.0f} ms = {t_version / t_numpy:.2f}x "
+                                         f"'python -c \"import numpy\"' ({1e3 * t_numpy:.0f} ms); target <= 1.5x"),
+            ("cfdesign run's modules", None, f"import matplotlib: {'yes' if mpl == '1' else 'no'}, "
+                                              f"sympy: {'yes' if sym == '1' else 'no'}")]
 
 
 # ---------------------------------------------------------------------- (iii) C
@@ -266,6 +361,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     N = args.samples
     print(f"cfdesign {cfdesign.__version__} runtime benchmark: {N:,} samples (Python), {args.c_steps:,} steps (C)")
+    print("BLAS threads: OPENBLAS_NUM_THREADS=" + os.environ.get("OPENBLAS_NUM_THREADS", "unset (library default)"))
     print(f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
           f"cc: {compiler_version()} {' '.join(C_CFLAGS)}, {platform.machine()}")
     batch, stream, compiled = [], [], []
@@ -280,6 +376,8 @@ def main(argv=None):
     print_section("(i) batch", batch)
     print_section("(ii) streaming", stream)
     print_section("(iii) compiled C, chained steps (each step needs the last one's state)", compiled)
+    print_section("(iv) large states", [("chain, n = 200", large_state_rows())])
+    print_section("(v) start-up", [("command line", startup_rows())])
     return 0
 
 

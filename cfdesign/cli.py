@@ -325,7 +325,8 @@ def _add_structure(p):
     p.add_argument("--discrete", action="store_true", help="cf2, cf3, cfn, position: the ZOH model in z")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv=None) -> argparse.ArgumentParser:
+    """The ``cfdesign`` parser; the papers' options are loaded only for ``reproduce``."""
     parser = _Parser(prog="cfdesign", description="Design and verify complementary filters.")
     parser.add_argument("--version", action="version", version=f"cfdesign {__version__}")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an internal error")
@@ -415,7 +416,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .reproduce import add_parser as add_reproduce
 
-    add_reproduce(sub)
+    words = [a for a in (argv or []) if not a.startswith("-")]
+    add_reproduce(sub, load=argv is None or (bool(words) and words[0] == "reproduce"))
     return parser
 
 
@@ -428,7 +430,7 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser(argv).parse_args(argv)
         return args.run(args)
     except CfdesignError as exc:
         _error(exc)

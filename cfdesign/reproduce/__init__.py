@@ -33,20 +33,27 @@ PAPERS = {
 ALIASES = {"seed001": "carreira", "seed004": "helicopter"}
 
 
-def add_parser(subparsers):
-    """Add ``reproduce`` (one sub-command per paper) to an argparse ``subparsers`` object."""
+def add_parser(subparsers, load: bool = True):
+    """Add ``reproduce`` (one sub-command per paper) to an argparse ``subparsers`` object.
+
+    ``load=False`` lists the papers without importing their modules (and their options): what
+    every other command needs, so that ``cfdesign --version`` or ``cfdesign run`` start fast.
+    """
     p = subparsers.add_parser("reproduce", help="reproduce a paper's results (" + ", ".join(PAPERS) + ")",
                               description="Reproduce a paper's tables: ours beside the paper's, with the ratio.")
     papers = p.add_subparsers(dest="paper", required=True, metavar="PAPER", parser_class=type(p))
     for name, description in PAPERS.items():
-        module = import_module(f".{name}", __name__)
         q = papers.add_parser(name, help=description, description=description)
-        module.add_arguments(q)
-        q.set_defaults(run=module.run)
+        _load(q, name, load)
     for alias, name in ALIASES.items():
         # no help= : argparse leaves the alias out of the list of papers (metavar hides the choices)
-        module = import_module(f".{name}", __name__)
         q = papers.add_parser(alias, description=f"Alias of '{name}': {PAPERS[name]}")
-        module.add_arguments(q)
-        q.set_defaults(run=module.run)
+        _load(q, name, load)
     return p
+
+
+def _load(parser, name, load):
+    if load:
+        module = import_module(f".{name}", __name__)
+        module.add_arguments(parser)
+        parser.set_defaults(run=module.run)

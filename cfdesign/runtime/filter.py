@@ -95,17 +95,25 @@ class Runtime:
         self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(self.n)
         from .step import compile_step
 
-        self._step, self.step_source = compile_step(table, self.output, READING_LIMIT)
-        self._names = {name: i for i, name in enumerate(self.inputs + self.measurements)}
+        self._S = [0.0] * self.n + [0]                        # the state floats, then the phase
+        self._U = [0.0] * len(self.inputs)                    # the last inputs received
+        self._rej = [0] * (len(self.inputs) + len(self.measurements))  # rejected: inputs, measurements
+        self._uns = [0] * len(self.measurements)              # readings at unscheduled phases
+        self.step, self._step_values, self.step_source = compile_step(
+            table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown)
         self.reset()
+
+    def _unknown(self, readings):
+        raise CfdesignError(f"unknown sensor(s) {', '.join(sorted(readings))}; {self.table.name} reads "
+                            f"{', '.join(self.inputs + self.measurements)}")
 
     # ------------------------------------------------------------------ state
     def reset(self):
         """Back to the initial state, phase 0, no input received, counts cleared."""
-        self._S = [*map(float, self._x0), 0]   # the state floats, then the phase
-        self._U = [0.0] * len(self.inputs)       # the last inputs received
-        self._rej = [0] * len(self._names)       # rejected readings, inputs then measurements
-        self._uns = [0] * len(self.measurements)  # readings at phases the schedule does not read
+        self._S[:] = [*map(float, self._x0), 0]
+        self._U[:] = [0.0] * len(self.inputs)
+        self._rej[:] = [0] * len(self._rej)
+        self._uns[:] = [0] * len(self._uns)
 
     @property
     def x(self) -> np.ndarray:
@@ -201,20 +209,12 @@ class Runtime:
         (:mod:`cfdesign.runtime.step`, source in :attr:`step_source`): about a microsecond a
         step for the three-sensor heading filter.
         """
-        names = self._names
-        args = [_NAN] * len(names)
-        for key, value in readings.items():
-            i = names.get(key)
-            if i is None:
-                raise CfdesignError(f"unknown sensor {key!r}; {self.table.name} reads "
-                                    f"{', '.join(self.inputs + self.measurements)}")
-            args[i] = float(value)
-        return self._step(self._S, self._U, self._rej, self._uns, *args)
+        raise NotImplementedError  # replaced per table in __init__ (cfdesign.runtime.step)
 
     def step_values(self, *values) -> float:
         """:meth:`step` with the readings in order, inputs then measurements (as :attr:`inputs`
         and :attr:`measurements` list them), NaN for none: the fastest call."""
-        return self._step(self._S, self._U, self._rej, self._uns, *values)
+        return self._step_values(*values)
 
     def _advance(self, u, y) -> np.ndarray:
         """One step of the recursion in the module docstring; returns the output state."""
@@ -326,9 +326,8 @@ class Runtime:
         """Step by step (inputs held and readings cleaned already by :meth:`run`)."""
         N = len(u)
         if not states:  # the compiled step
-            step, S, U, R, W = self._step, self._S, self._U, self._rej, self._uns
-            rows = np.hstack([u, y]).tolist()
-            return np.array([step(S, U, R, W, *row) for row in rows], dtype=float).reshape(N)
+            step = self._step_values
+            return np.array([step(*row) for row in np.hstack([u, y]).tolist()], dtype=float).reshape(N)
         est, xs = np.empty(N), np.empty((N, self.n))
         for k in range(N):
             xs[k] = self._advance(u[k], y[k])

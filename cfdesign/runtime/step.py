@@ -8,16 +8,22 @@ with the table's numbers written in as constants, the products with zero coeffic
 the gains of a multirate table looked up per phase - the same operations, in the same order, as
 the generated C (:mod:`cfdesign.codegen`).
 
-The source is built from numbers only: each constant is the ``repr`` of a finite float, every
-other name is fixed by this module; no text from the table (its name, its sensor names) enters
-it, so compiling it evaluates nothing a user wrote.
+The source is built from numbers and names only: each constant is the ``repr`` of a finite
+float, the keyword arguments are the table's sensor names - ASCII identifiers that are not
+keywords, checked by the table and again here against ``[A-Za-z_][A-Za-z0-9_]*`` - and every
+other name is fixed by this module.  No other text from the table (its name, its provenance)
+enters it, and no text is evaluated as an expression.
 """
 
 from __future__ import annotations
 
+import keyword
 import math
+import re
 
 from ..linear import gain_pair, wrap_scalar
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 __all__ = ["compile_step"]
 
@@ -40,13 +46,16 @@ def _dot(coeffs, names, lookup=None) -> str:
     return " + ".join(terms) or "0.0"
 
 
-def compile_step(table, output: str, limit: float):
-    """A function ``step(S, U, REJ, UNS, u_0, ..., y_0, ...) -> estimate`` for ``table``.
+def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
+    """``(step, step_values, source)`` for ``table``, bound to the state lists given.
 
-    ``S`` holds the state floats and the phase (last), ``U`` the last inputs (held when one is
-    missing), ``REJ``/``UNS`` per-sensor counters of rejected readings (inf, NaN is simply
-    missing, or beyond ``limit``) and of readings at a phase the schedule does not read.  The
-    estimate is the posterior ``x[0] + (L e)[0]`` or the prior ``x[0]`` (``output``).
+    ``step(sensor=value, ...)`` takes the readings by the sensors' names (a sensor left out has
+    no reading; any other keyword calls ``unknown(dict)``, which raises), ``step_values(u_0, ...,
+    y_0, ...)`` positionally (inputs, then measurements).  ``S`` holds the state floats and the
+    phase (last), ``U`` the last inputs (held when one is missing), ``REJ``/``UNS`` per-sensor
+    counters of rejected readings (inf, or beyond ``limit``; NaN is simply missing) and of
+    readings at a phase the schedule does not read.  Both return the posterior estimate
+    ``x[0] + (L e)[0]`` or the prior ``x[0]`` (``output``) and update the lists in place.
     """
     F, B, H = table.F, table.B, table.H
     n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period
@@ -60,9 +69,16 @@ def compile_step(table, output: str, limit: float):
     wrap_rows = [bool(table.wrap_angle) and s.order == 0 for s in table.measurements]
     xs, us, es = [f"x{i}" for i in range(n)], [f"u{j}" for j in range(p)], [f"e{i}" for i in range(m)]
     ys = [f"y{i}" for i in range(m)]
-    lines = [f"def step(S, U, REJ, UNS, {', '.join(us + ys)}):" if us + ys else "def step(S, U, REJ, UNS):"]
+    names = [s.name for s in table.sensors]
+    if len(set(names)) != len(names) or not all(_IDENTIFIER.match(x) and not keyword.iskeyword(x) for x in names):
+        raise ValueError("sensor names must be distinct ASCII identifiers")
+    lines = []
     add = lines.append
-    add(f"    {', '.join(xs)}, = S[:{n}]" if n > 1 else "    x0 = S[0]")
+    if n > 4:
+        add(f"    {', '.join(xs)}, = S[:{n}]")
+    else:
+        for i in range(n):
+            add(f"    x{i} = S[{i}]")
     if P > 1:
         add(f"    ph = S[{n}]")
     for j in range(p):  # an input outside the limit (inf) or missing (NaN) holds the last one
@@ -122,9 +138,18 @@ def compile_step(table, output: str, limit: float):
     if P > 1:
         add(f"    S[{n}] = (ph + 1) % {P}")
     add("    return est")
-    namespace = {"LIM": float(limit), "PI": math.pi, "WRAP": wrap_scalar,
+    body = "\n".join("    " + line for line in lines)
+    keywords = ", ".join(f"{name}=NAN" for name in names)
+    rename = "".join(f"        {v} = {name}\n" for v, name in zip(us + ys, names, strict=True))
+    source = (f"def make(S, U, REJ, UNS):\n"
+              f"    def step({keywords + ', ' if names else ''}**unknown):\n"
+              f"        if unknown:\n            UNKNOWN(unknown)\n{rename}{body}\n"
+              f"    def step_values({', '.join(us + ys)}):\n{body}\n"
+              f"    return step, step_values\n")
+    namespace = {"LIM": float(limit), "PI": math.pi, "WRAP": wrap_scalar, "NAN": math.nan, "UNKNOWN": unknown,
                  "KP": [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  "LP": [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  "AC": [tuple(bool(v) for v in row) for row in active]}
-    exec(compile("\n".join(lines), f"<cfdesign step of a {n}-state table>", "exec"), namespace)
-    return namespace["step"], "\n".join(lines)
+    exec(compile(source, f"<cfdesign step of a {n}-state table>", "exec"), namespace)
+    step, step_values = namespace["make"](S, U, REJ, UNS)
+    return step, step_values, source
