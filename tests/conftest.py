@@ -29,7 +29,10 @@ def run_cli(*args) -> tuple:
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in args])
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:  # --help and --version exit from argparse
+            code = exc.code or 0
     return code, out.getvalue(), err.getvalue()
 
 

@@ -10,8 +10,27 @@ from cfdesign.cli import main, parse_gains
 
 
 def run(*args, cwd=None):
-    proc = subprocess.run([sys.executable, "-m", "cfdesign", *args], capture_output=True, text=True, cwd=cwd)
-    return proc.returncode, proc.stdout, proc.stderr
+    """The command in this process (``cwd``: run from that folder)."""
+    import os
+
+    from conftest import run_cli
+
+    old = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        return run_cli(*args)
+    finally:
+        os.chdir(old)
+
+
+def test_the_entry_points_start(tmp_path):
+    """The installed command and ``python -m cfdesign`` (the only subprocesses of these tests)."""
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "--version"], capture_output=True, text=True)
+    assert proc.returncode == 0 and proc.stdout.startswith("cfdesign ")
+    proc = subprocess.run([sys.executable, "-m", "cfdesign", "verify", str(tmp_path / "none.json")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.startswith("cfdesign: error:") and "Traceback" not in proc.stderr
 
 
 def test_prove_json_keys_and_exit_zero(capsys):

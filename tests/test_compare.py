@@ -2,8 +2,6 @@
 
 import json
 import math
-import subprocess
-import sys
 
 import pytest
 
@@ -26,11 +24,10 @@ def test_ground_scenario_all_filters_bounded(ground):
     assert "CF / strapdown EKF" in verdict(list(ground.values()))
 
 
-def test_cli_json(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "cfdesign", "reproduce", "compare", "--scenario", "ground",
-                           "--duration", "60", "--json"], capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    data = json.loads(proc.stdout, parse_constant=lambda c: pytest.fail(f"invalid JSON constant {c}"))
+def test_cli_json(cli):
+    code, out, err = cli("reproduce", "compare", "--scenario", "ground", "--duration", "60", "--json")
+    assert code == 0, err
+    data = json.loads(out, parse_constant=lambda c: pytest.fail(f"invalid JSON constant {c}"))
     assert {r["filter"] for r in data["ground"]} == {"cf", "adaptive", "ekf003", "ekf002"}
 
 

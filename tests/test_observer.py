@@ -157,11 +157,7 @@ def test_continuous_observer_may_use_a_symbol_named_T():
     assert not obs.with_gains(k=1, T=2).parameters
 
 
-def test_design_with_bad_bode_path_writes_nothing(tmp_path):
-    import subprocess
-    import sys
-
+def test_design_with_bad_bode_path_writes_nothing(tmp_path, cli):
     out = tmp_path / "g.json"
-    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", "-o", str(out), "--bode",
-                           str(tmp_path / "missing" / "b.png")], capture_output=True, text=True)
-    assert proc.returncode == 2 and not out.exists()
+    code, _, _ = cli("design", "-o", out, "--bode", tmp_path / "missing" / "b.png")
+    assert code == 2 and not out.exists()

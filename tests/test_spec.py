@@ -1,7 +1,5 @@
 """Design files: every built-in example loads; bad files give one clear line naming the field."""
 
-import subprocess
-import sys
 
 import pytest
 
@@ -53,15 +51,15 @@ BAD = [
 
 
 @pytest.mark.parametrize("text, field", BAD, ids=[f"bad{i}" for i in range(len(BAD))])
-def test_bad_design_files_one_line_exit_2_nothing_written(text, field, tmp_path):
+def test_bad_design_files_one_line_exit_2_nothing_written(text, field, tmp_path, cli, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     spec = tmp_path / "bad.toml"
     spec.write_text(text)
     out = tmp_path / "gains.json"
-    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", str(spec), "-o", str(out)],
-                          capture_output=True, text=True, cwd=tmp_path)
-    assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
-    assert field in proc.stderr
+    code, _, err = cli("design", spec, "-o", out)
+    assert code == 2, err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert field in err
     assert not out.exists() and not (tmp_path / "pwned").exists()
 
 
@@ -70,9 +68,9 @@ def test_missing_file():
         load_spec("/nonexistent/design.toml")
 
 
-def test_cli_design_default_example_writes_table_and_bode(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "cfdesign", "design", "-o", "g.json", "--bode", "b.png"],
-                          capture_output=True, text=True, cwd=tmp_path)
-    assert proc.returncode == 0, proc.stderr
-    assert "dckf3" in proc.stdout and "complementary (exact proof): True" in proc.stdout
+def test_cli_design_default_example_writes_table_and_bode(tmp_path, cli, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = cli("design", "-o", "g.json", "--bode", "b.png")
+    assert code == 0, err
+    assert "dckf3" in out and "complementary (exact proof): True" in out
     assert (tmp_path / "g.json").stat().st_size > 500 and (tmp_path / "b.png").stat().st_size > 10_000

@@ -3,7 +3,6 @@
 import dataclasses
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -22,8 +21,12 @@ def tables():
     return {name: cfdesign.design(cfdesign.load_spec(cfdesign.example_path(name))) for name in EXAMPLES}
 
 
-def cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "cfdesign", *args], capture_output=True, text=True, cwd=cwd)
+def cli(*args):
+    """The command in this process, as a CompletedProcess."""
+    from conftest import run_cli
+
+    code, out, err = run_cli(*args)
+    return subprocess.CompletedProcess(args, code, out, err)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
