@@ -251,3 +251,13 @@ def test_cli_never_shows_a_traceback(argv):
     code, _, err = run_cli(*argv)
     assert code in (0, 1, 2), (argv, code, err)
     assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, (argv, err)
+
+
+@pytest.mark.parametrize("solver", ["dare", "care"])
+def test_zero_size_riccati_data_is_a_named_error(solver, capfd):
+    import cfdesign.riccati as ric
+    from cfdesign.errors import RiccatiError
+
+    with pytest.raises(RiccatiError, match="0x0: a Riccati equation needs at least one state"):
+        getattr(ric, solver)(np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)))
+    assert "DGGES" not in capfd.readouterr().err  # no raw LAPACK message

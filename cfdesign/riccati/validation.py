@@ -78,8 +78,12 @@ def problem_data(kind, A, B, Q, R, S, E):
     """Validate the data of a CARE/DARE; returns ``(A, B, Q, R, S, E)`` with ``S`` filled in."""
     A = matrix("A", A, "square")
     n = A.shape[0]
+    if n == 0:
+        raise RiccatiError("A is 0x0: a Riccati equation needs at least one state")
     B = matrix("B", B, (n, None))
     m = B.shape[1]
+    if m == 0:
+        raise RiccatiError(f"B is {n}x0: a Riccati equation needs at least one input (one measurement for a filter)")
     Q = matrix("Q", Q, (n, n), hermitian=True)
     R = matrix("R", R, (m, m), hermitian=True)
     S = np.zeros((n, m)) if S is None else matrix("S", S, (n, m))
