@@ -88,7 +88,7 @@ def _temporary(path: Path, mode: str, **kwargs):
 
 @contextlib.contextmanager
 def open_atomic(path, mode: str = "w", **kwargs):
-    """Open ``path`` for writing a stream (a large output); it replaces ``path`` only when the
+    r"""Open ``path`` for writing a stream (a large output); it replaces ``path`` only when the
     ``with`` block completes without error, else nothing changes.
 
     Examples

@@ -32,7 +32,7 @@ Kinematics are analytic (velocity, acceleration, jerk, attitude and its derivati
 the horizontal position, integrated on a grid ``oversample`` times finer than the IMU.
 
 Sensors (Table 1; per-axis readings of our choice where the paper is silent)
----------------------------------------------------------------------------
+----------------------------------------------------------------------------
 IMU at 50 Hz, GPS at 1 Hz (first fix at t = 0).  Gyro: constant bias 0.05 deg/s and white
 noise of variance (0.02 deg/s)^2 per sample on each axis, bias signs ``BIAS_SIGNS``;
 accelerometer: noise (0.6 mg)^2 per axis, 1 mg = 9.80665e-3 m/s^2, and a 10-mg bias on the
