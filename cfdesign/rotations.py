@@ -126,8 +126,24 @@ def from_matrix(R):
 def euler_rate_matrix(euler):
     """``Q(λ)``: Euler-angle rates ``λ' = Q(λ) ω`` for ``λ = (ψ, θ, φ)`` (Vasconcelos et al. Sec. 2.1).
 
-    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``; ``ω`` is
-    the body rate (rad/s).  Singular at ``θ = ±90°``.  ``euler`` (..., 3) -> (..., 3, 3).
+    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``.
+
+    Parameters
+    ----------
+    euler : array_like, shape (..., 3)
+        ZYX Euler angles ``[yaw, pitch, roll]`` (rad) of the body frame relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Maps the body rate ``ω`` (rad/s, body frame) to ``[ψ', θ', φ']`` (rad/s).  Singular at
+        ``θ = ±90°`` (entries become infinite).
+
+    Examples
+    --------
+    >>> from cfdesign.rotations import euler_rate_matrix
+    >>> euler_rate_matrix([0.0, 0.0, 0.0]).tolist()     # level: yaw rate = body z rate
+    [[0.0, 0.0, 1.0], [0.0, 1.0, -0.0], [1.0, 0.0, 0.0]]
     """
     e = np.asarray(euler, dtype=float)
     sf, cf = np.sin(e[..., 2]), np.cos(e[..., 2])
@@ -142,6 +158,16 @@ def euler_rate_matrix_inverse(euler):
     """``Q(λ)^-1``: body rate from Euler-angle rates, ``ω = Q^-1 λ'`` (defined at every attitude).
 
     ``Q^-1 = [[-sinθ, 0, 1], [cosθ sinφ, cosφ, 0], [cosθ cosφ, -sinφ, 0]]`` (columns ψ', θ', φ').
+
+    Parameters
+    ----------
+    euler : array_like, shape (..., 3)
+        ZYX Euler angles ``[yaw, pitch, roll]`` (rad) of the body frame relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Maps ``[ψ', θ', φ']`` (rad/s) to the body rate ``ω`` (rad/s, body frame).
     """
     e = np.asarray(euler, dtype=float)
     st, ct, sf, cf = np.sin(e[..., 1]), np.cos(e[..., 1]), np.sin(e[..., 2]), np.cos(e[..., 2])

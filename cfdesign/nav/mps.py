@@ -85,14 +85,34 @@ def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=No
 
 
 def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
-    """Singularity-free MPS attitude: quaternion ``[w, x, y, z]``, body -> ENU (TRIAD-like).
+    """Singularity-free Magneto-Pendular Sensor attitude as a quaternion (TRIAD-like).
 
-    Up is ``a/|a|``; east is ``m × up`` normalised; north is ``up × east``; the rotation
-    matrix has the ENU axes (in body coordinates) as its rows.  The magnetic frame is then
-    turned by ``-α_dec`` about up.  Gravity fixes roll and pitch; the field only the heading,
-    at any pitch (unlike the Euler form, which is singular at ``θ = ±90°``).  Without a
-    usable field (``None``, zero, or parallel to gravity) the heading is set to zero
-    (yaw-free tilt, the shortest rotation from up to ``a``).
+    Up is ``a/|a|``; east is ``m × up`` normalised; north is ``up × east``; the rotation matrix
+    has the ENU axes (in body coordinates) as its rows.  The magnetic frame is then turned by
+    ``-α_dec`` about up.  Gravity fixes roll and pitch; the field only the heading, at any pitch
+    (unlike :func:`mps_euler`, which is singular at ``θ = ±90°``).
+
+    Parameters
+    ----------
+    acc : array_like, shape (..., 3)
+        Specific force in the body frame (m/s²); points up when at rest.
+    mag : array_like, shape (..., 3), optional
+        Magnetic field in the body frame (any unit).  Without a usable field (``None``, zero,
+        or parallel to gravity) the heading is set to zero (yaw-free tilt, the shortest
+        rotation from up to ``a``).
+    declination_rad : float
+        Magnetic declination (rad), positive east.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit quaternion ``[w, x, y, z]`` rotating body to ENU.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import mps_quaternion
+    >>> mps_quaternion([0.0, 0.0, 9.81], [0.0, 1.0, -1.0]).round(6).tolist()  # level, axes along ENU
+    [1.0, 0.0, 0.0, 0.0]
     """
     a = np.asarray(acc, dtype=float)
     up = a / np.linalg.norm(a, axis=-1, keepdims=True)
