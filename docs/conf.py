@@ -16,7 +16,9 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(ROOT))
-os.environ.setdefault("MPLBACKEND", "Agg")
+# The notebooks' kernels must draw with IPython's inline backend so that their figures land in
+# the pages: a backend forced from outside (MPLBACKEND=Agg in CI) would draw them nowhere.
+os.environ.pop("MPLBACKEND", None)
 
 import cfdesign  # noqa: E402
 
