@@ -1,8 +1,9 @@
 """Every public name has a numpydoc docstring that matches its signature.
 
-The public names are those of ``cfdesign.__all__``, of the ``__all__`` of every module listed
-there (``cfdesign.gains``, ``cfdesign.verify``, ...) and of every subpackage (``cfdesign.riccati``,
-``cfdesign.nav``, ...), with the public methods and properties of every public class.  For each:
+The public names are those of ``cfdesign.__all__``, of every subpackage's ``__all__``
+(``cfdesign.riccati``, ``cfdesign.nav``, ...) and of the ``__all__`` of every other module
+(``cfdesign.gains``, ``cfdesign.riccati.refinement``, ...), with the public methods and
+properties of every public class.  For each:
 
 * a docstring with a one-line summary;
 * a ``Parameters`` section naming every argument of the signature (``self``/``cls`` aside;
@@ -21,6 +22,7 @@ from __future__ import annotations
 import ast
 import importlib
 import inspect
+import pkgutil
 import re
 import textwrap
 
@@ -46,12 +48,19 @@ SECTION = re.compile(r"^(?P<name>[A-Z][A-Za-z ]+)\n-{3,}[ \t]*$", re.M)
 
 
 def _modules():
+    """The top level, the subpackages, then every module (each name is checked under the first
+    name that exports it)."""
     mods = {"cfdesign": cfdesign}
     for name in cfdesign.__all__:
         if name in cfdesign._MODULES:
             mods[f"cfdesign.{name}"] = importlib.import_module(f"cfdesign.{name}")
     for name in SUBPACKAGES:
         mods[f"cfdesign.{name}"] = importlib.import_module(f"cfdesign.{name}")
+    for info in pkgutil.walk_packages(cfdesign.__path__, "cfdesign."):
+        if not info.name.endswith("__main__") and info.name not in mods:
+            module = importlib.import_module(info.name)
+            if hasattr(module, "__all__"):
+                mods[info.name] = module
     return mods
 
 
@@ -60,7 +69,7 @@ def public_objects():
     method, property), each object once under the first name that exports it."""
     seen, out = set(), []
     for module_name, module in _modules().items():
-        for name in module.__all__:
+        for name in getattr(module, "__all__", ()):
             obj = getattr(module, name)
             if inspect.ismodule(obj) or id(obj) in seen:
                 continue
@@ -206,7 +215,7 @@ PUBLIC = public_objects()
 def test_public_names_are_covered():
     names = {q for q, _, _ in PUBLIC}
     assert "cfdesign.design" in names and "cfdesign.Runtime.step" in names and "cfdesign.riccati.care" in names
-    assert len(PUBLIC) > 200
+    assert len(PUBLIC) > 400
 
 
 @pytest.mark.parametrize("qual,obj,kind", [
