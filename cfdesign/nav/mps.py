@@ -32,12 +32,40 @@ __all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_comp
 
 
 def centripetal_compensation(acc, rate, velocity_body):
-    """``a_MPS = a - ω̂ × v_B`` (m/s², Vasconcelos et al. Sec. 2.2); arrays (..., 3) in the body frame."""
+    """Centripetal compensation of the accelerometer: ``a_MPS = a - ω̂ × v_B`` (Vasconcelos et al. Sec. 2.2).
+
+    Parameters
+    ----------
+    acc : array_like, shape (..., 3)
+        Specific force in the body frame (m/s²).
+    rate : array_like, shape (..., 3)
+        Unbiased body rate (rad/s).
+    velocity_body : array_like, shape (..., 3)
+        Velocity in the body frame (m/s).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The compensated specific force (m/s², body frame).
+    """
     return np.asarray(acc, dtype=float) - np.cross(rate, velocity_body)
 
 
 def tilt_compensated_field(mag, pitch, roll):
-    """``m' = R_Y(θ) R_X(φ) m``: the field in the level frame that shares the body's heading."""
+    """The magnetic field in the level frame that shares the body's heading: ``m' = R_Y(θ) R_X(φ) m``.
+
+    Parameters
+    ----------
+    mag : array_like, shape (..., 3)
+        Field in the body frame (any unit).
+    pitch, roll : array_like
+        Pitch ``θ`` and roll ``φ`` (rad), ZYX relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The field rotated to the level frame (same unit).
+    """
     m = np.asarray(mag, dtype=float)
     cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
     y = cr * m[..., 1] - sr * m[..., 2]                     # R_X(φ) m, its z is z1
