@@ -277,17 +277,49 @@ def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
 
 
 def cumulative_trapezoid(values, h):
-    """Cumulative trapezoidal integral along axis 0 from 0."""
+    """Cumulative trapezoidal integral along axis 0, from 0.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N + 1, ...)
+        Samples on a uniform grid.
+    h : float
+        Grid step.
+
+    Returns
+    -------
+    ndarray, shape (N + 1, ...)
+        The integral at each sample (0 at the first).
+    """
     steps = 0.5 * h * (values[1:] + values[:-1])
     return np.concatenate([np.zeros((1, *values.shape[1:])), np.cumsum(steps, axis=0)])
 
 
 def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndarray:
-    """Per-axis :class:`RateSensor` readings of a signal whose interval means are ``means`` (N, 3).
+    """Per-axis :class:`RateSensor` readings of a signal given by its interval means.
 
     Each axis is given to the sensor model as a :class:`~cfdesign.sim.trajectory.Trajectory`
-    whose "heading" is the signal's running integral, so the model's mean rate is the mean
-    of the signal over each interval.
+    whose "heading" is the signal's running integral, so the model's mean rate is the mean of
+    the signal over each interval.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N + 1,)
+        Sample times (s).
+    means : ndarray, shape (N, 3)
+        The signal's mean over each interval (rad/s or m/s^2).
+    bias : sequence of 3 floats
+        Constant bias per axis.
+    noise_std : float
+        White noise per sample.
+    prefix : str
+        Sensor name prefix (``gyro``): axis ``x`` draws from the stream of ``gyro_x``.
+    seed : int
+        Seed of the run.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
     """
     dt = float(t_s[1] - t_s[0])
     out = np.empty_like(means)
@@ -300,7 +332,23 @@ def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndar
 
 
 def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
-    """``truth`` plus white noise of std ``std`` at every ``every``-th sample, NaN elsewhere."""
+    """Samples of a signal plus white noise at every ``every``-th sample, NaN elsewhere.
+
+    Parameters
+    ----------
+    truth : ndarray, shape (N, ...)
+    std : float
+        Noise per sample.
+    every : int
+        Keep every ``every``-th sample.
+    name : str
+        Stream name (the noise is seeded by ``(seed, crc32(name))``).
+    seed : int
+
+    Returns
+    -------
+    ndarray, shape (N, ...)
+    """
     rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
     out = np.full(truth.shape, np.nan)
     out[::every] = truth[::every] + std * rng.normal(size=truth[::every].shape)

@@ -136,8 +136,26 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
 
     Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration) plus
     white noise of std 0.05; angle tables swing over +-4 rad (so the heading crosses +-pi,
-    readings wrapped), others over +-50 m.  A fraction ``missing`` of the samples is NaN.
-    Used by the runtime benchmark and the C-against-Python tests.
+    readings wrapped), others over +-50 m.  Used by the runtime benchmark and the
+    C-against-Python tests.
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table.
+    n : int
+        Number of samples.
+    seed : int
+        Seed of the noise.
+    amplitude : float, optional
+        Amplitude of the sinusoid (default 4 rad or 50 m).
+    missing : float
+        Fraction of the samples set to NaN.
+
+    Returns
+    -------
+    dict
+        ``{sensor: (n,) ndarray}``, ready for :meth:`cfdesign.runtime.Runtime.run`.
     """
     rng = np.random.default_rng(seed)
     period_s = 2000.0 if table.wrap_angle else 100.0
