@@ -24,7 +24,7 @@ import cfdesign  # noqa: E402
 
 project = "cfdesign"
 author = "the cfdesign developers"
-copyright = "the cfdesign developers, BSD-3-Clause"  # noqa: A001
+copyright = "the cfdesign developers, BSD-3-Clause"
 version = release = cfdesign.__version__
 
 extensions = [
