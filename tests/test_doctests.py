@@ -45,4 +45,4 @@ def test_docstring_examples(name, monkeypatch, tmp_path):
 
 def test_there_are_examples():
     count = sum(len(t.examples) for name in WITH_EXAMPLES for t in _tests(name))
-    assert count >= 60, count
+    assert count >= 200, count
