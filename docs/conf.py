@@ -68,6 +68,40 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks = set()
 
+
+
+def _dataclass_fields() -> set:
+    """Field names of the public dataclasses: their docstrings describe them (numpydoc
+    ``Attributes``/``Parameters``), so autodoc's own entries for them would repeat it."""
+    import dataclasses
+    import importlib
+    import inspect
+    import pkgutil
+
+    names = set()
+    for info in pkgutil.walk_packages(cfdesign.__path__, "cfdesign."):
+        if info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for obj in vars(module).values():
+            if inspect.isclass(obj) and dataclasses.is_dataclass(obj) and obj.__module__.startswith("cfdesign"):
+                names.update(f.name for f in dataclasses.fields(obj))
+    return names
+
+
+_FIELDS = _dataclass_fields()
+
+
+def _skip_fields(app, what, name, obj, skip, options):
+    if what == "class" and name in _FIELDS and not callable(obj) and not isinstance(obj, property):
+        return True
+    return None
+
+
+def setup(app):
+    app.connect("autodoc-skip-member", _skip_fields)
+
+
 # -- HTML ----------------------------------------------------------------------------------------
 html_theme = "pydata_sphinx_theme"
 html_title = f"cfdesign {version}"
