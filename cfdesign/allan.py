@@ -85,7 +85,25 @@ CONFIDENCE = 0.95
 
 # ---------------------------------------------------------------------------- the deviation
 def octave_taus(n_samples: int, rate_hz: float) -> np.ndarray:
-    """Averaging factors ``m = 1, 2, 4, ...`` up to ``(n_samples - 1) // 2`` (ints)."""
+    """Octave-spaced averaging factors ``m = 1, 2, 4, ...`` up to ``(n_samples - 1) // 2``.
+
+    Parameters
+    ----------
+    n_samples : int
+        Length of the recording.
+    rate_hz : float
+        Sample rate (Hz); the averaging times are ``m / rate_hz``.
+
+    Returns
+    -------
+    ndarray of int
+
+    Examples
+    --------
+    >>> from cfdesign.allan import octave_taus
+    >>> octave_taus(100, 10.0).tolist()
+    [1, 2, 4, 8, 16, 32]
+    """
     top = (n_samples - 1) // 2
     return 2 ** np.arange(int(math.log2(top)) + 1) if top >= 1 else np.zeros(0, dtype=int)
 
@@ -124,11 +142,26 @@ def oadev(y, rate_hz: float, m=None):
 
 
 def edf_simple(n_phase: int, m, alpha: int):
-    """EDF of the overlapping Allan variance, the simple formulas of Howe, Allan and Barnes
-    (Riley, NIST SP 1065, Table 5), for ``n_phase`` phase points, averaging factor ``m`` and
-    frequency-noise exponent ``alpha`` (2 white PM, 0 white FM, -1 flicker FM, -2 random-walk FM).
-    ``allantools.edf_simple`` gives the same values except for flicker FM at ``m = 1``, where it
-    drops the square of ``(N - 2)`` in Riley's ``2 (N - 2)^2 / (2.3 N - 4.9)``."""
+    """Equivalent degrees of freedom of the overlapping Allan variance.
+
+    The simple formulas of Howe, Allan and Barnes (Riley, NIST SP 1065, Table 5).
+    ``allantools.edf_simple`` gives the same values except for flicker FM at ``m = 1``, where
+    it drops the square of ``(N - 2)`` in Riley's ``2 (N - 2)^2 / (2.3 N - 4.9)``.
+
+    Parameters
+    ----------
+    n_phase : int
+        Number of phase points (readings + 1).
+    m : int or array_like of int
+        Averaging factors.
+    alpha : int
+        Frequency-noise exponent: 2 white PM, 0 white FM, -1 flicker FM, -2 random-walk FM.
+
+    Returns
+    -------
+    ndarray
+        EDF per averaging factor.
+    """
     N, m = float(n_phase), np.asarray(m, dtype=float)
     if alpha >= 1:  # white (and flicker) PM
         return (N + 1) * (N - 2 * m) / (2 * (N - m))
@@ -159,9 +192,11 @@ class NoiseTerm:
     slope : float
         The measured log-log slope over that range (the term's own is ``nominal_slope``).
     nominal_slope : float
+        The term's own slope (-1/2 for white noise, 0, +1/2 for the random walk, ...).
     edf : float
         Equivalent degrees of freedom of the estimate.
     unit : str
+        The term's unit in terms of the sensor's unit ``u`` (``u/sqrt(Hz)``).
     """
 
     name: str
@@ -175,6 +210,18 @@ class NoiseTerm:
     unit: str
 
     def line(self, unit: str = "u") -> str:
+        """The term as one line of a summary.
+
+        Parameters
+        ----------
+        unit : str
+            The sensor's unit, substituted for ``u`` in the term's unit.
+
+        Returns
+        -------
+        str
+            ``N = 0.01 rad/s/sqrt(Hz) (95% CI ...; slope ..., over tau ... s)``.
+        """
         unit_text = self.unit.replace("u", unit, 1)
         return (f"{self.symbol} = {self.value:.4g} {unit_text} (95% CI {self.ci[0]:.4g} to {self.ci[1]:.4g}; "
                 f"slope {self.slope:+.2f}, expected {self.nominal_slope:+.1f}, over tau "
@@ -196,8 +243,19 @@ class NoiseFit:
         ``{term name: NoiseTerm}`` for the terms the data show.
     missing : dict
         ``{term name: reason}`` for the terms of the model that are not reported.
-    model_variance : ndarray
-        The fitted Allan variance at ``tau_s`` (all significant terms).
+    coefficients : dict
+        ``{term name: coefficient}`` of the fitted Allan variance model (:data:`TERMS`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import cfdesign
+    >>> x = 0.01 * np.sqrt(100.0) * np.random.default_rng(0).standard_normal(360_000)
+    >>> fit = cfdesign.identify_noise(x, rate_hz=100.0, name="gyro_x")  # 1 h, N = 0.01 u/sqrt(Hz)
+    >>> round(fit.white_density, 4), fit.random_walk_density
+    (0.01, None)
+    >>> fit.design_entries()  # doctest: +ELLIPSIS
+    {'noise': {'density': 0.0100...}}
     """
 
     name: str
@@ -231,7 +289,18 @@ class NoiseFit:
         return None if term is None else term.value
 
     def adev_ci(self, level: float = 0.683) -> tuple:
-        """``(low, high)`` chi-square interval of every ADEV point (Riley SP 1065 eq. (43))."""
+        """Chi-square confidence interval of every ADEV point (Riley, NIST SP 1065, eq. (43)).
+
+        Parameters
+        ----------
+        level : float
+            Confidence level (0.683: one sigma).
+
+        Returns
+        -------
+        low, high : ndarray
+            Bounds at :attr:`tau_s`, in the sensor's unit.
+        """
         from scipy.stats import chi2
 
         lo = self.adev * np.sqrt(self.edf / chi2.ppf(0.5 + level / 2, self.edf))
@@ -239,15 +308,34 @@ class NoiseFit:
         return lo, hi
 
     def model_adev(self, tau_s, terms=None) -> np.ndarray:
-        """The fitted ADEV (the reported terms, or only ``terms``) at ``tau_s``."""
+        """The fitted Allan deviation.
+
+        Parameters
+        ----------
+        tau_s : array_like
+            Averaging times (s).
+        terms : sequence of str, optional
+            Only these terms (their asymptotes); default every reported term.
+
+        Returns
+        -------
+        ndarray
+            ADEV in the sensor's unit.
+        """
         tau_s = np.asarray(tau_s, dtype=float)
         names = self.terms if terms is None else terms
         A = _basis(tau_s, 1.0 / self.rate_hz if terms is None else 0.0)
         return np.sqrt(sum((self.coefficients[k] * A[:, list(TERMS).index(k)] for k in names), np.zeros_like(tau_s)))
 
     def design_entries(self) -> dict:
-        """``{'noise': {'density': N}, 'bias': {'model': 'random_walk', 'density': K}}`` with
-        the entries the data support (a design file's ``[sensors.NAME]`` fields)."""
+        """The design-file fields the data support.
+
+        Returns
+        -------
+        dict
+            ``{'noise': {'density': N}, 'bias': {'model': 'random_walk', 'density': K}}``, each
+            only when identified (a design file's ``[sensors.NAME]`` fields).
+        """
         out = {}
         if self.white_density is not None:
             out["noise"] = {"density": self.white_density}
@@ -256,7 +344,17 @@ class NoiseFit:
         return out
 
     def summary(self, unit: str = "u") -> str:
-        """Plain text: one line per term found, one per term not shown with its reason."""
+        """Plain text: one line per term found, one per term not shown with its reason.
+
+        Parameters
+        ----------
+        unit : str
+            The sensor's unit (``rad/s``), substituted for ``u``.
+
+        Returns
+        -------
+        str
+        """
         unit = _comment(unit)
         lines = [f"{_comment(self.name)}: {self.duration_s:.6g} s at {self.rate_hz:.6g} Hz, Allan deviation at "
                  f"{len(self.tau_s)} octave-spaced tau from {self.tau_s[0]:.3g} to {self.tau_s[-1]:.3g} s"]
@@ -268,7 +366,19 @@ class NoiseFit:
         return "\n".join(lines)
 
     def plot(self, ax=None, unit: str = "u"):
-        """Log-log Allan deviation with 68 % intervals and the fitted asymptotes (matplotlib)."""
+        """Log-log Allan deviation with 68 % intervals and the fitted asymptotes.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes, optional
+            Axes to draw into (default: a new figure).
+        unit : str
+            The sensor's unit, for the axis label.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         return adev_plot([self], ax=ax, unit=unit)
 
 
@@ -473,9 +583,25 @@ def _comment(text: str) -> str:
 
 
 def noise_toml(fits, source: str = "", unit: str = "u") -> str:
-    """Design-file entries (TOML) for every fit: ``[sensors.NAME]`` with ``rate_hz``,
-    ``noise = { density = N }`` and ``bias = { model = "random_walk", density = K }`` where
-    the recording shows them, the rest as comments saying why not."""
+    """Design-file entries (TOML) for every fit, as ``cfdesign noise -o`` writes them.
+
+    ``[sensors.NAME]`` with ``rate_hz``, ``noise = { density = N }`` and
+    ``bias = { model = "random_walk", density = K }`` where the recording shows them, the rest
+    as comments saying why not.
+
+    Parameters
+    ----------
+    fits : sequence of NoiseFit
+    source : str
+        The log's name, for the header comment.
+    unit : str
+        The columns' unit (``rad/s``), for the comments.
+
+    Returns
+    -------
+    str
+        TOML text.
+    """
     unit = _comment(unit)
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
              "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
@@ -509,7 +635,20 @@ def _ci_text(term):
 
 
 def adev_plot(fits, ax=None, unit: str = "u"):
-    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes; returns the figure."""
+    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes.
+
+    Parameters
+    ----------
+    fits : sequence of NoiseFit
+    ax : matplotlib.axes.Axes, optional
+        Axes to draw into (default: a new figure).
+    unit : str
+        The sensors' unit, for the axis label.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import matplotlib.pyplot as plt
 
     if ax is None:
@@ -551,12 +690,27 @@ MAX_LOG_BYTES = 2_000_000_000
 
 
 def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
-    """``(rate_hz or None, {column: array})`` from a CSV log with a header row.
+    """Read numeric columns from a CSV log with a header row.
 
-    The small reader ``cfdesign noise`` uses (to be swapped for the shared log reader):
-    every named column must exist and hold a number on every row; with ``time_column`` the
-    rate is ``1 / median(diff(time))`` and the times must increase steadily (no gap longer
-    than 1.5 steps, no step shorter than half of one).
+    The small reader ``cfdesign noise`` uses: every named column must exist and hold a number
+    on every row; with ``time_column`` the rate is ``1 / median(diff(time))`` and the times must
+    increase steadily (no gap longer than 1.5 steps, no step shorter than half of one).
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV file.
+    columns : sequence of str
+        Columns to read.
+    time_column : str, optional
+        Column of times (s) to take the rate from.
+
+    Returns
+    -------
+    rate_hz : float or None
+        From the time column, else None.
+    data : dict
+        ``{column: ndarray}``.
 
     Raises
     ------

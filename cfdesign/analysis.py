@@ -15,12 +15,34 @@ __all__ = ["transfer_functions", "named_transfer_functions", "FrequencyResponse"
 
 
 def transfer_functions(observer) -> dict:
-    """``{sensor: control.TransferFunction}`` of every band, plus ``'sum'``.
+    """The band of every sensor of a numeric observer as a python-control transfer function.
 
     Continuous bands are in ``s``; discrete ones carry ``dt`` = the sample time (s).  The
     ``'sum'`` entry is the exact sum reduced by the symbolic proof (``1`` when the filter is
     complementary), not a numerically added model of inflated order.  Each is named after its
     sensor (:func:`named_transfer_functions`).
+
+    Parameters
+    ----------
+    observer : cfdesign.symbolic.Observer
+        With numbers for every gain (and the sample time): :meth:`Observer.with_gains`.
+
+    Returns
+    -------
+    dict
+        ``{sensor: control.TransferFunction, ..., 'sum': control.TransferFunction}``.
+
+    Raises
+    ------
+    GainError
+        The observer still has symbolic parameters.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> tfs = cfdesign.transfer_functions(cfdesign.cf2().with_gains(k=2))
+    >>> sorted(tfs), tfs["angle"].name, tfs["angle"].input_labels
+    (['angle', 'rate', 'sum'], 'T_angle', ['angle'])
     """
     dt = float(observer.sample_time) if observer.discrete else 0
     return named_transfer_functions(observer.band_coefficients(), dt, observer.name,
@@ -28,9 +50,27 @@ def transfer_functions(observer) -> dict:
 
 
 def named_transfer_functions(coefficients: dict, dt, label: str = "", total=None) -> dict:
-    """``{sensor: control.TransferFunction}`` from band polynomials, each named after its sensor:
-    system ``'T_<sensor>'``, input ``'<sensor>'`` (the common quantity seen through that
-    sensor), output ``'estimate'``; ``'sum'`` (input ``'quantity'``) when ``total`` is given."""
+    """Transfer functions from band polynomials, each named after its sensor.
+
+    System ``'T_<sensor>'``, input ``'<sensor>'`` (the common quantity seen through that
+    sensor), output ``'estimate'``; ``'sum'`` (input ``'quantity'``) when ``total`` is given.
+
+    Parameters
+    ----------
+    coefficients : dict
+        ``{sensor: (num, den)}``, highest power first.
+    dt : float
+        Sample time (s); 0 or None for continuous bands.
+    label : str
+        Name of the filter (unused in the systems' names; kept for messages).
+    total : (num, den), optional
+        The sum of the bands.
+
+    Returns
+    -------
+    dict
+        ``{sensor: control.TransferFunction}`` (and ``'sum'``).
+    """
     import control
 
     out = {name: control.tf(num, den, dt or 0, inputs=[name], outputs=["estimate"], name=f"T_{name}")
@@ -49,7 +89,25 @@ def _band_poles(coefficients, dt):
 
 
 def default_frequencies(coefficients, dt=None, points: int = 800) -> np.ndarray:
-    """A log grid (rad/s) two decades either side of the pole magnitudes, capped at Nyquist."""
+    """A frequency grid for the bands' responses.
+
+    Log-spaced two decades either side of the pole magnitudes, capped at Nyquist for
+    discrete bands.
+
+    Parameters
+    ----------
+    coefficients : dict
+        ``{sensor: (num, den)}`` band polynomials.
+    dt : float, optional
+        Sample time (s) of discrete bands.
+    points : int
+        Number of frequencies.
+
+    Returns
+    -------
+    ndarray, shape (points,)
+        Angular frequencies (rad/s).
+    """
     mags = _band_poles(coefficients, dt)
     lo, hi = (mags.min(), mags.max()) if mags.size else (1.0, 1.0)
     lo, hi = lo / 100, hi * 100
@@ -86,26 +144,67 @@ class FrequencyResponse:
         return np.sum(list(self.bands.values()), axis=0)
 
     def magnitude_db(self, name: str) -> np.ndarray:
+        """Magnitude of one band (or ``'sum'``) in dB.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name, or ``'sum'``.
+
+        Returns
+        -------
+        ndarray
+            ``20 log10 |T(j w)|`` on :attr:`omega`.
+        """
         resp = self.total if name == "sum" else self.bands[name]
         with np.errstate(divide="ignore"):
             return 20 * np.log10(np.abs(resp))
 
     def phase_deg(self, name: str) -> np.ndarray:
+        """Phase of one band (or ``'sum'``) in degrees, unwrapped.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name, or ``'sum'``.
+
+        Returns
+        -------
+        ndarray
+            Phase (deg) on :attr:`omega`.
+        """
         resp = self.total if name == "sum" else self.bands[name]
         return np.degrees(np.unwrap(np.angle(resp)))
 
     def dominant_order(self) -> list:
-        """Band names ordered by the frequency at which each band peaks (low-pass first)."""
+        """Band names ordered by the frequency at which each band peaks (low-pass first).
+
+        Returns
+        -------
+        list of str
+        """
         peak = {k: self.omega[np.argmax(np.abs(v))] for k, v in self.bands.items()}
         return sorted(peak, key=lambda k: (peak[k], k))
 
     def crossovers(self) -> list:
-        """``[(band_a, band_b, w)]``: where adjacent bands have equal magnitude (rad/s).
+        """Where adjacent bands have equal magnitude.
 
         Bands are taken in :meth:`dominant_order`; each hands over to the next band that ever
-        reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).
-        The first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's
-        method on the exact band polynomials.
+        reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).  The
+        first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method on
+        the exact band polynomials.
+
+        Returns
+        -------
+        list of (str, str, float)
+            ``(band_a, band_b, w)`` with ``w`` in rad/s.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> resp = cfdesign.frequency_response(cfdesign.cf3().with_gains(k1=2, k2=1))
+        >>> [(a, b, round(w, 6)) for a, b, w in resp.crossovers()]
+        [('position', 'velocity', 0.5), ('velocity', 'acceleration', 2.0)]
         """
         order = self.dominant_order()
         found, current = [], order[0] if order else None
@@ -135,7 +234,27 @@ class FrequencyResponse:
 
 
 def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResponse:
-    """Evaluate every band of a numeric observer on ``omega`` (rad/s; default: automatic grid)."""
+    """Evaluate every band of a numeric observer on a frequency grid.
+
+    Parameters
+    ----------
+    observer : cfdesign.symbolic.Observer
+        With numbers for every gain (and the sample time).
+    omega : array_like, optional
+        Angular frequencies (rad/s); default :func:`default_frequencies`.
+    points : int
+        Size of the default grid.
+
+    Returns
+    -------
+    FrequencyResponse
+
+    Raises
+    ------
+    GainError
+        The observer still has symbolic parameters, or the responses overflow (gains too
+        large, or a pole on the grid).
+    """
     coefficients = observer.band_coefficients()
     dt = float(observer.sample_time) if observer.discrete else None
     if omega is None:

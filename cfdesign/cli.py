@@ -26,7 +26,30 @@ class _Parser(argparse.ArgumentParser):
 
 
 def parse_gains(text: str) -> dict:
-    """Parse ``'k1=2,k2=1'`` into exact numbers; never evaluates the text."""
+    """Parse ``'k1=2,k2=1'`` (``cfdesign bode --gains``) into exact numbers; never evaluates the text.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated ``name=value`` items; values are decimal numbers or fractions.
+
+    Returns
+    -------
+    dict
+        ``{name: sympy number}``, exact (``0.5`` becomes ``1/2``).
+
+    Raises
+    ------
+    GainError
+        An item not of the form ``name=value``, a name given twice, or a value that is not a
+        number.
+
+    Examples
+    --------
+    >>> from cfdesign.cli import parse_gains
+    >>> parse_gains("k1=2, k2=0.5")
+    {'k1': 2, 'k2': 1/2}
+    """
     from .symbolic.observer import parse_number
 
     values = {}
@@ -422,10 +445,27 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run the ``cfdesign`` command; returns the exit status.
+    """Run the ``cfdesign`` command.
 
-    0 success, 1 a proof or check failed, 2 a user error (one line on stderr), 3 an internal
-    error (one line asking for a report; ``--debug`` shows the traceback).
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program name (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit status: 0 success, 1 a proof or check failed, 2 a user error (one line on
+        stderr), 3 an internal error (one line asking for a report; ``--debug`` shows the
+        traceback).
+
+    Examples
+    --------
+    >>> from cfdesign.cli import main
+    >>> main(["prove", "cf2"])  # doctest: +ELLIPSIS
+    Complementarity proof for cf2 (order 1) (variable s)
+    ...
+    0
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in argv

@@ -82,7 +82,32 @@ def _kind(structure):
 
 
 def continuous_crossover_gains(structure, hz, damping=None) -> dict:
-    """The continuous closed forms (module docstring) for ``hz`` (ascending, Hz)."""
+    """The continuous closed forms (module docstring) for the given crossovers.
+
+    cf2 order 1: ``k = w``; cf2 order 2: ``k1 = 2 zeta w_n``, ``k2 = w_n^2`` with
+    ``w_n = w sqrt(sqrt(1 + 4 zeta^4) - 2 zeta^2)``; chains: ``k_i = w_(m-1) ... w_(m-i)``
+    (``w = 2 pi hz``).
+
+    Parameters
+    ----------
+    structure : cfdesign.designer.Structure
+        cf2 (order 1 or 2), cf3 or a sparse cfn.
+    hz : sequence of float
+        Crossover frequencies, ascending, in Hz.
+    damping : float, optional
+        cf2 order 2 only: damping ratio (default ``1/sqrt(2)``).
+
+    Returns
+    -------
+    dict
+        ``{gain name: value}`` (1/s, 1/s^2, ...).
+
+    Raises
+    ------
+    SpecError
+        A damping for a structure other than cf2 order 2, or a count of frequencies other than
+        the number of bands minus one.
+    """
     kind, names = _kind(structure)
     w = [2 * math.pi * f for f in hz]
     _count(structure, hz)
@@ -112,7 +137,27 @@ def _count(structure, hz):
 
 
 def crossover_check(structure, model, K, form, output, dt, hz) -> list:
-    """``[(band_a, band_b, hz, |T_a| / |T_b|)]`` at each requested crossover (1 when met)."""
+    """The magnitude ratio of adjacent bands at each requested crossover.
+
+    Parameters
+    ----------
+    structure : cfdesign.designer.Structure
+    model : dict
+        ``F, B, H`` (discrete at ``dt``).
+    K : array_like, shape (n, m)
+        The gain, in ``form``.
+    form : {'continuous', 'predictor', 'filter'}
+    output : {'prior', 'posterior'}
+    dt : float or None
+        Sample time (s) of a discrete design.
+    hz : sequence of float
+        Crossover frequencies (Hz).
+
+    Returns
+    -------
+    list of (str, str, float, float)
+        ``(band_a, band_b, hz, |T_a| / |T_b|)``; the ratio is 1 where the crossover is met.
+    """
     bands = _bands_by_order(structure)
     real = linear.realisation(model["F"], model["B"], model["H"], K, form, output)
     omega = 2 * np.pi * np.asarray(hz, dtype=float)
@@ -122,7 +167,12 @@ def crossover_check(structure, model, K, form, output, dt, hz) -> list:
 
 
 def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dict:
-    """Gains ``{name: value}`` whose adjacent bands have equal magnitude at ``hz``.
+    """Gains whose adjacent bands have equal magnitude at the given frequencies.
+
+    Continuous structures take the closed forms of :func:`continuous_crossover_gains`;
+    discrete ones are solved numerically on the ZOH bands of the table's output, starting from
+    the closed forms (Ackermann pole placement for the damping of cf2 order 2), and checked
+    with :func:`crossover_check`.
 
     Parameters
     ----------
@@ -139,6 +189,11 @@ def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dic
         Crossover frequencies, ascending, in Hz.
     damping : float, optional
         cf2 order 2: damping ratio of the closed-loop poles (default ``1/sqrt(2)``).
+
+    Returns
+    -------
+    dict
+        ``{gain name: value}``.
 
     Raises
     ------

@@ -53,18 +53,46 @@ _RATE_RTOL = 1e-9
 
 def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = None,
                        offsets_s: dict | None = None) -> tuple:
-    """``(sample_time_s, Schedule)``: the base tick and the phases at which each sensor is read.
+    """The base tick and the phases at which each sensor is read.
 
     The base rate is the fastest sensor's (or ``1/sample_time_s``).  A sensor at ``rate_hz``
     reads every ``base/rate`` ticks: when that ratio is a fraction ``p/q`` (a 3 Hz GPS beside a
     100 Hz IMU: ``100/3``) it reads ``q`` times every ``p`` ticks, at the ticks nearest its
     arrival times ``j/rate + offset`` (``round(j p/q) + round(offset/T)``: 0, 33, 67 for the GPS).
-    The period is the least common multiple of the ``p``; ``offsets_s`` (s) delays a sensor's
-    first reading (a compass that arrives 0.37 s into each second).
+    The period is the least common multiple of the ``p``.  Input sensors drive the model every
+    step and must run at the base rate.
 
-    Input sensors drive the model every step and must run at the base rate.  Raises
-    :class:`SpecError` naming the sensor when a rate is faster than the base rate or gives a
-    period longer than :data:`MAX_PERIOD`.
+    Parameters
+    ----------
+    rates_hz : dict
+        ``{sensor: rate (Hz)}`` of every sensor.
+    inputs : sequence of str
+        The input sensors (they must run at the base rate).
+    sample_time_s : float, optional
+        Base sample time (s); default ``1 /`` the fastest rate.
+    offsets_s : dict, optional
+        ``{sensor: offset (s)}``: delays a sensor's first reading (a compass that arrives
+        0.37 s into each second).
+
+    Returns
+    -------
+    sample_time_s : float
+        The base tick (s).
+    schedule : cfdesign.gains.Schedule
+        The measurement sensors read at each phase of the period.
+
+    Raises
+    ------
+    SpecError
+        Naming the sensor: an input slower than the base rate, a rate faster than the base
+        rate, or rates whose period exceeds :data:`~cfdesign.gains.MAX_PERIOD` steps.
+
+    Examples
+    --------
+    >>> from cfdesign.designer import multirate_schedule
+    >>> T, schedule = multirate_schedule({"imu": 100.0, "gps": 3.0}, inputs=("imu",))
+    >>> T, schedule.period, schedule.phases("gps")
+    (0.01, 100, (0, 33, 67))
     """
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
     offsets_s = offsets_s or {}
@@ -146,7 +174,25 @@ class Structure:
 
     @classmethod
     def from_observer(cls, obs) -> Structure:
-        """The numeric structure of a symbolic observer (runs its exact proof)."""
+        """The numeric structure of a symbolic observer; runs its exact proof.
+
+        Parameters
+        ----------
+        obs : cfdesign.symbolic.Observer
+            With symbolic gains; a discrete observer must carry its continuous model
+            (``continuous=(Fc, Bc)``) for the noise discretisation.
+
+        Returns
+        -------
+        Structure
+
+        Raises
+        ------
+        SpecError
+            A discrete observer without its continuous model.
+        CfdesignError
+            The discrete model is not the zero-order hold of the continuous one (a bug).
+        """
         if obs.continuous is None:
             raise SpecError(f"structure {obs.name}: a discrete observer needs its continuous model "
                             "(Observer(..., continuous=(Fc, Bc))) for the noise discretisation")
@@ -165,6 +211,7 @@ class Structure:
 
     @property
     def domain(self) -> str:
+        """``'z'`` for a discrete structure, ``'s'`` for a continuous one."""
         return "z" if self.discrete else "s"
 
     @property
@@ -179,13 +226,34 @@ class Structure:
         return all(isinstance(e, str) for e in names) and len(set(names)) == len(names)
 
     def fixed(self, values: dict) -> Structure:
-        """The structure with some gains given numbers (the rest stay free)."""
+        """The structure with some gains given numbers (the rest stay free).
+
+        Parameters
+        ----------
+        values : dict
+            ``{gain name: value}``; names not in the pattern are ignored.
+
+        Returns
+        -------
+        Structure
+        """
         pattern = tuple(tuple(float(values[e]) if isinstance(e, str) and e in values else e for e in row)
                         for row in self.pattern)
         return replace(self, pattern=pattern)
 
     def model(self, dt: float | None = None) -> dict:
-        """``F, B, H`` (discrete at ``dt``: zero-order hold of ``Fc, Bc``) and ``Fc, Bc``."""
+        """The numeric model at a sample time.
+
+        Parameters
+        ----------
+        dt : float, optional
+            Sample time (s) of a discrete structure; ignored for continuous ones.
+
+        Returns
+        -------
+        dict
+            ``F, B, H`` (discrete at ``dt``: the zero-order hold of ``Fc, Bc``) and ``Fc, Bc``.
+        """
         if self.discrete:
             F, B = zoh(self.Fc, self.Bc, dt)
         else:
@@ -193,12 +261,28 @@ class Structure:
         return {"F": F, "B": B, "H": self.H, "Fc": self.Fc, "Bc": self.Bc}
 
     def to_dict(self) -> dict:
+        """The JSON form stored in ``cfdesign/structures/``.
+
+        Returns
+        -------
+        dict
+        """
         return {"name": self.name, "discrete": self.discrete, "Fc": self.Fc.tolist(), "Bc": self.Bc.tolist(),
                 "H": self.H.tolist(), "pattern": [list(r) for r in self.pattern],
                 "sensors": [vars(x) for x in self.sensors], "proved": self.proved}
 
     @classmethod
     def from_dict(cls, d: dict) -> Structure:
+        """A structure from its JSON form (:meth:`to_dict`).
+
+        Parameters
+        ----------
+        d : dict
+
+        Returns
+        -------
+        Structure
+        """
         n = len(d["Fc"])
         return cls(d["name"], bool(d["discrete"]), np.array(d["Fc"], dtype=float).reshape(n, n),
                    np.array(d["Bc"], dtype=float).reshape(n, -1), np.array(d["H"], dtype=float).reshape(-1, n),
@@ -207,7 +291,29 @@ class Structure:
 
     @classmethod
     def load(cls, name: str) -> Structure:
-        """A structure stored with cfdesign (``cfdesign/structures/NAME.json``), without sympy."""
+        """A structure stored with cfdesign (``cfdesign/structures/NAME.json``), without sympy.
+
+        Parameters
+        ----------
+        name : str
+            Stored structure, e.g. ``cf2-order2-discrete`` or ``position``.
+
+        Returns
+        -------
+        Structure
+
+        Raises
+        ------
+        SpecError
+            No stored structure of that name (the message lists them).
+
+        Examples
+        --------
+        >>> from cfdesign.designer import Structure
+        >>> s = Structure.load("position")
+        >>> s.domain, s.gains, s.proved
+        ('z', ('k1', 'k2', 'k3'), True)
+        """
         path = STRUCTURES_DIR / f"{name}.json"
         try:
             return cls.from_dict(json.loads(path.read_text()))
@@ -217,7 +323,24 @@ class Structure:
 
 
 def build_structure(spec: FilterSpec):
-    """The symbolic observer the spec names, with its options; errors name the field."""
+    """The symbolic observer a spec names, with its options and ports applied.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+
+    Returns
+    -------
+    cfdesign.symbolic.Observer
+        With symbolic gains, its sensors named as in the spec.
+
+    Raises
+    ------
+    SpecError
+        Unknown structure, an option that does not apply to it, a missing ``bands``, a sensor
+        that does not fit a port, a ``sample_time_s`` for a continuous structure; the message
+        names the field.
+    """
     from .errors import StructureError
     from .symbolic.filters import STRUCTURE_OPTIONS, STRUCTURES, structure
 
@@ -269,8 +392,23 @@ def _cached_chain(order, inputs, measurements, weights, bias, discrete) -> Struc
 
 
 def numeric_structure(spec: FilterSpec) -> Structure:
-    """:func:`build_structure` as a :class:`Structure` (cached: the symbolic work, proof
-    included, runs once per structure, options and ports)."""
+    """:func:`build_structure` as a :class:`Structure`, cached.
+
+    The symbolic work, proof included, runs once per structure, options and ports.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+
+    Returns
+    -------
+    Structure
+
+    Raises
+    ------
+    SpecError
+        As :func:`build_structure`.
+    """
     if spec.structure == "chain":
         order, inputs, measurements, weights, bias = _chain_layout(spec)
         return _cached_chain(order, tuple(inputs), tuple(measurements), tuple(str(w) for w in weights), bias,
@@ -383,8 +521,37 @@ def _check_sensors(spec, obs):
 
 
 def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
-    """``(Qc, R)``: continuous process PSD over the states, and the measurement covariance
-    (per-sample variances for discrete designs, PSDs for continuous ones)."""
+    """The noise covariances of a design (before discretisation).
+
+    An input sensor's white noise enters through its column ``b`` of ``Bc`` as
+    ``Qc += b q b^T``; a random-walk bias enters the sensor's bias state; a measurement sensor
+    gives ``R_ii``.
+
+    Parameters
+    ----------
+    obs : Structure or cfdesign.symbolic.Observer
+        The structure (its sensors, with roles, indices and bias states).
+    spec : FilterSpec
+        The sensors' noise figures.
+    model : dict
+        :meth:`Structure.model` (``Fc``, ``Bc``, ``H``).
+    discrete : bool
+        Give ``R`` as per-sample variances (discrete designs) instead of PSDs.
+
+    Returns
+    -------
+    Qc : ndarray, shape (n, n)
+        Continuous process noise PSD over the states.
+    R : ndarray, shape (m, m)
+        Measurement noise covariance (per sample) or PSD.
+
+    Raises
+    ------
+    SpecError
+        A random-walk bias the structure has no state for, a bias state without process noise
+        (optimal gains would not stabilise), zero measurement noise, or figures too large to
+        square; the message names the sensor.
+    """
     n = model["Fc"].shape[0]
     Qc = np.zeros((n, n))
     R = np.zeros((model["H"].shape[0],) * 2)
@@ -423,12 +590,58 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
 
 
 def design(spec: FilterSpec, observer=None) -> GainTable:
-    """Optimal gains for ``spec``: see the module docstring for the noise model and patterns.
+    """Design a filter: the gains of ``spec`` and everything a :class:`GainTable` holds.
 
-    ``observer`` (optional) replaces the structure the spec names: any observer built on the
-    engine, with symbolic gains and sensors named as in the spec.  A ``[gains]`` table that
-    gives only some of the gains fixes those and optimises the rest (a sparse pattern).
-    The exact proof is re-run with the designed gains substituted (single-rate tables).
+    The symbolic structure gives ``F, B, H`` and the gain pattern; the sensors' noise gives
+    ``Q`` (Van Loan) and ``R``; then, by what the spec asks for:
+
+    * a full gain pattern: the Kalman gain from the CARE, the DARE, or the periodic DARE when
+      the sensors run at different rates (Carreira et al. eqs. (23), (28); Vasconcelos et
+      al. Sec. 3);
+    * a sparse pattern (CF3, Carreira et al. eq. (13)): the free gains that minimise the
+      steady-state error variance of the estimate (Lyapunov equation);
+    * ``[gains]``: those gains fixed (all: hand-tuned; some: the rest optimised);
+    * ``[crossover]``: the gains that put the band crossovers at the given frequencies.
+
+    The exact proof is re-run with the designed gains substituted (single-rate tables) and
+    the poles (or monodromy multipliers) checked.  ``docs/derivations.md``, "Optimal gains"
+    and "Multirate gains", derives each step.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+        From :func:`~cfdesign.spec.load_spec` or :func:`~cfdesign.spec.parse_spec`.
+    observer : cfdesign.symbolic.Observer, optional
+        Replaces the structure the spec names: any observer built on the engine, with
+        symbolic gains and sensors named as in the spec.
+
+    Returns
+    -------
+    GainTable
+        Model, gain per phase in the spec's gain form, predicted covariances ``P`` (prior) and
+        ``P_filtered`` (posterior), ``Q``, ``R``, sensors and schedule, checks and provenance.
+
+    Raises
+    ------
+    SpecError
+        The spec does not fit the structure (a missing or extra sensor, a rate, a bias the
+        structure cannot estimate); the message names the field.
+    RiccatiError
+        No stabilising optimal gain exists (a :class:`~cfdesign.errors.NotDetectableError`
+        names the mode the sensors cannot see).
+    CfdesignError
+        The continuous CF3 with white sensor noise has no finite optimum; fixed gains that are
+        not stable.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> table.structure, table.gain_form, table.sample_time_s, table.checks["complementary"]
+    ('dckf3', 'predictor', 0.2, True)
+    >>> print(table.K[0].round(4))
+    [[0.6342 0.0198]
+     [0.8039 0.    ]]
     """
     if observer is None:
         structure = numeric_structure(spec)
@@ -450,6 +663,25 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
 
     The table's ``checks['complementary']`` is the structure's exact proof (gains symbolic)
     confirmed by the numeric band identity of the designed gains (:mod:`cfdesign.linear`).
+
+    Parameters
+    ----------
+    structure : Structure
+        From :func:`numeric_structure` or :meth:`Structure.load`.
+    spec : FilterSpec
+        The sensors, their noise and the design options.
+
+    Returns
+    -------
+    GainTable
+
+    Raises
+    ------
+    SpecError
+        The spec does not fit the structure (sensors, gain form or sample time of a
+        continuous structure, a bias without a state); the message names the field.
+    RiccatiError
+        No stabilising optimal gain exists.
     """
     _check_sensors(spec, structure)
     _check_wrap(spec, structure)
@@ -878,7 +1110,25 @@ def _check_covariances(owner, result):
 
 
 def designed_observer(spec: FilterSpec, table: GainTable):
-    """The symbolic structure of ``spec`` with the table's (single-rate) gains substituted."""
+    """The symbolic structure of ``spec`` with a table's (single-rate) gains substituted.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+        The design the table was made from.
+    table : GainTable
+        A single-rate table.
+
+    Returns
+    -------
+    cfdesign.symbolic.Observer
+        With numeric gains: its bands, proof, poles and zeros are the table's.
+
+    Raises
+    ------
+    CfdesignError
+        A multirate table (its bands change with the phase).
+    """
     if table.period != 1:
         raise CfdesignError(f"{table.name} is periodic (period {table.period}): its bands change with the phase")
     obs = build_structure(spec)

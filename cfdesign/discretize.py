@@ -42,7 +42,19 @@ __all__ = ["discretize_table", "innovation_hold"]
 
 
 def innovation_hold(F, T: float) -> np.ndarray:
-    """``Gamma = int_0^T e^{F tau} d tau`` (the ZOH input matrix of an identity input)."""
+    """``Gamma = int_0^T e^{F tau} d tau``: the ZOH input matrix of an identity input.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Continuous state matrix (1/s).
+    T : float
+        Sample time (s).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
     return zoh(F, np.eye(len(F)), T)[1]
 
 

@@ -18,9 +18,26 @@ def _atomic_write(path, rows):
 
 
 def write_gain_csv(table, path) -> Path:
-    """Gains as CSV, one row per (phase, state): ``phase, state, <one column per measurement sensor>``.
+    """Write a table's gains as CSV, atomically.
 
-    Values use ``repr`` precision; the gain form and sample time are in the JSON table.
+    One row per (phase, state): ``phase, state, <one column per measurement sensor>``.  Values
+    use ``repr`` precision; the gain form and sample time are in the JSON table.
+
+    Parameters
+    ----------
+    table : GainTable
+    path : str or Path
+        CSV file to write.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written; an existing file is left as it was.
     """
     rows = [["phase", "state", *table.sensor_names("measurement")]]
     for k, K in enumerate(table.K):

@@ -30,13 +30,23 @@ def _umask_mode() -> int:
 
 
 def write_files(contents: dict) -> list:
-    """Write ``{path: bytes or str}`` all-or-nothing; returns the list of paths written.
+    """Write several files all-or-nothing.
+
+    Parameters
+    ----------
+    contents : dict
+        ``{path: bytes or str}``; text is written as UTF-8.
+
+    Returns
+    -------
+    list of Path
+        The paths written, in order.
 
     Raises
     ------
     OutputError
-        A target cannot be written (its directory is missing or read-only, it is a
-        directory, the disk is full); no target was changed.
+        A target cannot be written (its directory is missing or read-only, it is a directory,
+        the disk is full); no target was changed.
     """
     staged = []
     try:
@@ -88,8 +98,28 @@ def _temporary(path: Path, mode: str, **kwargs):
 
 @contextlib.contextmanager
 def open_atomic(path, mode: str = "w", **kwargs):
-    """Open ``path`` for writing a stream (a large output); it replaces ``path`` only when the
-    ``with`` block completes without error, else nothing changes.
+    r"""Open a file for writing a stream (a large output), replacing it only on success.
+
+    ``path`` is replaced only when the ``with`` block completes without error; else nothing
+    changes.
+
+    Parameters
+    ----------
+    path : str or Path
+    mode : str
+        ``'w'`` (text) or ``'wb'``.
+    **kwargs
+        Passed to :func:`open` (``newline``, ``encoding``).
+
+    Yields
+    ------
+    file object
+        The temporary file to write.
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written or moved into place.
 
     Examples
     --------
@@ -107,10 +137,40 @@ def open_atomic(path, mode: str = "w", **kwargs):
 
 
 def write_text(path, text: str) -> Path:
-    """One text file (UTF-8), atomically."""
+    """Write one text file (UTF-8), atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+    text : str
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written; a previous file is left as it was.
+    """
     return write_files({path: text})[0]
 
 
 def write_bytes(path, data: bytes) -> Path:
-    """One binary file, atomically."""
+    """Write one binary file, atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+    data : bytes
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    OutputError
+        The file cannot be written; a previous file is left as it was.
+    """
     return write_files({path: data})[0]

@@ -44,15 +44,39 @@ SCHEMA_PATH = Path(__file__).resolve().parent / "schemas" / f"gaintable-{FORMAT_
 
 
 def schema() -> dict:
-    """The JSON Schema (draft 2020-12) of the gain table format."""
+    """The JSON Schema (draft 2020-12) of the gain table format.
+
+    Returns
+    -------
+    dict
+        The schema of ``cfdesign/schemas/gaintable-1.schema.json`` (:data:`FORMAT_VERSION`).
+    """
     return json.loads(SCHEMA_PATH.read_text())
 
 
 def validate(data: dict, source: str = "gain table"):
-    """Check a parsed gain table; raise GainTableError naming the field; returns the GainTable.
+    """Check a parsed gain table and build it.
 
     The JSON schema fixes the fields and types; how the parts fit together (shapes, sensor
-    ports, schedule) is checked when the :class:`GainTable` is built from them.
+    ports, schedule) is checked when the :class:`GainTable` is built from them.  Size limits
+    (states, period, nesting) are checked first.
+
+    Parameters
+    ----------
+    data : dict
+        The table's JSON form, as :func:`json.load` gives it.
+    source : str
+        What to call the table in messages (a file name).
+
+    Returns
+    -------
+    GainTable
+
+    Raises
+    ------
+    GainTableError
+        The data fails the schema or a size limit, or its parts do not fit together; the
+        message names the field.
     """
     _check_sizes(data, source)
     _check_schema(data, source)
@@ -191,9 +215,27 @@ class SensorPort:
 
     @classmethod
     def from_dict(cls, d: dict) -> SensorPort:
+        """A port from its JSON form.
+
+        Parameters
+        ----------
+        d : dict
+            ``{"name", "role", "index", "order", "rate_hz"}``.
+
+        Returns
+        -------
+        SensorPort
+        """
         return cls(str(d["name"]), str(d["role"]), int(d["index"]), int(d["order"]), float(d["rate_hz"]))
 
     def to_dict(self) -> dict:
+        """The JSON form of the port.
+
+        Returns
+        -------
+        dict
+            ``{"name", "role", "index", "order", "rate_hz"}``.
+        """
         return {"name": self.name, "role": self.role, "index": self.index, "order": self.order,
                 "rate_hz": self.rate_hz}
 
@@ -215,7 +257,30 @@ class Schedule:
 
     @classmethod
     def from_names(cls, measurements, per_phase) -> Schedule:
-        """From one list of sensor names per phase; unknown or repeated names raise ValueError."""
+        """A schedule from one list of sensor names per phase.
+
+        Parameters
+        ----------
+        measurements : sequence of str
+            Measurement sensor names in row order of ``H``.
+        per_phase : sequence of sequence of str
+            ``per_phase[k]``: the sensors read at phase ``k``; its length is the period.
+
+        Returns
+        -------
+        Schedule
+
+        Raises
+        ------
+        ValueError
+            A phase lists an unknown or a repeated sensor.
+
+        Examples
+        --------
+        >>> from cfdesign.gains import Schedule
+        >>> Schedule.from_names(["compass", "odometry"], [["compass", "odometry"], ["odometry"]]).active
+        ((0, 1), (1,))
+        """
         measurements = tuple(measurements)
         active = []
         for k, names in enumerate(per_phase):
@@ -228,52 +293,166 @@ class Schedule:
 
     @classmethod
     def every(cls, measurements, every: dict, period: int) -> Schedule:
-        """Sensor ``name`` read at the phases ``k`` with ``k % every[name] == 0``."""
+        """A schedule where sensor ``name`` is read at the phases ``k`` with ``k % every[name] == 0``.
+
+        Parameters
+        ----------
+        measurements : sequence of str
+            Measurement sensor names in row order of ``H``.
+        every : dict
+            ``{name: n}``: read every ``n`` base steps (``n`` divides ``period``).
+        period : int
+            Number of phases (base steps).
+
+        Returns
+        -------
+        Schedule
+
+        Examples
+        --------
+        >>> from cfdesign.gains import Schedule
+        >>> s = Schedule.every(["compass", "odometry"], {"compass": 5, "odometry": 1}, 5)
+        >>> s.phases("compass"), s.names(1)
+        ((0,), ['odometry'])
+        """
         measurements = tuple(measurements)
         return cls.from_names(measurements, [[x for x in measurements if k % every[x] == 0] for k in range(period)])
 
     @classmethod
     def from_ticks(cls, measurements, ticks: dict, period: int) -> Schedule:
-        """Sensor ``name`` read at the phases ``ticks[name]`` (taken modulo ``period``)."""
+        """A schedule where sensor ``name`` is read at the phases ``ticks[name]``.
+
+        Parameters
+        ----------
+        measurements : sequence of str
+            Measurement sensor names in row order of ``H``.
+        ticks : dict
+            ``{name: iterable of int}``: base ticks at which the sensor is read, taken modulo
+            ``period``.
+        period : int
+            Number of phases (base steps).
+
+        Returns
+        -------
+        Schedule
+        """
         measurements = tuple(measurements)
         sets = {x: {int(t) % period for t in ticks[x]} for x in measurements}
         return cls.from_names(measurements, [[x for x in measurements if k in sets[x]] for k in range(period)])
 
     def phases(self, name: str) -> tuple:
-        """The phases at which sensor ``name`` is read, ascending."""
+        """The phases at which one sensor is read.
+
+        Parameters
+        ----------
+        name : str
+            A measurement sensor of the schedule.
+
+        Returns
+        -------
+        tuple of int
+            Ascending phases in ``range(period)``.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a measurement of the schedule.
+        """
         i = self.measurements.index(name)
         return tuple(k for k in range(self.period) if i in self.active[k])
 
     def shifted(self, offsets: dict) -> Schedule:
-        """The schedule with sensor ``name`` read ``offsets[name]`` phases later (others as they are)."""
+        """The schedule with some sensors read later.
+
+        Parameters
+        ----------
+        offsets : dict
+            ``{name: phases}``: sensor ``name`` is read ``offsets[name]`` phases later (modulo the
+            period); sensors not named are left as they are.
+
+        Returns
+        -------
+        Schedule
+
+        Examples
+        --------
+        >>> from cfdesign.gains import Schedule
+        >>> Schedule.every(["gps"], {"gps": 5}, 5).shifted({"gps": 2}).phases("gps")
+        (2,)
+        """
         ticks = {x: [k + int(offsets.get(x, 0)) for k in self.phases(x)] for x in self.measurements}
         return Schedule.from_ticks(self.measurements, ticks, self.period)
 
     def rotated(self, phase: int) -> Schedule:
-        """The same schedule started ``phase`` phases later: its phase 0 is this one's ``phase``."""
+        """The same schedule started later: its phase 0 is this one's ``phase``.
+
+        Parameters
+        ----------
+        phase : int
+            Phase of this schedule that becomes phase 0 (taken modulo the period).
+
+        Returns
+        -------
+        Schedule
+        """
         k = phase % self.period
         return Schedule(self.measurements, self.active[k:] + self.active[:k])
 
     @property
     def period(self) -> int:
+        """Number of phases (base-rate steps) of the schedule."""
         return len(self.active)
 
     def rows(self, phase: int) -> tuple:
-        """Rows of ``H`` read at ``phase`` (taken modulo the period)."""
+        """Rows of ``H`` read at a phase.
+
+        Parameters
+        ----------
+        phase : int
+            Phase, taken modulo the period.
+
+        Returns
+        -------
+        tuple of int
+            Ascending row indices.
+        """
         return self.active[phase % self.period]
 
     def names(self, phase: int) -> list:
-        """Names of the sensors read at ``phase``."""
+        """Names of the sensors read at a phase.
+
+        Parameters
+        ----------
+        phase : int
+            Phase, taken modulo the period.
+
+        Returns
+        -------
+        list of str
+        """
         return [self.measurements[i] for i in self.rows(phase)]
 
     def mask(self) -> np.ndarray:
-        """``(period, m)`` booleans: row ``i`` is read at phase ``k``."""
+        """Which row is read at which phase.
+
+        Returns
+        -------
+        ndarray of bool, shape (period, m)
+            ``mask[k, i]``: row ``i`` of ``H`` is read at phase ``k``.
+        """
         out = np.zeros((self.period, len(self.measurements)), dtype=bool)
         for k, rows in enumerate(self.active):
             out[k, list(rows)] = True
         return out
 
     def per_phase_names(self) -> list:
+        """The sensors read at every phase.
+
+        Returns
+        -------
+        list of list of str
+            ``[names(0), names(1), ...]``: the ``measured`` field of the JSON form.
+        """
         return [self.names(k) for k in range(self.period)]
 
 
@@ -284,9 +463,9 @@ class GainTable:
     Attributes
     ----------
     name, structure : str
-        Design name and structure (``dckf3``, ``position``, ...); ``options`` holds the
-        structure options (``order``, ``bands``, ``discrete``).
+        Design name and structure (``dckf3``, ``position``, ...).
     domain : {'s', 'z'}
+        Continuous (``s``) or discrete (``z``) model.
     sample_time_s : float or None
         Base sample time (s); None for continuous filters.
     gain_form : {'predictor', 'filter', 'continuous'}
@@ -325,13 +504,32 @@ class GainTable:
     checks : dict
         ``complementary`` (exact proof verdict), ``poles`` or ``monodromy_multipliers``
         (as ``[re, im]`` pairs) and ``stable``.
+    options : dict
+        The structure options (``order``, ``bands``, ``discrete``, ``full``).
 
     Raises
     ------
     GainTableError
         On construction, when the parts do not fit together: shapes, sensor ports (each
         column of ``B`` and row of ``H`` exactly one sensor, names unique), an empty model,
-        or a schedule that disagrees with the gains.
+        a schedule that disagrees with the gains, or state names that are not distinct
+        identifiers.
+
+    See Also
+    --------
+    cfdesign.design : builds a table from a design file.
+    load_gains : reads one back.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    >>> table.period, table.sample_time_s, table.gain_form, table.output
+    (50, 0.02, 'filter', 'posterior')
+    >>> table.states
+    ('position', 'velocity', 'accelerometer_bias')
+    >>> table.schedule.phases("gps")
+    (0,)
     """
 
     name: str
@@ -378,6 +576,7 @@ class GainTable:
 
     @property
     def period(self) -> int:
+        """Number of phases of the gain schedule (1 for a single-rate table)."""
         return len(self.K)
 
     @property
@@ -391,6 +590,22 @@ class GainTable:
         return tuple(s for s in self.sensors if s.role == "measurement")
 
     def sensor(self, name: str) -> SensorPort:
+        """The port of one sensor.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name.
+
+        Returns
+        -------
+        SensorPort
+
+        Raises
+        ------
+        GainTableError
+            The table has no sensor of that name (the message lists its sensors).
+        """
         for s in self.sensors:
             if s.name == name:
                 return s
@@ -403,35 +618,94 @@ class GainTable:
         return self.predicted_std_of(self.output)
 
     def predicted_std_of(self, output: str, state: int = 0) -> float:
-        """Predicted steady-state std of ``state`` in the ``prior`` (prediction, ``P``) or the
-        ``posterior`` estimate (after the step's readings, ``P_filtered``), worst phase."""
+        """Predicted steady-state standard deviation of one state, worst phase.
+
+        Parameters
+        ----------
+        output : {'posterior', 'prior'}
+            ``posterior``: the estimate after the step's readings (covariance ``P_filtered``);
+            ``prior``: the one-step prediction (``P``).
+        state : int
+            Index of the state (0: the common quantity).
+
+        Returns
+        -------
+        float
+            Standard deviation in the state's unit (rad, m, ...).
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+        >>> table.predicted_std_of("posterior") <= table.predicted_std_of("prior")
+        True
+        """
         covs = self.P_filtered if output == "posterior" else self.P
         return float(np.sqrt(max(c[state, state] for c in covs)))
 
     def phase_model(self, phase: int) -> tuple:
-        """``(F, B, H_k, K_k)`` of one phase: ``H_k`` keeps the rows of the sensors measured at
-        that phase and ``K_k`` their gain columns (the per-phase view of a multirate table)."""
+        """The model and gain of one phase.
+
+        Parameters
+        ----------
+        phase : int
+            Phase, taken modulo the period.
+
+        Returns
+        -------
+        F, B, H_k, K_k : ndarray
+            ``H_k`` keeps the rows of the sensors measured at that phase and ``K_k`` their gain
+            columns (the per-phase view of a multirate table); ``F`` and ``B`` are the table's.
+        """
         rows = list(self.schedule.rows(phase))
         return self.F, self.B, self.H[rows, :], self.K[phase % self.period][:, rows]
 
     def sensor_names(self, role: str | None = None) -> list:
+        """Sensor names, inputs first (by column of ``B``), then measurements (by row of ``H``).
+
+        Parameters
+        ----------
+        role : {'input', 'measurement'}, optional
+            Only the sensors of this role.
+
+        Returns
+        -------
+        list of str
+        """
         return [s.name for s in self.sensors if role is None or s.role == role]
 
     # ------------------------------------------------------------------ python-control and plots
     def transfer_functions(self, output: str | None = None) -> dict:
-        """``{sensor: control.TransferFunction}`` of every band of a single-rate table, plus ``'sum'``.
+        """The band of every sensor of a single-rate table as a python-control transfer function.
 
         Each band is named after its sensor (system ``T_<sensor>``, input ``<sensor>``, output
         ``estimate``) and computed from the table's own ``F, B, H, K`` for the estimate it
-        outputs (or ``output``); ``dt`` is the sample time.  ``'sum'`` is exactly 1 when the
-        bands pass the complementarity identity (:func:`cfdesign.linear.identity_residual`).
-        numpy and python-control only.
+        outputs; ``dt`` is the sample time (0 for continuous tables).  ``'sum'`` is exactly 1
+        when the bands pass the complementarity identity
+        (:func:`cfdesign.linear.identity_residual`).  numpy and python-control only.
+
+        Parameters
+        ----------
+        output : {'posterior', 'prior'}, optional
+            The estimate whose bands to give (default: the table's :attr:`output`).
+
+        Returns
+        -------
+        dict
+            ``{sensor: control.TransferFunction, ..., 'sum': control.TransferFunction}``.
 
         Raises
         ------
         GainTableError
             A multirate table (its bands change with the phase: see :meth:`bode` and
             :func:`cfdesign.plot.lifted_system`).
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+        >>> sorted(table.transfer_functions())
+        ['compass', 'gyro_heading', 'odometry_rate', 'sum']
         """
         from .analysis import named_transfer_functions
         from .verify import IDENTITY_RTOL, band_polynomials
@@ -451,18 +725,45 @@ class GainTable:
         return tfs
 
     def bode(self, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
-        """Bode diagram (matplotlib figure) of the table: :func:`cfdesign.plot.table_bode_plot`
-        (the bands and crossovers; for multirate tables the per-phase gains and the lifted
-        system's response at the period rate)."""
+        """Bode diagram of the table.
+
+        Draws :func:`cfdesign.plot.table_bode_plot`: the bands and their crossovers; for
+        multirate tables the per-phase gains and the lifted system's response at the period rate.
+
+        Parameters
+        ----------
+        omega : array_like, optional
+            Frequencies (rad/s, or Hz with ``hz=True``); default: a grid spanning the poles.
+        hz : bool
+            Frequency axis in Hz instead of rad/s.
+        title : str, optional
+            Figure title (default: the table's name).
+        fig : matplotlib.figure.Figure, optional
+            Figure to draw into.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
         from .plot import table_bode_plot
 
         return table_bode_plot(self, omega, hz=hz, title=title, fig=fig)
 
     def observer(self):
-        """The symbolic :class:`~cfdesign.symbolic.observer.Observer` of a single-rate table, with
-        its gains: bands, exact proof, poles and zeros of the estimate the table outputs
-        (posterior tables as the filter-form update gain, prior tables as the predictor gain).
-        Needs sympy."""
+        """The symbolic observer of a single-rate table, with its gains.
+
+        Gives bands, the exact proof, poles and zeros of the estimate the table outputs: posterior
+        tables as the filter-form update gain, prior tables as the predictor gain.  Needs sympy.
+
+        Returns
+        -------
+        cfdesign.symbolic.Observer
+
+        Raises
+        ------
+        GainTableError
+            A multirate table (its bands change with the phase).
+        """
         from .symbolic.observer import Observer, Sensor
 
         if self.period != 1:
@@ -478,7 +779,14 @@ class GainTable:
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self) -> dict:
-        """The JSON form (plain lists and numbers; ``measured`` lists the schedule's names)."""
+        """The JSON form of the table.
+
+        Returns
+        -------
+        dict
+            Plain lists and numbers, with ``format_version``; ``measured`` lists the sensors read
+            at each phase (the schedule).
+        """
         d = {f.name: getattr(self, f.name) for f in fields(self)}
         d["sensors"] = [s.to_dict() for s in self.sensors]
         d["states"] = list(self.states)
@@ -491,24 +799,42 @@ class GainTable:
         return {"format_version": FORMAT_VERSION, **d}
 
     def to_json(self) -> str:
-        """The table as JSON text (full float precision, no NaN or Infinity tokens)."""
+        """The table as JSON text.
+
+        Returns
+        -------
+        str
+            Full float precision; no NaN or Infinity tokens.
+        """
         return json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n"
 
     def save(self, path) -> Path:
-        """Write the table as JSON, atomically (a failure leaves any previous file as it was).
+        """Write the table as JSON, atomically.
+
+        A failure leaves any previous file as it was (:mod:`cfdesign.files`).
 
         Parameters
         ----------
         path : str or Path
+            File to write (conventionally ``*.json``).
 
         Returns
         -------
         Path
+            The path written.
 
         Raises
         ------
         OutputError
             The file cannot be written.
+
+        Examples
+        --------
+        >>> import cfdesign, tempfile, pathlib
+        >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+        >>> path = table.save(pathlib.Path(tempfile.mkdtemp()) / "gains.json")
+        >>> cfdesign.load_gains(path).K[0].shape == table.K[0].shape
+        True
         """
         from .files import write_text
 
@@ -516,7 +842,24 @@ class GainTable:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "gain table") -> GainTable:
-        """Build a table from its JSON form after validating it (:func:`validate`)."""
+        """Build a table from its JSON form after validating it (:func:`validate`).
+
+        Parameters
+        ----------
+        d : dict
+            The JSON form (:meth:`to_dict`).
+        source : str
+            What to call the table in messages.
+
+        Returns
+        -------
+        GainTable
+
+        Raises
+        ------
+        GainTableError
+            The data fails the schema or its parts do not fit together.
+        """
         return validate(d, source)
 
     @classmethod
@@ -565,7 +908,24 @@ def _no_constant(token):
 
 
 def load_gains(path) -> GainTable:
-    """Read a gain table written by :meth:`GainTable.save`."""
+    """Read a gain table written by :meth:`GainTable.save` (or ``cfdesign design -o``).
+
+    Parameters
+    ----------
+    path : str or Path
+        JSON file.
+
+    Returns
+    -------
+    GainTable
+
+    Raises
+    ------
+    GainTableError
+        The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
+        Infinity tokens included), fails the schema, or its parts do not fit together; the
+        message names the file and the field.
+    """
     path = Path(path)
     try:
         size = path.stat().st_size

@@ -109,7 +109,18 @@ def wrap(angle):
 
 
 def wrap_scalar(a: float) -> float:
-    """:func:`wrap` of one float with ``math`` (same operations, same result, no numpy)."""
+    """:func:`wrap` of one float with ``math`` (same operations, same result, no numpy).
+
+    Parameters
+    ----------
+    a : float
+        Angle (rad).
+
+    Returns
+    -------
+    float
+        The angle in ``(-pi, pi]`` (rad); unchanged, bit for bit, when already inside.
+    """
     if -math.pi < a <= math.pi:
         return a
     r = a - _TWO_PI * math.ceil((a - math.pi) / _TWO_PI)
@@ -117,7 +128,18 @@ def wrap_scalar(a: float) -> float:
 
 
 def wrap_inplace(a: np.ndarray) -> np.ndarray:
-    """:func:`wrap` of a float array, in place: only the entries outside ``(-pi, pi]`` change."""
+    """:func:`wrap` of a float array, in place: only the entries outside ``(-pi, pi]`` change.
+
+    Parameters
+    ----------
+    a : ndarray of float
+        Angles (rad), modified in place.
+
+    Returns
+    -------
+    ndarray
+        ``a``.
+    """
     out = (a <= -math.pi) | (a > math.pi)
     if out.any():
         b = a[out]
@@ -130,8 +152,22 @@ def wrap_inplace(a: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- gain forms
 def default_output(form: str) -> str:
-    """The estimate a gain form outputs by default: ``prior`` for predictor (and continuous)
-    tables, ``posterior`` for filter tables."""
+    """The estimate a gain form outputs when a table does not say.
+
+    Parameters
+    ----------
+    form : {'predictor', 'filter', 'continuous'}
+
+    Returns
+    -------
+    {'prior', 'posterior'}
+        ``prior`` for predictor (and continuous) tables, ``posterior`` for filter tables.
+
+    Raises
+    ------
+    ValueError
+        An unknown gain form.
+    """
     _check_form(form)
     return "posterior" if form == "filter" else "prior"
 
@@ -171,7 +207,26 @@ def gain_pair(F, K, form: str):
 
 
 def closed_loop(F, H, K, form: str) -> np.ndarray:
-    """State matrix of the error dynamics: ``F - Kp H`` (= ``F (I - K H)`` in filter form)."""
+    """State matrix of the error dynamics: ``F - Kp H`` (= ``F (I - K H)`` in filter form).
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+    H : array_like, shape (m, n)
+    K : array_like, shape (n, m)
+        Gain in ``form``.
+    form : {'predictor', 'filter', 'continuous'}
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+
+    Examples
+    --------
+    >>> from cfdesign.linear import closed_loop
+    >>> closed_loop([[1.0]], [[1.0]], [[0.5]], "filter").tolist()
+    [[0.5]]
+    """
     Kp, _ = gain_pair(F, K, form)
     return np.asarray(F, dtype=float) - Kp @ np.asarray(H, dtype=float)
 
@@ -185,11 +240,15 @@ class Realisation:
 
     Attributes
     ----------
-    A : ndarray (n, n)
-    G : ndarray (n, p + m)
-    C : ndarray (n, n)
-    D : ndarray (n, p + m)
+    A : ndarray, shape (n, n)
+    G : ndarray, shape (n, p + m)
+    C : ndarray, shape (n, n)
+    D : ndarray, shape (n, p + m)
     output : {'prior', 'posterior'}
+    delta : ndarray, shape (n, n), optional
+        ``I - A`` computed as ``(I - F) + Kp H`` (discrete), without the cancellation of
+        ``1 - A_ii`` when the gains are tiny (fast sampling): what the frequency responses near
+        ``z = 1`` need.
     """
 
     A: np.ndarray
@@ -208,11 +267,25 @@ def realisation(F, B, H, K, form: str, output: str | None = None) -> Realisation
     ``A = F - Kp H``, ``G = [B, Kp]``; prior output ``C = I``, ``D = 0``; posterior output
     ``C = I - L H``, ``D = [0, L]`` (module docstring).
 
+    Parameters
+    ----------
+    F, B, H : array_like
+        The model, shapes (n, n), (n, p), (m, n).
+    K : array_like, shape (n, m)
+        Gain in ``form``.
+    form : {'predictor', 'filter', 'continuous'}
+    output : {'prior', 'posterior'}, optional
+        Default :func:`default_output` of the form.
+
+    Returns
+    -------
+    Realisation
+
     Raises
     ------
     ValueError
-        ``output`` is not ``prior``/``posterior``, or the posterior is asked of a
-        continuous table or of a predictor table whose ``F`` is singular.
+        ``output`` is not ``prior``/``posterior``, or the posterior is asked of a continuous
+        table or of a predictor table whose ``F`` is singular.
     """
     output = default_output(form) if output is None else output
     if output not in OUTPUTS:
@@ -232,9 +305,23 @@ def realisation(F, B, H, K, form: str, output: str | None = None) -> Realisation
 
 
 def posterior_covariance(P, H, L, R) -> np.ndarray:
-    """Covariance after the update ``x+ = x + L (y - H x)`` for ANY gain (Joseph form).
+    """Covariance after the update ``x+ = x + L (y - H x)`` for any gain (Joseph form).
 
     ``P+ = (I - L H) P (I - L H)' + L R L'``; equal to ``(I - L H) P`` for the Kalman gain.
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        Prior covariance.
+    H : array_like, shape (m, n)
+    L : array_like, shape (n, m)
+        Update gain.
+    R : array_like, shape (m, m)
+        Measurement-noise covariance (per sample).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
     """
     P, H, L, R = (np.asarray(M, dtype=float) for M in (P, H, L, R))
     IKH = np.eye(len(P)) - L @ H
@@ -242,12 +329,35 @@ def posterior_covariance(P, H, L, R) -> np.ndarray:
 
 
 def is_stable(eigenvalues, domain: str) -> bool:
-    """Strictly stable: every eigenvalue in the open left half-plane (``s``) or unit disc (``z``)."""
+    """Strict stability of a set of eigenvalues.
+
+    Parameters
+    ----------
+    eigenvalues : array_like
+    domain : {'s', 'z'}
+
+    Returns
+    -------
+    bool
+        Every eigenvalue in the open left half-plane (``s``) or the open unit disc (``z``).
+    """
     return spectral_margin(eigenvalues, domain) < 0
 
 
 def spectral_margin(eigenvalues, domain: str) -> float:
-    """``max Re(lambda)`` (``s``) or ``max |lambda| - 1`` (``z``): negative means stable."""
+    """How far the eigenvalues are from the stability boundary.
+
+    Parameters
+    ----------
+    eigenvalues : array_like
+    domain : {'s', 'z'}
+
+    Returns
+    -------
+    float
+        ``max Re(lambda)`` (``s``) or ``max |lambda| - 1`` (``z``): negative means stable;
+        ``-inf`` for no eigenvalue.
+    """
     eig = np.asarray(eigenvalues)
     if not eig.size:
         return -math.inf
@@ -259,7 +369,27 @@ def zoh_chain(m: int, dt: float):
     """Numeric ZOH model of an ``m``-state kinematic chain driven by its ``m``-th derivative.
 
     ``F[i, j] = dt^(j-i) / (j-i)!`` (``j >= i``), ``B[i] = dt^(m-i) / (m-i)!``: the exact
-    discretisation of ``m`` integrators in a row with the input held over each sample.
+    discretisation of ``m`` integrators in a row with the input held over each sample (no
+    factorial overflow for long chains).
+
+    Parameters
+    ----------
+    m : int
+        Number of states.
+    dt : float
+        Sample time (s).
+
+    Returns
+    -------
+    F : ndarray, shape (m, m)
+    B : ndarray, shape (m,)
+
+    Examples
+    --------
+    >>> from cfdesign.linear import zoh_chain
+    >>> F, B = zoh_chain(2, 0.1)
+    >>> F.tolist(), B.tolist()
+    ([[1.0, 0.1], [0.0, 1.0]], [0.005000000000000001, 0.1])
     """
     c = [1.0]  # dt^k / k!, built up so that long chains neither overflow nor lose digits
     for k in range(1, m + 1):
@@ -270,12 +400,24 @@ def zoh_chain(m: int, dt: float):
 
 
 def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
-    """``{order: (num, den)}``: reading = ``num/den`` x quantity for a sensor of each order.
+    """The relation ``reading = num/den x quantity`` of a sensor of each derivative order.
 
-    Continuous: ``s**order``.  Discrete: the ZOH chain of the highest order ``M``; the
-    relation of order ``j`` is ``G_j / G_0`` with ``G_i`` the transfer from the held
-    ``M``-th derivative to the sampled ``i``-th (order 1 of a 1-chain: ``(z - 1)/dt``).
-    Polynomials are highest power first and not reduced.
+    Continuous: ``s**order``.  Discrete: the ZOH chain of the highest order ``M``; the relation
+    of order ``j`` is ``G_j / G_0`` with ``G_i`` the transfer from the held ``M``-th derivative
+    to the sampled ``i``-th (order 1 of a 1-chain: ``(z - 1)/dt``).
+
+    Parameters
+    ----------
+    orders : iterable of int
+        The sensors' derivative orders.
+    domain : {'s', 'z'}
+    dt : float, optional
+        Sample time (s), discrete only.
+
+    Returns
+    -------
+    dict
+        ``{order: (num, den)}``, polynomials highest power first, not reduced.
     """
     orders = set(orders)
     if domain == "s":
@@ -291,17 +433,39 @@ def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
 
 # ---------------------------------------------------------------------------- bands
 def characteristic_polynomial(A) -> np.ndarray:
-    """``det(vI - A)`` coefficients, highest power first (real)."""
+    """Coefficients of ``det(vI - A)``, highest power first.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n + 1,)
+        Real coefficients (``[1.]`` for an empty matrix).
+    """
     A = np.asarray(A, dtype=float)
     return np.poly(A).real if A.size else np.ones(1)
 
 
 def output_adjugate(A, c, den=None) -> np.ndarray:
-    """Rows ``c adj(vI - A)`` by power: ``W[k] = W[k-1] A + den[k] c``, ``W[0] = c``.
+    """Rows ``c adj(vI - A)`` by power of ``v``.
 
     The Faddeev-LeVerrier recursion applied to one output row, ``O(n^3)`` in all:
-    ``c adj(vI - A) = sum_k W[k] v^(n-1-k)``.  Returns an (n, n) array, row ``k`` the
-    coefficient of ``v^(n-1-k)``.
+    ``W[0] = c``, ``W[k] = W[k-1] A + den[k] c`` and ``c adj(vI - A) = sum_k W[k] v^(n-1-k)``.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    c : array_like, shape (n,)
+        Output row.
+    den : array_like, optional
+        :func:`characteristic_polynomial` of ``A``, if already known.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        Row ``k`` is the coefficient of ``v^(n-1-k)``.
     """
     A = np.asarray(A, dtype=float)
     c = np.asarray(c, dtype=float)
@@ -316,10 +480,20 @@ def output_adjugate(A, c, den=None) -> np.ndarray:
 
 
 def adjugate_coefficients(A, den=None) -> np.ndarray:
-    """``adj(vI - A) = sum_k M[k] v^(n-1-k)``: the (n, n, n) coefficient matrices.
+    """The coefficient matrices of ``adj(vI - A) = sum_k M[k] v^(n-1-k)``.
 
     Faddeev-LeVerrier: ``M[0] = I``, ``M[k] = A M[k-1] + den[k] I``.  ``O(n^4)``: for one
     output row use :func:`output_adjugate`.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    den : array_like, optional
+        :func:`characteristic_polynomial` of ``A``, if already known.
+
+    Returns
+    -------
+    ndarray, shape (n, n, n)
     """
     A = np.asarray(A, dtype=float)
     den = characteristic_polynomial(A) if den is None else den
@@ -364,7 +538,21 @@ def band_polynomials(real: Realisation, ports, relations: dict, row: int = 0):
 
 
 def response(num, den, omega, dt: float | None = None) -> np.ndarray:
-    """Frequency response ``num/den`` at ``j omega`` (continuous) or ``e^{j omega dt}`` (discrete)."""
+    """Frequency response of ``num/den``.
+
+    Parameters
+    ----------
+    num, den : array_like
+        Polynomial coefficients, highest power first.
+    omega : array_like
+        Angular frequencies (rad/s).
+    dt : float, optional
+        Sample time (s): evaluate at ``e^{j omega dt}``; else at ``j omega``.
+
+    Returns
+    -------
+    ndarray of complex
+    """
     omega = np.asarray(omega, dtype=float)
     x = np.exp(1j * omega * dt) if dt else 1j * omega
     with np.errstate(all="ignore"):
@@ -378,6 +566,20 @@ def band_responses(real: Realisation, ports, domain: str, dt, omega, row: int = 
     with the chain relations evaluated the same way (``rel_d = G_d / G_0``, ``G_i`` the
     transfer from the held top derivative to state ``i`` of the ZOH chain).  Accurate where
     the expanded polynomials are not: poles clustered near ``z = 1`` at high sample rates.
+
+    Parameters
+    ----------
+    real : Realisation
+        The phase (:func:`realisation`).
+    ports : sequence
+        Sensors with ``name`` and ``order``, in column order of ``G``/``D``.
+    domain : {'s', 'z'}
+    dt : float or None
+        Sample time (s) of a discrete filter.
+    omega : array_like
+        Angular frequencies (rad/s).
+    row : int
+        Output row (state); 0 is the estimate of the common quantity.
 
     Returns
     -------
@@ -432,8 +634,19 @@ def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
 
 
 def complementarity_error(responses: dict) -> float:
-    """``max |sum_i T_i - 1| / (1 + sum_i |T_i|)`` over the grid: the error of the identity
-    relative to the size of the terms that cancel (scale-aware; rounding gives ~1e-15)."""
+    """Scale-aware error of the identity ``sum_i T_i = 1`` on a frequency grid.
+
+    Parameters
+    ----------
+    responses : dict
+        ``{sensor: complex ndarray}`` band responses on one grid.
+
+    Returns
+    -------
+    float
+        ``max |sum_i T_i - 1| / (1 + sum_i |T_i|)``: the error relative to the size of the
+        terms that cancel (rounding gives about 1e-15).
+    """
     total = sum(responses.values())
     size = 1.0 + sum(np.abs(r) for r in responses.values())
     return float(np.max(np.abs(total - 1.0) / size))
@@ -442,8 +655,24 @@ def complementarity_error(responses: dict) -> float:
 def identity_residual(bands: dict) -> float:
     """Relative coefficient size of ``sum_i num_i/den_i - 1`` cleared of denominators.
 
-    Equal denominators are multiplied in once; the result is 0 for an exact identity and
-    about the rounding level for a numerically complementary set.
+    Equal denominators are multiplied in once.
+
+    Parameters
+    ----------
+    bands : dict
+        ``{sensor: (num, den)}`` polynomials.
+
+    Returns
+    -------
+    float
+        0 for an exact identity, about the rounding level for a numerically complementary
+        set; ``cfdesign verify`` requires at most 1e-12.
+
+    Examples
+    --------
+    >>> from cfdesign.linear import identity_residual
+    >>> identity_residual({"rate": ([1.0, 0.0], [1.0, 2.0]), "angle": ([2.0], [1.0, 2.0])})
+    0.0
     """
     dens = []  # the distinct denominators (bands of one filter share them exactly)
     for _, d in bands.values():

@@ -68,6 +68,8 @@ class LogResult:
         What a user should know: offsets found, gains recomputed, rate mismatches.
     output : Path or None
         The file written.
+    source : str
+        The log's name (its path, or the name given).
     """
 
     estimates: object
@@ -84,7 +86,13 @@ class LogResult:
         return sum(sum(v.values()) for v in self.unused.values())
 
     def summary(self) -> dict:
-        """One row of a fleet's summary table."""
+        """One row of a fleet's summary table (``summary.csv`` of :func:`run_logs`).
+
+        Returns
+        -------
+        dict
+            ``log``, ``samples``, ``readings_not_used`` and ``rms_<state>`` for each reference.
+        """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
         row.update({f"rms_{k}": v for k, v in self.rms.items()})
         return row
@@ -313,6 +321,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
 
     Raises
     ------
+    CfdesignError
+        A continuous-time table (logs run discrete tables).
     DataError
         A missing or non-numeric column (naming the line), bad times (naming the line), a base
         rate more than 1 % off the table's, an empty log.
@@ -696,6 +706,14 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     -------
     list of dict
         The summary rows, in the order of ``paths``.
+
+    Raises
+    ------
+    CfdesignError
+        Dask is not installed, or ``outdir`` cannot be created.
+    DataError
+        Two logs of the same name (their estimates would overwrite each other), or a log
+        that cannot be run (as :func:`run_log`).
     """
     try:
         from dask.distributed import Client, LocalCluster

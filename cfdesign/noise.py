@@ -50,9 +50,31 @@ def _positive(value, field, allow_zero=True):
 
 @dataclass(frozen=True)
 class WhiteNoise:
-    """White measurement or input noise: a density (u/sqrt(Hz)) or a per-sample std (u).
+    """White measurement or input noise of one sensor, in its unit ``u``.
 
-    Give exactly one of ``density`` and ``std``; ``field`` names the spec field in errors.
+    Give exactly one of ``density`` and ``std``.
+
+    Parameters
+    ----------
+    density : float, optional
+        Noise density (u/sqrt(Hz)); the two-sided PSD is ``density**2``.
+    std : float, optional
+        Standard deviation per sample (u).
+    field : str
+        The design-file field named in errors (``sensors.gyro.noise``).
+
+    Raises
+    ------
+    SpecError
+        Both or neither given, or a figure that is negative, not finite, or outside
+        :data:`FIGURE_RANGE`.
+
+    Examples
+    --------
+    >>> from cfdesign.noise import WhiteNoise
+    >>> w = WhiteNoise(std=0.01)            # rad per sample, at 100 Hz:
+    >>> w.psd(100.0), w.variance(100.0)
+    (1e-06, 0.0001)
     """
 
     density: float | None = None
@@ -68,17 +90,56 @@ class WhiteNoise:
             _positive(self.std, f"{self.field}.std")
 
     def psd(self, rate_hz: float) -> float:
-        """Continuous PSD ``q`` (u^2/Hz): ``density**2`` or ``std**2 / rate_hz``."""
+        """Continuous PSD ``q`` (u^2/Hz): ``density**2`` or ``std**2 / rate_hz``.
+
+        Parameters
+        ----------
+        rate_hz : float
+            Sample rate (Hz) at which ``std`` applies.
+
+        Returns
+        -------
+        float
+        """
         return self.density**2 if self.density is not None else self.std**2 / rate_hz
 
     def variance(self, rate_hz: float) -> float:
-        """Per-sample variance at ``rate_hz`` (u^2): ``std**2`` or ``density**2 * rate_hz``."""
+        """Per-sample variance (u^2): ``std**2`` or ``density**2 * rate_hz``.
+
+        Parameters
+        ----------
+        rate_hz : float
+            Sample rate (Hz).
+
+        Returns
+        -------
+        float
+        """
         return self.std**2 if self.std is not None else self.density**2 * rate_hz
 
 
 @dataclass(frozen=True)
 class Bias:
-    """Sensor bias: ``model='random_walk'`` with ``density`` (u/sqrt(s)) or ``'constant'`` ``value`` (u)."""
+    """Sensor bias: constant, or a random walk.
+
+    Parameters
+    ----------
+    model : {'constant', 'random_walk'}
+        ``constant``: a fixed offset ``value`` (enters simulations only); ``random_walk``: a
+        bias whose rate of change is white with ``density``, which the design estimates.
+    density : float
+        Random-walk density (u/sqrt(s)); positive for a random walk.
+    value : float
+        Constant bias (u).
+    field : str
+        The design-file field named in errors (``sensors.gyro.bias``).
+
+    Raises
+    ------
+    SpecError
+        An unknown model, a density or value that is not a finite number in range, a random
+        walk without a density.
+    """
 
     model: str = "constant"
     density: float = 0.0
@@ -101,7 +162,36 @@ class Bias:
 
 
 def van_loan(F, Qc, T: float):
-    """Exact discretisation ``(Fd, Qd)`` of ``x' = F x + w``, ``E[w w^T] = Qc delta`` over ``T`` s."""
+    """Exact discretisation of ``x' = F x + w`` with white ``w``, ``E[w w^T] = Qc delta``.
+
+    Van Loan's method: ``expm([[-F, Qc], [0, F^T]] T)`` gives ``Fd = e^{F T}`` and
+    ``Qd = int_0^T e^{F t} Qc e^{F^T t} dt`` (``docs/derivations.md``, "Exact discretisation of
+    the process noise (Van Loan)").
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Continuous state matrix (1/s).
+    Qc : array_like, shape (n, n)
+        Continuous process-noise PSD (state units^2 / s).
+    T : float
+        Sample time (s).
+
+    Returns
+    -------
+    Fd : ndarray, shape (n, n)
+    Qd : ndarray, shape (n, n)
+        Per-sample process-noise covariance, symmetric.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.noise import van_loan
+    >>> Fd, Qd = van_loan([[0, 1], [0, 0]], np.diag([0.0, 1.0]), 0.1)
+    >>> print(Qd.round(6))
+    [[0.000333 0.005   ]
+     [0.005    0.1     ]]
+    """
     from scipy.linalg import expm
 
     F, Qc = np.atleast_2d(F).astype(float), np.atleast_2d(Qc).astype(float)
@@ -115,7 +205,29 @@ def van_loan(F, Qc, T: float):
 
 
 def zoh(F, B, T: float):
-    """Zero-order-hold discretisation ``(Fd, Bd)``: ``Fd = e^{FT}``, ``Bd = int_0^T e^{F t} dt B``."""
+    """Zero-order-hold discretisation: ``Fd = e^{F T}``, ``Bd = int_0^T e^{F t} dt B``.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Continuous state matrix (1/s).
+    B : array_like, shape (n, p)
+        Continuous input matrix.
+    T : float
+        Sample time (s).
+
+    Returns
+    -------
+    Fd : ndarray, shape (n, n)
+    Bd : ndarray, shape (n, p)
+
+    Examples
+    --------
+    >>> from cfdesign.noise import zoh
+    >>> Fd, Bd = zoh([[0, 1], [0, 0]], [[0], [1]], 0.1)
+    >>> Bd.ravel().tolist()
+    [0.005000000000000001, 0.1]
+    """
     from scipy.linalg import expm
 
     F, B = np.atleast_2d(F).astype(float), np.asarray(B, dtype=float).reshape(len(F), -1)

@@ -29,7 +29,22 @@ GRAVITY_ENU = np.array([0.0, 0.0, -9.80665])
 
 
 def multiply(p, q):
-    """Hamilton product ``p ⊗ q`` of ``[w, x, y, z]`` quaternions, broadcast over leading axes."""
+    """Hamilton product ``p ⊗ q`` of ``[w, x, y, z]`` quaternions, broadcast over leading axes.
+
+    Parameters
+    ----------
+    p, q : array_like, shape (..., 4)
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+
+    Examples
+    --------
+    >>> from cfdesign.rotations import multiply
+    >>> multiply([0, 1, 0, 0], [0, 1, 0, 0]).tolist()     # i * i = -1
+    [-1.0, 0.0, 0.0, 0.0]
+    """
     p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
@@ -40,27 +55,79 @@ def multiply(p, q):
 
 
 def conjugate(q):
-    """Conjugate ``[w, -x, -y, -z]`` (the inverse of a unit quaternion)."""
+    """Conjugate ``[w, -x, -y, -z]``: the inverse of a unit quaternion.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternion(s) ``[w, x, y, z]``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
     out = np.array(q, dtype=float, copy=True)
     out[..., 1:] *= -1
     return out
 
 
 def normalize(q):
-    """Unit quaternion(s) with a non-negative scalar part (``q`` and ``-q`` are one rotation)."""
+    """Unit quaternion(s) with a non-negative scalar part (``q`` and ``-q`` are one rotation).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternion(s) ``[w, x, y, z]``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
 
 
 def rotate(q, v):
-    """Rotate vectors ``v`` (..., 3) by ``q``: ``q ⊗ [0, v] ⊗ conj(q)`` (body -> ENU for an attitude)."""
+    """Rotate vectors by a quaternion: ``q ⊗ [0, v] ⊗ conj(q)``.
+
+    For an attitude quaternion this maps body coordinates to ENU.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternion(s) ``[w, x, y, z]``.
+        Unit quaternion(s).
+    v : array_like, shape (..., 3)
+        Vectors (any unit).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+
+    Examples
+    --------
+    >>> import math
+    >>> from cfdesign.rotations import from_euler, rotate
+    >>> rotate(from_euler([math.pi / 2, 0.0, 0.0]), [1.0, 0.0, 0.0]).round(6).tolist()  # yaw 90 deg: x -> north
+    [0.0, 1.0, 0.0]
+    """
     v = np.asarray(v, dtype=float)
     return np.einsum("...ij,...j->...i", to_matrix(q), v)
 
 
 def from_rotation_vector(r):
-    """Quaternion ``exp(r / 2)`` of a rotation vector ``r`` (rad, axis times angle), (..., 3) -> (..., 4)."""
+    """Quaternion ``exp(r / 2)`` of a rotation vector (axis times angle).
+
+    Parameters
+    ----------
+    r : array_like, shape (..., 3)
+        Rotation vector (rad); exact for tiny rotations (series of ``sin(x)/x``).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
     r = np.asarray(r, dtype=float)
     angle = np.linalg.norm(r, axis=-1, keepdims=True)
     half = 0.5 * angle
@@ -70,9 +137,20 @@ def from_rotation_vector(r):
 
 
 def from_euler(euler):
-    """ZYX Euler angles ``[yaw, pitch, roll]`` (rad, body relative to ENU) -> quaternion ``[w, x, y, z]``.
+    """Quaternion of ZYX Euler angles: ``q = q_Z(yaw) ⊗ q_Y(pitch) ⊗ q_X(roll)``.
 
-    ``q = q_Z(yaw) ⊗ q_Y(pitch) ⊗ q_X(roll)``, i.e. ``R = R_Z R_Y R_X`` (Vasconcelos et al. Sec. 2.2).
+    I.e. ``R = R_Z R_Y R_X`` (Vasconcelos et al. Sec. 2.2).
+
+    Parameters
+    ----------
+    euler : array_like, shape (..., 3)
+        ``[yaw, pitch, roll]`` (rad) of the body relative to ENU; yaw counter-clockwise from
+        east.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``[w, x, y, z]``, body -> ENU.
     """
     e = np.asarray(euler, dtype=float)
     cy, sy = np.cos(e[..., 0] / 2), np.sin(e[..., 0] / 2)
@@ -85,7 +163,19 @@ def from_euler(euler):
 
 
 def to_euler(q):
-    """Quaternion (body -> ENU) -> ZYX Euler angles ``[yaw, pitch, roll]`` (rad), yaw in ``(-pi, pi]``."""
+    """ZYX Euler angles of an attitude quaternion.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternion(s) ``[w, x, y, z]``.
+        Unit quaternion(s), body -> ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``[yaw, pitch, roll]`` (rad), yaw in ``(-pi, pi]``, pitch in ``[-pi/2, pi/2]``.
+    """
     w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
     yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
     pitch = np.arcsin(np.clip(2 * (w * y - x * z), -1.0, 1.0))
@@ -94,7 +184,18 @@ def to_euler(q):
 
 
 def to_matrix(q):
-    """Rotation matrix (..., 3, 3) of unit quaternion(s): ``v_enu = R v_body`` for an attitude."""
+    """Rotation matrix of unit quaternion(s): ``v_enu = R v_body`` for an attitude.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Quaternion(s) ``[w, x, y, z]``.
+        Unit quaternion(s).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+    """
     w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
     return np.stack([
         np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
@@ -104,7 +205,18 @@ def to_matrix(q):
 
 
 def from_matrix(R):
-    """Unit quaternion(s) ``[w, x, y, z]`` (w >= 0) of rotation matrices (..., 3, 3), robust for any angle."""
+    """Unit quaternion(s) of rotation matrices, robust for any angle (Shepperd's method).
+
+    Parameters
+    ----------
+    R : array_like, shape (..., 3, 3)
+        Rotation matrices (body -> ENU for an attitude).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``[w, x, y, z]`` with ``w >= 0``.
+    """
     R = np.asarray(R, dtype=float)
     tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
     # squared components, each from the diagonal; signs from the skew part (Shepperd's method)
@@ -126,8 +238,24 @@ def from_matrix(R):
 def euler_rate_matrix(euler):
     """``Q(λ)``: Euler-angle rates ``λ' = Q(λ) ω`` for ``λ = (ψ, θ, φ)`` (Vasconcelos et al. Sec. 2.1).
 
-    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``; ``ω`` is
-    the body rate (rad/s).  Singular at ``θ = ±90°``.  ``euler`` (..., 3) -> (..., 3, 3).
+    ``Q = [[0, sinφ secθ, cosφ secθ], [0, cosφ, -sinφ], [1, sinφ tanθ, cosφ tanθ]]``.
+
+    Parameters
+    ----------
+    euler : array_like, shape (..., 3)
+        ZYX Euler angles ``[yaw, pitch, roll]`` (rad) of the body frame relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Maps the body rate ``ω`` (rad/s, body frame) to ``[ψ', θ', φ']`` (rad/s).  Singular at
+        ``θ = ±90°`` (entries become infinite).
+
+    Examples
+    --------
+    >>> from cfdesign.rotations import euler_rate_matrix
+    >>> euler_rate_matrix([0.0, 0.0, 0.0]).tolist()     # level: yaw rate = body z rate
+    [[0.0, 0.0, 1.0], [0.0, 1.0, -0.0], [1.0, 0.0, 0.0]]
     """
     e = np.asarray(euler, dtype=float)
     sf, cf = np.sin(e[..., 2]), np.cos(e[..., 2])
@@ -142,6 +270,16 @@ def euler_rate_matrix_inverse(euler):
     """``Q(λ)^-1``: body rate from Euler-angle rates, ``ω = Q^-1 λ'`` (defined at every attitude).
 
     ``Q^-1 = [[-sinθ, 0, 1], [cosθ sinφ, cosφ, 0], [cosθ cosφ, -sinφ, 0]]`` (columns ψ', θ', φ').
+
+    Parameters
+    ----------
+    euler : array_like, shape (..., 3)
+        ZYX Euler angles ``[yaw, pitch, roll]`` (rad) of the body frame relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Maps ``[ψ', θ', φ']`` (rad/s) to the body rate ``ω`` (rad/s, body frame).
     """
     e = np.asarray(euler, dtype=float)
     st, ct, sf, cf = np.sin(e[..., 1]), np.cos(e[..., 1]), np.sin(e[..., 2]), np.cos(e[..., 2])

@@ -78,7 +78,29 @@ _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s", "rol
 
 @dataclass(frozen=True)
 class SensorSpec:
-    """One sensor: its name (as in the structure), rate (Hz), white noise and bias."""
+    """One sensor of a design: what it measures, its rate, white noise and bias.
+
+    Attributes
+    ----------
+    name : str
+        The sensor's name: an ASCII identifier (it names log columns and C macros); the
+        structure's port of that name unless ``port`` says otherwise.
+    rate_hz : float
+        Sample rate (Hz).
+    noise : cfdesign.noise.WhiteNoise
+        White noise: a density (units/sqrt(Hz)) or a per-sample standard deviation (units).
+    bias : cfdesign.noise.Bias
+        Constant bias (units) or random walk (density in units/sqrt(s)).
+    measures : str, optional
+        What the sensor reads (a key of :data:`QUANTITY_ORDERS`: ``angle``, ``rate``,
+        ``position``, ``velocity``, ``acceleration``, ...); checked against the structure.
+    port : str, optional
+        The structure's sensor this one plays (default: its own name).
+    offset_s : float
+        Delay of the first reading after base tick 0 (s), less than the sensor's period.
+    role : {'input', 'measurement'}, optional
+        Structure ``chain`` only: inferred from ``measures`` when left out.
+    """
 
     name: str
     rate_hz: float
@@ -93,7 +115,46 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class FilterSpec:
-    """A whole design: structure, options, gain form and sensors; ``sha256`` of the source text."""
+    """A whole design: structure, options, gain form and sensors.
+
+    Built by :func:`load_spec` (a TOML design file) or :func:`parse_spec` (a dict); the keys
+    are described in the module docstring.
+
+    Attributes
+    ----------
+    name : str
+        Design name (default: the structure).
+    structure : str
+        ``cf2``, ``cf3``, ``ckf3``, ``dckf3``, ``cfn``, ``position`` or ``chain``.
+    sensors : tuple of SensorSpec
+        The sensors, in file order.
+    gain_form : {'predictor', 'filter'}
+        Discrete gain form: ``x[k+1] = F x + B u + K (y - H x)`` or the measurement update
+        ``x+ = x- + K (y - H x-)``.
+    sample_time_s : float, optional
+        Base sample time (s); default ``1 /`` the fastest sensor's rate.
+    discrete : bool, optional
+        ``cf2``, ``cf3``, ``cfn``, ``chain``: the sampled (ZOH) model instead of the continuous one.
+    order : int, optional
+        ``cf2``: 1 or 2; ``chain``: the inputs' derivative order.
+    bands : int, optional
+        ``cfn``: the number of bands.
+    sha256 : str
+        SHA-256 of the design file's bytes (recorded in the gain table's provenance).
+    description : str
+        Free text.
+    gains : dict, optional
+        ``{gain name: value}``: fixed (hand-tuned) gains; the others are optimised.
+    wrap_angle : bool
+        The quantity is a heading: angle readings and the estimate live in (-pi, pi].
+    output : {'posterior', 'prior'}, optional
+        The estimate the table gives (default: the posterior for discrete designs).
+    crossover : dict, optional
+        ``{'hz': (f1, ...), 'damping': zeta or None}``: a design by crossover
+        (:mod:`cfdesign.crossover`), frequencies in Hz.
+    full : bool, optional
+        ``cfn``: a full gain matrix instead of the sparse CF3 pattern.
+    """
 
     name: str
     structure: str
@@ -114,6 +175,22 @@ class FilterSpec:
     full: bool | None = None
 
     def sensor(self, name: str) -> SensorSpec:
+        """The sensor of a given name.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name.
+
+        Returns
+        -------
+        SensorSpec
+
+        Raises
+        ------
+        SpecError
+            No sensor of that name (the structure needs it).
+        """
         for x in self.sensors:
             if x.name == name:
                 return x
@@ -121,7 +198,29 @@ class FilterSpec:
 
 
 def example_path(name: str = "robot-heading") -> Path:
-    """Path of a built-in example design file (``robot-heading``, ``dckf3``, ``cf3``, ``ckf3``, ``position``)."""
+    """Path of a built-in example design file.
+
+    Parameters
+    ----------
+    name : str
+        ``robot-heading`` (default), ``dckf3``, ``cf3``, ``ckf3`` or ``position``
+        (:data:`EXAMPLES`).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    SpecError
+        No built-in example of that name.
+
+    Examples
+    --------
+    >>> from cfdesign.spec import example_path
+    >>> example_path("position").name
+    'position_imu_gps.toml'
+    """
     if name not in EXAMPLES:
         raise SpecError(f"no built-in example {name!r}; choose one of {', '.join(EXAMPLES)}")
     return EXAMPLES_DIR / EXAMPLES[name]
@@ -134,19 +233,30 @@ MAX_SPEC_BYTES = 1_000_000
 def load_spec(path) -> FilterSpec:
     """Read and validate a TOML design file.
 
+    Nothing in the file is evaluated: it is read as TOML data and every field is checked.
+
     Parameters
     ----------
     path : str or Path
+        The design file.
 
     Returns
     -------
     FilterSpec
+        With ``sha256`` of the file's bytes.
 
     Raises
     ------
     SpecError
         The file cannot be read, is larger than :data:`MAX_SPEC_BYTES`, is not TOML, or a
         field is missing or invalid; the message names the file and the field.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    >>> spec.structure, [s.name for s in spec.sensors]
+    ('dckf3', ['odometry_rate', 'gyro_heading', 'compass'])
     """
     path = Path(path)
     try:
@@ -169,7 +279,37 @@ def load_spec(path) -> FilterSpec:
 
 
 def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
-    """Validate a design given as a dict (the parsed TOML)."""
+    """Validate a design given as a dict (the parsed TOML).
+
+    Parameters
+    ----------
+    data : dict
+        The design's keys (see the module docstring).
+    sha256 : str
+        Checksum of the source text, recorded in the gain table's provenance.
+
+    Returns
+    -------
+    FilterSpec
+
+    Raises
+    ------
+    SpecError
+        A field is missing, unknown or invalid; the message names it (``sensors.gyro.rate_hz``).
+
+    Examples
+    --------
+    >>> from cfdesign.spec import parse_spec
+    >>> spec = parse_spec({"structure": "cf2", "sensors": {
+    ...     "gyro": {"measures": "rate", "rate_hz": 100.0, "noise": {"density": 0.01}},
+    ...     "compass": {"measures": "angle", "rate_hz": 100.0, "noise": {"std": 0.05}}}})
+    >>> spec.sensor("gyro").rate_hz
+    100.0
+    >>> parse_spec({"structure": "cf2", "sensors": {"gyro": {"rate_hz": -1, "noise": {"std": 1}}}})
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.SpecError: sensors.gyro.rate_hz must be positive, got -1
+    """
     if not isinstance(data, dict):
         raise SpecError("a design must be a table")
     _no_unknown(data, _TOP_KEYS, "")

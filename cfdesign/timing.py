@@ -96,9 +96,17 @@ def check_rate(t, dt, source):
 
 @dataclass(frozen=True)
 class Segment:
-    """Ticks ``[start, stop)`` run with one schedule: the table's own with its phase 0 at tick
-    ``rotation`` (``offsets`` None), or the table's schedule with each sensor shifted by
-    ``offsets`` phases (gains recomputed)."""
+    """Ticks ``[start, stop)`` run with one schedule.
+
+    Attributes
+    ----------
+    start, stop : int
+        First tick and one past the last.
+    rotation : int
+        The table's own schedule with its phase 0 at this tick (when ``offsets`` is None).
+    offsets : tuple, optional
+        The table's schedule with each sensor shifted by these phases (gains recomputed).
+    """
 
     start: int
     stop: int
@@ -129,6 +137,7 @@ class Lock:
 
     @property
     def recomputed(self) -> bool:
+        """True when some segment runs gains recomputed for shifted sensors."""
         return any(s.offsets is not None for s in self.segments)
 
 

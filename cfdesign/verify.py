@@ -34,34 +34,104 @@ GRID_RTOL = 1e-9
 
 @dataclass(frozen=True)
 class Check:
-    """One verification result: ``name``, ``ok`` and a one-line ``detail``."""
+    """One verification result.
+
+    Attributes
+    ----------
+    name : str
+        What was checked (``complementary (polynomial identity)``, ``stable (closed-loop
+        poles)``, ``same gains as the spec``, ...).
+    ok : bool
+        The check holds.
+    detail : str
+        One line: the measured figure and its tolerance, or what differs (the gain, entry and
+        phase).
+    """
 
     name: str
     ok: bool
     detail: str
 
     def line(self) -> str:
+        """The check as one line of ``cfdesign verify``'s output.
+
+        Returns
+        -------
+        str
+            ``PASS name: detail`` or ``FAIL name: detail``.
+        """
         return f"{'PASS' if self.ok else 'FAIL'} {self.name}: {self.detail}"
 
 
 def phase_realisation(table, phase: int = 0, output: str | None = None):
-    """One phase of ``table`` as a :class:`cfdesign.linear.Realisation` (default: the output the
-    table declares)."""
+    """One phase of a table as a :class:`cfdesign.linear.Realisation`.
+
+    Parameters
+    ----------
+    table : GainTable
+    phase : int
+        Phase of the gain schedule.
+    output : {'posterior', 'prior'}, optional
+        The estimate realised (default: the one the table declares).
+
+    Returns
+    -------
+    cfdesign.linear.Realisation
+    """
     output = table.output if output is None else output
     return linear.realisation(table.F, table.B, table.H, table.K[phase], table.gain_form, output)
 
 
 def band_polynomials(table, phase: int = 0, output: str | None = None):
-    """``({sensor: (num, den)}, den_cl)``: every band of one phase as polynomials (highest first)."""
+    """Every band of one phase as polynomials in ``s`` or ``z`` (highest power first).
+
+    Parameters
+    ----------
+    table : GainTable
+    phase : int
+        Phase of the gain schedule.
+    output : {'posterior', 'prior'}, optional
+        The estimate whose bands to give (default: the one the table declares).
+
+    Returns
+    -------
+    bands : dict
+        ``{sensor: (num, den)}`` coefficient arrays.
+    den : ndarray
+        The closed-loop denominator every band shares.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> from cfdesign.verify import band_polynomials
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> bands, den = band_polynomials(table)
+    >>> sorted(bands), den.round(4).tolist()
+    (['compass', 'gyro_heading', 'odometry_rate'], [1.0, -1.346, 0.5067])
+    """
     orders = {s.order for s in table.sensors}
     relations = linear.chain_relations(orders, table.domain, table.sample_time_s)
     return linear.band_polynomials(phase_realisation(table, phase, output), table.sensors, relations)
 
 
 def frequency_grid(table, points: int = 400) -> np.ndarray:
-    """Frequencies (rad/s) of the grid check: from 1e-3 times the slowest closed-loop pole (or
-    1e-4 rad/s) to just below Nyquist (discrete: the ZOH relation of an acceleration sensor has
-    a pole at ``z = -1``) or 1e3 times the fastest pole (continuous), log-spaced."""
+    """Frequencies of the grid check.
+
+    Log-spaced from ``1e-3`` times the slowest closed-loop pole (or ``1e-4`` rad/s) to just
+    below Nyquist (discrete: the ZOH relation of an acceleration sensor has a pole at
+    ``z = -1``) or ``1e3`` times the fastest pole (continuous).
+
+    Parameters
+    ----------
+    table : GainTable
+    points : int
+        Number of frequencies.
+
+    Returns
+    -------
+    ndarray, shape (points,)
+        Angular frequencies (rad/s), ascending.
+    """
     dt = table.sample_time_s
     eig = np.linalg.eigvals(linear.closed_loop(table.F, table.H, table.K[0], table.gain_form))
     rates = np.abs(np.log(eig[np.abs(eig) > 0].astype(complex))) / dt if dt else np.abs(eig)
@@ -180,27 +250,66 @@ def _show(value) -> str:
 
 
 def numeric_checks(table) -> list:
-    """Complementarity (polynomial identity, frequency grid) and stability: what the designer
-    also applies to every table it writes."""
-    return [*_complementarity(table), _stability(table)]
+    """The checks the designer applies to every table it writes.
 
-
-def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
-    """All checks for ``table`` (and ``spec`` when given), as a list of :class:`Check`.
+    Complementarity (polynomial identity within ``1e-12`` relative at every phase, frequency
+    grid within ``1e-9``) and stability (poles or monodromy multipliers).
 
     Parameters
     ----------
     table : GainTable
+
+    Returns
+    -------
+    list of Check
+    """
+    return [*_complementarity(table), _stability(table)]
+
+
+def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
+    """Every check of ``cfdesign verify``: complementarity, stability and (with a spec) the gains.
+
+    From the table's own ``F, B, H, K`` and sensor relations every band is rebuilt
+    numerically: the bands must sum to one as a polynomial identity (coefficients within
+    ``1e-12`` relative, every phase) and over a frequency grid (single-rate tables); the closed
+    loop must be strictly stable (poles, or the monodromy multipliers of a multirate table);
+    with ``spec`` the table is re-designed and everything that changes what it runs (sensors,
+    order, gain form, output, wrap, sample time, schedule, structure, gains) compared.
+
+    Parameters
+    ----------
+    table : GainTable
+        The table to check (:func:`~cfdesign.gains.load_gains` reads one).
     spec : FilterSpec, optional
-        The design file the table should come from: it is re-designed and everything that
-        changes what the table runs is compared.
+        The design file the table should come from.
     rtol : float
         Relative tolerance of the gain, model and sample-time comparison.
 
     Returns
     -------
     list of Check
-        One per check; a check that fails names the field, gain or phase.
+        One per check; a check that fails names the field, gain or phase.  No exception for
+        a failed check: ``cfdesign verify`` exits 1 when any is not ``ok``.
+
+    Raises
+    ------
+    SpecError
+        Re-designing from ``spec`` fails (the spec does not fit a structure).
+
+    See Also
+    --------
+    cfdesign.testing.assert_complementary : the same checks as a test assertion.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> from cfdesign.verify import verify_table
+    >>> spec = cfdesign.load_spec(cfdesign.example_path("robot-heading"))
+    >>> checks = verify_table(cfdesign.design(spec), spec)
+    >>> all(c.ok for c in checks)
+    True
+    >>> print(checks[-1].line())  # doctest: +ELLIPSIS
+    PASS ...
     """
     checks = numeric_checks(table)
     if spec is not None:

@@ -25,13 +25,13 @@ Agreement with the Python runtime, as ``tests/test_codegen.py`` checks it (100,0
 a slow sinusoid plus noise with 2 % missing readings; the seed-001 Fig. 6 DCKF3 example ("dckf3") with the
 heading crossing +-pi, compared modulo 2 pi; the multirate position table, period 50):
 
-* ``precision='double'``: max |C - Python| <= 1e-12 required; measured 2.7e-15 rad
+* ``precision='double'``: ``max |C - Python| <= 1e-12`` required; measured 2.7e-15 rad
   (robot heading) and 0, bit-identical (position), with gcc -O2 on x86-64.  This assumes
   IEEE double arithmetic without extended precision or contraction into fused
   multiply-adds (the default with ``-std=c99``; do not use ``-ffast-math``).
 * ``precision='float'``: single-precision rounding; the documented bound is
-  max |C - Python| <= 2e-6 x max |estimate| for the robot heading (measured 3.3e-7 x,
-  1.05e-6 rad) and <= 1e-4 x max |estimate| for the position (measured 2.0e-5 x,
+  ``max |C - Python| <= 2e-6 x max |estimate|`` for the robot heading (measured 3.3e-7 x,
+  1.05e-6 rad) and ``<= 1e-4 x max |estimate|`` for the position (measured 2.0e-5 x,
   1.4e-3 m on a +-67 m estimate: the float position state, ulp 7.6e-6 m at 64 m, is
   integrated at 50 Hz between 1 Hz GPS fixes).
 

@@ -36,6 +36,9 @@ _ORDER_NAMES = {0: "angle/position", 1: "rate", 2: "acceleration"}
 def write_c(table, directory, *, prefix=None, precision="double", output=None) -> list[Path]:
     """Write the table as C99 source: ``<prefix>_gains.h``, ``<prefix>_filter.h``, ``<prefix>_filter.c``.
 
+    The files are written atomically (:mod:`cfdesign.files`); the step has the semantics of
+    :meth:`cfdesign.runtime.Runtime.step` (module docstring of :mod:`cfdesign.codegen`).
+
     Parameters
     ----------
     table : GainTable
@@ -49,7 +52,8 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
         The C arithmetic type.
     output : {'prior', 'posterior'}, optional
         The estimate ``<prefix>_step`` returns: the one-step prediction or the estimate after
-        this step's readings; default the table's declared output, as :class:`cfdesign.runtime.Runtime`.
+        this step's readings; default the table's declared output, as
+        :class:`cfdesign.runtime.Runtime`.
 
     Returns
     -------
@@ -59,8 +63,18 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
     Raises
     ------
     CfdesignError
-        The table cannot run (continuous), a name is not a C identifier, a value is not finite,
-        or the files cannot be written.
+        The table cannot run (continuous), a name is not a C identifier, or a value is not
+        finite.
+    OutputError
+        The directory or the files cannot be written; no existing file is left half-written.
+
+    Examples
+    --------
+    >>> import cfdesign, tempfile
+    >>> from cfdesign.codegen import write_c
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> [p.name for p in write_c(table, tempfile.mkdtemp(), prefix="heading")]
+    ['heading_gains.h', 'heading_filter.h', 'heading_filter.c']
     """
     texts = render_c(table, prefix=prefix, precision=precision, output=output)
     directory = Path(directory)
@@ -72,7 +86,29 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
 
 
 def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
-    """The generated C files as ``{file name: text}`` without writing them (see :func:`write_c`)."""
+    """The generated C files, without writing them (see :func:`write_c`).
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table in ``predictor`` or ``filter`` gain form.
+    prefix : str, optional
+        Prefix of every C name; default from the table's structure.
+    precision : {'double', 'float'}
+        The C arithmetic type.
+    output : {'prior', 'posterior'}, optional
+        The estimate the step returns; default the table's declared output.
+
+    Returns
+    -------
+    dict
+        ``{file name: text}``.
+
+    Raises
+    ------
+    CfdesignError
+        As :func:`write_c`.
+    """
     fields = _fields(table, prefix, precision, output)
     out = {}
     for stem, what in _FILES:
@@ -83,10 +119,37 @@ def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
 
 
 def check_c_identifier(name, what: str) -> str:
-    """Return ``name`` if it can start a C identifier, else raise CfdesignError naming ``what``.
+    """Return ``name`` if it can be a C identifier, else raise naming ``what``.
 
     Rejected: anything outside ``[A-Za-z_][A-Za-z0-9_]*``, C99 keywords and names the C
     standard reserves (a leading double underscore, or underscore and capital letter).
+
+    Parameters
+    ----------
+    name : str
+        Candidate identifier (a sensor name, a prefix).
+    what : str
+        What the name is, for the message (``sensor``, ``prefix``).
+
+    Returns
+    -------
+    str
+        ``name``, unchanged.
+
+    Raises
+    ------
+    CfdesignError
+        The name cannot be used in C.
+
+    Examples
+    --------
+    >>> from cfdesign.codegen import check_c_identifier
+    >>> check_c_identifier("gyro", "sensor")
+    'gyro'
+    >>> check_c_identifier("int", "sensor")
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.CfdesignError: sensor 'int' is a C99 keyword; C code needs a valid C identifier
     """
     if not isinstance(name, str) or not _IDENTIFIER.match(name):
         problem = "is not a C identifier (letters, digits and _, not starting with a digit)"

@@ -78,7 +78,22 @@ class AdaptiveEstimate:
 
 
 def attitude_cutoffs(acc, k_phi, k_theta, g0=G0_M_S2):
-    """Roll and pitch cut-offs (rad/s), Alves Neto et al. eqs. (15)-(16): ``k exp(-|g0 - |a||)``, shape (N, 2)."""
+    """Roll and pitch cut-offs, Alves Neto et al. eqs. (15)-(16): ``k exp(-|g0 - |a||)``.
+
+    Parameters
+    ----------
+    acc : array_like, shape (N, 3)
+        Specific force in the body frame (m/s²).
+    k_phi, k_theta : float
+        Nominal roll and pitch cut-offs (rad/s).
+    g0 : float
+        Gravity (m/s²).
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Roll and pitch cut-offs (rad/s): nominal at rest, smaller under acceleration.
+    """
     shrink = np.exp(-np.abs(g0 - np.linalg.norm(np.asarray(acc, dtype=float), axis=-1)))
     return np.stack([k_phi * shrink, k_theta * shrink], axis=-1)
 
@@ -93,7 +108,26 @@ def _saturating(x, x_max, k):
 
 
 def position_cutoff(speed, n_satellites, k_p, v_max, n_max):
-    """Position cut-off (rad/s), Alves Neto et al. eqs. (22)-(24): ``min(ω_v, ω_N)``, 0 with 3 satellites or fewer."""
+    """Position cut-off, Alves Neto et al. eqs. (22)-(24): ``min(ω_v, ω_N)``.
+
+    Parameters
+    ----------
+    speed : array_like, shape (N,)
+        Forward speed (m/s); NaN counts as 0.
+    n_satellites : array_like, shape (N,)
+        Satellites seen.
+    k_p : float
+        Nominal cut-off (rad/s).
+    v_max : float
+        Maximum speed (m/s), eq. (23).
+    n_max : float
+        Satellite count of full confidence, eq. (24).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Cut-off (rad/s); 0 with 3 satellites or fewer (the GPS is ignored).
+    """
     w_v = _saturating(np.abs(np.nan_to_num(np.asarray(speed, dtype=float))), v_max, k_p)
     n = np.asarray(n_satellites, dtype=float)
     w_n = np.where(n > 3, _saturating(np.where(n > 3, n, 0.0), n_max, k_p), 0.0)
@@ -123,6 +157,11 @@ class AdaptiveCF:
     declination_rad : float
         Magnetic declination (rad, positive east), subtracted from the magnetic heading.
 
+    Raises
+    ------
+    InputError
+        A parameter that is not a finite number of the right sign, or ``n_max <= 3``.
+
     Notes
     -----
     Cost: roll/pitch cut-offs, pendular and magnetic angles, gyro increments, the position
@@ -145,6 +184,7 @@ class AdaptiveCF:
 
     @property
     def dt_s(self) -> float:
+        """Time between input rows (s): ``1 / rate_hz``."""
         return 1.0 / self.rate_hz
 
     def run(self, gyr, acc, mag, odometry_speed, gps_enu, n_satellites, *, initial_position=None) -> AdaptiveEstimate:
@@ -244,14 +284,25 @@ class AdaptiveCF:
 
 # ---------------------------------------------------------------------------- plot
 def cutoff_plot(estimate: AdaptiveEstimate, t_s, ax=None):
-    """Draw the adapted cut-offs (rad/s) of roll, pitch, yaw and position over time; returns the axes.
+    """Draw the adapted cut-offs of roll, pitch, yaw and position over time.
 
     Parameters
     ----------
     estimate : AdaptiveEstimate
-    t_s : (N,) times of the estimate's rows (s).
-    ax : matplotlib Axes, optional
+        From :meth:`AdaptiveCF.run`.
+    t_s : array_like, shape (N,)
+        Times of the estimate's rows (s).
+    ax : matplotlib.axes.Axes, optional
         Where to draw; default a new figure.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+
+    Raises
+    ------
+    InputError
+        ``t_s`` does not have one time per row.
     """
     import matplotlib.pyplot as plt
 

@@ -15,7 +15,28 @@ __all__ = ["joseph_update", "first_finite"]
 
 
 def joseph_update(x, P, innovation, H, R):
-    """Kalman update in Joseph form, symmetrised: returns ``x + K ν`` and ``P``."""
+    """Kalman measurement update in Joseph form, symmetrised.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Prior state.
+    P : ndarray, shape (n, n)
+        Prior covariance.
+    innovation : ndarray, shape (m,)
+        ``ν = z - h(x)``.
+    H : ndarray, shape (m, n)
+        Measurement Jacobian.
+    R : ndarray, shape (m, m)
+        Measurement-noise covariance.
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        ``x + K ν`` with ``K = P H^T (H P H^T + R)^-1``.
+    P : ndarray, shape (n, n)
+        ``(I - K H) P (I - K H)^T + K R K^T``, symmetrised.
+    """
     PHt = P @ H.T
     K = np.linalg.solve(H @ PHt + R, PHt.T).T
     P = posterior_covariance(P, H, K, R)
@@ -23,6 +44,16 @@ def joseph_update(x, P, innovation, H, R):
 
 
 def first_finite(rows):
-    """First all-finite row of ``rows`` or ``None``."""
+    """The first all-finite row of an array.
+
+    Parameters
+    ----------
+    rows : ndarray, shape (N, k)
+
+    Returns
+    -------
+    ndarray, shape (k,), or None
+        None when no row is finite.
+    """
     ok = np.flatnonzero(np.isfinite(rows).all(axis=1))
     return None if len(ok) == 0 else rows[ok[0]]

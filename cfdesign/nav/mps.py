@@ -32,12 +32,40 @@ __all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_comp
 
 
 def centripetal_compensation(acc, rate, velocity_body):
-    """``a_MPS = a - ω̂ × v_B`` (m/s², Vasconcelos et al. Sec. 2.2); arrays (..., 3) in the body frame."""
+    """Centripetal compensation of the accelerometer: ``a_MPS = a - ω̂ × v_B`` (Vasconcelos et al. Sec. 2.2).
+
+    Parameters
+    ----------
+    acc : array_like, shape (..., 3)
+        Specific force in the body frame (m/s²).
+    rate : array_like, shape (..., 3)
+        Unbiased body rate (rad/s).
+    velocity_body : array_like, shape (..., 3)
+        Velocity in the body frame (m/s).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The compensated specific force (m/s², body frame).
+    """
     return np.asarray(acc, dtype=float) - np.cross(rate, velocity_body)
 
 
 def tilt_compensated_field(mag, pitch, roll):
-    """``m' = R_Y(θ) R_X(φ) m``: the field in the level frame that shares the body's heading."""
+    """The magnetic field in the level frame that shares the body's heading: ``m' = R_Y(θ) R_X(φ) m``.
+
+    Parameters
+    ----------
+    mag : array_like, shape (..., 3)
+        Field in the body frame (any unit).
+    pitch, roll : array_like
+        Pitch ``θ`` and roll ``φ`` (rad), ZYX relative to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The field rotated to the level frame (same unit).
+    """
     m = np.asarray(mag, dtype=float)
     cp, sp, cr, sr = np.cos(pitch), np.sin(pitch), np.cos(roll), np.sin(roll)
     y = cr * m[..., 1] - sr * m[..., 2]                     # R_X(φ) m, its z is z1
@@ -85,14 +113,34 @@ def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=No
 
 
 def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
-    """Singularity-free MPS attitude: quaternion ``[w, x, y, z]``, body -> ENU (TRIAD-like).
+    """Singularity-free Magneto-Pendular Sensor attitude as a quaternion (TRIAD-like).
 
-    Up is ``a/|a|``; east is ``m × up`` normalised; north is ``up × east``; the rotation
-    matrix has the ENU axes (in body coordinates) as its rows.  The magnetic frame is then
-    turned by ``-α_dec`` about up.  Gravity fixes roll and pitch; the field only the heading,
-    at any pitch (unlike the Euler form, which is singular at ``θ = ±90°``).  Without a
-    usable field (``None``, zero, or parallel to gravity) the heading is set to zero
-    (yaw-free tilt, the shortest rotation from up to ``a``).
+    Up is ``a/|a|``; east is ``m × up`` normalised; north is ``up × east``; the rotation matrix
+    has the ENU axes (in body coordinates) as its rows.  The magnetic frame is then turned by
+    ``-α_dec`` about up.  Gravity fixes roll and pitch; the field only the heading, at any pitch
+    (unlike :func:`mps_euler`, which is singular at ``θ = ±90°``).
+
+    Parameters
+    ----------
+    acc : array_like, shape (..., 3)
+        Specific force in the body frame (m/s²); points up when at rest.
+    mag : array_like, shape (..., 3), optional
+        Magnetic field in the body frame (any unit).  Without a usable field (``None``, zero,
+        or parallel to gravity) the heading is set to zero (yaw-free tilt, the shortest
+        rotation from up to ``a``).
+    declination_rad : float
+        Magnetic declination (rad), positive east.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Unit quaternion ``[w, x, y, z]`` rotating body to ENU.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import mps_quaternion
+    >>> mps_quaternion([0.0, 0.0, 9.81], [0.0, 1.0, -1.0]).round(6).tolist()  # level, axes along ENU
+    [1.0, 0.0, 0.0, 0.0]
     """
     a = np.asarray(acc, dtype=float)
     up = a / np.linalg.norm(a, axis=-1, keepdims=True)

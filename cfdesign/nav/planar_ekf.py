@@ -69,7 +69,30 @@ class PlanarEstimate:
 
 
 def planar_step(state, rho: float, omega: float, dt: float, *, jacobian: bool = True):
-    """Prediction, eq. (4), and its Jacobians ``J_x`` (4, 4), ``J_u`` (4, 2) with ``u = [ρ, ω]``."""
+    """Prediction of the planar EKF, eq. (4), and its Jacobians.
+
+    Parameters
+    ----------
+    state : sequence of 4 floats
+        ``[x, y, θ, α]``: position (m), heading (rad), odometer scale.
+    rho : float
+        Odometer distance over the interval (m).
+    omega : float
+        Yaw rate over the interval (rad/s).
+    dt : float
+        Interval (s).
+    jacobian : bool
+        Also return the Jacobians.
+
+    Returns
+    -------
+    new : ndarray, shape (4,)
+        The predicted state.
+    Jx : ndarray, shape (4, 4)
+        Only with ``jacobian``: with respect to the state.
+    Ju : ndarray, shape (4, 2)
+        Only with ``jacobian``: with respect to ``u = [ρ, ω]``.
+    """
     x, y, theta, alpha = state
     phi = theta + 0.5 * omega * dt
     c, s = math.cos(phi), math.sin(phi)
@@ -106,6 +129,11 @@ class PlanarEKF:
     initial_std : tuple of 4 floats
         Initial standard deviations of ``[x, y, θ, α]``.
 
+    Raises
+    ------
+    InputError
+        ``sigma_heading`` does not give one value per GPS mode.
+
     Notes
     -----
     Cost: about 15 µs per sample (Python 3.11, numpy 2; 3000 samples at 10 Hz, GPS at 1 Hz).
@@ -126,7 +154,22 @@ class PlanarEKF:
         self.initial_std = np.asarray(initial_std, dtype=float)
 
     def heading_std(self, mode: str, turned: float, travelled: float) -> float:
-        """``σ_θ (Σ|ω| + κ_ω) / (Σρ + κ_ρ)`` of eq. (13) (module docstring's reading)."""
+        """GPS-heading standard deviation of eq. (13): ``σ_θ (Σ|ω| + κ_ω) / (Σρ + κ_ρ)``.
+
+        Parameters
+        ----------
+        mode : str
+            GPS mode (a key of ``gps_std``: ``'single'``, ``'dgps'``).
+        turned : float
+            ``Σ|ω| dt`` since the last fix (rad).
+        travelled : float
+            ``Σρ`` since the last fix (m).
+
+        Returns
+        -------
+        float
+            Standard deviation (rad) of the heading derived from consecutive fixes.
+        """
         return self.sigma_heading[mode] * (turned + self.kappa_omega) / (abs(travelled) + self.kappa_rho)
 
     def run(self, distance, gyro_z, dt_s, gps_xy, gps_mode, *, initial_state=None) -> PlanarEstimate:

@@ -92,6 +92,15 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
         Random-walk density of the bias (m/s^2/sqrt(s)): larger tracks faster, smooths less.
     gps_noise_std : float
         GPS position noise per fix and axis (m).
+
+    Returns
+    -------
+    FilterSpec
+
+    Raises
+    ------
+    SpecError
+        A figure that is not a positive finite number, or rates that do not fit.
     """
     return parse_spec({
         "name": "position axis", "structure": "position", "gain_form": "filter",
@@ -104,9 +113,39 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
 
 def design_position(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: float, accel_bias_density: float,
                     gps_noise_std: float):
-    """The periodic gain table of one axis for these noise figures: :func:`position_spec` designed
-    by the numeric stage on the stored ``position`` structure (no sympy; the same gains as
-    ``cfdesign.design(position_spec(...))``)."""
+    """The periodic gain table of one axis for these noise figures.
+
+    :func:`position_spec` designed by the numeric stage on the stored ``position`` structure
+    (no sympy; the same gains as ``cfdesign.design(position_spec(...))``).
+
+    Parameters
+    ----------
+    imu_rate_hz, gps_rate_hz : float
+        Accelerometer and GPS rates (Hz); the GPS rate must divide the IMU rate.
+    accel_noise_std : float
+        Accelerometer white noise per sample (m/s^2) at ``imu_rate_hz``.
+    accel_bias_density : float
+        Random-walk density of the bias (m/s^2/sqrt(s)): larger tracks faster, smooths less.
+    gps_noise_std : float
+        GPS position noise per fix and axis (m).
+
+    Returns
+    -------
+    GainTable
+        Filter form, base rate ``imu_rate_hz``, period ``imu_rate_hz / gps_rate_hz``.
+
+    Raises
+    ------
+    SpecError
+        As :func:`position_spec`.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.position import design_position
+    >>> table = design_position(50.0, 1.0, accel_noise_std=0.006, accel_bias_density=1e-4, gps_noise_std=1.0)
+    >>> table.period, table.states
+    (50, ('position', 'velocity', 'accelerometer_bias'))
+    """
     return design_stored(position_spec(imu_rate_hz, gps_rate_hz, accel_noise_std=accel_noise_std,
                                        accel_bias_density=accel_bias_density, gps_noise_std=gps_noise_std),
                          STRUCTURE)
@@ -122,7 +161,22 @@ def _midpoints(q) -> np.ndarray:
 
 
 def earth_acceleration(acc_body, quat_nb) -> np.ndarray:
-    """``u = R_nb f_b + g_n`` (m/s^2, ENU) with each interval's midpoint attitude (module docstring)."""
+    """Acceleration in ENU from the accelerometer: ``u = R_nb f_b + g_n``.
+
+    Each interval uses its midpoint attitude (module docstring).
+
+    Parameters
+    ----------
+    acc_body : array_like, shape (N, 3)
+        Specific force in the body frame (m/s^2).
+    quat_nb : array_like, shape (N, 4)
+        Attitude ``[w, x, y, z]``, body -> ENU, at the same samples.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        Acceleration in ENU with gravity removed (m/s^2).
+    """
     return rot.rotate(_midpoints(np.asarray(quat_nb, dtype=float)), acc_body) + GRAVITY_ENU
 
 

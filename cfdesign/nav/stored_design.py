@@ -38,15 +38,46 @@ STORED = {
 
 @functools.cache
 def stored_structure(name: str) -> Structure:
-    """The stored structure ``name`` (``cfdesign/structures/NAME.json``), read once."""
+    """The stored structure ``name`` (``cfdesign/structures/NAME.json``), read once.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`STORED`.
+
+    Returns
+    -------
+    cfdesign.designer.Structure
+
+    Raises
+    ------
+    SpecError
+        No stored structure of that name.
+    """
     return Structure.load(name)
 
 
 def design_stored(spec: FilterSpec, name: str) -> GainTable:
-    """Gains for ``spec`` on the stored structure ``name`` (the numeric design stage, no sympy).
+    """Gains for a spec on a stored structure (the numeric design stage, no sympy).
 
     Sensors that play a structure's sensor under another name (``port``) are renamed as
     :func:`cfdesign.design` does.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+        The sensors and their noise.
+    name : str
+        A key of :data:`STORED`.
+
+    Returns
+    -------
+    GainTable
+
+    Raises
+    ------
+    SpecError
+        The spec does not fit the structure.
     """
     structure = stored_structure(name)
     ports = {x.port: x.name for x in spec.sensors if x.port is not None}
@@ -57,10 +88,25 @@ def design_stored(spec: FilterSpec, name: str) -> GainTable:
 
 
 def as_table(value, name: str, what: str) -> GainTable:
-    """``value`` as a gain table: a :class:`GainTable` itself, or the design of a FilterSpec of ``name``.
+    """A value as a gain table: a :class:`GainTable` itself, or the design of a FilterSpec.
 
-    Raises :class:`TableMismatchError` (naming ``what``) for anything else, or for a spec of
-    another structure.
+    Parameters
+    ----------
+    value : GainTable or FilterSpec
+        A user's table or design (``tables=`` / ``table=`` of a navigation filter).
+    name : str
+        The stored structure a spec must be designed on (a key of :data:`STORED`).
+    what : str
+        How the message names the value.
+
+    Returns
+    -------
+    GainTable
+
+    Raises
+    ------
+    TableMismatchError
+        Anything else, or a spec of another structure (naming ``what``).
     """
     if isinstance(value, GainTable):
         return value
@@ -77,7 +123,7 @@ def as_table(value, name: str, what: str) -> GainTable:
 
 def check_fits(table: GainTable, what: str, *, F, B, H, orders: tuple, sample_time_s: float, period: int = 1,
                model: str, timing: str):
-    """Check that ``table`` is the filter's model at its sample time; TableMismatchError otherwise.
+    """Check that a table is the filter's model at its sample time.
 
     Parameters
     ----------
@@ -89,11 +135,19 @@ def check_fits(table: GainTable, what: str, *, F, B, H, orders: tuple, sample_ti
     orders : tuple of int
         ``(input order, measurement order)`` of its two sensors.
     sample_time_s : float
-        The filter's sample time (s); ``timing`` says where it comes from.
+        The filter's sample time (s).
     period : int
         The multirate period (steps) the filter expects.
     model : str
         The model in words, for the message.
+    timing : str
+        Where the sample time comes from, for the message (``rate_hz = 100``).
+
+    Raises
+    ------
+    TableMismatchError
+        A continuous table, other shapes, sensor orders, sample time, period or model
+        matrices; the message names the difference.
     """
     F, B, H = (np.asarray(M, dtype=float) for M in (F, B, H))
     if table.domain != "z":

@@ -155,7 +155,20 @@ def strapdown_step(x, gyro, accel, dt: float, *, jacobian: bool = True):
 
 
 def norm_observation(x) -> tuple[float, np.ndarray]:
-    """Pseudo-observation ``e = 1 - |q|`` (eq. (9), module docstring) and its Jacobian row ``H`` (22,)."""
+    """The quaternion-norm pseudo-observation ``e = 1 - |q|`` (eq. (9), module docstring).
+
+    Parameters
+    ----------
+    x : ndarray, shape (22,)
+        The EKF state.
+
+    Returns
+    -------
+    e : float
+        Innovation of the pseudo-observation.
+    H : ndarray, shape (22,)
+        Its Jacobian row.
+    """
     q = x[_Q]
     n = math.sqrt(float(q @ q))
     H = np.zeros(N_STATES)
@@ -222,6 +235,11 @@ class StrapdownEKF:
         Initial standard deviations; keys ``gyro_bias`` (rad/s, default 1°/s), ``accel_bias``
         (m/s², 0.2), ``scale`` (0.02), ``velocity`` (m/s, 10 unless given/measured).
 
+    Raises
+    ------
+    InputError
+        ``mag_rate_hz`` does not divide ``rate_hz``.
+
     Notes
     -----
     Cost: about 185 µs per IMU step (Python 3.11, numpy 2, one core: prediction, norm
@@ -265,7 +283,20 @@ class StrapdownEKF:
         return Q
 
     def align(self, acc, mag) -> np.ndarray:
-        """Initial attitude by TRIAD (Sec. 3.1): specific force ~ up, field ~ reference."""
+        """Initial attitude by TRIAD (Sec. 3.1): specific force ~ up, field ~ reference.
+
+        Parameters
+        ----------
+        acc : array_like, shape (3,)
+            Specific force in the body frame (m/s²), at rest.
+        mag : array_like, shape (3,)
+            Magnetic field in the body frame (any unit).
+
+        Returns
+        -------
+        ndarray, shape (4,)
+            ``[w, x, y, z]``, body -> ENU; NaN when the vectors are parallel or zero.
+        """
         return triad_quaternion(acc, mag, _UP, self.mag_reference)
 
     def _initial(self, acc0, mag0, position, velocity):
@@ -324,6 +355,12 @@ class StrapdownEKF:
         -------
         EkfEstimate
             Estimates at the ``M`` times ``t_k`` (after that instant's observations).
+
+        Raises
+        ------
+        InputError
+            Arrays of the wrong shapes, or unusable first accelerometer/magnetometer samples
+            (the alignment fails).
         """
         gyr, acc, mag = (np.asarray(a, dtype=float) for a in (gyr, acc, mag))
         M = len(mag)

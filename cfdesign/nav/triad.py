@@ -32,10 +32,20 @@ __all__ = ["triad_frame", "triad_matrix", "triad_quaternion"]
 
 
 def triad_frame(v1, v2) -> np.ndarray:
-    """Orthonormal triad ``[t1 | t2 | t3]`` (columns, (..., 3, 3)) of two vectors (..., 3).
+    """Orthonormal triad of two vectors.
 
-    ``t1 = v1/|v1|``, ``t2 = v1 × v2 / |v1 × v2|``, ``t3 = t1 × t2``; NaN where the vectors are
-    zero or parallel (the triad is then undefined).
+    ``t1 = v1/|v1|``, ``t2 = v1 × v2 / |v1 × v2|``, ``t3 = t1 × t2``.
+
+    Parameters
+    ----------
+    v1, v2 : array_like, shape (..., 3)
+        Primary and secondary vectors (any units).
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Columns ``[t1 | t2 | t3]``; NaN where the vectors are zero or parallel (the triad is
+        then undefined).
     """
     v1, v2 = np.asarray(v1, dtype=float), np.asarray(v2, dtype=float)
     cross = np.cross(v1, v2)
@@ -67,7 +77,26 @@ def triad_matrix(b1, b2, r1, r2) -> np.ndarray:
 
 
 def triad_quaternion(b1, b2, r1, r2) -> np.ndarray:
-    """TRIAD attitude as a quaternion ``[w, x, y, z]`` (w >= 0), body -> reference; NaN if undefined."""
+    """TRIAD attitude as a quaternion, body -> reference.
+
+    Parameters
+    ----------
+    b1, b2 : array_like, shape (..., 3)
+        Primary and secondary vectors in the body frame (only directions matter).
+    r1, r2 : array_like, shape (..., 3)
+        The same vectors in the reference frame (ENU).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``[w, x, y, z]`` with ``w >= 0``; NaN where undefined (a parallel pair).
+
+    Examples
+    --------
+    >>> from cfdesign.nav.triad import triad_quaternion
+    >>> triad_quaternion([0, 0, 1], [0, 1, 0], [0, 0, 1], [0, 1, 0]).tolist()
+    [1.0, 0.0, 0.0, 0.0]
+    """
     C = triad_matrix(b1, b2, r1, r2)
     finite = np.isfinite(C).all(axis=(-2, -1))
     q = rot.from_matrix(np.where(finite[..., None, None], C, np.eye(3)))

@@ -36,8 +36,28 @@ ALIASES = {"seed001": "carreira", "seed004": "helicopter"}
 def add_parser(subparsers, load: bool = True):
     """Add ``reproduce`` (one sub-command per paper) to an argparse ``subparsers`` object.
 
-    ``load=False`` lists the papers without importing their modules (and their options): what
-    every other command needs, so that ``cfdesign --version`` or ``cfdesign run`` start fast.
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        What ``parser.add_subparsers()`` returned.
+    load : bool
+        Import each paper's module and add its options.  ``False`` lists the papers without
+        importing their modules: what every other command needs, so that
+        ``cfdesign --version`` or ``cfdesign run`` start fast.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``reproduce`` parser.
+
+    Examples
+    --------
+    >>> import argparse
+    >>> from cfdesign.reproduce import add_parser
+    >>> parser = argparse.ArgumentParser(prog="cfdesign")
+    >>> _ = add_parser(parser.add_subparsers(dest="command"))
+    >>> parser.parse_args(["reproduce", "carreira", "--runs", "2"]).runs
+    2
     """
     p = subparsers.add_parser("reproduce", help="reproduce a paper's results (" + ", ".join(PAPERS) + ")",
                               description="Reproduce a paper's tables: ours beside the paper's, with the ratio.")

@@ -73,7 +73,23 @@ TIE = 0.05
 
 @dataclass(frozen=True)
 class Row:
-    """One row of Table I (two sensors) or II (three): the sensor in each band and the paper's MSE."""
+    """One row of Table I (two sensors) or II (three): the sensor in each band and the paper's MSE.
+
+    Parameters
+    ----------
+    table : {'I', 'II'}
+        The paper's table.
+    number : int
+        Row number in the table.
+    low : str
+        Sensor in the low-pass band (``gyro``, ``compass``, ``odometry``).
+    high : str
+        Sensor in the high-pass band (the filter's rate input).
+    paper_mse : float
+        The paper's MSE of the heading (rad^2).
+    band : str, optional
+        Sensor in the band-pass band (Table II).
+    """
 
     table: str
     number: int
@@ -89,14 +105,33 @@ class Row:
 
     @property
     def label(self) -> str:
+        """The assignment in words: ``LP gyro, BP compass, HP odometry``."""
         bands = [("LP", self.low), ("BP", self.band), ("HP", self.high)]
         return ", ".join(f"{b} {name}" for b, name in bands if name)
 
     def observer(self):
+        """The row's symbolic structure, its sensors in their bands.
+
+        Returns
+        -------
+        cfdesign.symbolic.Observer
+            cf2 order 2 (Table I) or the DCKF3 with ``k22 = 0`` (Table II), discrete.
+        """
         return banded_observer(self.low, self.high, self.band)
 
     def spec(self, sc):
-        """Design specification: ``high`` as the rate input, ``low`` and ``band`` as headings."""
+        """Design specification of the row: ``high`` as the rate input, ``low`` and ``band`` as headings.
+
+        Parameters
+        ----------
+        sc : cfdesign.sim.robot_heading.Scenario
+            The scenario (its noise figures and rate).
+
+        Returns
+        -------
+        FilterSpec
+            Predictor form, wrapped heading, prior output (the paper's estimate, eq. (25)).
+        """
         measured = [self.low] if self.band is None else [self.low, self.band]
         structure = {"structure": "cf2", "order": 2, "discrete": True} if self.band is None else \
             {"structure": "dckf3_bandpass"}
@@ -104,7 +139,20 @@ class Row:
                      [self.high], measured)
 
     def readings(self, signals: dict, steps: int) -> dict:
-        """``{sensor: array}`` for the runtime: the input's rate, the measurements' headings."""
+        """The runtime's readings for the row.
+
+        Parameters
+        ----------
+        signals : dict
+            :meth:`~cfdesign.sim.robot_heading.Scenario.signals` of one run.
+        steps : int
+            Number of filter steps.
+
+        Returns
+        -------
+        dict
+            ``{sensor: array}``: the input's rate (rad/s), the measurements' headings (rad).
+        """
         out = {self.high: signals[self.high]["rate"][:steps]}
         for name in self.cells[:-1]:
             out[name] = signals[name]["heading"][:steps]
@@ -146,7 +194,18 @@ def _spec(sc, name, structure: dict, inputs, measurements):
 
 
 def dckf3_spec(sc=None):
-    """The DCKF³ of Carreira et al. eqs. (25)-(27) as written: gyro rate in, compass and odometry headings measured."""
+    """The DCKF3 of Carreira et al. eqs. (25)-(27) as written: gyro rate in, compass and odometry headings measured.
+
+    Parameters
+    ----------
+    sc : cfdesign.sim.robot_heading.Scenario
+        The scenario (its noise figures and rate).
+        Default: the scenario under the reading this reproduction uses.
+
+    Returns
+    -------
+    FilterSpec
+    """
     sc = sc or scenario(READING)
     return _spec(sc, "robot heading (Carreira et al. DCKF3, eqs. 25-27)", {"structure": "dckf3"}, ["gyro"],
                  ["compass", "odometry"])
@@ -160,7 +219,23 @@ def design_row(row: Row, reading: Reading = READING):
 
 # ---------------------------------------------------------------------------- runs
 def run_filter(row: Row, table, sc, signals: dict) -> np.ndarray:
-    """The row's estimates over the run, by the runtime from the true start heading."""
+    """The row's estimates over the run, by the runtime from the true start heading.
+
+    Parameters
+    ----------
+    row : Row
+    table : GainTable
+        The row's designed table (:func:`design_row`).
+    sc : cfdesign.sim.robot_heading.Scenario
+        The scenario (its noise figures and rate).
+    signals : dict
+        :meth:`~cfdesign.sim.robot_heading.Scenario.signals` of one run.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Heading estimates (rad).
+    """
     from ..runtime import Runtime
 
     start = float(sc.trajectory.heading_rad[0])
@@ -196,7 +271,23 @@ def _note(row: Row, table, sc) -> str:
 
 @dataclass(frozen=True)
 class Reproduction:
-    """Per-run MSE of every row, the designed tables, and the comparison with the paper."""
+    """Per-run MSE of every row, the designed tables, and the comparison with the paper.
+
+    Attributes
+    ----------
+    reading : Reading
+        How the paper's noise figures were read.
+    seeds : tuple of int
+        Seeds of the runs.
+    straight_s : float
+        Length of each straight leg (s).
+    mse : dict
+        ``{Row: tuple of per-run MSE}`` (rad^2).
+    tables : dict
+        ``{Row: GainTable}``.
+    notes : dict
+        ``{Row: str}``: what sets the row's MSE.
+    """
 
     reading: Reading
     seeds: tuple
@@ -206,17 +297,56 @@ class Reproduction:
     notes: dict = field(repr=False)
 
     def comparisons(self, table: str) -> list:
+        """Ours beside the paper's, for every row of a table.
+
+        Parameters
+        ----------
+        table : {'I', 'II'}
+
+        Returns
+        -------
+        list of cfdesign.reproduce.report.Comparison
+        """
         return [Comparison(row.cells, self.mse[row], row.paper_mse, self.notes[row])
                 for row in ROWS if row.table == table]
 
     def mean(self, row: Row) -> float:
+        """Mean MSE of a row over the runs.
+
+        Parameters
+        ----------
+        row : Row
+
+        Returns
+        -------
+        float
+            rad^2.
+        """
         return float(np.mean(self.mse[row]))
 
     def best(self, table: str) -> Row:
+        """The row of a table with the lowest mean MSE.
+
+        Parameters
+        ----------
+        table : {'I', 'II'}
+
+        Returns
+        -------
+        Row
+        """
         return min((r for r in ROWS if r.table == table), key=self.mean)
 
     def checks(self) -> dict:
-        """Best rows, ordering and ratios against the paper, per table."""
+        """Best rows, ordering and ratios against the paper, per table.
+
+        Returns
+        -------
+        dict
+            ``{'I': {...}, 'II': {...}}``: the best row and the paper's, whether they match,
+            whether the order matches (ties within 5 %), rows whose ratio is outside
+            :data:`~cfdesign.reproduce.report.RATIO_RANGE`.
+        """
         out = {}
         for name in ("I", "II"):
             rows = [r for r in ROWS if r.table == name]
@@ -234,6 +364,12 @@ class Reproduction:
         return out
 
     def to_dict(self) -> dict:
+        """The JSON form (``cfdesign reproduce carreira --json``).
+
+        Returns
+        -------
+        dict
+        """
         names = {"I": ("low_pass", "high_pass"), "II": ("low_pass", "band_pass", "high_pass")}
         tables = {}
         for t in ("I", "II"):
@@ -246,6 +382,12 @@ class Reproduction:
                 "mse_unit": "rad^2", "ratio_range": list(RATIO_RANGE), "tables": tables, "checks": self.checks()}
 
     def text(self) -> str:
+        """The tables as ``cfdesign reproduce carreira`` prints them.
+
+        Returns
+        -------
+        str
+        """
         head = [f"Carreira et al., three-band complementary filters, Sec. V-A: {_scenario_text(self.straight_s)}; "
                 f"{len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
                 f"reading: {self.reading.describe()}",
@@ -305,6 +447,11 @@ def reproduce(runs: int = 20, *, seed: int = 0, reading: Reading = READING, stra
     -------
     Reproduction
         Per-run MSE (rad^2) of every row, the gain tables, and the comparison with the paper.
+
+    Raises
+    ------
+    SpecError
+        ``runs`` below 1.
     """
     from tqdm import tqdm
 

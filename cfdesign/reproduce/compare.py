@@ -54,7 +54,24 @@ SCENARIOS = ("ground", "helicopter")
 
 @dataclass(frozen=True)
 class Result:
-    """One filter on one scenario: errors (m, deg) and cost (microseconds per step)."""
+    """One filter on one scenario: errors and cost.
+
+    Attributes
+    ----------
+    scenario : {'ground', 'helicopter'}
+    filter : str
+        A key of :data:`FILTERS`.
+    position_rmse_m : float
+        RMS horizontal position error (m).
+    outage_max_m : float
+        Largest position error during the GPS outage (m); NaN without one.
+    heading_rmse_deg : float
+        RMS heading error (deg).
+    attitude_rmse_deg : float
+        RMS total attitude error (deg); NaN for the planar EKF.
+    us_per_step : float
+        Measured cost (microseconds per IMU step).
+    """
 
     scenario: str
     filter: str
@@ -65,6 +82,13 @@ class Result:
     us_per_step: float
 
     def row(self) -> list:
+        """The result as a row of the printed table.
+
+        Returns
+        -------
+        list
+            Filter key, description, the errors and the cost.
+        """
         return [self.filter, FILTERS[self.filter], self.position_rmse_m, self.outage_max_m, self.heading_rmse_deg,
                 self.attitude_rmse_deg, self.us_per_step]
 
@@ -216,7 +240,30 @@ def _result(name, scenario, d, q, p, seconds):
 
 
 def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, filters=None) -> list:
-    """Run the filters on one scenario; a :class:`Result` per filter that applies to it."""
+    """Run the navigation filters on one scenario.
+
+    Parameters
+    ----------
+    scenario : {'ground', 'helicopter'}
+        The ground robot with a GPS outage (:mod:`cfdesign.sim.ground`) or the helicopter of
+        Vasconcelos et al. (:mod:`cfdesign.sim.helicopter`).
+    seed : int
+        Seed of the simulation.
+    duration_s : float
+        Length of the ground scenario (s).
+    filters : sequence of str, optional
+        Keys of :data:`FILTERS` (default all; the planar EKF runs on the ground only).
+
+    Returns
+    -------
+    list of Result
+        One per filter that applies to the scenario.
+
+    Raises
+    ------
+    SpecError
+        An unknown scenario.
+    """
     if scenario not in SCENARIOS:
         from ..errors import SpecError
 
@@ -271,7 +318,18 @@ def verdict(results) -> str:
 
 
 def add_arguments(parser):
-    """Options of ``cfdesign reproduce compare``."""
+    """Options of ``cfdesign reproduce compare``: ``--scenario``, ``--seed``, ``--duration``, ``--json``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The sub-command's parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        ``parser``, with the options added.
+    """
     parser.add_argument("--scenario", choices=[*SCENARIOS, "all"], default="all")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--duration", type=float, default=300.0, help="ground scenario length in s (default 300)")
@@ -280,7 +338,18 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    """Run ``cfdesign reproduce compare``: a table per scenario (or JSON); exit status 0."""
+    """Run ``cfdesign reproduce compare``: a table per scenario (or JSON).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options of :func:`add_arguments`.
+
+    Returns
+    -------
+    int
+        Exit status 0.
+    """
     scenarios = SCENARIOS if args.scenario == "all" else (args.scenario,)
     results = {s: compare(s, args.seed, args.duration) for s in scenarios}
     if args.json:

@@ -54,7 +54,19 @@ QUANTITIES = ("position (X, Y, Z) [m]", "yaw [deg]", "pitch [deg]", "roll [deg]"
 
 @dataclass(frozen=True)
 class Tuning:
-    """Design noise figures (SI) of the two filters, and whether biases start calibrated."""
+    """Design noise figures (SI) of the two filters, and whether biases start calibrated.
+
+    Attributes
+    ----------
+    accel_bias_density : float
+        Accelerometer-bias random walk the position filter is designed for (m/s^2/sqrt(s)).
+    gyro_bias_density : float
+        Gyro-bias random walk the attitude filter is designed for (rad/s/sqrt(s)).
+    mps_noise_std : float
+        Noise of the Magneto-Pendular Sensor's tilt and heading (rad).
+    calibrated : bool
+        The filters start from the true biases (the paper's "small bias gains" row).
+    """
 
     accel_bias_density: float = 1e-2        # m/s^2/sqrt(s)
     gyro_bias_density: float = 1e-4         # rad/s/sqrt(s)
@@ -89,7 +101,26 @@ def _mae(truth: heli.HelicopterTrajectory, position, euler) -> np.ndarray:
 
 def run_once(truth: heli.HelicopterTrajectory, seed: int, tuning: Tuning = NOMINAL,
              errors: heli.SensorErrors = heli.TABLE1, filters=None) -> np.ndarray:
-    """One simulated run: ``[position (m), yaw, pitch, roll (deg)]`` mean absolute errors."""
+    """One simulated run of the manoeuvre through both filters.
+
+    Parameters
+    ----------
+    truth : HelicopterTrajectory
+        The manoeuvre (:func:`cfdesign.sim.helicopter.helicopter_manoeuvre`).
+    seed : int
+        Seed of the sensor noise.
+    tuning : Tuning
+        Design figures of the filters.
+    errors : SensorErrors
+        Sensor errors of the simulation (default Table 1).
+    filters : (EulerAttitudeFilter, PositionFilter), optional
+        Filters built already (default: built from ``tuning`` and ``errors``).
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Mean absolute errors: position (m), yaw, pitch, roll (deg).
+    """
     from .. import rotations as quat
 
     attitude, position = filters or _filters(tuning, errors, 1.0 / truth.dt_s)
@@ -108,7 +139,19 @@ def run_once(truth: heli.HelicopterTrajectory, seed: int, tuning: Tuning = NOMIN
 
 @dataclass(frozen=True)
 class Reproduction:
-    """Per-run mean absolute errors of both rows, with the settings that produced them."""
+    """Per-run mean absolute errors of both rows, with the settings that produced them.
+
+    Attributes
+    ----------
+    seeds : tuple of int
+        Seeds of the runs.
+    accel_bias : {'z', 'xyz'}
+        Reading of Table 1's accelerometer bias.
+    manoeuvre : Manoeuvre
+        The trajectory's dimensions.
+    values : dict
+        ``{row: list of per-run error arrays}`` for ``nominal`` and ``small_bias_gains``.
+    """
 
     seeds: tuple
     accel_bias: str
@@ -116,10 +159,26 @@ class Reproduction:
     values: dict
 
     def comparisons(self, row: str) -> list:
+        """Ours beside the paper's, for every quantity of a row.
+
+        Parameters
+        ----------
+        row : {'nominal', 'small_bias_gains'}
+
+        Returns
+        -------
+        list of cfdesign.reproduce.report.Comparison
+        """
         runs = np.array(self.values[row])
         return [Comparison((q,), tuple(runs[:, i]), PAPER[row][i]) for i, q in enumerate(QUANTITIES)]
 
     def to_dict(self) -> dict:
+        """The JSON form (``cfdesign reproduce helicopter --json``).
+
+        Returns
+        -------
+        dict
+        """
         rows = {}
         for row in PAPER:
             rows[row] = [{"quantity": c.cells[0], "mae": c.mean, "ci95": [c.stats[1], c.stats[2]],
@@ -133,9 +192,21 @@ class Reproduction:
                 "rows": rows, "not_worse_than_paper": self.not_worse()}
 
     def not_worse(self) -> bool:
+        """Whether every figure is no worse than the paper's.
+
+        Returns
+        -------
+        bool
+        """
         return all(c.ratio <= 1.0 for row in PAPER for c in self.comparisons(row))
 
     def text(self) -> str:
+        """Table 2 as ``cfdesign reproduce helicopter`` prints it.
+
+        Returns
+        -------
+        str
+        """
         m = self.manoeuvre
         lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + "
                  f"{m.helix_s:g} s ascending "
@@ -169,6 +240,15 @@ def reproduce(runs: int = 5, *, seed: int = 0, accel_bias: str = "z", manoeuvre:
         Trajectory dimensions; shorter ones for quick checks.
     progress : bool
         A tqdm bar on stderr.
+
+    Returns
+    -------
+    Reproduction
+
+    Raises
+    ------
+    SpecError
+        ``runs`` below 1, or an unknown ``accel_bias``.
     """
     from tqdm import tqdm
 
@@ -192,7 +272,18 @@ def reproduce(runs: int = 5, *, seed: int = 0, accel_bias: str = "z", manoeuvre:
 
 
 def add_arguments(parser):
-    """Options of ``cfdesign reproduce helicopter``: ``--runs``, ``--seed``, ``--accel-bias``, ``--json``."""
+    """Options of ``cfdesign reproduce helicopter``: ``--runs``, ``--seed``, ``--accel-bias``, ``--json``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The sub-command's parser.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        ``parser``, with the options added.
+    """
     parser.add_argument("--runs", type=int, default=5, help="Monte-Carlo runs (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first run (runs use seed, seed+1, ...)")
     parser.add_argument("--accel-bias", choices=sorted(heli.ACCEL_BIAS_READINGS), default="z",
@@ -202,7 +293,23 @@ def add_arguments(parser):
 
 
 def run(args) -> int:
-    """Run ``cfdesign reproduce helicopter``: print Table 2 (or JSON); exit status 0."""
+    """Run ``cfdesign reproduce helicopter``: print Table 2 (or JSON).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed options of :func:`add_arguments`.
+
+    Returns
+    -------
+    int
+        Exit status 0.
+
+    Raises
+    ------
+    SpecError
+        ``--runs`` below 1.
+    """
     result = reproduce(getattr(args, "runs", 5), seed=getattr(args, "seed", 0),
                        accel_bias=getattr(args, "accel_bias", "z"), progress=not getattr(args, "json", False))
     print(json_text(result.to_dict()) if getattr(args, "json", False) else result.text())

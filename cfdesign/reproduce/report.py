@@ -15,7 +15,21 @@ RATIO_RANGE = (1 / 3, 3.0)
 
 @dataclass(frozen=True)
 class Comparison:
-    """One row: its label cells, our per-run values, the paper's value and a note."""
+    """One row of a reproduced table: its label cells, our per-run values, the paper's value.
+
+    Parameters
+    ----------
+    cells : tuple of str
+        The row's label columns (e.g. the sensors in each band).
+    values : tuple of float
+        Our value in every run.
+    paper : float
+        The paper's value.
+    note : str
+        Why the row is where it is (printed when its ratio is out of range).
+    confidence : float
+        Level of the interval of :attr:`stats`.
+    """
 
     cells: tuple
     values: tuple
@@ -35,6 +49,7 @@ class Comparison:
 
     @property
     def mean(self) -> float:
+        """Our mean over the runs."""
         return self.stats[0]
 
     @property
@@ -44,9 +59,23 @@ class Comparison:
 
     @property
     def in_range(self) -> bool:
+        """Whether the ratio ours/paper lies within :data:`RATIO_RANGE`."""
         return RATIO_RANGE[0] <= self.ratio <= RATIO_RANGE[1]
 
     def to_dict(self, names) -> dict:
+        """The row's JSON form.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Keys for the label cells (``low_pass``, ``high_pass``, ...).
+
+        Returns
+        -------
+        dict
+            Cells, ``mse``, ``ci``, ``confidence``, ``paper``, ``ratio``, ``ratio_in_range``,
+            ``runs`` and ``note``; NaN bounds as None.
+        """
         mean, low, high = self.stats
         return {**dict(zip(names, self.cells, strict=True)), "mse": mean,
                 "ci": [_finite(low), _finite(high)], "confidence": self.confidence,
@@ -63,10 +92,21 @@ def _ci_text(low, high) -> str:
 
 
 def format_table(title: str, headers, rows) -> str:
-    """A plain-text table: label columns, then ours, its CI, the paper's value and the ratio.
+    """A plain-text table: label columns, then ours, its interval, the paper's value and the ratio.
 
     Rows whose ratio lies outside :data:`RATIO_RANGE` are flagged ``*`` and their notes are
     printed under the table.
+
+    Parameters
+    ----------
+    title : str
+    headers : sequence of str
+        Names of the label columns.
+    rows : sequence of Comparison
+
+    Returns
+    -------
+    str
     """
     conf = f"{rows[0].confidence:.0%} CI" if rows else "CI"
     head = [*headers, "MSE ours", conf, "paper", "ours/paper"]
@@ -83,10 +123,27 @@ def format_table(title: str, headers, rows) -> str:
 
 
 def order_disagreements(ours, paper, tie: float = 0.05) -> list:
-    """Index pairs ``(i, j)`` that the paper orders one way and we the other.
+    """Index pairs that the paper orders one way and we the other.
 
     Pairs whose paper values lie within ``tie`` (relative) of each other are ties in the
     paper's rounding and constrain nothing.
+
+    Parameters
+    ----------
+    ours, paper : sequence of float
+        Values of the same rows.
+    tie : float
+        Relative spread below which two paper values are a tie.
+
+    Returns
+    -------
+    list of (int, int)
+
+    Examples
+    --------
+    >>> from cfdesign.reproduce.report import order_disagreements
+    >>> order_disagreements([1.0, 2.0, 3.0], [1.0, 3.0, 2.0])
+    [(1, 2)]
     """
     bad = []
     for i in range(len(paper)):
@@ -109,8 +166,26 @@ def _finite_or_none(value):
 
 
 def json_text(data) -> str:
-    """Strict JSON of a result: a quantity that could not be computed (NaN, e.g. the interval of
-    a single run) is ``null``, never the non-standard ``NaN``."""
+    """Strict JSON of a result.
+
+    A quantity that could not be computed (NaN, e.g. the interval of a single run) is
+    ``null``, never the non-standard ``NaN``.
+
+    Parameters
+    ----------
+    data : dict
+        Nested dicts, lists and numbers.
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from cfdesign.reproduce.report import json_text
+    >>> json_text({"ci": [float("nan"), 1.0]}).split()
+    ['{', '"ci":', '[', 'null,', '1.0', ']', '}']
+    """
     import json
 
     return json.dumps(_finite_or_none(data), indent=1, allow_nan=False)

@@ -107,25 +107,90 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     be singular (``R + B'XB`` must be invertible at the solution) and ``Q`` indefinite.
     Newton refinement uses Hewer's iteration with the Stein equations solved through a
     Cayley transform of ``A - BK - E``, which keeps fast-sampling problems (``A`` close to
-    ``E``) accurate.  Parameters, returns and errors as for :func:`care`.
+    ``E``) accurate.  Argument order as :func:`scipy.linalg.solve_discrete_are`.
+
+    Parameters
+    ----------
+    A, Q : array_like, shape (n, n)
+        ``Q`` Hermitian (it may be indefinite).
+    B : array_like, shape (n, m)
+    R : array_like, shape (m, m)
+        Hermitian.
+    S : array_like, shape (n, m), optional
+        Cross weight, zero by default.
+    E : array_like, shape (n, n), optional
+        Nonsingular descriptor matrix, identity by default.
+    refine : bool
+        Refine scipy's estimate by Newton (Hewer) steps with a double-double residual.
+    rtol : float
+        Largest relative residual accepted; above it :class:`AccuracyError` is raised.
+
+    Returns
+    -------
+    RiccatiSolution
+        ``X``, ``K``, closed-loop eigenvalues, residual, condition estimate, ``marginal``,
+        warnings.
+
+    Raises
+    ------
+    RiccatiError
+        Invalid data (the message names the matrix).
+    NotStabilisableError, NotDetectableError
+        A mode fails the PBH test where that rules out a stabilising solution.
+    NoStabilisingSolutionError
+        The symplectic pencil has eigenvalues on the unit circle.
+    AccuracyError
+        The solution fails the residual or stability check after refinement.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.riccati import dare
+    >>> sol = dare(np.eye(1), np.eye(1), np.eye(1), np.eye(1))   # X = golden ratio
+    >>> round(float(sol.X[0, 0]), 12), round(float(sol.K[0, 0]), 12)
+    (1.61803398875, 0.61803398875)
     """
     return _solve("dare", A, B, Q, R, S, E, refine, rtol)
 
 
 def kalman_continuous(F, H, Q, R):
-    r"""Steady-state Kalman-Bucy gain (Carreira et al. eqs. (23)-(24)).
+    """Steady-state Kalman-Bucy gain (Carreira et al. eqs. (23)-(24)).
 
     Solves :math:`F P + P F' - P H' R^{-1} H P + Q = 0` (the dual CARE ``care(F', H', Q, R)``)
     and returns ``K = P H' R^{-1}`` for ``xhat' = F xhat + B u + K (z - H xhat)``.
 
-    ``Q`` (process noise) must be positive semidefinite and ``R`` (measurement noise)
-    positive definite.  An unstable mode that ``H`` cannot see raises
-    :class:`NotDetectableError`; a mode on the imaginary axis that ``Q`` does not excite
-    raises :class:`NotStabilisableError`.
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        State matrix (1/s).
+    H : array_like, shape (m, n)
+        Measurement matrix.
+    Q : array_like, shape (n, n)
+        Process-noise PSD, positive semidefinite.
+    R : array_like, shape (m, m)
+        Measurement-noise PSD, positive definite.
 
     Returns
     -------
     ContinuousKalmanGains
+        ``P`` (error covariance), ``K`` and the closed-loop eigenvalues of ``F - K H``.
+
+    Raises
+    ------
+    RiccatiError
+        Invalid data (shapes, symmetry, definiteness; the message names the matrix).
+    NotDetectableError
+        An unstable mode that ``H`` cannot see.
+    NotStabilisableError
+        A mode on the imaginary axis that ``Q`` does not excite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.riccati import kalman_continuous
+    >>> est = kalman_continuous([[0.0, 1.0], [0.0, 0.0]], [[1.0, 0.0]], np.diag([0.0, 1.0]), [[1.0]])
+    >>> est.K.ravel().round(6).tolist()          # the second-order CF with crossover 1 rad/s
+    [1.414214, 1.0]
     """
     F, H, Q, R = covariance_data(F, H, Q, R)
     sol = _solve("care", F.conj().T, H.conj().T, Q, R, None, None, True, 1e-10, dual=True)
@@ -134,7 +199,7 @@ def kalman_continuous(F, H, Q, R):
 
 
 def kalman_discrete(F, H, Q, R):
-    r"""Steady-state discrete Kalman gains in filter and predictor form (Carreira et al. eq. (28)).
+    """Steady-state discrete Kalman gains in filter and predictor form (Carreira et al. eq. (28)).
 
     Solves :math:`P = F P F' + Q - F P H' (H P H' + R)^{-1} H P F'` (the dual DARE
     ``dare(F', H', Q, R)``; ``P`` is the a-priori covariance) and returns
@@ -144,11 +209,39 @@ def kalman_discrete(F, H, Q, R):
       what python-control's ``dlqe`` returns),
     * ``P_filtered = (I - K_filter H) P``.
 
-    Data requirements and errors as for :func:`kalman_continuous`.
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Discrete state matrix.
+    H : array_like, shape (m, n)
+        Measurement matrix.
+    Q : array_like, shape (n, n)
+        Per-sample process-noise covariance, positive semidefinite.
+    R : array_like, shape (m, m)
+        Per-sample measurement-noise covariance, positive definite.
 
     Returns
     -------
     DiscreteKalmanGains
+        ``P``, ``K_filter``, ``K_predictor``, ``P_filtered`` and the closed-loop eigenvalues.
+
+    Raises
+    ------
+    RiccatiError
+        Invalid data (the message names the matrix).
+    NotDetectableError
+        An unstable mode that ``H`` cannot see.
+    NotStabilisableError
+        A mode on the unit circle that ``Q`` does not excite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.riccati import kalman_discrete
+    >>> F = np.array([[1.0, 0.1], [0.0, 1.0]]); H = np.array([[1.0, 0.0]])
+    >>> est = kalman_discrete(F, H, np.diag([1e-4, 1e-6]), np.array([[1e-2]]))
+    >>> np.allclose(est.K_predictor, F @ est.K_filter)
+    True
     """
     F, H, Q, R = covariance_data(F, H, Q, R)
     sol = _solve("dare", F.conj().T, H.conj().T, Q, R, None, None, True, 1e-10, dual=True)

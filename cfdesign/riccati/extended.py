@@ -21,7 +21,22 @@ __all__ = ["two_sum", "dd", "dd_dot", "dd_add", "dd_mul", "dd_t", "dd_val"]
 
 
 def two_sum(a, b):
-    """``s + e = a + b`` exactly, ``s = fl(a + b)`` (Knuth)."""
+    """Knuth's error-free sum: ``s + e = a + b`` exactly, ``s = fl(a + b)``.
+
+    Parameters
+    ----------
+    a, b : float or ndarray
+
+    Returns
+    -------
+    s, e : float or ndarray
+
+    Examples
+    --------
+    >>> from cfdesign.riccati.extended import two_sum
+    >>> two_sum(1.0, 1e-17)
+    (1.0, 1e-17)
+    """
     s = a + b
     z = s - a
     return s, (a - (s - z)) + (b - z)
@@ -59,12 +74,23 @@ def _slices(M, mu, axis, beta):
 
 
 def dd_dot(a, b):
-    """``a @ b`` of two double matrices as a pair ``(hi, lo)``.
+    """``a @ b`` of two double matrices in double-double precision.
 
-    With ``a = a1 + a2 + a3 + a4`` and ``b = b1 + b2 + b3 + b4`` (:func:`_slices`), the three
-    levels ``a1 b1``, ``a1 b2 + a2 b1`` and ``a1 b3 + a2 b2 + a3 b1`` are each one exact BLAS
-    product of stacked slices and are summed error-free; what is left is about ``2^-60``
-    of the row and column maxima and needs only double precision.
+    With ``a = a1 + a2 + a3 + a4`` and ``b = b1 + b2 + b3 + b4`` (the splitting of the module
+    docstring), the three levels ``a1 b1``, ``a1 b2 + a2 b1`` and ``a1 b3 + a2 b2 + a3 b1`` are
+    each one exact BLAS product of stacked slices and are summed error-free; what is left is
+    about ``2^-60`` of the row and column maxima and needs only double precision.  Factors
+    near over- or underflow are scaled by exact powers of two first.
+
+    Parameters
+    ----------
+    a : ndarray, shape (n, k)
+    b : ndarray, shape (k, m)
+
+    Returns
+    -------
+    hi, lo : ndarray, shape (n, m)
+        ``hi + lo`` is the product to about twice double precision.
     """
     k = a.shape[1]
     if not (k and a.size and b.size):
@@ -93,16 +119,37 @@ def dd_dot(a, b):
 
 
 def dd(a):
-    """``a`` as a double-double pair (a double gets a zero low part)."""
+    """A double matrix as a double-double pair (zero low part); a pair is returned as it is.
+
+    Parameters
+    ----------
+    a : ndarray or (ndarray, ndarray)
+
+    Returns
+    -------
+    (ndarray, ndarray)
+    """
     return a if isinstance(a, tuple) else (a, np.zeros_like(a))
 
 
 def dd_add(x, y, sign=1.0):
     """``x + sign * y`` for doubles or pairs.
 
-    The result is not renormalised: its low part may be as large as the rounding error of
-    the high part plus the low parts of the inputs, which keeps every later operation here
-    exact to the same order (``hi + lo`` is what counts).
+    The result is not renormalised: its low part may be as large as the rounding error of the
+    high part plus the low parts of the inputs, which keeps every later operation here exact
+    to the same order (``hi + lo`` is what counts).
+
+    Parameters
+    ----------
+    x : ndarray or (ndarray, ndarray)
+        A double matrix or a double-double pair ``(hi, lo)``.
+    y : ndarray or (ndarray, ndarray)
+    sign : float
+        1 or -1.
+
+    Returns
+    -------
+    (ndarray, ndarray)
     """
     if not isinstance(y, tuple):
         if not isinstance(x, tuple):
@@ -117,7 +164,18 @@ def dd_add(x, y, sign=1.0):
 
 
 def dd_mul(x, y):
-    """``x @ y`` for doubles or pairs (the product of the low parts is below the precision kept)."""
+    """``x @ y`` for doubles or pairs (the product of the low parts is below the precision kept).
+
+    Parameters
+    ----------
+    x : ndarray or (ndarray, ndarray)
+        A double matrix or a double-double pair ``(hi, lo)``.
+    y : ndarray or (ndarray, ndarray)
+
+    Returns
+    -------
+    (ndarray, ndarray)
+    """
     if not isinstance(x, tuple):
         if not isinstance(y, tuple):
             return dd_dot(x, y)
@@ -131,10 +189,30 @@ def dd_mul(x, y):
 
 
 def dd_t(x):
-    """Transpose."""
+    """Transpose of a double matrix or a pair.
+
+    Parameters
+    ----------
+    x : ndarray or (ndarray, ndarray)
+        A double matrix or a double-double pair ``(hi, lo)``.
+
+    Returns
+    -------
+    ndarray or (ndarray, ndarray)
+    """
     return (x[0].T, x[1].T) if isinstance(x, tuple) else x.T
 
 
 def dd_val(x):
-    """Rounded to double."""
+    """A double or a pair rounded to double.
+
+    Parameters
+    ----------
+    x : ndarray or (ndarray, ndarray)
+        A double matrix or a double-double pair ``(hi, lo)``.
+
+    Returns
+    -------
+    ndarray
+    """
     return x[0] + x[1] if isinstance(x, tuple) else x

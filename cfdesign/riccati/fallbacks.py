@@ -30,10 +30,20 @@ def _hb(M):
 
 
 def compose(first, second):
-    """(A, G, H) triple of T2 o T1 for the Riccati maps T(P) = A P (I + G P)^-1 A' + H.
+    """The ``(A, G, H)`` triple of ``T2 o T1`` for the Riccati maps ``T(P) = A P (I + G P)^-1 A' + H``.
 
-    A3 = A2 (I + H1 G2)^-1 A1, G3 = G1 + A1' G2 (I + H1 G2)^-1 A1,
-    H3 = H2 + A2 (I + H1 G2)^-1 H1 A2'.  Works on stacks of matrices.
+    ``A3 = A2 (I + H1 G2)^-1 A1``, ``G3 = G1 + A1' G2 (I + H1 G2)^-1 A1``,
+    ``H3 = H2 + A2 (I + H1 G2)^-1 H1 A2'``.  Works on stacks of matrices.
+
+    Parameters
+    ----------
+    first, second : (ndarray, ndarray, ndarray)
+        The triples of ``T1`` and ``T2``, each matrix of shape (..., n, n).
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        The triple of the composition; ``G3`` and ``H3`` symmetrised.
     """
     A1, G1, H1 = first
     A2, G2, H2 = second
@@ -46,10 +56,30 @@ def compose(first, second):
 
 
 def sda(A, G, H, tol, max_iter=64):
-    """Structure-preserving doubling for P = A P (I + G P)^-1 A' + H; returns (P, iterations).
+    """Structure-preserving doubling for ``P = A P (I + G P)^-1 A' + H``.
 
-    Converges quadratically (like rho(closed loop)^(2^k)) when a stabilising solution
+    Converges quadratically (like ``rho(closed loop)^(2^k)``) when a stabilising solution
     exists; stops at the tolerance or when rounding stalls the change.
+
+    Parameters
+    ----------
+    A, G, H : ndarray, shape (n, n)
+        The map (``G``, ``H`` symmetric positive semidefinite).
+    tol : float
+        Relative change at which the iteration stops.
+    max_iter : int
+        Doublings at most.
+
+    Returns
+    -------
+    P : ndarray, shape (n, n)
+        The fixed point.
+    iterations : int
+
+    Raises
+    ------
+    NoStabilisingSolutionError
+        The iteration does not converge: the closed loop cannot be made stable.
     """
     last = np.inf
     for it in range(1, max_iter + 1):
@@ -65,7 +95,23 @@ def sda(A, G, H, tol, max_iter=64):
 
 
 def sign_solution(p: Problem):
-    """CARE fallback: matrix sign function of the Hamiltonian (determinant scaling)."""
+    """CARE fallback: the matrix sign function of the Hamiltonian, with determinant scaling.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        The solution estimate ``X``.
+
+    Raises
+    ------
+    AccuracyError
+        The sign iteration does not converge.
+    """
     Ar, G, Qr = standard_form(p)
     n = p.n
     Z = np.block([[Ar, -G], [-Qr, -Ar.T]])
@@ -85,14 +131,43 @@ def sign_solution(p: Problem):
 
 
 def dare_doubling(p: Problem):
-    """DARE fallback: structure-preserving doubling on (A_r', G, Q_r) (needs R invertible)."""
+    """DARE fallback: structure-preserving doubling on ``(A_r', G, Q_r)`` (needs ``R`` invertible).
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        The solution estimate ``X``.
+
+    Raises
+    ------
+    NoStabilisingSolutionError
+        The doubling does not converge.
+    """
     Ar, G, Qr = standard_form(p)
     Y, _ = sda(Ar.T, G, Qr, 1e-15)
     return from_standard(p, Y)
 
 
 def estimates(p: Problem):
-    """Yield (X, method) first estimates: scipy's Schur/QZ solver, then the fallback."""
+    """First estimates of the solution: scipy's Schur/QZ solver, then the fallback.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+
+    Yields
+    ------
+    X : ndarray, shape (n, n)
+        A finite Hermitian estimate.
+    method : str
+        ``schur``, ``sign`` (CARE) or ``doubling`` (DARE).
+    """
     solver = sla.solve_continuous_are if p.kind == "care" else sla.solve_discrete_are
     attempts = (("schur", lambda: solver(p.A, p.B, p.Q, p.R, e=p.E, s=p.S)),
                 ("sign", lambda: sign_solution(p)) if p.kind == "care" else ("doubling", lambda: dare_doubling(p)))
@@ -108,7 +183,20 @@ def estimates(p: Problem):
 
 
 def pencil_boundary(p: Problem):
-    """An eigenvalue of the Hamiltonian / symplectic pencil on the stability boundary, or None."""
+    """An eigenvalue of the Hamiltonian / symplectic pencil on the stability boundary.
+
+    Such an eigenvalue rules a stabilising solution out.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+
+    Returns
+    -------
+    complex or None
+        The eigenvalue within ``sqrt(eps)`` of the boundary, or None.
+    """
     n, m = p.B.shape
     E = np.eye(n) if p.E is None else p.E
     Z, Zb, Zm = np.zeros((n, n)), np.zeros((m, n)), np.zeros((m, m))

@@ -30,10 +30,29 @@ __all__ = ["stein", "ClosedLoop"]
 
 
 def stein(D, W):
-    """Solve ``(I + D)' Y (I + D) - Y + W = 0`` through the Cayley transform.
+    """Solve the Stein equation ``(I + D)' Y (I + D) - Y + W = 0`` through the Cayley transform.
 
     With ``M = D (2I + D)^-1`` the equation becomes ``M'Y + YM = -2 (2I + D)^-T W (2I + D)^-1``;
     ``D`` (not ``I + D``) is the input, so a closed loop close to the identity loses no digits.
+
+    Parameters
+    ----------
+    D : ndarray, shape (n, n)
+        The closed loop minus the identity.
+    W : ndarray, shape (n, n)
+        Right-hand side (Hermitian).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``Y``, Hermitian.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.riccati.lyapunov import stein
+    >>> float(stein(np.array([[-0.5]]), np.array([[3.0]]))[0, 0])   # 0.25 Y - Y + 3 = 0
+    4.0
     """
     F = 2 * np.eye(D.shape[0]) + D
     Fi = np.linalg.inv(F)
@@ -78,10 +97,15 @@ class ClosedLoop:
     ``Ms (2I + Ms)^-1 = U T U'``.  With ``Y = S^-1 Z S^-1`` the equations in ``Y`` become the
     same equations in ``Z`` with ``Ms`` and the right-hand side ``S W S``.
 
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    K : ndarray, shape (m, n)
+        The gain.
+
     Attributes
     ----------
-    K : ndarray
-        The gain.
     scale : ndarray
         Diagonal of ``S``.
     unscaled : bool
@@ -124,10 +148,26 @@ class ClosedLoop:
         return float(np.min(self.distances, initial=np.inf))
 
     def solve_balanced(self, Wb, schur_basis=False):
-        """``Z`` with ``Ms'Z + Z Ms = -Wb`` (CARE) or ``(I + Ms)'Z(I + Ms) - Z = -Wb`` (DARE).
+        """Solve the linearised equation in the balanced coordinates.
 
-        ``Wb=None`` stands for the identity.  With ``schur_basis`` the solution is returned
-        as ``U'ZU`` (same eigenvalues, two products fewer).
+        ``Ms'Z + Z Ms = -Wb`` (CARE) or ``(I + Ms)'Z(I + Ms) - Z = -Wb`` (DARE).
+
+        Parameters
+        ----------
+        Wb : ndarray or None
+            Right-hand side in the balanced coordinates; None stands for the identity.
+        schur_basis : bool
+            Return ``U'ZU`` (same eigenvalues, two products fewer).
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            ``Z``, Hermitian.
+
+        Raises
+        ------
+        ValueError
+            The triangular Sylvester solve fails.
         """
         T, U = self.T, self.U
         C = np.eye(T.shape[0]) if Wb is None else U.T @ Wb @ U
@@ -142,9 +182,19 @@ class ClosedLoop:
         return herm(Z if schur_basis else U @ Z @ U.T)
 
     def solve_std(self, W):
-        """The linearised Riccati equation in standard coordinates ``Y = E'DE`` with right-hand side ``W``.
+        """The linearised Riccati equation in standard coordinates ``Y = E'DE``.
 
         CARE: ``Ac' D E + E' D Ac = -W``; DARE: ``Ac' D Ac - E' D E = -W``, with ``Ac = A - BK``.
+
+        Parameters
+        ----------
+        W : ndarray, shape (n, n)
+            Right-hand side.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            ``Y``.
         """
         if self.unscaled:
             return self.solve_balanced(W)
@@ -152,7 +202,17 @@ class ClosedLoop:
         return self.solve_balanced(W * s[:, None] * s[None, :]) / s[:, None] / s[None, :]
 
     def correction(self, W):
-        """The Newton correction ``D`` with ``Omega(D) = -W`` (original coordinates)."""
+        """The Newton correction ``D`` with ``Omega(D) = -W``, in the original coordinates.
+
+        Parameters
+        ----------
+        W : ndarray, shape (n, n)
+            The residual.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+        """
         return from_standard(self.p, self.solve_std(W))
 
     @cached_property
@@ -181,8 +241,20 @@ class ClosedLoop:
     def condition(self, theta, X):
         """Relative condition number ``||Omega^-1|| theta / ||X||`` of the equation at the factorised gain.
 
-        ``||Omega^-1|| = ||Omega^-1(I)||_2`` holds when ``Omega^-1`` is a positive map, i.e. when the
-        closed loop is stable; ``inf`` when the certificate does not show that.
+        ``||Omega^-1|| = ||Omega^-1(I)||_2`` holds when ``Omega^-1`` is a positive map, i.e. when
+        the closed loop is stable.
+
+        Parameters
+        ----------
+        theta : float
+            Size of the data perturbation (the residual's scale).
+        X : ndarray, shape (n, n)
+            The solution.
+
+        Returns
+        -------
+        float
+            ``inf`` when the stability certificate does not hold.
         """
         ev = self.certificate
         if ev is None or not ev[0] > 0:

@@ -26,24 +26,65 @@ TINY = np.finfo(float).tiny
 
 
 def herm(M):
-    """Hermitian part ``(M + M')/2`` (exactly Hermitian in floating point)."""
+    """Hermitian part ``(M + M')/2`` (exactly Hermitian in floating point).
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
     return 0.5 * (M + M.conj().T)
 
 
 def rel(a, b):
-    """``||a||_F / ||b||_F`` (guarded against a zero denominator)."""
+    """Relative size ``||a||_F / ||b||_F``, guarded against a zero denominator.
+
+    Parameters
+    ----------
+    a, b : ndarray
+
+    Returns
+    -------
+    float
+    """
     return np.linalg.norm(a) / max(np.linalg.norm(b), TINY)
 
 
 def distance(kind, lam):
-    """Distance to the stability boundary, positive inside the stable region."""
+    """Distance of eigenvalues to the stability boundary, positive inside the stable region.
+
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+    lam : array_like of complex
+
+    Returns
+    -------
+    ndarray
+        ``-Re(lam)`` (CARE) or ``1 - |lam|`` (DARE).
+    """
     lam = np.asarray(lam)
     return -lam.real if kind == "care" else 1.0 - np.abs(lam)
 
 
 @dataclass(frozen=True)
 class Problem:
-    """Validated real data of one CARE/DARE (complex data is realified first)."""
+    """Validated real data of one CARE or DARE (complex data is realified first).
+
+    Attributes
+    ----------
+    kind : {'care', 'dare'}
+    A, Q : ndarray, shape (n, n)
+    B : ndarray, shape (n, m)
+    R : ndarray, shape (m, m)
+    S : ndarray, shape (n, m)
+        Cross weight (zeros when not given).
+    E : ndarray, shape (n, n), or None
+        Descriptor matrix; None means the identity.
+    """
 
     kind: str
     A: np.ndarray
@@ -55,6 +96,7 @@ class Problem:
 
     @property
     def n(self):
+        """Number of states ``n``."""
         return self.A.shape[0]
 
     @cached_property
@@ -83,7 +125,18 @@ class Problem:
         return self.e_solve(self.B)
 
     def e_solve(self, M, transpose=False):
-        """``E^-1 M`` (or ``E^-T M``); ``M`` itself when ``E`` is the identity."""
+        """``E^-1 M`` (or ``E^-T M``); ``M`` itself when ``E`` is the identity.
+
+        Parameters
+        ----------
+        M : ndarray
+        transpose : bool
+            Solve with ``E^T``.
+
+        Returns
+        -------
+        ndarray
+        """
         if self.E is None:
             return M
         return np.linalg.solve(self.E.T if transpose else self.E, M)
@@ -91,8 +144,16 @@ class Problem:
     def closed_loop(self, K):
         """Closed-loop matrix in standard form: ``E^-1 (A - BK)``, minus ``I`` for the DARE.
 
-        For the DARE the identity is taken off before ``E^-1`` is applied (``A - E - BK``),
-        so a closed loop close to the identity (fast sampling) loses no digits.
+        For the DARE the identity is taken off before ``E^-1`` is applied (``A - E - BK``), so a
+        closed loop close to the identity (fast sampling) loses no digits.
+
+        Parameters
+        ----------
+        K : ndarray, shape (m, n)
+
+        Returns
+        -------
+        ndarray, shape (n, n)
         """
         Eref = np.eye(self.n) if self.E is None else self.E
         M = (self.A - Eref) - self.B @ K if self.kind == "dare" else self.A - self.B @ K
@@ -100,19 +161,55 @@ class Problem:
 
 
 def realify(M):
-    """Real representation ``[[Re M, -Im M], [Im M, Re M]]`` (an algebra homomorphism)."""
+    """Real representation ``[[Re M, -Im M], [Im M, Re M]]`` (an algebra homomorphism).
+
+    Parameters
+    ----------
+    M : ndarray or None
+
+    Returns
+    -------
+    ndarray or None
+        Twice the size in each dimension.
+    """
     if M is None:
         return None
     return np.block([[M.real, -M.imag], [M.imag, M.real]])
 
 
 def complexify(M, rows, cols):
-    """Inverse of :func:`realify`, averaging the two copies of each block."""
+    """Inverse of :func:`realify`, averaging the two copies of each block.
+
+    Parameters
+    ----------
+    M : ndarray, shape (2 rows, 2 cols)
+    rows, cols : int
+        Size of the complex matrix.
+
+    Returns
+    -------
+    ndarray of complex, shape (rows, cols)
+    """
     return 0.5 * (M[:rows, :cols] + M[rows:, cols:]) + 0.5j * (M[rows:, :cols] - M[:rows, cols:])
 
 
 def standard_form(p: Problem):
-    """``(A_r, G, Q_r)`` of the equivalent standard problem in ``Y = E'XE`` (needs ``R`` invertible)."""
+    """The equivalent standard problem in ``Y = E'XE`` (needs ``R`` invertible).
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+
+    Returns
+    -------
+    A_r : ndarray
+        ``E^-1 (A - B R^-1 S')``.
+    G : ndarray
+        ``E^-1 B R^-1 B' E^-T``.
+    Q_r : ndarray
+        ``Q - S R^-1 S'``.
+    """
     Rinv_St = np.linalg.solve(p.R, p.S.T)
     Ar = p.e_solve(p.A - p.B @ Rinv_St)
     Bt = p.e_solve(p.B)
@@ -121,14 +218,37 @@ def standard_form(p: Problem):
 
 
 def from_standard(p: Problem, Y):
-    """``X = E^-T Y E^-1`` from the standard-coordinate ``Y = E'XE``."""
+    """``X = E^-T Y E^-1`` from the standard-coordinate ``Y = E'XE``.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    Y : ndarray, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
     if p.E is None:
         return Y
     return herm(p.e_solve(p.e_solve(Y, transpose=True).T, transpose=True).T)
 
 
 def gain(p: Problem, X):
-    """Gain in plain double precision (for trial points)."""
+    """The gain in plain double precision (for trial points).
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    X : ndarray, shape (n, n)
+
+    Returns
+    -------
+    ndarray, shape (m, n)
+        CARE ``R^-1 (B'XE + S')``; DARE ``(R + B'XB)^-1 (B'XA + S')``.
+    """
     BX = p.B.T @ X
     if p.kind == "care":
         return np.linalg.solve(p.R, (BX if p.E is None else BX @ p.E) + p.S.T)

@@ -42,7 +42,17 @@ _UPDATE_BELOW = 1e-6
 
 @dataclass(frozen=True)
 class Evaluation:
-    """Residual, gain and scale of the equation at one ``X``."""
+    """Residual, gain and scale of the equation at one ``X``.
+
+    Attributes
+    ----------
+    res : ndarray, shape (n, n)
+        Riccati residual (rounded to double from double-double).
+    K : ndarray, shape (m, n)
+        The gain at ``X``.
+    theta : float
+        Size of the terms of the equation (the scale of a relative residual).
+    """
 
     res: np.ndarray  # Riccati residual (double, from double-double)
     K: np.ndarray
@@ -87,8 +97,24 @@ def _gain_term(W, Lt):
 def evaluate(p: Problem, X) -> Evaluation:
     """Residual and gain at ``X``; every product in double-double arithmetic.
 
-    The quadratic forms are stacked so that two products give all of them:
-    ``[A B]'(XE)`` for the CARE, ``V'XV`` with ``V = [A B]`` (``[A B E]``) for the DARE.
+    The quadratic forms are stacked so that two products give all of them: ``[A B]'(XE)`` for
+    the CARE, ``V'XV`` with ``V = [A B]`` (``[A B E]``) for the DARE.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    X : ndarray, shape (n, n)
+        The trial solution.
+
+    Returns
+    -------
+    Evaluation
+
+    Raises
+    ------
+    AccuracyError
+        The gain overflows, or the matrix inverted in the gain is singular.
     """
     n, m = p.B.shape
     top, mid = slice(0, n), slice(n, n + m)
@@ -119,8 +145,23 @@ def evaluate(p: Problem, X) -> Evaluation:
 def update(p: Problem, X, ev: Evaluation, Xn) -> Evaluation:
     """Residual and gain at ``Xn`` from those at a nearby ``X`` (see the module notes).
 
-    Accurate to ``u ||Xn - X|| / ||X||`` relative to the terms of the equation; ``theta``
-    is kept (it changes by as little).
+    Accurate to ``u ||Xn - X|| / ||X||`` relative to the terms of the equation; ``theta`` is
+    kept (it changes by as little).
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    X : ndarray, shape (n, n)
+        The previous point.
+    ev : Evaluation
+        Its evaluation.
+    Xn : ndarray, shape (n, n)
+        The new point.
+
+    Returns
+    -------
+    Evaluation
     """
     D = Xn - X
     K = ev.K
@@ -142,15 +183,40 @@ def update(p: Problem, X, ev: Evaluation, Xn) -> Evaluation:
 def newton_refine(p: Problem, X, max_steps):
     """Newton (Kleinman / Hewer) refinement in defect-correction form.
 
-    A step is kept if it does not increase the residual beyond rounding level.  After a
-    step small enough for the residual update (``size * cond <= 1e-6``) the closed loop
-    is not factorised again: the gain moved by so little that the correction computed with
-    the previous factorisation (a chord step) agrees with Newton's to six digits.
+    A step is kept if it does not increase the residual beyond rounding level.  After a step
+    small enough for the residual update (``size * cond <= 1e-6``) the closed loop is not
+    factorised again: the gain moved by so little that the correction computed with the
+    previous factorisation (a chord step) agrees with Newton's to six digits.
 
-    Returns the refined ``X``, its evaluation, the number of accepted steps, the relative
-    size of the last correction (the forward error estimate), that correction, and the
-    closed-loop factorisation it was computed with (``cl.K`` is ``ev.K`` or, after a small
-    last step, the gain before it).
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    X : ndarray, shape (n, n)
+        First estimate.
+    max_steps : int
+        Newton steps at most.
+
+    Returns
+    -------
+    X : ndarray
+        The refined solution.
+    ev : Evaluation
+        Its evaluation.
+    steps : int
+        Accepted steps.
+    size : float
+        Relative size of the last correction (the forward error estimate).
+    D : ndarray
+        That correction.
+    cl : ClosedLoop
+        The factorisation it was computed with (``cl.K`` is ``ev.K`` or, after a small last
+        step, the gain before it).
+
+    Raises
+    ------
+    AccuracyError
+        The first evaluation fails (the gain overflows or is singular).
     """
     ev = evaluate(p, X)
     cl = ClosedLoop(p, ev.K)

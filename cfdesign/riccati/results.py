@@ -10,7 +10,17 @@ __all__ = ["RiccatiSolution", "ContinuousKalmanGains", "DiscreteKalmanGains", "P
 
 
 def frozen(*arrays):
-    """Read-only copies, so a frozen result cannot be changed through its arrays."""
+    """Read-only copies, so that a frozen result cannot be changed through its arrays.
+
+    Parameters
+    ----------
+    *arrays : array_like
+
+    Returns
+    -------
+    list of ndarray
+        Copies with the write flag cleared.
+    """
     out = []
     for a in arrays:
         a = np.array(a)

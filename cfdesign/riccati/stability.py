@@ -21,6 +21,22 @@ __all__ = ["Stability", "stability", "closed_loop_eigenvalues"]
 
 @dataclass(frozen=True)
 class Stability:
+    """How stable the closed loop of a solution is, allowing for its uncertainty.
+
+    Attributes
+    ----------
+    eigenvalues : ndarray of complex
+        Eigenvalues of the pencil ``(A - BK, E)``.
+    margin : float
+        Their smallest distance to the stability boundary (positive inside).
+    status : {'stable', 'marginal', 'unstable'}
+    omega_inv_norm : float
+        ``||Omega^-1(I)||_2`` of the linearised Riccati operator.
+    robust : float
+        Certified distance to instability of the closed loop (0 without a certificate).
+    uncertainty : float
+        Uncertainty of the closed-loop matrix.
+    """
     eigenvalues: np.ndarray
     margin: float  # eigenvalue distance to the boundary
     status: str  # 'stable' | 'marginal' | 'unstable'
@@ -30,7 +46,18 @@ class Stability:
 
 
 def closed_loop_eigenvalues(p: Problem, K):
-    """Eigenvalues of the pencil ``(A - BK, E)``."""
+    """Eigenvalues of the pencil ``(A - BK, E)``.
+
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    K : ndarray, shape (m, n)
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+    """
     M = p.A - p.B @ K
     return sla.eigvals(M) if p.E is None else sla.eigvals(M, p.E)
 
@@ -96,14 +123,29 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
 
     'stable' when the Lyapunov radius exceeds the closed-loop uncertainty, or when the
     eigenvalue margin exceeds its own uncertainty (this resolves badly scaled, highly
-    non-normal closed loops for which the norm-wise radius is pessimistic); 'unstable'
-    when an eigenvalue is outside by more than its uncertainty; 'marginal' otherwise.
-    The eigenvalue test (left and right eigenvectors, and the eigenvalues at the next
-    Newton gain) is only run when the Lyapunov certificate does not settle the question.
+    non-normal closed loops for which the norm-wise radius is pessimistic); 'unstable' when
+    an eigenvalue is outside by more than its uncertainty; 'marginal' otherwise.  The
+    eigenvalue test (left and right eigenvectors, and the eigenvalues at the next Newton gain)
+    is only run when the Lyapunov certificate does not settle the question.
 
-    ``cl`` is the closed loop factorised at ``K`` or, after a last Newton step too small to
-    refactorise for, at the gain before it; the certificate then allows for the difference,
-    and the eigenvalues reported are those of the factorised closed loop.
+    Parameters
+    ----------
+    p : Problem
+        The validated equation.
+    X : ndarray, shape (n, n)
+        The solution.
+    K : ndarray, shape (m, n)
+        Its gain.
+    D : ndarray, shape (n, n)
+        The last Newton correction (the size of the uncertainty of ``X``).
+    cl : ClosedLoop
+        The closed loop factorised at ``K`` or, after a last Newton step too small to
+        refactorise for, at the gain before it; the certificate then allows for the
+        difference.
+
+    Returns
+    -------
+    Stability
     """
     with np.errstate(all="ignore"):
         K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)

@@ -21,8 +21,35 @@ __all__ = ["matrix", "min_eig", "is_psd", "covariance_data", "problem_data", "fm
 def matrix(name, value, shape=(None, None), *, hermitian=False):
     """Validate one matrix and return it as a 2-D float or complex array.
 
-    ``shape`` entries of None are free; 'square' requires a square matrix.  Messages name
-    the matrix: ``"Q must be 3x3 (got 2x3)"``.
+    A scalar is 1x1; a vector is a row where a row fits, else a column.
+
+    Parameters
+    ----------
+    name : str
+        The matrix's name in messages (``"Q must be 3x3 (got 2x3)"``).
+    value : array_like
+    shape : (int or None, int or None) or 'square'
+        Required shape; None entries are free.
+    hermitian : bool
+        Require symmetry (Hermitian) within ``1e-10`` relative, and symmetrise.
+
+    Returns
+    -------
+    ndarray
+        2-D, float or complex.
+
+    Raises
+    ------
+    RiccatiError
+        Not numeric, not 2-D, the wrong shape, NaN or Inf, or not symmetric.
+
+    Examples
+    --------
+    >>> from cfdesign.riccati.validation import matrix
+    >>> matrix("Q", [[1.0, 2.0]], (2, 2))
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.RiccatiError: Q must be 2x2 (got 1x2)
     """
     try:
         M = np.array(value, dtype=complex if np.iscomplexobj(value) else float)
@@ -51,17 +78,57 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
 
 
 def min_eig(M):
-    """Smallest eigenvalue of a Hermitian matrix (``inf`` for an empty one)."""
+    """Smallest eigenvalue of a Hermitian matrix.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+
+    Returns
+    -------
+    float
+        ``inf`` for an empty matrix.
+    """
     return np.linalg.eigvalsh(M)[0] if M.size else np.inf
 
 
 def is_psd(M):
-    """Positive semidefinite up to rounding (``min eig >= -100 n eps ||M||_2``)."""
+    """Positive semidefinite up to rounding: ``min eig >= -100 n eps ||M||_2``.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+        Hermitian.
+
+    Returns
+    -------
+    bool
+    """
     return min_eig(M) >= -100 * M.shape[0] * EPS * max(np.linalg.norm(M, 2), TINY)
 
 
 def covariance_data(F, H, Q, R):
-    """Estimator data: ``F`` square, ``H`` (p, n), ``Q`` PSD and ``R`` PD covariances."""
+    """Validate estimator data.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+    H : array_like, shape (p, n)
+    Q : array_like, shape (n, n)
+        Process-noise covariance, positive semidefinite.
+    R : array_like, shape (p, p)
+        Measurement-noise covariance, positive definite.
+
+    Returns
+    -------
+    F, H, Q, R : ndarray
+
+    Raises
+    ------
+    RiccatiError
+        A matrix of the wrong shape, not finite, not symmetric, ``Q`` not positive
+        semidefinite or ``R`` not positive definite (the message names it).
+    """
     F = matrix("F", F, "square")
     n = F.shape[0]
     H = matrix("H", H, (None, n))
@@ -75,7 +142,29 @@ def covariance_data(F, H, Q, R):
 
 
 def problem_data(kind, A, B, Q, R, S, E):
-    """Validate the data of a CARE/DARE; returns ``(A, B, Q, R, S, E)`` with ``S`` filled in."""
+    """Validate the data of a CARE or DARE.
+
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+    A : array_like, shape (n, n)
+    B : array_like, shape (n, m)
+    Q : array_like, shape (n, n)
+    R : array_like, shape (m, m)
+    S : array_like, shape (n, m), or None
+    E : array_like, shape (n, n), or None
+
+    Returns
+    -------
+    A, B, Q, R, S, E : ndarray
+        ``S`` filled in with zeros; ``E`` None for the identity.
+
+    Raises
+    ------
+    RiccatiError
+        A matrix of the wrong shape, not finite or not symmetric, a singular ``E``, or (CARE)
+        a singular ``R``; the message names the matrix.
+    """
     A = matrix("A", A, "square")
     n = A.shape[0]
     if n == 0:
@@ -107,7 +196,23 @@ def _cond(M):
 # PBH checks
 # --------------------------------------------------------------------------------------
 def fmt_mode(kind, lam):
-    """``s = -1.5`` or ``z = 0.3+0.4j``: a mode as the user would write it."""
+    """A mode as the user would write it: ``s = -1.5`` or ``z = 0.3+0.4j``.
+
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+    lam : complex
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> from cfdesign.riccati.validation import fmt_mode
+    >>> fmt_mode("dare", 1.0), fmt_mode("care", 0.5j)
+    ('z = 1.0', 's = 0.0+0.5j')
+    """
     var = "s" if kind == "care" else "z"
     lam = complex(lam)
     if abs(lam.imag) <= 1e-12 * max(1.0, abs(lam)):
@@ -116,11 +221,24 @@ def fmt_mode(kind, lam):
 
 
 def unreachable_mode(kind, A, E, B, boundary_only=False):
-    """PBH test: an eigenvalue of (A, E) on/beyond the boundary with rank [A - lam E, B] < n.
+    """PBH test: an eigenvalue of ``(A, E)`` on or beyond the boundary with ``rank [A - lam E, B] < n``.
 
     ``B`` is rescaled to the norm of ``A`` first, so only exact rank loss counts (a small but
-    nonzero ``B`` is not rejected: the solution then simply is ill-conditioned).  Returns
-    ``(lam, distance)`` of the first such mode, or None.
+    nonzero ``B`` is not rejected: the solution then simply is ill-conditioned).
+
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+    A : ndarray, shape (n, n)
+    E : ndarray, shape (n, n), or None
+    B : ndarray, shape (n, m)
+    boundary_only : bool
+        Test only modes on the boundary (not the unstable ones).
+
+    Returns
+    -------
+    (complex, float) or None
+        The first such mode and its distance to the boundary.
     """
     n = A.shape[0]
     Eref = np.eye(n) if E is None else E
@@ -149,10 +267,21 @@ def _raise_mode(cls, kind, lam, d, what):
 
 
 def check_modes(kind, A, B, Q, R, S, E, dual):
-    """Stabilisability of (A, B); for a PSD weight, no unobservable boundary mode of (A_r, Q_r).
+    """Stabilisability of ``(A, B)``; for a PSD weight, no unobservable boundary mode of ``(A_r, Q_r)``.
 
-    Raises :class:`NotStabilisableError` or :class:`NotDetectableError` naming the mode;
-    ``dual`` phrases the messages for the estimator problem (``A = F'``, ``B = H'``).
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+    A, B, Q, R, S : ndarray
+        The validated data.
+    E : ndarray or None
+    dual : bool
+        Phrase the messages for the estimator problem (``A = F'``, ``B = H'``).
+
+    Raises
+    ------
+    NotStabilisableError, NotDetectableError
+        Naming the mode.
     """
     hit = unreachable_mode(kind, A, E, B)
     if hit is not None:

@@ -43,7 +43,23 @@ READING_LIMIT = 1e12
 
 
 def usable(a) -> np.ndarray:
-    """``True`` where a reading can be used: finite and within :data:`READING_LIMIT`."""
+    """Where a reading can be used: finite and within :data:`READING_LIMIT`.
+
+    Parameters
+    ----------
+    a : array_like
+        Readings (any shape), in SI units.
+
+    Returns
+    -------
+    ndarray of bool
+        Same shape as ``a``.
+
+    Examples
+    --------
+    >>> usable([0.1, float("nan"), float("inf"), 2e12]).tolist()
+    [True, False, False, False]
+    """
     a = np.asarray(a, dtype=float)
     with np.errstate(invalid="ignore"):
         return np.isfinite(a) & (np.abs(a) <= READING_LIMIT)
@@ -52,22 +68,42 @@ def usable(a) -> np.ndarray:
 class Runtime:
     """A running filter built from a :class:`~cfdesign.gains.GainTable`.
 
+    Every step runs the recursion of the module docstring with the table's gain for the
+    current phase; the estimate is state 0 (the common quantity, in its unit: rad for a
+    heading, m for a position).  numpy only (scipy's ``lfilter`` in the batch path).
+
     Parameters
     ----------
     table : GainTable
         A discrete table (``domain = 'z'``).
     x0 : array_like, optional
-        Initial state (default zeros).
+        Initial state, shape (n,), in the units of the table's :attr:`~GainTable.states`
+        (default zeros).
     output : {'prior', 'posterior'}, optional
         The estimate returned: the one-step prediction or the estimate after this step's
         readings.  Default: the table's declared :attr:`~cfdesign.gains.GainTable.output`
         (the posterior for tables designed by cfdesign).
 
+    Raises
+    ------
+    CfdesignError
+        A continuous-time table, or a gain the requested output cannot be formed from (a
+        predictor gain with a singular ``F`` asked for the posterior).
+
     Examples
     --------
-    >>> rt = Runtime(table)                          # doctest: +SKIP
-    >>> rt.step(gyro=0.01, compass=0.3, odometry=0.29)   # streaming, one sample
-    >>> est = rt.run({"gyro": w, "compass": c, "odometry": o})   # whole arrays
+    >>> import cfdesign, numpy as np
+    >>> from cfdesign.runtime import Runtime
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> rt = Runtime(table)
+    >>> rt.inputs, rt.measurements
+    (['odometry_rate'], ['gyro_heading', 'compass'])
+    >>> round(rt.step(odometry_rate=0.0, gyro_heading=0.1, compass=0.12), 6)   # one sample (rad)
+    0.049722
+    >>> est = rt.run({"odometry_rate": np.zeros(50), "gyro_heading": np.full(50, 0.1),
+    ...               "compass": np.full(50, 0.1)})                               # whole arrays
+    >>> est.shape, round(float(est[-1]), 6)
+    ((50,), 0.1)
     """
 
     def __init__(self, table, x0=None, output=None):
@@ -165,11 +201,25 @@ class Runtime:
         self._uns[:] = [0] * len(self._uns)
 
     def state(self) -> dict:
-        """A JSON-ready snapshot (``x``, ``phase``, ``u_last``) for :meth:`restore`."""
+        """A JSON-ready snapshot of the running filter, for :meth:`restore`.
+
+        Returns
+        -------
+        dict
+            ``{"x": list of float, "phase": int, "u_last": list of float}``: the state before the
+            next step, the phase of the next step, the inputs held.
+        """
         return {"x": self.x.tolist(), "phase": int(self.phase), "u_last": self.u_last.tolist()}
 
     def restore(self, state: dict):
         """Continue from a snapshot taken with :meth:`state`.
+
+        A run split at a snapshot gives the same estimates as one run.
+
+        Parameters
+        ----------
+        state : dict
+            A snapshot of :meth:`state` (of a runtime of the same table).
 
         Raises
         ------
@@ -212,8 +262,19 @@ class Runtime:
         raise NotImplementedError  # replaced per table in __init__ (cfdesign.runtime.step)
 
     def step_values(self, *values) -> float:
-        """:meth:`step` with the readings in order, inputs then measurements (as :attr:`inputs`
-        and :attr:`measurements` list them), NaN for none: the fastest call."""
+        """:meth:`step` with the readings given in order: the fastest call.
+
+        Parameters
+        ----------
+        *values : float
+            Inputs then measurements, in the order :attr:`inputs` and :attr:`measurements` list
+            them, in the sensors' units; NaN for no reading.
+
+        Returns
+        -------
+        float
+            The estimate of the common quantity (state 0).
+        """
         return self._step_values(*values)
 
     def _advance(self, u, y) -> np.ndarray:
@@ -232,19 +293,38 @@ class Runtime:
 
     # ------------------------------------------------------------------ batch
     def run(self, readings: dict, *, states: bool = False):
-        """Run on whole arrays ``{sensor: (N,) array}``; the state carries over between calls.
+        """Run on whole arrays; the state carries over between calls.
 
-        Every sensor must be present; NaN marks a missing sample (a slow sensor's column is
-        NaN between its readings); inf and readings beyond :data:`READING_LIMIT` are treated
-        as missing and counted in :attr:`counts` (``rejected``).  Returns the (N,) estimates, or ``(estimates, x)`` with
-        the (N, n) output states (the posterior ``x+[k]`` or the prior ``x[k]``, as
-        :attr:`output`) when ``states`` is true.
+        The work is vectorised (the lifted form over blocks, or one IIR filter per sensor for a
+        single-rate table) over every stretch where each scheduled measurement is present; the
+        few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
+        numbers.
 
-        The work is vectorised (:meth:`_run_vectorised`, or one IIR filter per sensor for a
-        single-rate table) over every stretch where each scheduled measurement is present;
-        the few steps where one is missing run through :meth:`step`'s recursion.  Missing
-        inputs hold their last value.  Readings at phases the schedule does not read have no
-        gain: they are counted in :attr:`counts` (``unscheduled``).
+        Parameters
+        ----------
+        readings : dict
+            ``{sensor: (N,) array}`` for every sensor of the table, in the sensors' units.  NaN
+            marks a missing sample (a slow sensor's column is NaN between its readings); inf and
+            readings beyond :data:`READING_LIMIT` are treated as missing and counted in
+            :attr:`counts` (``rejected``); readings at phases the schedule does not read have no
+            gain and are counted (``unscheduled``).  Missing inputs hold their last value.
+        states : bool
+            Also return every output state.
+
+        Returns
+        -------
+        estimates : ndarray, shape (N,)
+            The estimate of the common quantity at every step (after the step's readings, or the
+            prediction: :attr:`output`).
+        x : ndarray, shape (N, n)
+            Only with ``states=True``: the output states (the posterior ``x+[k]`` or the prior
+            ``x[k]``), columns named by the table's :attr:`~cfdesign.gains.GainTable.states`.
+
+        Raises
+        ------
+        CfdesignError
+            A sensor is missing from ``readings`` or not the table's, or the arrays differ in
+            length.
         """
         cols = self._columns(readings)
         u, y = self._split(cols)

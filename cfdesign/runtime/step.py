@@ -47,15 +47,45 @@ def _dot(coeffs, names, lookup=None) -> str:
 
 
 def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
-    """``(step, step_values, source)`` for ``table``, bound to the state lists given.
+    """The streaming step of one table as straight-line Python, bound to the state lists given.
 
     ``step(sensor=value, ...)`` takes the readings by the sensors' names (a sensor left out has
-    no reading; any other keyword calls ``unknown(dict)``, which raises), ``step_values(u_0, ...,
-    y_0, ...)`` positionally (inputs, then measurements).  ``S`` holds the state floats and the
-    phase (last), ``U`` the last inputs (held when one is missing), ``REJ``/``UNS`` per-sensor
-    counters of rejected readings (inf, or beyond ``limit``; NaN is simply missing) and of
-    readings at a phase the schedule does not read.  Both return the posterior estimate
-    ``x[0] + (L e)[0]`` or the prior ``x[0]`` (``output``) and update the lists in place.
+    no reading; any other keyword calls ``unknown(dict)``, which raises), ``step_values(u_0,
+    ..., y_0, ...)`` positionally (inputs, then measurements).  Both return the posterior
+    estimate ``x[0] + (L e)[0]`` or the prior ``x[0]`` (``output``) and update the lists in
+    place.
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table.
+    output : {'prior', 'posterior'}
+    limit : float
+        Readings beyond this magnitude (SI) are rejected like inf.
+    S : list
+        The state floats, then the phase (last).
+    U : list
+        The last inputs received (held when one is missing).
+    REJ : list of int
+        Per-sensor counters of rejected readings (inf, or beyond ``limit``; NaN is simply
+        missing), inputs then measurements.
+    UNS : list of int
+        Per-measurement counters of readings at a phase the schedule does not read.
+    unknown : callable
+        Called with the unknown keyword readings; it raises.
+
+    Returns
+    -------
+    step : callable
+    step_values : callable
+    source : str
+        The generated Python source.
+
+    Raises
+    ------
+    ValueError
+        The posterior asked of a table whose ``F`` is singular, or sensor names that are not
+        distinct identifiers.
     """
     F, B, H = table.F, table.B, table.H
     n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period

@@ -69,7 +69,29 @@ _EULER_STEP_S = 1e-4
 
 @dataclass(frozen=True)
 class GroundErrors:
-    """Sensor errors of the scenario (module docstring); SI units, per axis."""
+    """Sensor errors of the ground-robot scenario (module docstring); SI units, per axis.
+
+    Attributes
+    ----------
+    gyro_noise_density : float
+        Gyro white noise (rad/s/sqrt(Hz)).
+    gyro_bias_rad_s : float
+        Constant gyro bias (rad/s).
+    accel_noise_density : float
+        Accelerometer white noise (m/s^2/sqrt(Hz)).
+    accel_bias_m_s2 : float
+        Constant accelerometer bias (m/s^2).
+    mag_noise_std_g : float
+        Magnetometer noise per sample (gauss).
+    odometry_scale_error : float
+        Relative scale error of the odometer.
+    odometry_noise_std_m_s : float
+        Odometer speed noise per sample (m/s).
+    gps_noise_std_m : float
+        GPS position noise per fix and axis (m).
+    gps_velocity_noise_std_m_s : float
+        GPS velocity noise per fix and axis (m/s).
+    """
 
     gyro_noise_density: float = math.radians(0.015)     # rad/s/sqrt(Hz)
     gyro_bias_rad_s: float = math.radians(0.1)
@@ -94,7 +116,8 @@ class GroundScenario(SampledTimes):
     ----------
     t_s : (N + 1,) s.
     position_m, velocity_m_s, acceleration_m_s2 : (N + 1, 3) ENU.
-    quaternion : (N + 1, 4) body -> ENU; euler_rad : (N + 1, 3) ``[yaw, pitch, roll]``, yaw wrapped.
+    quaternion : (N + 1, 4) body -> ENU.
+    euler_rad : (N + 1, 3) ``[yaw, pitch, roll]``, yaw wrapped.
     speed_m_s : (N + 1,) forward (3-D) speed.
     body_rate_rad_s, specific_force_m_s2 : (N + 1, 3) body frame, at the sample times.
     gyro_rad_s, accel_m_s2 : (N, 3) body readings, means over each interval.

@@ -32,7 +32,7 @@ Kinematics are analytic (velocity, acceleration, jerk, attitude and its derivati
 the horizontal position, integrated on a grid ``oversample`` times finer than the IMU.
 
 Sensors (Table 1; per-axis readings of our choice where the paper is silent)
----------------------------------------------------------------------------
+----------------------------------------------------------------------------
 IMU at 50 Hz, GPS at 1 Hz (first fix at t = 0).  Gyro: constant bias 0.05 deg/s and white
 noise of variance (0.02 deg/s)^2 per sample on each axis, bias signs ``BIAS_SIGNS``;
 accelerometer: noise (0.6 mg)^2 per axis, 1 mg = 9.80665e-3 m/s^2, and a 10-mg bias on the
@@ -79,7 +79,31 @@ MAGNETIC_FIELD_ENU_G = np.array([0.0, 0.5, 0.0])
 # ---------------------------------------------------------------------------- trajectory
 @dataclass(frozen=True)
 class Manoeuvre:
-    """Dimensions of the manoeuvre (module docstring); SI units, angles in rad."""
+    """Dimensions of the manoeuvre (module docstring); SI units, angles in rad.
+
+    Attributes
+    ----------
+    straight_s : float
+        Duration of the straight level path (s).
+    start_speed_m_s : float
+        Speed at ``t = 0`` (m/s); below ``speed_m_s`` the helicopter accelerates in ``accel_s``.
+    speed_m_s : float
+        Cruise speed (m/s).
+    accel_s : float
+        Duration of the acceleration (s).
+    helix_s : float
+        Duration of the ascending helix (s).
+    entry_s : float
+        Time in which turn rate and climb rate rise smoothly into the helix (s).
+    turn_rate_rad_s : float
+        Turn rate of the helix (rad/s, left).
+    climb_m_s : float
+        Climb rate of the helix (m/s).
+    rate_hz : float
+        IMU rate (Hz).
+    oversample : int
+        Integration grid points per IMU sample for the horizontal position.
+    """
 
     straight_s: float = 20.0
     start_speed_m_s: float = 5.0
@@ -94,6 +118,7 @@ class Manoeuvre:
 
     @property
     def duration_s(self) -> float:
+        """Total duration (s): the straight path and the helix."""
         return self.straight_s + self.helix_s
 
 
@@ -191,6 +216,11 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
     Returns
     -------
     HelicopterTrajectory
+
+    Raises
+    ------
+    InputError
+        The duration is not a whole number of IMU samples, or ``oversample < 1``.
     """
     m = manoeuvre or Manoeuvre()
     steps = round(m.duration_s * m.rate_hz)
@@ -217,6 +247,25 @@ class SensorErrors:
     """Sensor errors per axis (SI): constant biases, white-noise per-sample standard deviations.
 
     Defaults: Table 1 of Vasconcelos et al. (module docstring).
+
+    Attributes
+    ----------
+    gyro_bias_rad_s : float
+        Gyro bias magnitude (rad/s), signs :data:`BIAS_SIGNS`.
+    gyro_noise_std_rad_s : float
+        Gyro noise per sample (rad/s).
+    accel_bias_m_s2 : float
+        Accelerometer bias magnitude (m/s^2).
+    accel_noise_std_m_s2 : float
+        Accelerometer noise per sample (m/s^2).
+    mag_noise_std_g : float
+        Magnetometer noise per sample (gauss).
+    gps_noise_std_m : float
+        GPS noise per fix and axis (m).
+    gps_rate_hz : float
+        GPS rate (Hz); it must divide the IMU rate.
+    accel_bias_axes : tuple of 3 floats
+        Body axes the accelerometer bias is on (``(0, 0, 1)``: body z).
     """
 
     gyro_bias_rad_s: float = math.radians(0.05)
@@ -266,8 +315,30 @@ def simulate_readings(trajectory: HelicopterTrajectory, seed: int, errors: Senso
                       field_enu_g=MAGNETIC_FIELD_ENU_G) -> ImuGpsReadings:
     """IMU, magnetometer and GPS readings of one run (module docstring), reproducible by ``seed``.
 
-    Each sensor axis draws from its own stream seeded by ``(seed, crc32(name))``
-    (as :func:`cfdesign.sim.sensors.simulate`).
+    Each sensor axis draws from its own stream seeded by ``(seed, crc32(name))`` (as
+    :func:`cfdesign.sim.sensors.simulate`).
+
+    Parameters
+    ----------
+    trajectory : HelicopterTrajectory
+        The truth (:func:`helicopter_manoeuvre`).
+    seed : int
+        Seed of the run.
+    errors : SensorErrors
+        Sensor errors; default Table 1.
+    field_enu_g : array_like, shape (3,)
+        Earth magnetic field in ENU (gauss).
+
+    Returns
+    -------
+    ImuGpsReadings
+        Gyro (rad/s) and accelerometer (m/s^2) means over each interval, magnetometer (gauss)
+        at the samples, GPS ENU fixes (m) at their rate (NaN between).
+
+    Raises
+    ------
+    InputError
+        The GPS rate does not divide the IMU rate.
     """
     t = trajectory.t_s
     every = RateSensor(rate_hz=errors.gps_rate_hz).every(trajectory.dt_s)
@@ -283,10 +354,26 @@ def simulate_readings(trajectory: HelicopterTrajectory, seed: int, errors: Senso
 
 
 def declination_rad(field_enu_g=MAGNETIC_FIELD_ENU_G) -> float:
-    """Magnetic declination (rad, positive East) of a field given in ENU: ``atan2(m_E, m_N)``.
+    """Magnetic declination of a field given in ENU: ``atan2(m_E, m_N)``.
 
-    The :mod:`cfdesign.nav.mps` yaw ``psi = atan2(m'_x, m'_y) - alpha_dec`` then returns the
-    yaw counted from East; 0 for a field pointing North.
+    The :mod:`cfdesign.nav.mps` yaw ``psi = atan2(m'_x, m'_y) - alpha_dec`` then returns the yaw
+    counted from East; 0 for a field pointing North.
+
+    Parameters
+    ----------
+    field_enu_g : array_like, shape (3,)
+        Earth magnetic field in ENU (any unit).
+
+    Returns
+    -------
+    float
+        Declination (rad, positive East).
+
+    Examples
+    --------
+    >>> from cfdesign.sim.helicopter import declination_rad
+    >>> declination_rad([0.0, 0.5, -0.3])
+    0.0
     """
     m = np.asarray(field_enu_g, dtype=float)
     return math.atan2(m[0], m[1])

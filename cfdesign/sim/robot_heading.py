@@ -74,10 +74,21 @@ PAPER = _Paper()
 
 @dataclass(frozen=True)
 class Reading:
-    """How ``N(0, x)`` is read: ``x`` a standard deviation (``'std'``) or a variance (``'variance'``).
+    """How the paper's ``N(0, x)`` is read: ``x`` a standard deviation or a variance.
 
-    Units are SI (rad, rad/s) per sample at the paper's 5 Hz.  ``rate_bias_density``
-    (rad/s/sqrt(s)) is the random walk the filters assume for their input's rate bias.
+    Units are SI (rad, rad/s) per sample at the paper's 5 Hz.
+
+    Parameters
+    ----------
+    name : {'std', 'variance'}
+        The reading.
+    rate_bias_density : float
+        Random walk (rad/s/sqrt(s)) the filters assume for their input's rate bias.
+
+    Raises
+    ------
+    SpecError
+        An unknown reading.
     """
 
     name: str = "std"
@@ -88,11 +99,28 @@ class Reading:
             raise SpecError(f"reading must be 'std' or 'variance', got {self.name!r}")
 
     def std(self, sensor: str) -> float:
-        """Per-sample standard deviation of ``sensor``'s white noise (rad/s gyro, rad otherwise)."""
+        """Per-sample standard deviation of a sensor's white noise under this reading.
+
+        Parameters
+        ----------
+        sensor : str
+            ``gyro``, ``compass`` or ``odometry``.
+
+        Returns
+        -------
+        float
+            rad/s for the gyro, rad otherwise.
+        """
         x = PAPER.noise_x[sensor]
         return x if self.name == "std" else math.sqrt(x)
 
     def describe(self) -> str:
+        """The reading in words, for reports.
+
+        Returns
+        -------
+        str
+        """
         x_is = "a standard deviation" if self.name == "std" else "a variance"
         return (f"N(0, x): x is {x_is} in SI units per {PAPER.rate_hz:g}-Hz sample (gyro rad/s, compass and "
                 f"odometry rad); biases and perturbation in degrees; input rate-bias random walk "
@@ -109,8 +137,16 @@ READING = READINGS["std"]
 class Scenario:
     """The truth, the sensor models and the reading they came from.
 
-    ``gyro_compensation_rad_s`` is subtracted from the gyro before use (Carreira et al.: the
-    bias "can be compensated").
+    Parameters
+    ----------
+    trajectory : Trajectory
+        The rounded square.
+    sensors : dict
+        ``{name: RateSensor | HeadingSensor}``.
+    reading : Reading
+        How the paper's figures were read.
+    gyro_compensation_rad_s : float
+        Subtracted from the gyro before use (Carreira et al.: the bias "can be compensated").
     """
 
     trajectory: Trajectory
@@ -120,14 +156,24 @@ class Scenario:
 
     @property
     def rate_hz(self) -> float:
+        """Sample rate of the scenario (Hz)."""
         return 1.0 / self.trajectory.dt_s
 
     def signals(self, seed: int) -> dict:
-        """Each sensor as a heading (N + 1 samples) and as a rate (N intervals), for one run.
+        """Each sensor as a heading and as a rate, for one run.
 
-        ``{name: {'heading': ..., 'rate': ...}}``: the gyro's rate is its compensated reading and
-        its heading is dead reckoned from the true start; a heading sensor's rate is its
-        differenced heading (:mod:`cfdesign.sim.signals`).
+        The gyro's rate is its compensated reading and its heading is dead reckoned from the true
+        start; a heading sensor's rate is its differenced heading (:mod:`cfdesign.sim.signals`).
+
+        Parameters
+        ----------
+        seed : int
+            Seed of the run.
+
+        Returns
+        -------
+        dict
+            ``{name: {'heading': (N + 1,) rad, 'rate': (N,) rad/s}}``.
         """
         raw = simulate(self.trajectory, self.sensors, seed)
         dt, start = self.trajectory.dt_s, float(self.trajectory.heading_rad[0])
@@ -141,7 +187,21 @@ class Scenario:
         return out
 
     def noise(self, name: str, role: str) -> WhiteNoise:
-        """White noise of ``name`` used as a ``'rate'`` or a ``'heading'`` (the design's stand-ins)."""
+        """The white noise the design assumes for a sensor used in a role.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name.
+        role : {'rate', 'heading'}
+            How the sensor is used (its own kind, or differenced/integrated).
+
+        Returns
+        -------
+        WhiteNoise
+            The sensor's own noise, or the stand-in of :func:`~cfdesign.sim.signals.differenced_noise`
+            or :func:`~cfdesign.sim.signals.integrated_noise`.
+        """
         model = self.sensors[name]
         native = "rate" if isinstance(model, RateSensor) else "heading"
         if role == native:

@@ -44,8 +44,26 @@ __all__ = ["RateSensor", "HeadingSensor", "MagneticPerturbation", "simulate", "c
 class MagneticPerturbation:
     """Heading-dependent compass error ``amplitude_rad * sin(harmonic * psi + phase_rad)`` (rad).
 
-    ``harmonic = 1`` is a hard-iron-like error, ``2`` a soft-iron-like one.  Carreira et al. Sec. V-A:
-    ``20 sin(psi)`` (read as degrees, as their robot-heading scenario does).
+    ``harmonic = 1`` is a hard-iron-like error, ``2`` a soft-iron-like one.  Carreira et al.
+    Sec. V-A: ``20 sin(psi)`` (read as degrees, as their robot-heading scenario does).  Call
+    it with the true heading (rad) to get the error (rad).
+
+    Parameters
+    ----------
+    amplitude_rad : float
+        Amplitude of the error (rad).
+    harmonic : int
+        Multiple of the heading in the sine.
+    phase_rad : float
+        Phase of the sine (rad).
+
+    Examples
+    --------
+    >>> import math
+    >>> from cfdesign.sim import MagneticPerturbation
+    >>> error = MagneticPerturbation(math.radians(20.0))
+    >>> round(math.degrees(float(error(math.pi / 2))), 6)
+    20.0
     """
 
     amplitude_rad: float
@@ -126,7 +144,26 @@ class RateSensor(_Sensor):
     """
 
     def read(self, trajectory: Trajectory, rng) -> np.ndarray:
-        """Readings over the ``N`` intervals, shape (N,); NaN where missing."""
+        """Simulated readings over the trajectory's intervals.
+
+        Parameters
+        ----------
+        trajectory : Trajectory
+            The truth, ``N + 1`` samples.
+        rng : numpy.random.Generator
+            Source of the noise and dropouts.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            Mean rate over each interval plus bias and white noise (rad/s); NaN where the
+            sensor does not read (a slower rate) or the reading is dropped.
+
+        Raises
+        ------
+        InputError
+            The sensor rate does not divide the trajectory rate, or ``dropout`` is not in [0, 1).
+        """
         dt, steps = trajectory.dt_s, trajectory.steps
         every = self.every(dt)
         white = math.sqrt(self.noise.psd(self.sensor_rate_hz(dt)) / dt) * rng.normal(size=steps)
@@ -161,7 +198,26 @@ class HeadingSensor(_Sensor):
     perturbation: object = None
 
     def read(self, trajectory: Trajectory, rng) -> np.ndarray:
-        """Readings at the ``N + 1`` sample times, wrapped to (-pi, pi], shape (N + 1,); NaN where missing."""
+        """Simulated readings at the trajectory's sample times.
+
+        Parameters
+        ----------
+        trajectory : Trajectory
+            The truth, ``N + 1`` samples.
+        rng : numpy.random.Generator
+            Source of the noise and dropouts.
+
+        Returns
+        -------
+        ndarray, shape (N + 1,)
+            Heading plus offset, drift, perturbation and white noise, wrapped to (-pi, pi] (rad);
+            NaN where the sensor does not read or the reading is dropped.
+
+        Raises
+        ------
+        InputError
+            The sensor rate does not divide the trajectory rate, or ``dropout`` is not in [0, 1).
+        """
         dt, steps = trajectory.dt_s, trajectory.steps
         every = self.every(dt)
         psi = trajectory.heading_rad
@@ -175,22 +231,40 @@ class HeadingSensor(_Sensor):
 def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
     """Readings of every sensor for one run.
 
-    Each sensor draws from its own generator seeded by ``(seed, crc32(name))``: the same
-    seed gives the same readings, and adding or removing a sensor leaves the others' noise
+    Each sensor draws from its own generator seeded by ``(seed, crc32(name))``: the same seed
+    gives the same readings, and adding or removing a sensor leaves the others' noise
     unchanged.
 
     Parameters
     ----------
     trajectory : Trajectory
+        The truth.
     sensors : dict
         ``{name: RateSensor | HeadingSensor}``.
     seed : int
+        Seed of the run.
 
     Returns
     -------
     dict
-        ``{name: ndarray}``: shape (N,) for rate sensors (one reading per interval), (N + 1,)
-        for heading sensors (one per sample time); NaN where a reading is missing.
+        ``{name: ndarray}``: shape (N,) for rate sensors (one reading per interval, rad/s),
+        (N + 1,) for heading sensors (one per sample time, rad); NaN where a reading is
+        missing.
+
+    Raises
+    ------
+    InputError
+        A sensor's rate or dropout does not fit; the message names the sensor.
+
+    Examples
+    --------
+    >>> from cfdesign.noise import WhiteNoise
+    >>> from cfdesign.sim import HeadingSensor, RateSensor, rounded_square, simulate
+    >>> traj = rounded_square(straight_s=20.0, turn_s=5.0, legs=1)
+    >>> readings = simulate(traj, {"gyro": RateSensor(noise=WhiteNoise(std=0.01)),
+    ...                            "compass": HeadingSensor(noise=WhiteNoise(std=0.05), rate_hz=1.0)}, seed=0)
+    >>> readings["gyro"].shape, readings["compass"].shape
+    ((125,), (126,))
     """
     out = {}
     for name, model in sensors.items():
@@ -203,17 +277,49 @@ def simulate(trajectory: Trajectory, sensors: dict, seed: int) -> dict:
 
 
 def cumulative_trapezoid(values, h):
-    """Cumulative trapezoidal integral along axis 0 from 0."""
+    """Cumulative trapezoidal integral along axis 0, from 0.
+
+    Parameters
+    ----------
+    values : ndarray, shape (N + 1, ...)
+        Samples on a uniform grid.
+    h : float
+        Grid step.
+
+    Returns
+    -------
+    ndarray, shape (N + 1, ...)
+        The integral at each sample (0 at the first).
+    """
     steps = 0.5 * h * (values[1:] + values[:-1])
     return np.concatenate([np.zeros((1, *values.shape[1:])), np.cumsum(steps, axis=0)])
 
 
 def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndarray:
-    """Per-axis :class:`RateSensor` readings of a signal whose interval means are ``means`` (N, 3).
+    """Per-axis :class:`RateSensor` readings of a signal given by its interval means.
 
     Each axis is given to the sensor model as a :class:`~cfdesign.sim.trajectory.Trajectory`
-    whose "heading" is the signal's running integral, so the model's mean rate is the mean
-    of the signal over each interval.
+    whose "heading" is the signal's running integral, so the model's mean rate is the mean of
+    the signal over each interval.
+
+    Parameters
+    ----------
+    t_s : ndarray, shape (N + 1,)
+        Sample times (s).
+    means : ndarray, shape (N, 3)
+        The signal's mean over each interval (rad/s or m/s^2).
+    bias : sequence of 3 floats
+        Constant bias per axis.
+    noise_std : float
+        White noise per sample.
+    prefix : str
+        Sensor name prefix (``gyro``): axis ``x`` draws from the stream of ``gyro_x``.
+    seed : int
+        Seed of the run.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
     """
     dt = float(t_s[1] - t_s[0])
     out = np.empty_like(means)
@@ -226,7 +332,23 @@ def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndar
 
 
 def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
-    """``truth`` plus white noise of std ``std`` at every ``every``-th sample, NaN elsewhere."""
+    """Samples of a signal plus white noise at every ``every``-th sample, NaN elsewhere.
+
+    Parameters
+    ----------
+    truth : ndarray, shape (N, ...)
+    std : float
+        Noise per sample.
+    every : int
+        Keep every ``every``-th sample.
+    name : str
+        Stream name (the noise is seeded by ``(seed, crc32(name))``).
+    seed : int
+
+    Returns
+    -------
+    ndarray, shape (N, ...)
+    """
     rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
     out = np.full(truth.shape, np.nan)
     out[::every] = truth[::every] + std * rng.normal(size=truth[::every].shape)

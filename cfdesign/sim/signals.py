@@ -30,10 +30,30 @@ __all__ = ["integrate_rate", "difference_heading", "integrated_noise", "differen
 
 
 def integrate_rate(rate, dt_s: float, start_rad: float) -> np.ndarray:
-    """Dead-reckoned heading at the ``N + 1`` sample times from ``N`` interval rates, wrapped.
+    """Dead-reckoned heading from interval rates, wrapped: a gyro seen as a heading sensor.
 
     ``psi[0] = start_rad``, ``psi[k+1] = psi[k] + T rate[k]``; a missing (NaN) rate holds the
     last one received (zero before the first), as the runtime does for inputs.
+
+    Parameters
+    ----------
+    rate : array_like, shape (N,)
+        Rate over each interval (rad/s).
+    dt_s : float
+        Sample time ``T`` (s).
+    start_rad : float
+        Heading at the first sample (rad).
+
+    Returns
+    -------
+    ndarray, shape (N + 1,)
+        Heading at the sample times (rad), wrapped to (-pi, pi].
+
+    Examples
+    --------
+    >>> from cfdesign.sim import integrate_rate
+    >>> integrate_rate([0.1, float("nan"), 0.2], 0.5, 0.0).round(6).tolist()
+    [0.0, 0.05, 0.1, 0.2]
     """
     rate = np.asarray(rate, dtype=float)
     seen = ~np.isnan(rate)
@@ -43,10 +63,29 @@ def integrate_rate(rate, dt_s: float, start_rad: float) -> np.ndarray:
 
 
 def difference_heading(heading, dt_s: float) -> np.ndarray:
-    """Rate over each of the ``N`` intervals from ``N + 1`` heading readings: ``wrap(diff)/T``.
+    """Rate over each interval from heading readings: ``wrap(diff(heading)) / T``.
 
     Wrapping the difference makes a reading that crosses +-180 deg give the small true step.
     A missing reading at either end of an interval makes that rate missing (NaN).
+
+    Parameters
+    ----------
+    heading : array_like, shape (N + 1,)
+        Heading readings (rad).
+    dt_s : float
+        Sample time ``T`` (s).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Rates (rad/s).
+
+    Examples
+    --------
+    >>> import math
+    >>> from cfdesign.sim import difference_heading
+    >>> difference_heading([math.pi - 0.01, -math.pi + 0.01], 0.2).round(6).tolist()
+    [0.1]
     """
     return wrap(np.diff(np.asarray(heading, dtype=float))) / dt_s
 
@@ -56,12 +95,38 @@ def _std(noise: WhiteNoise, rate_hz: float) -> float:
 
 
 def differenced_noise(noise: WhiteNoise, rate_hz: float) -> WhiteNoise:
-    """White-noise stand-in for a differenced heading: std ``sqrt(2) sigma / T`` (rad/s)."""
+    """White-noise stand-in for a differenced heading: std ``sqrt(2) sigma / T`` (rad/s).
+
+    Parameters
+    ----------
+    noise : WhiteNoise
+        The heading sensor's noise (rad).
+    rate_hz : float
+        Its rate ``1/T`` (Hz).
+
+    Returns
+    -------
+    WhiteNoise
+        Per-sample std of the differenced rate (rad/s).
+    """
     return WhiteNoise(std=math.sqrt(2.0) * _std(noise, rate_hz) * rate_hz, field=noise.field)
 
 
 def integrated_noise(noise: WhiteNoise, rate_hz: float) -> WhiteNoise:
-    """White-noise stand-in for an integrated rate: its per-step increment ``sigma T`` (rad)."""
+    """White-noise stand-in for an integrated rate: its per-step increment ``sigma T`` (rad).
+
+    Parameters
+    ----------
+    noise : WhiteNoise
+        The rate sensor's noise (rad/s).
+    rate_hz : float
+        Its rate ``1/T`` (Hz).
+
+    Returns
+    -------
+    WhiteNoise
+        Per-sample std of the heading increment (rad).
+    """
     return WhiteNoise(std=_std(noise, rate_hz) / rate_hz, field=noise.field)
 
 
@@ -71,8 +136,26 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
 
     Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration) plus
     white noise of std 0.05; angle tables swing over +-4 rad (so the heading crosses +-pi,
-    readings wrapped), others over +-50 m.  A fraction ``missing`` of the samples is NaN.
-    Used by the runtime benchmark and the C-against-Python tests.
+    readings wrapped), others over +-50 m.  Used by the runtime benchmark and the
+    C-against-Python tests.
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table.
+    n : int
+        Number of samples.
+    seed : int
+        Seed of the noise.
+    amplitude : float, optional
+        Amplitude of the sinusoid (default 4 rad or 50 m).
+    missing : float
+        Fraction of the samples set to NaN.
+
+    Returns
+    -------
+    dict
+        ``{sensor: (n,) ndarray}``, ready for :meth:`cfdesign.runtime.Runtime.run`.
     """
     rng = np.random.default_rng(seed)
     period_s = 2000.0 if table.wrap_angle else 100.0

@@ -63,6 +63,7 @@ class Trajectory(SampledTimes):
 
     @property
     def duration_s(self) -> float:
+        """Duration (s) from the first sample to the last."""
         return float(self.t_s[-1] - self.t_s[0])
 
     @property
@@ -76,7 +77,13 @@ class Trajectory(SampledTimes):
         return wrap(self.heading_rad)
 
     def position_m(self) -> np.ndarray:
-        """Planar position (m), shape (N + 1, 2), from the origin, by the trapezoidal rule."""
+        """Planar position from the origin, by the trapezoidal rule on speed and heading.
+
+        Returns
+        -------
+        ndarray, shape (N + 1, 2)
+            ``[x, y]`` (m) in the plane the heading is measured in (x along heading 0).
+        """
         v = self.speed_m_s[:, None] * np.column_stack([np.cos(self.heading_rad), np.sin(self.heading_rad)])
         steps = 0.5 * (v[1:] + v[:-1]) * self.dt_s
         return np.vstack([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
@@ -84,7 +91,17 @@ class Trajectory(SampledTimes):
 
 @dataclass(frozen=True)
 class Segment:
-    """A straight run of ``straight_s`` seconds, then a smooth turn of ``turn_rad`` in ``turn_s``."""
+    """A straight run, then a smooth turn.
+
+    Parameters
+    ----------
+    straight_s : float
+        Duration of the straight run (s), ``>= 0``.
+    turn_rad : float
+        Heading change of the turn (rad), positive counter-clockwise (left).
+    turn_s : float
+        Duration of the turn (s), ``> 0``.
+    """
 
     straight_s: float
     turn_rad: float
@@ -92,11 +109,29 @@ class Segment:
 
     @property
     def duration_s(self) -> float:
+        """Duration of the segment (s): the straight run and the turn."""
         return self.straight_s + self.turn_s
 
 
 def smooth_turn(s):
-    """Fraction of a turn done at normalised time ``s`` (clipped to [0, 1]): ``s - sin(2 pi s)/(2 pi)``."""
+    """Fraction of a turn done at normalised time ``s``: ``s - sin(2 pi s)/(2 pi)``.
+
+    Parameters
+    ----------
+    s : float or array_like
+        Normalised time ``(t - t0) / d``, clipped to [0, 1].
+
+    Returns
+    -------
+    ndarray
+        From 0 to 1, with zero rate and zero angular acceleration at both ends.
+
+    Examples
+    --------
+    >>> from cfdesign.sim import smooth_turn
+    >>> smooth_turn([0.0, 0.5, 1.0, 2.0]).tolist()
+    [0.0, 0.5, 1.0, 1.0]
+    """
     s = np.clip(s, 0.0, 1.0)
     return s - np.sin(2 * np.pi * s) / (2 * np.pi)
 
@@ -105,6 +140,34 @@ def from_segments(segments, *, dt_s: float, start_heading_rad: float = 0.0, spee
     """Trajectory of straight runs and smooth turns, one :class:`Segment` after another.
 
     The total duration must be a whole number of samples; turns need not start on a sample.
+
+    Parameters
+    ----------
+    segments : sequence of Segment or (straight_s, turn_rad, turn_s)
+    dt_s : float
+        Sample time (s).
+    start_heading_rad : float
+        Heading at ``t = 0`` (rad).
+    speed_m_s : float
+        Constant forward speed (m/s).
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    InputError
+        No segment, a negative straight run, a turn of zero duration, a non-positive sample
+        time, or a duration that is not a whole number of samples.
+
+    Examples
+    --------
+    >>> import math
+    >>> from cfdesign.sim import Segment, from_segments
+    >>> traj = from_segments([Segment(10.0, math.pi / 2, 5.0)], dt_s=0.5)
+    >>> traj.steps, traj.duration_s, round(float(traj.heading_rad[-1]), 6)
+    (30, 15.0, 1.570796)
     """
     segments = [Segment(*s) if not isinstance(s, Segment) else s for s in segments]
     if not segments or dt_s <= 0 or any(s.straight_s < 0 or s.turn_s <= 0 for s in segments):
@@ -130,6 +193,39 @@ def rounded_square(*, start_heading_rad: float = 0.0, straight_s: float = 600.0,
     With the defaults (600 s, 10 s, four legs, left turns) the robot is back at its start
     heading after 2440 s.  Start near +-180 deg (e.g. 135 deg) and the heading crosses the
     wrap-around during the first turn.
+
+    Parameters
+    ----------
+    start_heading_rad : float
+        Heading at ``t = 0`` (rad).
+    straight_s : float
+        Duration of each straight run (s).
+    turn_s : float
+        Duration of each 90-degree turn (s).
+    legs : int
+        Number of straight-and-turn legs.
+    dt_s : float
+        Sample time (s); 0.2 s is the paper's 5 Hz.
+    speed_m_s : float
+        Forward speed (m/s).
+    left : bool
+        Turn left (counter-clockwise) or right.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    InputError
+        As :func:`from_segments`.
+
+    Examples
+    --------
+    >>> from cfdesign.sim import rounded_square
+    >>> traj = rounded_square()
+    >>> traj.duration_s, traj.steps
+    (2440.0, 12200)
     """
     turn = (np.pi / 2) if left else (-np.pi / 2)
     return from_segments([Segment(straight_s, turn, turn_s)] * legs, dt_s=dt_s,

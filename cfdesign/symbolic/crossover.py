@@ -22,7 +22,26 @@ __all__ = ["crossover_equations", "crossover_solution"]
 
 
 def crossover_equations(observer, omegas):
-    """``[|N_a(j w_i)|^2 - |N_b(j w_i)|^2]`` for the adjacent bands of a continuous observer."""
+    """The crossover equations ``|N_a(j w_i)|^2 - |N_b(j w_i)|^2`` of a continuous observer.
+
+    Parameters
+    ----------
+    observer : Observer
+        Continuous, with symbolic gains; bands taken in order of their sensors' derivative
+        order.
+    omegas : sequence
+        One crossover frequency (rad/s; sympy symbols or numbers) per pair of adjacent bands.
+
+    Returns
+    -------
+    list of sympy expression
+        Polynomials in the gains, zero at the crossover gains.
+
+    Raises
+    ------
+    StructureError
+        A discrete observer, or a count of frequencies other than the number of bands minus one.
+    """
     if observer.discrete:
         raise StructureError("crossover equations in closed form are for continuous observers; discrete "
                              "designs are solved numerically (cfdesign.crossover)")
@@ -42,10 +61,36 @@ def crossover_equations(observer, omegas):
 
 
 def crossover_solution(observer, omegas, damping=None) -> dict:
-    """``{gain symbol: expression}``: the positive solution of :func:`crossover_equations`.
+    """The positive solution of :func:`crossover_equations`.
 
-    ``omegas`` are sympy symbols (declared positive) or numbers, in rad/s.  ``damping``
-    (a symbol or number) adds the pole shape of a two-gain, one-crossover structure.
+    Parameters
+    ----------
+    observer : Observer
+        Continuous, with symbolic gains.
+    omegas : sequence
+        Crossover frequencies (rad/s): sympy symbols (declared positive) or numbers.
+    damping : sympy expression or float, optional
+        Adds the pole shape of a two-gain, one-crossover structure (cf2 order 2).
+
+    Returns
+    -------
+    dict
+        ``{gain symbol: expression}``.
+
+    Raises
+    ------
+    StructureError
+        No unique positive solution, or a damping for a structure other than two gains and
+        one crossover.
+
+    Examples
+    --------
+    >>> import sympy as sp
+    >>> import cfdesign
+    >>> from cfdesign.symbolic.crossover import crossover_solution
+    >>> w1, w2 = sp.symbols("w1 w2", positive=True)
+    >>> crossover_solution(cfdesign.cf3(), [w1, w2])
+    {k1: w2, k2: w1*w2}
     """
     gains = [observer.symbol(g) for g in observer.gains]
     eqs = crossover_equations(observer, omegas)

@@ -48,14 +48,37 @@ _BIASED_RATE = (sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([1, 0]))
 def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
     """Two-sensor complementary filter: an angle sensor and a rate sensor.
 
-    Derivation: ``docs/derivations.md``, section "Three-band filters".
-
     ``order=1``: state ``[angle]``, ``T_angle = k/(s + k)``, ``T_rate = s/(s + k)``.
     ``order=2`` (gyro-bias estimation): state ``[angle, rate correction]`` with
     ``F = [[0, 1], [0, 0]]``, ``B = [1, 0]^T``, ``K = [k1, k2]^T``;
     ``T_angle = (k1 s + k2)/(s^2 + k1 s + k2)``, ``T_rate = s^2/(s^2 + k1 s + k2)``.
-    The rate correction is minus the estimated gyro bias.  ``discrete=True`` gives the
-    ZOH model with sample time ``T`` and predictor-form gains.
+    The rate correction is minus the estimated gyro bias.  Derivation:
+    ``docs/derivations.md``, section "Three-band filters" (CF: two sensors).
+
+    Parameters
+    ----------
+    order : {1, 2}
+        1: angle only; 2: angle and a rate-correction (gyro bias) state.
+    discrete : bool
+        The exact zero-order-hold model in ``z`` (sample time ``T``, predictor-form gains)
+        instead of the continuous one.
+
+    Returns
+    -------
+    Observer
+        Sensors ``rate`` (input, rad/s) and ``angle`` (measurement, rad); gains ``k`` or
+        ``k1, k2``.
+
+    Raises
+    ------
+    StructureError
+        An order other than 1 or 2.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> cfdesign.cf2(order=2).bands
+    {'rate': s**2/(k1*s + k2 + s**2), 'angle': (k1*s + k2)/(k1*s + k2 + s**2)}
     """
     if order == 1:
         (Fc, Bc), K = integrator_chain(1), sp.Matrix([[sp.Symbol("k")]])
@@ -71,15 +94,37 @@ def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
 def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     """n-band complementary filter: sensors of the quantity and its first ``n - 1`` derivatives.
 
-    State ``[psi, psi', ..., psi^(n-2)]``; the ``(n-1)``-th derivative drives the chain,
-    the ``n - 1`` lower ones are measured (``H = I``).  The sparse gain (``full=False``,
-    the CF³ pattern of Carreira et al. eq. (13)) has the last row ``[k_{n-1}, ..., k1]`` and gives
+    State ``[psi, psi', ..., psi^(n-2)]``; the ``(n-1)``-th derivative drives the chain, the
+    ``n - 1`` lower ones are measured (``H = I``).  The sparse gain (``full=False``, the CF3
+    pattern of Carreira et al. eq. (13)) has the last row ``[k_(n-1), ..., k1]`` and gives
+    ``den = s^(n-1) + k1 s^(n-2) + ... + k_(n-1)``, ``T_j = k_(n-1-j) s^j / den`` for
+    ``j < n - 1`` and ``T_(n-1) = s^(n-1) / den`` (``docs/derivations.md``, "The n-band chain").
 
-        den = s^(n-1) + k1 s^(n-2) + ... + k_(n-1),
-        T_j = k_(n-1-j) s^j / den  (j < n - 1),   T_(n-1) = s^(n-1) / den.
+    Parameters
+    ----------
+    n : int
+        Number of bands, 2 to 7.  Sensor names: position, velocity, acceleration, jerk, snap,
+        crackle, pop (the highest is the input).
+    full : bool
+        A full gain ``k{i}{j}`` instead of the sparse pattern (``cfn(3, full=True)`` is the CKF3).
+    discrete : bool
+        The exact zero-order-hold model in ``z`` (sample time ``T``, predictor-form gains)
+        instead of the continuous one.
 
-    ``full=True`` uses a full gain ``k{i}{j}`` (``cfn(3, full=True)`` is the CKF³).
-    Sensor names: position, velocity, acceleration, jerk, snap, crackle, pop.
+    Returns
+    -------
+    Observer
+
+    Raises
+    ------
+    StructureError
+        ``n`` outside 2 to 7.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> list(cfdesign.cfn(4).bands)
+    ['jerk', 'acceleration', 'velocity', 'position']
     """
     if not isinstance(n, int) or isinstance(n, bool) or not 2 <= n <= len(DERIVATIVE_NAMES):
         raise StructureError(f"cfn needs 2 <= n <= {len(DERIVATIVE_NAMES)} bands, got {n!r}")
@@ -100,33 +145,54 @@ def chain(order: int, inputs, measurements, *, weights=None, bias: bool = False,
 
     State ``[psi, psi', ..., psi^(order-1)]`` (plus a rate-correction state ``c`` when
     ``bias``); the ``order``-th derivative drives the chain.  Every sensor of that order is an
-    input and the chain is driven by their weighted sum,
+    input and the chain is driven by their weighted sum, ``psi^(order) = sum_i w_i u_i (+ c)``
+    with ``sum_i w_i = 1``, so two gyros of a heading chain (``order = 1``) are averaged with
+    weights ``w_i`` (by default equal; the designer passes the minimum-variance weights
+    ``w_i ~ 1 / q_i`` of their white noise).  With exact readings every ``u_i`` equals the true
+    derivative, so the estimation error is autonomous and the bands sum to one for every gain
+    and every weights that sum to one (``docs/derivations.md``, "One observer"; "A general
+    kinematic chain").  ``bias`` adds the rate-correction state of :func:`cf2` order 2
+    (``c' = 0``, ``c`` minus the inputs' common bias).
 
-        psi^(order) = sum_i w_i u_i (+ c),   sum_i w_i = 1,
-
-    so two gyros of a heading chain (``order = 1``) are averaged with weights ``w_i`` (by default
-    equal; the designer passes the minimum-variance weights ``w_i ~ 1 / q_i`` of their white
-    noise).  With exact readings every ``u_i`` equals the true derivative, so the estimation error
-    is autonomous and the bands sum to one for every gain and every weights that sum to one
-    (``docs/derivations.md``, "One observer"; "A general kinematic chain").  ``bias`` adds the
-    rate-correction state of :func:`cf2` order 2 (``c' = 0``, ``c`` minus the inputs' common bias).
-
-    Sensors of lower order are measurements: row ``j`` of ``H`` picks the state of the sensor's
-    order (two compasses give two equal rows).  The gain is full (``k{i}{j}``), so the Kalman
-    gain fits it.
+    Sensors of lower order are measurements: row ``j`` of ``H`` picks the state of the
+    sensor's order (two compasses give two equal rows).  The gain is full (``k{i}{j}``), so
+    the Kalman gain fits it.
 
     Parameters
     ----------
     order : int
-        Derivative order of the input sensors (1: rate inputs to an angle, 2: accelerations).
+        Derivative order of the input sensors (1: rate inputs to an angle, 2: accelerations
+        to a position), 1 to 6.
     inputs : sequence of str
         Input sensor names (order ``order``), at least one.
     measurements : sequence of (str, int)
         ``(name, derivative order < order)``, at least one.
     weights : sequence of numbers, optional
-        One per input, summing to one (taken exactly); default equal weights.
-    bias, discrete : bool
+        One per input, positive, summing to one (taken exactly); default equal weights.
+    bias : bool
+        Add the rate-correction (input bias) state.
+    discrete : bool
+        The exact zero-order-hold model in ``z`` (sample time ``T``, predictor-form gains)
+        instead of the continuous one.
     name : str
+        Label of the observer.
+
+    Returns
+    -------
+    Observer
+
+    Raises
+    ------
+    StructureError
+        An order out of range, no input or no measurement, a measurement of order not below
+        the inputs', weights that are not positive or do not sum to one.
+
+    Examples
+    --------
+    >>> from cfdesign.symbolic.filters import chain
+    >>> obs = chain(1, ["gyro_a", "gyro_b"], [("compass", 0)], bias=True)
+    >>> obs.gains, obs.proof().holds
+    (('k11', 'k21'), True)
     """
     if isinstance(order, bool) or not isinstance(order, int) or not 1 <= order <= len(DERIVATIVE_NAMES) - 1:
         raise StructureError(f"chain order must be an integer from 1 to {len(DERIVATIVE_NAMES) - 1}, got {order!r}")
@@ -164,10 +230,27 @@ def chain(order: int, inputs, measurements, *, weights=None, bias: bool = False,
 
 
 def cf3(*, discrete: bool = False) -> Observer:
-    """CF³ of Carreira et al. eqs. (4)-(13): sparse gain ``K = [[0, 0], [k2, k1]]``.
+    """CF3 of Carreira et al. eqs. (4)-(13): sparse gain ``K = [[0, 0], [k2, k1]]``.
 
     ``T_acceleration = s^2/den`` (high-pass), ``T_velocity = k1 s/den`` (band-pass),
     ``T_position = k2/den`` (low-pass), ``den = s^2 + k1 s + k2``.
+
+    Parameters
+    ----------
+    discrete : bool
+        The exact zero-order-hold model in ``z`` (sample time ``T``, predictor-form gains)
+        instead of the continuous one.
+
+    Returns
+    -------
+    Observer
+        Sensors ``acceleration`` (input), ``velocity`` and ``position`` (measurements).
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> cfdesign.cf3().bands["velocity"]
+    k1*s/(k1*s + k2 + s**2)
     """
     obs = cfn(3, discrete=discrete)
     obs.name = "cf3"
@@ -175,14 +258,18 @@ def cf3(*, discrete: bool = False) -> Observer:
 
 
 def ckf3() -> Observer:
-    """CKF³ of Carreira et al. eqs. (10)-(14) with the full gain ``[[k11, k12], [k21, k22]]``.
+    """CKF3 of Carreira et al. eqs. (10)-(14) with the full gain ``[[k11, k12], [k21, k22]]``.
 
     Derived from the model, not the printed eqs. (15)-(17) (``docs/derivations.md``,
-    "Three-band filters"):
+    "Three-band filters"; :func:`ckf3_printed` gives those):
+    ``den = s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21``,
+    ``T_acc = (1 - k12) s^2 / den``, ``T_vel = (k12 s + k22) s / den``,
+    ``T_pos = (k11 s + k11 k22 + k21 - k12 k21) / den``.
 
-        den   = s^2 + (k11 + k22) s + k11 k22 + k21 - k12 k21
-        T_acc = (1 - k12) s^2 / den,  T_vel = (k12 s + k22) s / den,
-        T_pos = (k11 s + k11 k22 + k21 - k12 k21) / den.
+    Returns
+    -------
+    Observer
+        Continuous; sensors ``acceleration`` (input), ``velocity`` and ``position``.
     """
     obs = cfn(3, full=True)
     obs.name = "ckf3"
@@ -190,16 +277,27 @@ def ckf3() -> Observer:
 
 
 def dckf3() -> Observer:
-    """DCKF³ of Carreira et al. eqs. (25)-(27): gyro rate input, compass and odometry angles.
+    """DCKF3 of Carreira et al. eqs. (25)-(27): gyro rate input, compass and odometry angles.
 
-    ``F = [[1, T], [0, 1]]``, ``B = [T, 0]^T``, ``H = [[1, 0], [1, 0]]``, full predictor
-    gain ``K = [[k11, k12], [k21, k22]]``; the second state is a rate (bias) correction.
-    Bands (``docs/derivations.md``, "Three-band filters"),
-    ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21 + T k22``
-    (eq. (32) times ``z^2``):
+    ``F = [[1, T], [0, 1]]``, ``B = [T, 0]^T``, ``H = [[1, 0], [1, 0]]``, full predictor gain
+    ``K = [[k11, k12], [k21, k22]]``; the second state is a rate (bias) correction.  Bands
+    (``docs/derivations.md``, "Three-band filters"), with
+    ``den = z^2 + (k11 + k12 - 2) z + 1 - k11 - k12 + T k21 + T k22`` (eq. (32) times ``z^2``):
+    ``T_gyro = (z - 1)^2/den``, ``T_compass = (k11 (z - 1) + T k21)/den``,
+    ``T_odometry = (k12 (z - 1) + T k22)/den``.
 
-        T_gyro = (z - 1)^2/den,  T_compass = (k11 (z - 1) + T k21)/den,
-        T_odometry = (k12 (z - 1) + T k22)/den.
+    Returns
+    -------
+    Observer
+        Discrete, sample time ``T`` symbolic; sensors ``gyro`` (input, rad/s), ``compass``
+        and ``odometry`` (measurements, rad).
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> f = cfdesign.dckf3()
+    >>> f.gains, f.bands["gyro"]
+    (('k11', 'k12', 'k21', 'k22'), (z - 1)**2/(T*k21 + T*k22 - k11 - k12 + z**2 + z*(k11 + k12 - 2) + 1))
     """
     K = sp.Matrix(2, 2, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
     sensors = [Sensor.input("gyro", "rate", bias_state=1), Sensor.measurement("compass", "angle", 0),
@@ -211,10 +309,20 @@ def position(*, discrete: bool = True) -> Observer:
     """Position filter of Vasconcelos et al. Sec. 3, one axis: state ``[p, v, b_a]``.
 
     Continuous model ``p' = v``, ``v' = u - b_a``, ``b_a' = 0`` with ``u`` the accelerometer
-    (Earth frame, gravity removed) and ``b_a`` its bias; GPS measures ``p``.  Its ZOH model is
-    ``F = [[1, T, -T^2/2], [0, 1, -T], [0, 0, 1]]``, ``B = [T^2/2, T, 0]^T``, ``H = [1, 0, 0]``,
-    gain ``K = [k1, k2, k3]^T`` (one per phase when multirate; ``docs/derivations.md``,
-    "Multirate gains").
+    (Earth frame ENU, gravity removed, m/s^2) and ``b_a`` its bias; GPS measures ``p`` (m).  Its
+    ZOH model is ``F = [[1, T, -T^2/2], [0, 1, -T], [0, 0, 1]]``, ``B = [T^2/2, T, 0]^T``,
+    ``H = [1, 0, 0]``, gain ``K = [k1, k2, k3]^T`` (one per phase when multirate;
+    ``docs/derivations.md``, "Multirate gains").
+
+    Parameters
+    ----------
+    discrete : bool
+        The ZOH model (default) or the continuous one.
+
+    Returns
+    -------
+    Observer
+        Sensors ``accelerometer`` (input) and ``gps`` (measurement).
     """
     Fc = sp.Matrix([[0, 1, 0], [0, 0, -1], [0, 0, 0]])
     sensors = [Sensor.input("accelerometer", "acceleration", bias_state=2), Sensor.measurement("gps", "position", 0)]
@@ -225,8 +333,13 @@ def position(*, discrete: bool = True) -> Observer:
 def ckf3_printed() -> dict:
     """Carreira et al. eqs. (15)-(17) as printed, turned into bands ``T_1 = F_1 s^2`` etc. (eq. (19)).
 
-    These are NOT the bands of the model of eqs. (10)-(14) (see :func:`ckf3`); they sum to
-    one too and are offered only for comparison with the paper.
+    These are NOT the bands of the model of eqs. (10)-(14) (see :func:`ckf3`); they sum to one
+    too and are offered only for comparison with the paper.
+
+    Returns
+    -------
+    dict
+        ``{'acceleration', 'velocity', 'position'}`` to sympy expressions in ``s``.
     """
     k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
     den = (1 + k12) * s**2 + (k11 + k22) * s + k21
@@ -235,7 +348,13 @@ def ckf3_printed() -> dict:
 
 
 def eq32_denominator():
-    """``den(z)`` exactly as printed in Carreira et al. eq. (32), in powers of ``z^-1``."""
+    """The denominator exactly as printed in Carreira et al. eq. (32), in powers of ``z^-1``.
+
+    Returns
+    -------
+    sympy expression
+        ``1 + (k11 + k12 - 2) z^-1 + (1 - k11 - k12 + T k21 + T k22) z^-2``.
+    """
     k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
     return (1 - k12 - k11 + T * k21 + T * k22) * z**-2 + (k11 + k12 - 2) * z**-1 + 1
 
@@ -243,8 +362,14 @@ def eq32_denominator():
 def dckf3_printed() -> dict:
     """Carreira et al. eqs. (29)-(31) as printed, keyed by the port of :func:`dckf3` each belongs to.
 
-    Keys: ``'gyro'`` is eq. (29) (printed as psi_hat/psi), ``'odometry'`` is eq. (30),
-    ``'compass'`` is eq. (31) (printed as psi_hat/omega) times ``(1 - z^-1)/(T z^-1)``.
+    ``'gyro'`` is eq. (29) (printed as psi_hat/psi), ``'odometry'`` is eq. (30), ``'compass'``
+    is eq. (31) (printed as psi_hat/omega) times ``(1 - z^-1)/(T z^-1)``: the paper's labels fit
+    the sensor arrangement of its Fig. 6, not the ports of eqs. (25)-(27).
+
+    Returns
+    -------
+    dict
+        ``{'gyro', 'compass', 'odometry'}`` to sympy expressions in ``z``.
     """
     k11, k12, k21, k22 = sp.symbols("k11 k12 k21 k22")
     den = eq32_denominator()
@@ -264,9 +389,30 @@ STRUCTURE_OPTIONS = {"cf2": ("order", "discrete"), "cf3": ("discrete",), "ckf3":
 
 
 def structure(name: str, **options) -> Observer:
-    """Build a named structure with its options (None means the default).
+    """Build a named structure with its options.
 
-    ``order``: cf2 (1 or 2); ``bands`` and ``full``: cfn; ``discrete``: cf2, cf3, cfn, position.
+    Parameters
+    ----------
+    name : str
+        A key of :data:`STRUCTURES`: ``cf2``, ``cf3``, ``ckf3``, ``dckf3``, ``cfn``, ``position``.
+    **options
+        ``order`` (cf2: 1 or 2); ``bands`` and ``full`` (cfn); ``discrete`` (cf2, cf3, cfn,
+        position).  None means the default.
+
+    Returns
+    -------
+    Observer
+
+    Raises
+    ------
+    StructureError
+        An unknown name, an option that does not apply, cfn without ``bands``.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> cfdesign.structure("cf2", order=2, discrete=True).discrete
+    True
     """
     if name not in STRUCTURES:
         raise StructureError(f"unknown structure {name!r}; choose one of {', '.join(STRUCTURES)}")

@@ -96,6 +96,18 @@ class Sensor:
     bias_state : int, optional
         Input sensors only: the state that estimates this sensor's bias (its correction),
         where the design puts the bias random walk.
+
+    Raises
+    ------
+    StructureError
+        A name that is not an identifier, an unknown role or order, a negative index, a bias
+        state on a measurement.
+
+    Examples
+    --------
+    >>> from cfdesign import Sensor
+    >>> Sensor.measurement("compass", "angle", 0)
+    Sensor(name='compass', order=0, role='measurement', index=0, relation=None, bias_state=None)
     """
 
     name: str
@@ -118,12 +130,54 @@ class Sensor:
 
     @classmethod
     def input(cls, name: str, measures, column: int = 0, relation=None, bias_state=None) -> Sensor:
-        """A sensor whose reading is the model input (column ``column`` of ``B``)."""
+        """A sensor whose reading is the model input.
+
+        Parameters
+        ----------
+        name : str
+            Identifier, unique within the observer.
+        measures : int or str
+            Derivative order of the common quantity it reads, or its name (``'rate'``,
+            ``'acceleration'``, ...: :data:`QUANTITY_ORDERS`).
+        column : int
+            Column of ``B`` it drives.
+        relation : sympy expression, optional
+            Explicit transfer ``D(var)`` with ``reading = D * quantity``.
+        bias_state : int, optional
+            The state that estimates this sensor's bias.
+
+        Returns
+        -------
+        Sensor
+
+        Examples
+        --------
+        >>> from cfdesign import Sensor
+        >>> Sensor.input("gyro", "rate").order
+        1
+        """
         return cls(name, measures, "input", column, relation, bias_state)
 
     @classmethod
     def measurement(cls, name: str, measures, row: int, relation=None) -> Sensor:
-        """A sensor compared with row ``row`` of ``H x``."""
+        """A sensor compared with a row of ``H x``.
+
+        Parameters
+        ----------
+        name : str
+            Identifier, unique within the observer.
+        measures : int or str
+            Derivative order of the common quantity it reads, or its name (``'angle'``,
+            ``'velocity'``, ...).
+        row : int
+            Row of ``H``.
+        relation : sympy expression, optional
+            Explicit transfer ``D(var)`` with ``reading = D * quantity``.
+
+        Returns
+        -------
+        Sensor
+        """
         return cls(name, measures, "measurement", row, relation)
 
 
@@ -133,11 +187,32 @@ def discrete_relation(order: int, chain_order: int, sample_time=T):
     The chain ``psi^(chain_order) = w`` with ``w`` held constant over each sample time
     (zero-order hold, the assumption of Carreira et al. Sec. IV) gives exact discrete transfers
     ``G_j(z)`` from ``w`` to the sampled ``j``-th derivative; the relation of a sensor of
-    order ``j`` is ``D_j = G_j / G_0``.  For ``chain_order = 1`` this is ``(z - 1)/T``
-    (the differentiator implied by ``x[k+1] = x[k] + T u[k]``); for
-    ``chain_order = 2`` the rate relation is ``2 (z - 1) / (T (z + 1))`` and the
-    acceleration relation ``2 (z - 1)**2 / (T**2 (z + 1))`` (``docs/derivations.md``, section
-    "Relations").
+    order ``j`` is ``D_j = G_j / G_0`` (``docs/derivations.md``, section "Relations").
+
+    Parameters
+    ----------
+    order : int
+        Derivative order the sensor reads (0 for the quantity itself).
+    chain_order : int
+        Order of the chain (the highest derivative any sensor reads).
+    sample_time : sympy symbol or number
+        Sample time ``T`` (s); symbolic by default.
+
+    Returns
+    -------
+    sympy expression
+        ``D(z)``.
+
+    Raises
+    ------
+    StructureError
+        ``order`` outside ``0 .. chain_order``.
+
+    Examples
+    --------
+    >>> from cfdesign.symbolic import discrete_relation
+    >>> discrete_relation(1, 1), discrete_relation(1, 2)
+    ((z - 1)/T, 2*(z - 1)/(T*(z + 1)))
     """
     if not 0 <= order <= chain_order:
         raise StructureError(f"relation of order {order} needs 0 <= order <= chain order {chain_order}")
@@ -149,7 +224,20 @@ def discrete_relation(order: int, chain_order: int, sample_time=T):
 
 
 def integrator_chain(m: int):
-    """Continuous ``(F, B)`` of ``m`` integrators in a row, driven by the ``m``-th derivative."""
+    """Continuous model of ``m`` integrators in a row, driven by the ``m``-th derivative.
+
+    Parameters
+    ----------
+    m : int
+        Number of states.
+
+    Returns
+    -------
+    F : sympy.Matrix, shape (m, m)
+        Ones on the superdiagonal.
+    B : sympy.Matrix, shape (m, 1)
+        One in the last row.
+    """
     F = sp.Matrix(m, m, lambda i, j: 1 if j == i + 1 else 0)
     B = sp.Matrix(m, 1, lambda i, _: 1 if i == m - 1 else 0)
     return F, B
@@ -159,6 +247,18 @@ def zoh(Fc, Bc, sample_time=T):
     """Exact zero-order-hold discretisation: ``F = e^{Fc T}``, ``B = int_0^T e^{Fc t} dt Bc``.
 
     For the kinematic chains here ``Fc`` is nilpotent, so both are polynomials in ``T``.
+
+    Parameters
+    ----------
+    Fc, Bc : sympy.Matrix
+        Continuous model, shapes (n, n) and (n, p).
+    sample_time : sympy symbol or number
+        Sample time ``T`` (s); symbolic by default.
+
+    Returns
+    -------
+    F, B : sympy.Matrix
+        The discrete model.
     """
     tau = sp.Dummy("tau", nonnegative=True)
     n = Fc.shape[0]
@@ -171,7 +271,26 @@ def zoh(Fc, Bc, sample_time=T):
 
 
 def zoh_chain(m: int, sample_time=T):
-    """ZOH model of an ``m``-state chain: ``F[i, j] = T**(j-i)/(j-i)!``, ``B[i] = T**(m-i)/(m-i)!``."""
+    """ZOH model of an ``m``-state chain: ``F[i, j] = T**(j-i)/(j-i)!``, ``B[i] = T**(m-i)/(m-i)!``.
+
+    Parameters
+    ----------
+    m : int
+        Number of states.
+    sample_time : sympy symbol or number
+        Sample time ``T`` (s); symbolic by default.
+
+    Returns
+    -------
+    F, B : sympy.Matrix
+
+    Examples
+    --------
+    >>> from cfdesign.symbolic import zoh_chain
+    >>> F, B = zoh_chain(2)
+    >>> F.tolist(), B.tolist()
+    ([[1, T], [0, 1]], [[T**2/2], [T]])
+    """
     return zoh(*integrator_chain(m), sample_time)
 
 
@@ -253,9 +372,34 @@ class Observer:
         ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
     name : str
         Label used in reports.
+    output : array_like, optional
+        Row ``C`` (1 x n) that picks the estimate out of the state; default ``[1, 0, ...]``.
     continuous : (Fc, Bc), optional
         Discrete observers built by ZOH from a continuous chain keep it here; the design
         uses it for exact (Van Loan) noise discretisation.  Continuous observers: ``(F, B)``.
+
+    Raises
+    ------
+    StructureError
+        Shapes that do not fit, an unknown domain or gain form, a sample time for a
+        continuous observer, sensors that do not cover every column of ``B`` and row of
+        ``H`` exactly once.
+    GainError
+        A sample time that is not positive.
+
+    Examples
+    --------
+    A two-band filter written by hand: a gyro rate drives the angle, a compass measures it.
+
+    >>> import sympy as sp
+    >>> from cfdesign import Observer, Sensor
+    >>> k = sp.Symbol("k")
+    >>> obs = Observer([[0]], [[1]], [[1]], [[k]],
+    ...                [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)])
+    >>> obs.bands
+    {'gyro': s/(k + s), 'compass': k/(k + s)}
+    >>> obs.proof().holds
+    True
 
     Notes
     -----
@@ -302,15 +446,31 @@ class Observer:
         """An observer of the model of a ``control.StateSpace``: ``F = A``, ``B``, ``H = C``.
 
         Continuous systems (``dt = 0``) give an ``s`` observer; discrete ones a ``z`` observer
-        with ``sample_time = dt`` (a number; ``dt = True``, unspecified, is refused).  ``D``
-        must be zero (the engine's measurements read the state only).  ``sensors`` name every
-        input (column of ``B``) and output (row of ``C``), as :class:`Sensor` objects; ``K``
-        is the gain (symbols or numbers, ``n x outputs``).
+        with ``sample_time = dt``.  ``D`` must be zero (the engine's measurements read the
+        state only).
+
+        Parameters
+        ----------
+        sys : control.StateSpace
+            The model; its entries are taken as exact numbers.
+        K : array_like
+            The gain (symbols or numbers), shape (n, outputs).
+        sensors : sequence of Sensor
+            One per input (column of ``B``) and per output (row of ``C``).
+        gain_form : {'predictor', 'filter'}
+            Discrete systems only.
+        name : str, optional
+            Label (default: the system's name).
+
+        Returns
+        -------
+        Observer
 
         Raises
         ------
         StructureError
-            ``sys`` is not a state-space system, has a feedthrough, or an unspecified sample time.
+            ``sys`` is not a state-space system, has a feedthrough, or an unspecified sample time
+            (``dt=True``).
         """
         import control
 
@@ -346,10 +506,12 @@ class Observer:
 
     @property
     def n_states(self) -> int:
+        """Number of states ``n``."""
         return self.F.shape[0]
 
     @property
     def discrete(self) -> bool:
+        """True for a discrete (``z``) observer."""
         return self.domain == "z"
 
     @cached_property
@@ -378,7 +540,22 @@ class Observer:
         return tuple(p.name for p in self.parameters if p is not self._sample_time_symbol)
 
     def symbol(self, name: str) -> sp.Symbol:
-        """The sympy symbol of parameter ``name`` (a gain or ``'T'``)."""
+        """The sympy symbol of one parameter.
+
+        Parameters
+        ----------
+        name : str
+            A gain name or ``'T'``.
+
+        Returns
+        -------
+        sympy.Symbol
+
+        Raises
+        ------
+        GainError
+            No parameter of that name (the message lists them).
+        """
         for p in self.parameters:
             if p.name == name:
                 return p
@@ -386,7 +563,24 @@ class Observer:
         raise GainError(f"{self.name} has no parameter {name!r} (parameters: {known})")
 
     def relation(self, sensor: Sensor):
-        """``D(v)`` with ``reading = D * quantity`` for ``sensor`` (see :class:`Sensor`)."""
+        """The relation ``D(v)`` with ``reading = D * quantity`` of one sensor.
+
+        ``v**order`` when continuous, :func:`discrete_relation` when discrete, or the sensor's
+        own ``relation``.
+
+        Parameters
+        ----------
+        sensor : Sensor
+
+        Returns
+        -------
+        sympy expression
+
+        Raises
+        ------
+        StructureError
+            The sensor's relation is not a sympy expression (text is never evaluated).
+        """
         if sensor.relation is not None:
             if not isinstance(sensor.relation, sp.Basic):
                 raise StructureError(f"sensor {sensor.name!r}: relation must be a sympy expression "
@@ -444,7 +638,23 @@ class Observer:
         return out
 
     def band_fraction(self, name: str):
-        """``(numerator, denominator)`` of one band as expanded polynomials in the variable."""
+        """One band as a numerator and denominator.
+
+        Parameters
+        ----------
+        name : str
+            Sensor name.
+
+        Returns
+        -------
+        num, den : sympy expression
+            Expanded polynomials in the variable.
+
+        Raises
+        ------
+        StructureError
+            No sensor of that name.
+        """
         num, den = sp.fraction(sp.cancel(self.bands[self._band_name(name)]))
         return sp.expand(num), sp.expand(den)
 
@@ -456,9 +666,19 @@ class Observer:
     def proof(self):
         """Exact complementarity proof: ``sum_i T_i(v) - 1`` reduced to canonical form.
 
-        ``sympy.cancel`` brings a rational function to the unique form ``p/q`` with
-        coprime expanded polynomials, so the residual is the zero expression exactly when
-        the identity holds for every value of ``v`` and of the symbolic gains.
+        ``sympy.cancel`` brings a rational function to the unique form ``p/q`` with coprime
+        expanded polynomials, so the residual is the zero expression exactly when the identity
+        holds for every value of ``v`` and of the symbolic gains.
+
+        Returns
+        -------
+        Proof
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> cfdesign.ckf3().proof().holds
+        True
         """
         from .proof import prove
 
@@ -466,20 +686,70 @@ class Observer:
 
     # ------------------------------------------------------------------ poles and zeros
     def poles(self) -> list:
-        """Roots of the characteristic polynomial, repeated by multiplicity."""
+        """Roots of the characteristic polynomial ``det(vI - A_cl)``.
+
+        Returns
+        -------
+        list of sympy expression
+            Repeated by multiplicity; symbolic when gains are.
+
+        Raises
+        ------
+        ProofError
+            The roots cannot be found in closed form.
+        """
         return _roots(self.characteristic_polynomial, self.variable, f"poles of {self.name}")
 
     def zeros(self) -> dict:
-        """``{sensor name: roots of its band numerator}``, repeated by multiplicity."""
+        """Roots of every band's numerator.
+
+        Returns
+        -------
+        dict
+            ``{sensor: list of roots}``, repeated by multiplicity.
+
+        Raises
+        ------
+        ProofError
+            The roots cannot be found in closed form.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> cfdesign.cf2().zeros()
+        {'rate': [0], 'angle': []}
+        """
         return {name: _roots(self.band_fraction(name)[0], self.variable, f"zeros of band {name!r}")
                 for name in self.bands}
 
     # ------------------------------------------------------------------ numbers
     def subs(self, values: dict | None = None, /, **kwargs) -> Observer:
-        """A copy with numbers for some or all parameters (gains by name, ``T`` for the sample time).
+        """A copy with numbers for some or all parameters.
 
         Values are taken exactly: ``0.1`` becomes ``1/10`` so that a proof on the result is
-        still exact.  Unknown names and non-numbers raise :class:`GainError`.
+        still exact.
+
+        Parameters
+        ----------
+        values : dict, optional
+            ``{name: number}``: gains by name, ``'T'`` for the sample time (s).
+        **kwargs : float
+            More ``name=number`` pairs.
+
+        Returns
+        -------
+        Observer
+
+        Raises
+        ------
+        GainError
+            An unknown name, a value that is not a number, a sample time that is not positive.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> cfdesign.cf2().subs(k=0.5).bands
+        {'rate': s/(s + 1/2), 'angle': 1/(2*(s + 1/2))}
         """
         values = {**(values or {}), **kwargs}
         params = {p.name: p for p in self.parameters}
@@ -500,7 +770,24 @@ class Observer:
                              sample_time=sample_time, output=self.output.subs(mapping))
 
     def renamed(self, names: dict, name: str | None = None) -> Observer:
-        """The same observer with sensors renamed ``{old: new}`` (e.g. a physical sensor in a port)."""
+        """The same observer with sensors renamed (e.g. a physical sensor in a port).
+
+        Parameters
+        ----------
+        names : dict
+            ``{old name: new name}``.
+        name : str, optional
+            New label of the observer.
+
+        Returns
+        -------
+        Observer
+
+        Raises
+        ------
+        StructureError
+            An old name that is not a sensor of the observer.
+        """
         unknown = sorted(set(names) - {x.name for x in self.sensors})
         if unknown:
             raise StructureError(f"{self.name} has no sensor(s) {', '.join(unknown)}")
@@ -520,7 +807,31 @@ class Observer:
                         continuous=self.continuous if self.discrete else None)
 
     def with_gains(self, values: dict | None = None, /, **kwargs) -> Observer:
-        """Like :meth:`subs` but every parameter must be given: the result is fully numeric."""
+        """Like :meth:`subs`, but every parameter must be given: the result is fully numeric.
+
+        Parameters
+        ----------
+        values : dict, optional
+            ``{name: number}`` for every gain (and ``'T'`` when the sample time is symbolic).
+        **kwargs : float
+            More ``name=number`` pairs.
+
+        Returns
+        -------
+        Observer
+
+        Raises
+        ------
+        GainError
+            A parameter is missing, unknown or not a number.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> g = cfdesign.cf2().with_gains(k=2)
+        >>> g.bands, g.poles()
+        ({'rate': s/(s + 2), 'angle': 2/(s + 2)}, [-2])
+        """
         values = {**(values or {}), **kwargs}
         missing = [p.name for p in self.parameters if p.name not in values]
         if missing:
@@ -528,12 +839,34 @@ class Observer:
         return self.subs(values)
 
     def gain_pattern(self) -> list:
-        """``K`` as nested lists: the gain's name where an entry is a free symbol, else a float."""
+        """The gain matrix as nested lists.
+
+        Returns
+        -------
+        list of list
+            The gain's name (str) where an entry is a free symbol, else its value (float).
+        """
         return [[e.name if isinstance(e, sp.Symbol) else float(e) for e in self.K.row(i)]
                 for i in range(self.K.rows)]
 
     def numeric_model(self, sample_time=None) -> dict:
-        """Float arrays ``F, B, H`` (sample time substituted) and the continuous ``Fc, Bc``."""
+        """The model as float arrays.
+
+        Parameters
+        ----------
+        sample_time : float, optional
+            Sample time (s) substituted when it is symbolic (discrete observers).
+
+        Returns
+        -------
+        dict
+            ``F, B, H`` and, when known, the continuous ``Fc, Bc``.
+
+        Raises
+        ------
+        GainError
+            A discrete observer without a sample time, or a model with free parameters.
+        """
         mapping = {}
         if self.discrete and isinstance(self.sample_time, sp.Symbol):
             if sample_time is None:
@@ -548,7 +881,21 @@ class Observer:
             raise GainError(f"{self.name}: the model still has free parameters") from None
 
     def with_gain_matrix(self, K, gain_form: str | None = None, sample_time=None) -> Observer:
-        """A numeric copy with gain matrix ``K`` (numbers), optionally another discrete gain form."""
+        """A numeric copy with a given gain matrix.
+
+        Parameters
+        ----------
+        K : array_like
+            Gain, shape (n, m), numbers (taken exactly).
+        gain_form : {'predictor', 'filter'}, optional
+            Another discrete gain form for ``K``.
+        sample_time : float, optional
+            Sample time (s) substituted when it is symbolic.
+
+        Returns
+        -------
+        Observer
+        """
         obs = self
         if sample_time is not None and self._sample_time_symbol is not None:
             obs = self.subs({self._sample_time_symbol.name: sample_time})
@@ -557,17 +904,40 @@ class Observer:
 
     @property
     def is_numeric(self) -> bool:
+        """True when no parameter is left symbolic."""
         return not self.parameters
 
     def band_coefficients(self) -> dict:
-        """``{name: (num, den)}`` as float arrays, highest power first (numeric observers only)."""
+        """Every band as float coefficient arrays.
+
+        Returns
+        -------
+        dict
+            ``{sensor: (num, den)}``, highest power first.
+
+        Raises
+        ------
+        GainError
+            The observer still has symbolic parameters.
+        """
         if not self.is_numeric:
             raise GainError(f"{self.name} still has symbolic parameters "
                             f"{', '.join(p.name for p in self.parameters)}: substitute numbers first")
         return {name: _coefficients(self.bands[name], self.variable) for name in self.bands}
 
     def sum_coefficients(self) -> tuple:
-        """``(num, den)`` float arrays of the exact sum of the bands (``([1.], [1.])`` if complementary)."""
+        """The exact sum of the bands as float coefficient arrays.
+
+        Returns
+        -------
+        num, den : ndarray
+            ``([1.], [1.])`` when the bands are complementary.
+
+        Raises
+        ------
+        GainError
+            The observer still has symbolic parameters.
+        """
         self.band_coefficients()  # same numeric-only check
         return _coefficients(self.proof().total, self.variable)
 

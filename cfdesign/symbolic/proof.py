@@ -50,13 +50,31 @@ class Proof:
 
     @property
     def verdict(self) -> str:
+        """One line: ``HOLDS: the bands sum to 1 identically in s, k1, ...`` or ``FAILS: ...``."""
         free = ", ".join(map(str, (self.variable, *self.parameters)))
         if self.holds:
             return f"HOLDS: the bands sum to 1 identically in {free}"
         return f"FAILS: the bands sum to {self.total}, not 1"
 
     def text(self) -> str:
-        """Plain-text rendering: every band, the sum, the residual and the verdict."""
+        """Plain-text rendering: every band, the sum, the residual and the verdict.
+
+        Returns
+        -------
+        str
+            Several lines, as ``cfdesign prove`` prints them.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> print(cfdesign.cf2().proof().text())
+        Complementarity proof for cf2 (order 1) (variable s)
+          T_rate(s)  = s/(k + s)
+          T_angle(s) = k/(k + s)
+          sum        = 1
+          sum - 1    = 0
+          HOLDS: the bands sum to 1 identically in s, k
+        """
         v = self.variable
         width = max(len(k) for k in self.bands) + len(f"T_({v})")
         lines = [f"Complementarity proof for {self.structure} (variable {v})"]
@@ -67,7 +85,13 @@ class Proof:
         return "\n".join(lines)
 
     def latex(self) -> str:
-        """LaTeX (``aligned``) rendering of the bands, their sum and the residual."""
+        """LaTeX rendering of the bands, their sum and the residual.
+
+        Returns
+        -------
+        str
+            An ``aligned`` environment (without the surrounding ``$$``).
+        """
         v = sp.latex(self.variable)
         rows = [rf"T_{{\mathrm{{{k}}}}}({v}) &= {sp.latex(e)}" for k, e in self.bands.items()]
         terms = " + ".join(rf"T_{{\mathrm{{{k}}}}}" for k in self.bands)
@@ -75,7 +99,14 @@ class Proof:
         return r"\begin{aligned}" + r" \\ ".join(rows) + r"\end{aligned}"
 
     def to_dict(self) -> dict:
-        """JSON-ready form: ``variable``, ``bands`` (strings), ``sum``, ``residual``, ``holds``."""
+        """JSON-ready form of the proof (``cfdesign prove --json``).
+
+        Returns
+        -------
+        dict
+            ``structure``, ``variable``, ``bands`` (``{sensor: str}``), ``sum``, ``residual``
+            (strings) and ``holds`` (bool).
+        """
         return {
             "structure": self.structure,
             "variable": str(self.variable),
@@ -93,7 +124,30 @@ class Proof:
 
 
 def prove(observer) -> Proof:
-    """Prove (or refute) ``sum_i T_i = 1`` for ``observer`` exactly (``docs/derivations.md``, "One observer")."""
+    """Prove (or refute) exactly that the bands of an observer sum to one.
+
+    Continuous (Carreira et al. eq. (1)): ``sum_i T_i(s) = 1``; discrete (Carreira et al.
+    eq. (34)): ``sum_i T_i(z) = 1``.  ``sum_i T_i - 1`` is reduced with ``sympy.cancel`` to
+    its canonical ``p/q`` form; the identity holds for every value of the variable and of
+    every symbolic gain exactly when ``p`` is the zero polynomial (``docs/derivations.md``,
+    "One observer").
+
+    Parameters
+    ----------
+    observer : Observer
+        Symbolic or numeric (numbers are exact rationals).
+
+    Returns
+    -------
+    Proof
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> proof = cfdesign.prove(cfdesign.dckf3())
+    >>> proof.holds, proof.residual
+    (True, 0)
+    """
     bands = observer.bands
     total = sp.cancel(sp.together(sum(bands.values())))
     residual = sp.cancel(sp.together(total - 1))
