@@ -428,9 +428,10 @@ class AttitudeFilter:
         True (9D): the heading follows the magnetometer; False (6D): the heading is the gyro's
         integral from the initial heading, held at rest.
     initial : array_like (4,), optional
-        Initial quaternion ``[w, x, y, z]`` (body -> ENU); default: the tilt of the first
-        usable specific force (heading zero; in 9D the first fields set the heading through the
-        heading channel's start-up).
+        Initial quaternion ``[w, x, y, z]`` (body -> ENU), its heading taken as known as a running
+        filter knows it (the heading table's DARE variance); default: the tilt of the first
+        usable specific force, heading zero (in 9D the first fields then set the heading: the
+        heading channel starts from a uniform prior).
     tables : dict or pair, optional
         A user's own ``tilt`` and/or ``heading`` channel designs (:func:`design_attitude`).
 
@@ -472,6 +473,9 @@ class AttitudeFilter:
         for name in ("rest", "tilt", "heading"):
             i = _INDEX[name[0] + "00"]
             s[i:i + 3] = self.design.priors[name]
+        if self._initial is not None:
+            # a given heading is known as well as a running filter knows it (the heading table's DARE variance)
+            s[_INDEX["h00"]] = float(self.design.tables["heading"].P[0][0][0])
         self._s = s
 
     def state(self) -> dict:
