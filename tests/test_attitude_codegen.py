@@ -53,7 +53,8 @@ def readings(n=8000, rate=100.0, seed=3):
                                       1.0 * np.sin(0.7 * t + 1.1)])
     q = rot.normalize(rot.from_euler(euler))
     d = rot.multiply(rot.conjugate(q[:-1]), q[1:])
-    gyr = [*np.vstack([[0.0, 0.0, 0.0], 2 * d[:, 1:] * rate]), 0.01, -0.02, 0.015, *rng.normal(0, 0.003, (n, 3))]
+    rates = np.vstack([np.zeros((1, 3)), 2 * d[:, 1:] * rate])
+    gyr = rates + np.array([0.01, -0.02, 0.015]) + rng.normal(0, 0.003, (n, 3))
     R = rot.to_matrix(q)
     acc = np.einsum("nji,j->ni", R, [0.0, 0.0, 9.81]) + rng.normal(0, 0.05, (n, 3))
     field = np.tile([0.0, 20.0, -40.0], (n, 1))
