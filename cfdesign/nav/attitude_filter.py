@@ -39,8 +39,9 @@ gyro propagates the attitude and four designed complementary channels correct it
 
 Modes and their tables (one design each): the velocity channel runs a rest design at rest
 (zero velocity is then exact: noise the accelerometer's over one sample), the motion design
-otherwise, and designs with a larger velocity noise (factors 2, 4, 8, 16) when the speed the
-channel has integrated exceeds ``max_speed_mps`` (a sustained acceleration: the specific force
+otherwise, and designs with a larger velocity noise (factors 4, 16, ... 1024: the tilt bandwidth
+halved at each level) when the speed the channel has integrated exceeds ``max_speed_mps``
+(level ``1 + floor(log2(v² / max_speed²))``) (a sustained acceleration: the specific force
 is not gravity plus a bounded velocity change, so the tilt corrections are weighted down).
 Every threshold is in physical units, derived from the noise figures where it can be:
 
@@ -83,8 +84,9 @@ __all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", 
 GRAVITY = 9.80665
 #: fastest sample rate accepted (Hz): the filter's tables are designed per sample
 MAX_RATE_HZ = 1e6
-#: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...)
-DISTURBANCE_FACTORS = (2.0, 4.0, 8.0, 16.0)
+#: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
+#: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
+DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
 
 #: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
 STATE_FIELDS = (
