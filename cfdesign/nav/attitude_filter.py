@@ -403,6 +403,9 @@ class AttitudeRun:
     tilt_weight : ndarray (N,)
         The tilt correction's gain relative to the motion design's (0 before the first
         specific force; the rest design's is larger than 1).
+    speed : ndarray (N,)
+        The velocity channel's horizontal speed (m/s): past ``max_speed_mps`` the tilt
+        corrections are weighted down.
     missing : dict
         ``{'gyr': n, 'acc': n, 'mag': n}``: samples treated as missing.
     """
@@ -413,6 +416,7 @@ class AttitudeRun:
     mag_disturbed: np.ndarray
     accel_level: np.ndarray
     tilt_weight: np.ndarray
+    speed: np.ndarray
     missing: dict
 
 
@@ -584,6 +588,7 @@ class AttitudeFilter:
             return _unit(out)
         bias, flags = [None] * n, [None] * n
         i_rest, i_dist, i_level = _INDEX["rest_time"], _INDEX["disturbed"], _INDEX["level"]
+        i_vx, i_vy = _INDEX["vx"], _INDEX["vy"]
         rest_time, k_motion = self.params.rest_time_s, self.design.velocity[0][1]
         weights = [k2 for _, k2 in self.design.velocity]
         started = _INDEX["started"]
@@ -592,10 +597,10 @@ class AttitudeFilter:
             weight = _step(s, coef, *G[k], *A[k], *m, nine)
             out[k], bias[k] = s[0:4], s[4:7]
             flags[k] = (s[i_rest] >= rest_time, s[i_dist], s[i_level],
-                        weights[weight] / k_motion if s[started] and weight >= 0 else 0.0)
-        flags = np.array(flags, dtype=float).reshape(n, 4)
+                        weights[weight] / k_motion if s[started] and weight >= 0 else 0.0, math.hypot(s[i_vx], s[i_vy]))
+        flags = np.array(flags, dtype=float).reshape(n, 5)
         return AttitudeRun(_unit(out), np.array(bias, dtype=float).reshape(n, 3), flags[:, 0] > 0, flags[:, 1] > 0,
-                           flags[:, 2].astype(int), flags[:, 3], self.missing)
+                           flags[:, 2].astype(int), flags[:, 3], flags[:, 4], self.missing)
 
 
 def _unit(rows) -> np.ndarray:
