@@ -21,21 +21,25 @@ gyro propagates the attitude and four designed complementary channels correct it
   almost inertial frame is from VQF: D. Laidig, T. Seel, "VQF: Highly accurate IMU orientation
   estimation with bias estimation and magnetic disturbance rejection", Information Fusion 91,
   2023).  For an accelerometer far less noisy than the motion the DARE gives the damping
-  ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_gyro / sigma_v)``: a second-order
+  ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_tilt / sigma_v)``: a second-order
   Butterworth low-pass of the inertial specific force, derived rather than chosen.
-* **gyro bias during motion: a tilt channel** (``cf2``: the tilt driven by the gyro, read as the
-  velocity channel's tilt, noise ``tilt_noise_density``), whose rate correction is the
-  horizontal gyro bias: learned slowly from the tilt corrections the velocity channel makes.
+* **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
+  frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
+  noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
+  minutes, from the tilt corrections the velocity channel makes.
 * **heading: a heading channel** (``cf2``: the heading driven by the gyro, read from the
-  magnetometer's horizontal direction, noise ``heading_noise_density``), started by its own
-  Kalman recursion (the first readings are averaged, then the designed gain holds) and
-  switched off while the field is disturbed; the heading variance grows by the table's
-  process noise meanwhile, and the channel resumes at the row of its start-up table with that
-  variance: a smooth, faster re-convergence, never a jump.
+  magnetometer's horizontal direction, noise ``heading_noise_density``), switched off while the
+  field is disturbed.
 * **rest: a zero-rotation channel** (``cf2``: the body's rotation since rest began, read as
   zero, noise the gyro's own noise over one sample), whose rate correction is the full gyro
-  bias, vertical axis included; started by its Kalman recursion from the bias prior at every
-  rest, so a rest of a second or two averages the gyro into the bias.
+  bias, vertical axis included: a rest of a second or two averages the gyro into the bias.
+
+The tilt, heading and zero-rotation channels run the Kalman covariance recursion of their own
+table (``F, Q, R``; its fixed point is the table's DARE covariance, so the steady gains are the
+designed ones) from the bias prior ``gyro_bias_std0``: a large bias is learnt in seconds; a
+channel that cannot update (field disturbed, reading missing) only predicts, its variance grows,
+and it resumes with a larger but smooth gain (no jump); a rest hands its bias variance to the
+other two; a newly accepted field clears the heading's correlation with the bias.
 
 Modes and their tables (one design each): the velocity channel runs a rest design at rest
 (zero velocity is then exact: noise the accelerometer's over one sample), the motion design
@@ -118,9 +122,10 @@ class AttitudeParams:
     """Parameters of :class:`AttitudeFilter`: noise figures (SI densities) and physical thresholds.
 
     Densities are rate independent (per-sample stds follow as ``density * sqrt(rate_hz)``).
-    The defaults are those of a consumer MEMS IMU; three were tuned on BROAD's ten development
-    trials, one value for all (``velocity_noise_density``, ``heading_noise_density``,
-    ``mag_tolerance_rad``; ``benchmarks/bench_broad.py`` reports the check).
+    The defaults are those of a consumer MEMS IMU; five were tuned on BROAD's ten development
+    trials, one value for all (``tilt_drift_density`` with ``velocity_noise_density``: the tilt
+    bandwidth; ``heading_noise_density``, ``mag_tolerance_rad``, ``mag_new_field_s``);
+    ``benchmarks/bench_broad.py --loo`` checks them by leave-one-out.
 
     Attributes
     ----------
@@ -148,8 +153,9 @@ class AttitudeParams:
     declination_rad : float
         Magnetic declination, positive east.
     gyro_bias_std0 : float
-        Prior std of the gyro bias (rad/s), default 0.0175 (1 deg/s): the zero-rotation
-        channel starts from it at every rest; 0 runs its designed gain from the first step.
+        Prior std of the gyro bias (rad/s), default 0.0175 (1 deg/s): the channels' Kalman
+        recursions start from it; 0 starts them at their tables' DARE covariances (the designed
+        gains from the first step).
     rest_time_s, rest_filter_s, rest_sigma : float
         Rest detection: still for ``rest_time_s`` (default 1.5 s) within ``rest_sigma``
         (default 3) noise stds of the ``rest_filter_s`` (default 0.5 s) low-pass.
