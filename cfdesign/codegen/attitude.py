@@ -130,7 +130,7 @@ def _header(name, what, attitude_filter) -> str:
     params = ", ".join(f"{k}={getattr(p, k)!r}" for k in p.__dataclass_fields__)
     lines = [f"{name} - {what}", "",
              "GENERATED FILE - DO NOT EDIT.  Regenerate it from the filter instead:",
-             "    cfdesign.codegen.write_attitude_c(AttitudeFilter(rate_hz, ...), directory)", "",
+             "    cfdesign.codegen.attitude.write_attitude_c(AttitudeFilter(rate_hz, ...), directory)", "",
              f"generator : cfdesign {__version__} (cfdesign.codegen.attitude, C99, double)",
              f"filter    : cfdesign.nav.AttitudeFilter at {attitude_filter.rate_hz!r} Hz, {mode}",
              "frames    : body (sensor) frame relative to ENU; quaternions [w, x, y, z] body -> ENU",
