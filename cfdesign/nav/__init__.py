@@ -6,8 +6,10 @@ quaternions ``[w, x, y, z]`` map body to ENU, Euler angles are ZYX ``[yaw, pitch
 default designed from noise figures without sympy (:mod:`cfdesign.nav.stored_design`), or a
 user's own design given as ``tables=`` / ``table=``.
 
-* :func:`estimate_attitude` - general purpose, singularity-free (quaternion) filter
-  (:mod:`~cfdesign.nav.quaternion_attitude`);
+* :class:`AttitudeFilter` - the streaming attitude filter for real IMUs (gyro, accelerometer,
+  optional magnetometer: rest, gyro bias, magnetic and acceleration disturbances; 6D and 9D;
+  exported as C by :mod:`cfdesign.codegen.attitude`), :func:`estimate_attitude` its
+  whole-array call (:mod:`~cfdesign.nav.attitude_filter`, :mod:`~cfdesign.nav.quaternion_attitude`);
 * :class:`EulerAttitudeFilter` - the Euler-angle filter of Vasconcelos et al. (low-pitch
   vehicles; :mod:`~cfdesign.nav.euler_attitude`);
 * :func:`design_channel` - the gains of one attitude channel (:mod:`~cfdesign.nav.attitude_channel`);
@@ -27,6 +29,7 @@ from importlib import import_module
 
 _LAZY = {
     ".quaternion_attitude": ["estimate_attitude"],
+    ".attitude_filter": ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude"],
     ".euler_attitude": ["EulerAttitudeFilter", "EulerEstimate"],
     ".attitude_channel": ["design_channel"],
     "..errors": ["AttitudeInputError"],
@@ -36,7 +39,8 @@ _LAZY = {
 }
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
-__all__ = ["estimate_attitude", "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError", "design_channel",
+__all__ = ["estimate_attitude", "AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude",
+           "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError", "design_channel",
            "euler_rate_matrix", "euler_rate_matrix_inverse", "mps_euler", "mps_quaternion", "PositionFilter",
            "PositionEstimate"]
 

@@ -1,0 +1,917 @@
+"""A streaming attitude filter for real IMUs: designed channels, rest, magnetic and acceleration disturbances.
+
+:class:`AttitudeFilter` estimates the attitude of a gyro + accelerometer (+ magnetometer)
+sample by sample, in plain Python floats (no numpy per step), and exports as C99
+(:mod:`cfdesign.codegen.attitude`).  :func:`cfdesign.nav.estimate_attitude` is a thin call of
+it.  The derivation is in ``docs/derivations.md`` ("Attitude from real IMUs"); in short, the
+gyro propagates the attitude and four designed complementary channels correct it, each a
+``cf2`` channel (:mod:`cfdesign.nav.attitude_channel`, gains from the DARE of
+:func:`~cfdesign.nav.design_channel`, no sympy):
+
+* **tilt: a velocity channel.** The specific force rotated into the estimated ENU frame
+  integrates to the sensor's velocity change; a device that is hand-held, worn or carried
+  has a bounded velocity.  Each horizontal axis is the chain ``v' = f_E + c``,
+  ``c' = g (gyro noise)`` with the pseudo-measurement ``v = 0``: a ``cf2`` channel whose
+  rate input is the horizontal specific force (noise: the accelerometer's), whose "bias" is
+  ``-g`` times the tilt error (its random walk: ``g`` times the gyro noise) and whose angle
+  reading is the zero velocity (noise: how far the velocity strays, ``velocity_noise_density``).
+  Its bias correction is applied as a rotation of the attitude, so the filter low-passes the
+  specific force in the almost inertial frame of the gyro, where the average of the
+  acceleration is the bounded velocity change (the idea of filtering the accelerometer in an
+  almost inertial frame is from VQF: D. Laidig, T. Seel, "VQF: Highly accurate IMU orientation
+  estimation with bias estimation and magnetic disturbance rejection", Information Fusion 91,
+  2023).  For an accelerometer far less noisy than the motion the DARE gives the damping
+  ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_tilt / sigma_v)``: a second-order
+  Butterworth low-pass of the inertial specific force, derived rather than chosen.
+* **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
+  frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
+  noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
+  minutes, from the tilt corrections the velocity channel makes.
+* **heading: a heading channel** (``cf2``: the heading driven by the gyro, read from the
+  magnetometer's horizontal direction, noise ``heading_noise_density``), switched off while the
+  field is disturbed.
+* **rest: a zero-rotation channel** (``cf2``: the body's rotation since rest began, read as
+  zero, noise the gyro's own noise over one sample), whose rate correction is the full gyro
+  bias, vertical axis included: a rest of a second or two averages the gyro into the bias.
+
+The tilt, heading and zero-rotation channels run the Kalman covariance recursion of their own
+table (``F, Q, R``; its fixed point is the table's DARE covariance, so the steady gains are the
+designed ones) from the bias prior ``gyro_bias_std0``: a large bias is learnt in seconds; a
+channel that cannot update (field disturbed, reading missing) only predicts, its variance grows,
+and it resumes with a larger but smooth gain (no jump); a rest hands its bias variance to the
+other two; a newly accepted field clears the heading's correlation with the bias.
+
+Modes and their tables (one design each): the velocity channel runs a rest design at rest
+(zero velocity is then exact: noise the accelerometer's over one sample), the motion design
+otherwise, and designs with a larger velocity noise (factors 4, 16, ... 1024: the tilt bandwidth
+halved at each level) when the speed the channel has integrated exceeds ``max_speed_mps``
+(level ``1 + floor(log2(v² / max_speed²))``) (a sustained acceleration: the specific force
+is not gravity plus a bounded velocity change, so the tilt corrections are weighted down).
+Every threshold is in physical units, derived from the noise figures where it can be:
+
+* rest: for ``rest_time_s`` the gyro and the specific force stay within
+  ``rest_sigma * sqrt(3)`` times their per-sample noise (std per axis, from the densities) of
+  their ``rest_filter_s`` low-pass, and the low-passed rate within ``3 gyro_bias_std0`` of
+  the bias estimate;
+* magnetic disturbance: the field's norm and dip angle (low-passed over ``mag_filter_s``)
+  against a reference learned online (running mean, then a ``mag_reference_s`` low-pass
+  while undisturbed): a change of the norm by ``dN`` or of the dip by ``dD`` hides a field
+  change that can turn the heading by ``dN / B_h`` or ``dD B / B_h``, so the field is disturbed
+  when ``|dN| / B`` or ``|dD|`` exceeds ``mag_tolerance_rad * cos(dip)``; a new field is
+  accepted after ``mag_new_field_s`` in which it stayed consistent while the sensor turned by
+  at least ``mag_new_field_rotation_rad`` (the idea of accepting a new homogeneous field after
+  a while of motion is VQF's);
+* bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
+  ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
+  missing rate holds the last good one, a missing specific force or field skips its channel.
+
+Frames: attitude of the body (sensor) frame relative to **ENU** (x east, y north, z up);
+quaternions ``[w, x, y, z]`` map body to ENU; rates (rad/s), specific force (m/s²) and the
+field (any consistent unit) in the body frame.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from ..errors import AttitudeInputError
+from .attitude_channel import design_channel
+
+__all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", "GRAVITY", "STATE_FIELDS",
+           "design_attitude"]
+
+#: standard gravity (m/s²): converts the velocity channel's correction into an angle
+GRAVITY = 9.80665
+#: fastest sample rate accepted (Hz): the filter's tables are designed per sample
+MAX_RATE_HZ = 1e6
+#: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
+#: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
+DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
+
+#: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
+STATE_FIELDS = (
+    "qw", "qx", "qy", "qz",              # attitude, body -> ENU
+    "bx", "by", "bz",                    # gyro bias, body, rad/s
+    "vx", "vy",                          # velocity channel: horizontal velocity (ENU, m/s)
+    "ex", "ey", "ez",                    # tilt channel: its attitude minus the filter's (body frame, rad)
+    "px", "py", "pz",                    # zero-rotation channel: rotation since rest began (body, rad)
+    "gx", "gy", "gz",                    # rest detection: low-passed rate (body, rad/s)
+    "fx", "fy", "fz",                    # rest detection: low-passed specific force (body, m/s²)
+    "gyro_dev", "accel_dev",             # rest detection: low-passed squared deviations from those
+    "rest_time",                         # time still (s)
+    "r00", "r01", "r11",                 # zero-rotation channel: covariance of its Kalman recursion
+    "t00", "t01", "t11",                 # tilt channel: covariance of its Kalman recursion
+    "h00", "h01", "h11",                 # heading channel: covariance of its Kalman recursion
+    "norm_lp", "dip_lp",                 # field norm and dip (rad), low-passed
+    "norm_ref", "dip_ref", "ref_n",      # reference field and how many readings it averages
+    "norm_new", "dip_new", "new_n",      # candidate new field (while disturbed), readings averaged
+    "new_time", "new_turn",              # time the candidate held (s) and the rotation meanwhile (rad)
+    "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
+    "lgx", "lgy", "lgz",                 # last good rate (rad/s)
+    "started", "missing_gyr", "missing_acc", "missing_mag",
+)
+_INDEX = {name: i for i, name in enumerate(STATE_FIELDS)}
+
+
+@dataclass(frozen=True)
+class AttitudeParams:
+    """Parameters of :class:`AttitudeFilter`: noise figures (SI densities) and physical thresholds.
+
+    Densities are rate independent (per-sample stds follow as ``density * sqrt(rate_hz)``).
+    The defaults are those of a consumer MEMS IMU; five were tuned on BROAD's ten development
+    trials, one value for all (``tilt_drift_density`` with ``velocity_noise_density``: the tilt
+    bandwidth; ``heading_noise_density``, ``mag_tolerance_rad``, ``mag_new_field_s``);
+    ``benchmarks/bench_broad.py --loo`` checks them by leave-one-out.
+
+    Attributes
+    ----------
+    gyro_noise_density : float
+        Gyro white noise, rad/s/sqrt(Hz) (default 2e-4, 0.011 deg/s/sqrt(Hz)).
+    gyro_bias_density : float
+        Gyro bias random walk, rad/s/sqrt(s) (default 1e-5).
+    accel_noise_density : float
+        Accelerometer white noise, m/s²/sqrt(Hz) (default 3e-3).
+    tilt_drift_density : float
+        How fast the gyro-propagated tilt drifts in motion, rad/s/sqrt(Hz): the gyro's white
+        noise and what motion adds to it (scale factor, misalignment, vibration); the velocity
+        channel's "bias" random walk is ``g`` times it (default 8e-4; tuned on BROAD with
+        ``velocity_noise_density``).
+    velocity_noise_density : float
+        How far the sensor's velocity strays from zero, m/s/sqrt(Hz): the noise of the velocity
+        channel's zero-velocity reading.  With ``tilt_drift_density`` it sets the tilt bandwidth
+        ``sqrt(g sigma_tilt / sigma_v)`` (default 0.032: 0.5 rad/s; tuned on BROAD).
+    tilt_noise_density : float
+        Noise of the tilt the velocity channel yields, rad/sqrt(Hz), as the tilt channel that
+        learns the gyro bias during motion reads it (default 0.004: learns in minutes).
+    heading_noise_density : float
+        Magnetometer heading noise including indoor field distortion, rad/sqrt(Hz) (default
+        0.008; tuned on BROAD).
+    declination_rad : float
+        Magnetic declination, positive east.
+    gyro_bias_std0 : float
+        Prior std of the gyro bias (rad/s), default 0.0175 (1 deg/s): the channels' Kalman
+        recursions start from it; 0 starts them at their tables' DARE covariances (the designed
+        gains from the first step).
+    rest_time_s, rest_filter_s, rest_sigma : float
+        Rest detection: still for ``rest_time_s`` (default 1.5 s) within ``rest_sigma``
+        (default 3) noise stds of the ``rest_filter_s`` (default 0.5 s) low-pass.
+    mag_tolerance_rad : float
+        Heading error (rad) tolerated from a field change the norm and dip checks cannot see
+        (default 0.14, 8 deg; tuned on BROAD).
+    mag_filter_s, mag_reference_s : float
+        Low-pass of the field's norm and dip (default 0.2 s) and of the reference field
+        (default 20 s).
+    mag_new_field_s, mag_new_field_rotation_rad : float
+        A new field is accepted after holding for ``mag_new_field_s`` (default 40 s; tuned on BROAD) while the
+        sensor turned by ``mag_new_field_rotation_rad`` (default pi/2).
+    max_speed_mps : float
+        Speed (m/s) of the velocity channel beyond which the specific force is taken as a
+        sustained acceleration and the tilt corrections are weighted down (default 4).
+    gyro_range_rps, accel_range_mps2 : float
+        Readings above these magnitudes are impossible and treated as missing (defaults
+        100 rad/s and 1000 m/s²).
+    rest_detection, mag_rejection, accel_rejection, motion_bias, inertial_tilt : bool
+        The mechanisms, each on by default (off for ablation studies): the rest designs and the
+        zero-rotation channel; the magnetic disturbance check (off: every field corrects the
+        heading); the acceleration-disturbance designs; the tilt channel (gyro bias during
+        motion); the velocity channel's integration of the specific force (off: each step's
+        velocity is that step's specific force alone, the classic complementary filter on the
+        instantaneous accelerometer direction, with the same gains).
+    """
+
+    gyro_noise_density: float = 2e-4
+    gyro_bias_density: float = 1e-5
+    accel_noise_density: float = 3e-3
+    tilt_drift_density: float = 8e-4
+    velocity_noise_density: float = 0.032
+    tilt_noise_density: float = 0.05
+    heading_noise_density: float = 0.008
+    declination_rad: float = 0.0
+    gyro_bias_std0: float = 0.0175
+    rest_time_s: float = 1.5
+    rest_filter_s: float = 0.5
+    rest_sigma: float = 3.0
+    mag_tolerance_rad: float = 0.14
+    mag_filter_s: float = 0.2
+    mag_reference_s: float = 20.0
+    mag_new_field_s: float = 40.0
+    mag_new_field_rotation_rad: float = math.pi / 2
+    max_speed_mps: float = 4.0
+    gyro_range_rps: float = 100.0
+    accel_range_mps2: float = 1000.0
+    rest_detection: bool = True
+    mag_rejection: bool = True
+    accel_rejection: bool = True
+    motion_bias: bool = True
+    inertial_tilt: bool = True
+
+    def checked(self) -> AttitudeParams:
+        """The parameters as floats, each finite and in range; AttitudeInputError naming the first that is not."""
+        values = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(f.default, bool):
+                if not isinstance(value, (bool, np.bool_)):
+                    raise AttitudeInputError(f"{f.name} must be True or False, got {value!r}")
+                values[f.name] = bool(value)
+                continue
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise AttitudeInputError(f"{f.name} must be a number, got {value!r}") from None
+            if not math.isfinite(value):
+                raise AttitudeInputError(f"{f.name} must be finite, got {value!r}")
+            if f.name == "declination_rad":
+                if abs(value) > math.pi:
+                    raise AttitudeInputError(f"declination_rad must be within [-pi, pi], got {value!r}")
+            elif f.name in ("gyro_bias_std0", "mag_new_field_rotation_rad"):
+                if value < 0:
+                    raise AttitudeInputError(f"{f.name} must be >= 0, got {value!r}")
+            elif not 1e-15 <= value <= 1e15:
+                raise AttitudeInputError(f"{f.name} must be a positive number (1e-15 .. 1e15), got {value!r}")
+            values[f.name] = value
+        if values["mag_tolerance_rad"] >= math.pi / 2:
+            raise AttitudeInputError(f"mag_tolerance_rad must be below pi/2, got {values['mag_tolerance_rad']!r}")
+        return replace(self, **values)
+
+
+@dataclass(frozen=True)
+class AttitudeDesign:
+    """The designed tables of a filter at one rate, and the numbers its step runs.
+
+    Attributes
+    ----------
+    rate_hz : float
+    params : AttitudeParams
+    tables : dict
+        ``{name: GainTable}``: ``velocity`` (motion), ``velocity_rest``, ``velocity_level1`` ..
+        (acceleration disturbance), ``tilt``, ``heading``, ``rest`` (zero rotation); every one a
+        ``cf2`` channel at the sample rate (``docs/derivations.md``).
+    velocity : tuple of (k1, k2)
+        Velocity-channel gains: ``[0]`` motion, ``[1]`` rest, ``[2:]`` the disturbance levels.
+    channels : dict
+        ``{'tilt' | 'heading' | 'rest': (q00, q01, q11, r, kalman, k1, k2)}``: the table's process
+        noise per step and reading variance, which the filter's Kalman recursion of the table
+        runs (``kalman`` 1), or its fixed gains (``kalman`` 0, a table whose gains are not its
+        own Kalman gains); the recursion's steady state is the table's DARE gain.
+    priors : dict
+        ``{'tilt' | 'heading' | 'rest': (p00, p01, p11)}``: the covariance each recursion starts
+        from (the table's DARE covariance when ``gyro_bias_std0`` is 0).
+    constants : dict
+        The derived thresholds and filter coefficients (``docs/derivations.md``).
+    """
+
+    rate_hz: float
+    params: AttitudeParams
+    tables: dict
+    velocity: tuple
+    channels: dict
+    priors: dict
+    constants: dict
+
+
+def design_attitude(rate_hz, params=None, tables=None) -> AttitudeDesign:
+    """Design the tables of :class:`AttitudeFilter` at ``rate_hz`` (cached; no sympy).
+
+    ``tables``: a user's own designs of the ``tilt`` and ``heading`` channels, a dict of
+    :class:`~cfdesign.gains.GainTable` or :class:`~cfdesign.spec.FilterSpec` (``cf2`` order 2,
+    discrete, at ``rate_hz``: e.g. :func:`cfdesign.nav.design_channel`) or the pair
+    ``(tilt, heading)``; TableMismatchError for one that does not fit.
+    """
+    rate_hz = _rate(rate_hz)
+    params = (AttitudeParams() if params is None else params).checked()
+    design = _design(rate_hz, params)
+    if tables is None:
+        return design
+    return _with_tables(design, tables)
+
+
+def _with_tables(design: AttitudeDesign, tables) -> AttitudeDesign:
+    """``design`` with the user's tilt and/or heading tables (checked to fit the sample time)."""
+    from ..errors import TableMismatchError
+    from .attitude_channel import STRUCTURE, channel_gains
+    from .stored_design import as_table
+
+    if isinstance(tables, dict):
+        unknown = sorted(set(tables) - {"tilt", "heading"})
+        if unknown:
+            raise TableMismatchError(f"tables: unknown channel(s) {', '.join(map(str, unknown))}; "
+                                     "give 'tilt' and/or 'heading'")
+        given = dict(tables)
+    else:
+        try:
+            tilt, heading = tables
+        except (TypeError, ValueError):
+            raise TableMismatchError("tables: a pair (tilt, heading) or a dict of GainTables or FilterSpecs is "
+                                     "needed") from None
+        given = {"tilt": tilt, "heading": heading}
+    T = 1.0 / design.rate_hz
+    timing = f"the sample interval at rate_hz {design.rate_hz:g} Hz"
+    new, channels, priors = dict(design.tables), dict(design.channels), dict(design.priors)
+    for name, value in given.items():
+        table = as_table(value, STRUCTURE, f"tables[{name!r}]")
+        gains = channel_gains(table, f"tables[{name!r}]", T, timing)
+        new[name] = table
+        channels[name], priors[name] = _channel(table, gains, _prior(name, table, design.params))
+    return replace(design, tables=new, channels=channels, priors=priors)
+
+
+def _prior(name, table, p) -> tuple:
+    """Where a channel's Kalman recursion starts: its angle known to its reading (heading: not at
+    all, variance pi²/3), the bias to ``gyro_bias_std0``; the table's DARE covariance when that is 0."""
+    P = np.asarray(table.P[0], dtype=float)
+    if p.gyro_bias_std0 == 0:
+        return float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+    r = float(np.asarray(table.R, dtype=float).reshape(-1)[0])
+    angle = {"heading": math.pi ** 2 / 3, "rest": r}.get(name, r)
+    return angle, 0.0, p.gyro_bias_std0 ** 2
+
+
+def _channel(table, gains, prior) -> tuple:
+    """``(q00, q01, q11, r, kalman, k1, k2)`` of a channel table (see :class:`AttitudeDesign`), and its prior."""
+    from .attitude_channel import _is_kalman
+
+    Q = np.asarray(table.Q, dtype=float)
+    r = float(np.asarray(table.R, dtype=float).reshape(-1)[0])
+    kalman = 1.0 if _is_kalman(table, gains) else 0.0
+    return (float(Q[0, 0]), float(Q[0, 1]), float(Q[1, 1]), r, kalman, gains[0], gains[1]), tuple(prior)
+
+
+@functools.lru_cache(maxsize=16)
+def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
+    T = 1.0 / rate_hz
+    root = math.sqrt(rate_hz)
+    gyro_std, accel_std = p.gyro_noise_density * root, p.accel_noise_density * root
+    v_std = p.velocity_noise_density * root
+    drift = GRAVITY * p.tilt_drift_density
+    tables = {"velocity": design_channel(rate_hz, accel_std, drift, v_std),
+              "velocity_rest": design_channel(rate_hz, accel_std, GRAVITY * p.gyro_noise_density, accel_std * T)}
+    for j, factor in enumerate(DISTURBANCE_FACTORS, start=1):
+        tables[f"velocity_level{j}"] = design_channel(rate_hz, accel_std, drift, v_std * factor)
+    tables["tilt"] = design_channel(rate_hz, gyro_std, p.gyro_bias_density, p.tilt_noise_density * root)
+    tables["heading"] = design_channel(rate_hz, gyro_std, p.gyro_bias_density, p.heading_noise_density * root)
+    tables["rest"] = design_channel(rate_hz, gyro_std, p.gyro_bias_density, gyro_std * T)
+    gains = {name: (float(t.gains["k1"]), float(t.gains["k2"])) for name, t in tables.items()}
+    velocity = (gains["velocity"], gains["velocity_rest"],
+                *(gains[f"velocity_level{j}"] for j in range(1, len(DISTURBANCE_FACTORS) + 1)))
+    channels, priors = {}, {}
+    for name in ("tilt", "heading", "rest"):
+        channels[name], priors[name] = _channel(tables[name], gains[name], _prior(name, tables[name], p))
+    rest_std = p.rest_sigma * math.sqrt(3.0)
+    constants = {
+        "T": T,
+        "rest_alpha": -math.expm1(-T / p.rest_filter_s),
+        "rest_gyro_th2": (rest_std * gyro_std) ** 2,
+        "rest_accel_th2": (rest_std * accel_std) ** 2,
+        "rest_bias_th2": max(3.0 * p.gyro_bias_std0, rest_std * gyro_std) ** 2,
+        "mag_alpha": -math.expm1(-T / p.mag_filter_s),
+        "mag_ref_alpha": -math.expm1(-T / p.mag_reference_s),
+        "north": math.atan2(math.cos(p.declination_rad), math.sin(p.declination_rad)),
+        "speed2": p.max_speed_mps ** 2,
+        "gyro_range2": p.gyro_range_rps ** 2,
+        "accel_range2": p.accel_range_mps2 ** 2,
+    }
+    return AttitudeDesign(rate_hz, p, tables, velocity, channels, priors, constants)
+
+
+def _rate(rate_hz) -> float:
+    """``rate_hz`` checked before anything is designed or allocated."""
+    try:
+        value = float(rate_hz)
+    except (TypeError, ValueError):
+        raise AttitudeInputError(f"rate_hz must be a number, got {rate_hz!r}") from None
+    if not math.isfinite(value) or value <= 0 or value > MAX_RATE_HZ:
+        raise AttitudeInputError(f"rate_hz must be a finite number in (0, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
+    return value
+
+
+@dataclass
+class AttitudeRun:
+    """What :meth:`AttitudeFilter.run` returns with ``details=True`` (one row per sample).
+
+    Attributes
+    ----------
+    quaternion : ndarray (N, 4)
+        ``[w, x, y, z]`` (w >= 0), body -> ENU.
+    bias : ndarray (N, 3)
+        Gyro bias estimate, body frame, rad/s.
+    rest : ndarray (N,) of bool
+        Rest detected.
+    mag_disturbed : ndarray (N,) of bool
+        Magnetic field disturbed (heading on the gyro); always False in 6D.
+    accel_level : ndarray (N,) of int
+        Acceleration-disturbance level of the velocity channel (0: none; ``j``: velocity noise
+        times ``DISTURBANCE_FACTORS[j - 1]``).
+    tilt_weight : ndarray (N,)
+        The tilt correction's gain relative to the motion design's (0 before the first
+        specific force; the rest design's is larger than 1).
+    speed : ndarray (N,)
+        The velocity channel's horizontal speed (m/s): past ``max_speed_mps`` the tilt
+        corrections are weighted down.
+    missing : dict
+        ``{'gyr': n, 'acc': n, 'mag': n}``: samples treated as missing.
+    """
+
+    quaternion: np.ndarray
+    bias: np.ndarray
+    rest: np.ndarray
+    mag_disturbed: np.ndarray
+    accel_level: np.ndarray
+    tilt_weight: np.ndarray
+    speed: np.ndarray
+    missing: dict
+
+
+class AttitudeFilter:
+    """Streaming attitude filter (gyro + accelerometer, + magnetometer in 9D): module docstring.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate (Hz), in (0, 1e6]; one sample of every sensor per step.
+    params : AttitudeParams, optional
+        Noise figures and thresholds; keyword arguments override single fields
+        (``AttitudeFilter(285.7, declination_rad=0.05)``).
+    magnetometer : bool
+        True (9D): the heading follows the magnetometer; False (6D): the heading is the gyro's
+        integral from the initial heading, held at rest.
+    initial : array_like (4,), optional
+        Initial quaternion ``[w, x, y, z]`` (body -> ENU), its heading taken as known as a running
+        filter knows it (the heading table's DARE variance); default: the tilt of the first
+        usable specific force, heading zero (in 9D the first fields then set the heading: the
+        heading channel starts from a uniform prior).
+    tables : dict or pair, optional
+        A user's own ``tilt`` and/or ``heading`` channel designs (:func:`design_attitude`).
+
+    Raises
+    ------
+    AttitudeInputError
+        For a bad rate (checked before anything is designed), parameter or initial attitude.
+
+    Notes
+    -----
+    ``step`` and ``run`` are the same arithmetic: a run equals its samples stepped one by one
+    (tested to 1e-12; they are in fact identical).
+    """
+
+    def __init__(self, rate_hz, params=None, *, magnetometer=True, initial=None, tables=None, **overrides):
+        rate_hz = _rate(rate_hz)
+        if params is not None and not isinstance(params, AttitudeParams):
+            raise AttitudeInputError(f"params must be an AttitudeParams, got {type(params).__name__}")
+        params = params or AttitudeParams()
+        unknown = sorted(set(overrides) - {f.name for f in fields(AttitudeParams)})
+        if unknown:
+            raise AttitudeInputError(f"unknown parameter(s) {', '.join(unknown)}; see AttitudeParams")
+        self.design = design_attitude(rate_hz, replace(params, **overrides), tables)
+        self.rate_hz = rate_hz
+        self.params = self.design.params
+        self.magnetometer = bool(magnetometer)
+        self._initial = None if initial is None else _initial_quaternion(initial)
+        self._coef = _coefficients(self.design)
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self):
+        """Back to the state before the first sample."""
+        s = [0.0] * len(STATE_FIELDS)
+        s[_INDEX["qw"]] = 1.0
+        if self._initial is not None:
+            s[0:4] = self._initial
+            s[_INDEX["started"]] = 1.0
+        for name in ("rest", "tilt", "heading"):
+            i = _INDEX[name[0] + "00"]
+            s[i:i + 3] = self.design.priors[name]
+        if self._initial is not None:
+            # a given heading is known as well as a running filter knows it (the heading table's DARE variance)
+            s[_INDEX["h00"]] = float(self.design.tables["heading"].P[0][0][0])
+        self._s = s
+
+    def state(self) -> dict:
+        """A copy of the state, ``{name: float}`` in :data:`STATE_FIELDS` order (plain data: JSON, C)."""
+        return dict(zip(STATE_FIELDS, self._s, strict=True))
+
+    def restore(self, state: dict):
+        """Continue from a :meth:`state`; AttitudeInputError for missing, unknown or non-finite fields."""
+        if not isinstance(state, dict):
+            raise AttitudeInputError(f"state must be a dict from AttitudeFilter.state(), got {type(state).__name__}")
+        missing = [n for n in STATE_FIELDS if n not in state]
+        unknown = sorted(set(state) - set(STATE_FIELDS))
+        if missing or unknown:
+            raise AttitudeInputError(f"state: missing {', '.join(missing) or 'none'}, unknown "
+                                     f"{', '.join(unknown) or 'none'}")
+        values = []
+        for name in STATE_FIELDS:
+            try:
+                value = float(state[name])
+            except (TypeError, ValueError):
+                raise AttitudeInputError(f"state: {name} must be a number, got {state[name]!r}") from None
+            if not math.isfinite(value):
+                raise AttitudeInputError(f"state: {name} must be finite, got {state[name]!r}")
+            values.append(value)
+        if not 0.5 < math.sqrt(sum(v * v for v in values[0:4])) < 2.0:
+            raise AttitudeInputError("state: qw, qx, qy, qz is not a unit quaternion")
+        self._s = values
+
+    # ------------------------------------------------------------------ readings of the state
+    @property
+    def quaternion(self) -> tuple:
+        """Current attitude ``(w, x, y, z)`` (w >= 0), body -> ENU."""
+        w, x, y, z = self._s[0:4]
+        return (-w, -x, -y, -z) if w < 0 else (w, x, y, z)
+
+    @property
+    def bias(self) -> tuple:
+        """Gyro bias estimate ``(bx, by, bz)``, body frame, rad/s."""
+        return tuple(self._s[4:7])
+
+    @property
+    def rest(self) -> bool:
+        """Rest detected at the last step."""
+        return self._s[_INDEX["rest_time"]] >= self.params.rest_time_s
+
+    @property
+    def mag_disturbed(self) -> bool:
+        """Magnetic field disturbed at the last step (heading on the gyro)."""
+        return bool(self._s[_INDEX["disturbed"]])
+
+    @property
+    def missing(self) -> dict:
+        """Samples treated as missing so far: ``{'gyr': n, 'acc': n, 'mag': n}``."""
+        return {key: int(self._s[_INDEX[f"missing_{key}"]]) for key in ("gyr", "acc", "mag")}
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, gyr, acc, mag=None) -> tuple:
+        """One sample: body rate ``gyr`` (rad/s), specific force ``acc`` (m/s²), field ``mag`` (body frame).
+
+        Each is a sequence of three numbers; ``mag`` is ignored in 6D and None means a missing
+        field reading in 9D.  Returns the attitude ``(w, x, y, z)`` (w >= 0), body -> ENU.
+        """
+        try:
+            gx, gy, gz = (float(v) for v in gyr)
+            ax, ay, az = (float(v) for v in acc)
+            if mag is None or not self.magnetometer:
+                mx = my = mz = math.nan
+            else:
+                mx, my, mz = (float(v) for v in mag)
+        except (TypeError, ValueError):
+            raise AttitudeInputError("gyr, acc and mag must each be three numbers") from None
+        _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
+        return self.quaternion
+
+    def run(self, gyr, acc, mag=None, *, details=False):
+        """Every sample of (N, 3) arrays, in order (the same arithmetic as :meth:`step`).
+
+        Parameters
+        ----------
+        gyr, acc : array_like (N, 3)
+            Body rate (rad/s) and specific force (m/s²), body frame.
+        mag : array_like (N, 3), optional
+            Field (body frame); needed in 9D (a filter built with ``magnetometer=True``).
+        details : bool
+            Return an :class:`AttitudeRun` (bias, rest, disturbance flags per sample).
+
+        Returns
+        -------
+        ndarray (N, 4) or AttitudeRun
+            Quaternions ``[w, x, y, z]`` (w >= 0), body -> ENU.
+        """
+        gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
+        n = len(gyr)
+        coef, s, nine = self._coef, self._s, self.magnetometer
+        out = [None] * n
+        G, A = gyr.tolist(), acc.tolist()
+        M = mag.tolist() if nine else None
+        nan3 = (math.nan, math.nan, math.nan)
+        if not details:
+            for k in range(n):
+                m = M[k] if nine else nan3
+                _step(s, coef, *G[k], *A[k], *m, nine)
+                out[k] = s[0:4]
+            return _unit(out)
+        bias, flags = [None] * n, [None] * n
+        i_rest, i_dist, i_level = _INDEX["rest_time"], _INDEX["disturbed"], _INDEX["level"]
+        i_vx, i_vy = _INDEX["vx"], _INDEX["vy"]
+        rest_time, k_motion = self.params.rest_time_s, self.design.velocity[0][1]
+        weights = [k2 for _, k2 in self.design.velocity]
+        started = _INDEX["started"]
+        for k in range(n):
+            m = M[k] if nine else nan3
+            weight = _step(s, coef, *G[k], *A[k], *m, nine)
+            out[k], bias[k] = s[0:4], s[4:7]
+            flags[k] = (s[i_rest] >= rest_time, s[i_dist], s[i_level],
+                        weights[weight] / k_motion if s[started] and weight >= 0 else 0.0, math.hypot(s[i_vx], s[i_vy]))
+        flags = np.array(flags, dtype=float).reshape(n, 5)
+        return AttitudeRun(_unit(out), np.array(bias, dtype=float).reshape(n, 3), flags[:, 0] > 0, flags[:, 1] > 0,
+                           flags[:, 2].astype(int), flags[:, 3], flags[:, 4], self.missing)
+
+
+def _unit(rows) -> np.ndarray:
+    q = np.array(rows, dtype=float).reshape(-1, 4)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return np.where(q[:, :1] < 0, -q, q)
+
+
+def _initial_quaternion(initial) -> list:
+    try:
+        q = [float(v) for v in initial]
+    except (TypeError, ValueError):
+        raise AttitudeInputError(f"initial must be a quaternion [w, x, y, z], got {initial!r}") from None
+    n = math.sqrt(sum(v * v for v in q)) if len(q) == 4 else 0.0
+    if len(q) != 4 or not math.isfinite(n) or n == 0:
+        raise AttitudeInputError(f"initial must be a finite non-zero quaternion [w, x, y, z], got {initial!r}")
+    return [v / n for v in q]
+
+
+def _arrays(gyr, acc, mag, nine):
+    """(N, 3) float arrays; mag required in 9D (None in 6D)."""
+    from .attitude_inputs import vectors
+
+    gyr = vectors("gyr", gyr)
+    acc = vectors("acc", acc, len(gyr))
+    if nine:
+        if mag is None:
+            raise AttitudeInputError("mag is missing: this filter is 9D (magnetometer=True); give mag or build a "
+                                     "6D filter with magnetometer=False")
+        return gyr, acc, vectors("mag", mag, len(gyr))
+    return gyr, acc, None
+
+
+def _coefficients(design: AttitudeDesign) -> tuple:
+    """The numbers of the step, flattened for speed (see :func:`_step`)."""
+    c, p = design.constants, design.params
+    return (c["T"], c["rest_alpha"], c["rest_gyro_th2"], c["rest_accel_th2"], c["rest_bias_th2"], p.rest_time_s,
+            c["mag_alpha"], c["mag_ref_alpha"], c["north"], c["speed2"], c["gyro_range2"], c["accel_range2"],
+            p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
+            tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
+            p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt)
+
+
+def _wrap(a: float) -> float:
+    """``a`` wrapped to (-pi, pi] (:func:`cfdesign.linear.wrap_scalar`'s formula; in-range angles unchanged)."""
+    if -math.pi < a <= math.pi:
+        return a
+    r = a - 2 * math.pi * math.ceil((a - math.pi) / (2 * math.pi))
+    if r > math.pi:
+        r -= 2 * math.pi
+    elif r <= -math.pi:
+        r += 2 * math.pi
+    return r
+
+
+def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
+    """One sample on the state list ``s`` (:data:`STATE_FIELDS`); returns the velocity design used (-1: none).
+
+    Plain floats, in the order the generated C follows (``cfdesign/codegen/templates/attitude.c.in``).
+    """
+    (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
+     tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
+     use_motion_bias, inertial) = coef
+    (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
+     gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, lgx, lgy, lgz, started,
+     miss_g, miss_a, miss_m) = s
+
+    # readings: an impossible or non-finite one is missing (NaN fails every comparison)
+    if gx * gx + gy * gy + gz * gz <= g_range2:
+        lgx, lgy, lgz = gx, gy, gz
+    else:
+        miss_g += 1.0
+        gx, gy, gz = lgx, lgy, lgz
+    f2 = ax * ax + ay * ay + az * az
+    acc_ok = 0.0 < f2 <= a_range2
+    if not acc_ok:
+        miss_a += 1.0
+    mag_ok = False
+    if nine:
+        m2 = mx * mx + my * my + mz * mz
+        mag_ok = 0.0 < m2 < math.inf
+        if not mag_ok:
+            miss_m += 1.0
+
+    jv = -1
+    if started < 2.0:
+        # the first step: the attitude is the initial one (given, or the tilt of this specific force)
+        if started == 0.0:
+            if not acc_ok:
+                s[_INDEX["lgx"]:] = [lgx, lgy, lgz, started, miss_g, miss_a, miss_m]
+                return jv
+            fn = math.sqrt(f2)
+            uw = 1.0 + az / fn
+            if uw > 1e-9:
+                qw, qx, qy, qz = uw, ay / fn, -ax / fn, 0.0           # shortest rotation from up_body to e_z
+            else:
+                qw, qx, qy, qz = 0.0, 1.0, 0.0, 0.0                   # upside down
+            n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+            qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
+        glx, gly, glz = gx, gy, gz
+        if acc_ok:
+            flx, fly, flz = ax, ay, az
+        started = 2.0
+        ang = 0.0
+        ux = uy = uz = 0.0
+        first = True
+    else:
+        first = False
+
+    # rest detection (body frame)
+    glx += r_alpha * (gx - glx)
+    gly += r_alpha * (gy - gly)
+    glz += r_alpha * (gz - glz)
+    gdev += r_alpha * ((gx - glx) * (gx - glx) + (gy - gly) * (gy - gly) + (gz - glz) * (gz - glz) - gdev)
+    still = False
+    if acc_ok:
+        flx += r_alpha * (ax - flx)
+        fly += r_alpha * (ay - fly)
+        flz += r_alpha * (az - flz)
+        fdev += r_alpha * ((ax - flx) * (ax - flx) + (ay - fly) * (ay - fly) + (az - flz) * (az - flz) - fdev)
+        db = (glx - bx) * (glx - bx) + (gly - by) * (gly - by) + (glz - bz) * (glz - bz)
+        still = use_rest and gdev < th_g2 and fdev < th_a2 and db < th_b2
+    was_rest = rest_time >= rest_min
+    rest_time = rest_time + T if still else 0.0
+    rest = rest_time >= rest_min
+
+    # the gyro: q <- q (x) exp((w - b) T / 2)
+    if not first:
+        ux, uy, uz = (gx - bx) * T, (gy - by) * T, (gz - bz) * T
+        ang = math.sqrt(ux * ux + uy * uy + uz * uz)
+        if ang > 1e-12:
+            sc = math.sin(0.5 * ang) / ang
+            cw = math.cos(0.5 * ang)
+        else:
+            sc, cw = 0.5, 1.0
+        dx, dy, dz = sc * ux, sc * uy, sc * uz
+        qw, qx, qy, qz = (qw * cw - qx * dx - qy * dy - qz * dz, qw * dx + qx * cw + qy * dz - qz * dy,
+                          qw * dy - qx * dz + qy * cw + qz * dx, qw * dz + qx * dy - qy * dx + qz * cw)
+    if rest:
+        px += ux
+        py += uy
+        pz += uz
+    else:
+        px = py = pz = 0.0
+    n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
+    r0, r1, r2 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
+    r3, r4, r5 = 2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)
+    r6, r7, r8 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
+
+    # velocity channel (tilt): v += T f_E; e = -v; v += k1 e; tilt turned by k2 e / g
+    cx = cy = cz = 0.0
+    if acc_ok:
+        if not inertial:
+            vx = vy = 0.0
+        vx += T * (r0 * ax + r1 * ay + r2 * az)
+        vy += T * (r3 * ax + r4 * ay + r5 * az)
+        if rest:
+            level = 0.0
+            jv = 1
+        else:
+            vv = vx * vx + vy * vy
+            level = 0.0
+            if use_levels and vv > speed2:
+                level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
+            jv = 0 if level == 0.0 else 1 + int(level)
+        k1v, k2v = velocity[jv]
+        evx, evy = -vx, -vy
+        vx += k1v * evx
+        vy += k1v * evy
+        cx = -k2v * evy / GRAVITY
+        cy = k2v * evx / GRAVITY
+        # tilt channel (gyro bias during motion): reads the tilt the velocity channel gives
+        if use_motion_bias and not rest:
+            # its attitude error, kept in the body frame (where the bias is constant), moves against
+            # the velocity channel's correction; its tilt (ENU x, y) is the reading
+            ex -= r0 * cx + r3 * cy
+            ey -= r1 * cx + r4 * cy
+            ez -= r2 * cx + r5 * cy
+            q00, q01, q11, rr, kal, k1t, k2t = tilt
+            if kal:
+                den = t00 + rr
+                k1t, k2t = t00 / den, t01 / den
+                t00, t01, t11 = (1.0 - k1t) * t00, (1.0 - k1t) * t01, t11 - k2t * t01
+            e1 = -(r0 * ex + r1 * ey + r2 * ez)
+            e2 = -(r3 * ex + r4 * ey + r5 * ez)
+            d1, d2, d3 = r0 * e1 + r3 * e2, r1 * e1 + r4 * e2, r2 * e1 + r5 * e2
+            ex += k1t * d1
+            ey += k1t * d2
+            ez += k1t * d3
+            bx -= k2t * d1
+            by -= k2t * d2
+            bz -= k2t * d3
+    if not rest:
+        q00, q01, q11 = tilt[0], tilt[1], tilt[2]
+        t00, t01, t11 = t00 + 2.0 * T * t01 + T * T * t11 + q00, t01 + T * t11 + q01, t11 + q11
+
+    # heading channel (9D): magnetic disturbance check, then the correction about ENU z
+    if nine:
+        if mag_ok:
+            nm = math.sqrt(m2)
+            mex = r0 * mx + r1 * my + r2 * mz
+            mey = r3 * mx + r4 * my + r5 * mz
+            mez = r6 * mx + r7 * my + r8 * mz
+            dip = math.asin(max(-1.0, min(1.0, -mez / nm)))
+            if ref_n == 0.0:
+                norm_lp, dip_lp, norm_ref, dip_ref, ref_n = nm, dip, nm, dip, 1.0
+            else:
+                norm_lp += m_alpha * (nm - norm_lp)
+                dip_lp += m_alpha * (dip - dip_lp)
+            th = tol * math.cos(dip_ref)
+            dist = use_mag_check and (abs(norm_lp - norm_ref) > th * norm_ref or abs(dip_lp - dip_ref) > th)
+            if dist:
+                # a candidate new field: accepted once it held long enough while the sensor turned
+                if new_n == 0.0:
+                    norm_new, dip_new, new_n, new_time, new_turn = norm_lp, dip_lp, 1.0, 0.0, 0.0
+                else:
+                    new_n += 1.0
+                    a = max(ref_alpha, 1.0 / new_n)
+                    norm_new += a * (norm_lp - norm_new)
+                    dip_new += a * (dip_lp - dip_new)
+                    thn = tol * math.cos(dip_new)
+                    if abs(norm_lp - norm_new) <= thn * norm_new and abs(dip_lp - dip_new) <= thn:
+                        new_time += T
+                        new_turn += ang
+                        if new_time >= new_s and new_turn >= new_rot:
+                            norm_ref, dip_ref, ref_n, dist = norm_new, dip_new, new_n, False
+                            new_n = new_time = new_turn = 0.0
+                            h01 = 0.0   # the new field's north is not the old one's: its offset is not gyro drift
+                    else:
+                        new_n = new_time = new_turn = 0.0
+            else:
+                ref_n += 1.0
+                a = max(ref_alpha, 1.0 / ref_n)
+                norm_ref += a * (norm_lp - norm_ref)
+                dip_ref += a * (dip_lp - dip_ref)
+                new_n = new_time = new_turn = 0.0
+            disturbed = 1.0 if dist else 0.0
+            if not dist and math.sqrt(mex * mex + mey * mey) > 1e-9 * nm:
+                eh = _wrap(north - math.atan2(mey, mex))
+                q00, q01, q11, rr, kal, hk1, hk2 = heading
+                if kal:
+                    den = h00 + rr
+                    hk1, hk2 = h00 / den, h01 / den
+                    h00, h01, h11 = (1.0 - hk1) * h00, (1.0 - hk1) * h01, h11 - hk2 * h01
+                cz = hk1 * eh
+                dz = hk2 * eh
+                bx -= r6 * dz
+                by -= r7 * dz
+                bz -= r8 * dz
+        q00, q01, q11 = heading[0], heading[1], heading[2]
+        h00, h01, h11 = h00 + 2.0 * T * h01 + T * T * h11 + q00, h01 + T * h11 + q01, h11 + q11
+
+    # corrections in ENU: q <- exp(c / 2) (x) q; the channels' horizontal states turn with the heading
+    ang_c = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if ang_c > 0.0:
+        sc = math.sin(0.5 * ang_c) / ang_c
+        cw = math.cos(0.5 * ang_c)
+        dx, dy, dz = sc * cx, sc * cy, sc * cz
+        qw, qx, qy, qz = (cw * qw - dx * qx - dy * qy - dz * qz, cw * qx + dx * qw + dy * qz - dz * qy,
+                          cw * qy - dx * qz + dy * qw + dz * qx, cw * qz + dx * qy - dy * qx + dz * qw)
+        vx, vy = vx - cz * vy, vy + cz * vx
+
+    # zero-rotation channel at rest: reads "no rotation since rest began"; corrects the attitude
+    # (body frame) and the whole gyro bias
+    q00, q01, q11, rr, kal, k1r, k2r = restc
+    if rest:
+        if not was_rest:
+            r00, r01 = hold_var, 0.0                    # a new rest: the rotation since it began is zero
+        if kal:
+            den = r00 + rr
+            k1r, k2r = r00 / den, r01 / den
+            r00, r01, r11 = (1.0 - k1r) * r00, (1.0 - k1r) * r01, r11 - k2r * r01
+        e1, e2, e3 = -px, -py, -pz
+        px += k1r * e1
+        py += k1r * e2
+        pz += k1r * e3
+        hx, hy, hz = 0.5 * k1r * e1, 0.5 * k1r * e2, 0.5 * k1r * e3
+        ang_r = math.sqrt(hx * hx + hy * hy + hz * hz)
+        if ang_r > 1e-12:
+            sc = math.sin(ang_r) / ang_r
+            cw = math.cos(ang_r)
+        else:
+            sc, cw = 1.0, 1.0
+        dx, dy, dz = sc * hx, sc * hy, sc * hz
+        qw, qx, qy, qz = (qw * cw - qx * dx - qy * dy - qz * dz, qw * dx + qx * cw + qy * dz - qz * dy,
+                          qw * dy - qx * dz + qy * cw + qz * dx, qw * dz + qx * dy - qy * dx + qz * cw)
+        bx -= k2r * e1
+        by -= k2r * e2
+        bz -= k2r * e3
+        r00, r01, r11 = r00 + 2.0 * T * r01 + T * T * r11 + q00, r01 + T * r11 + q01, r11 + q11
+        # the bias is now known to the zero-rotation channel's variance: so it is to the others
+        t00, t01 = tilt[3], 0.0
+        ex = ey = ez = 0.0
+        if r11 < t11:
+            t11 = r11
+        if r11 < h11:
+            h01 *= math.sqrt(r11 / h11)
+            h11 = r11
+    else:
+        r11 += q11
+    n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
+            gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, lgx, lgy, lgz, started,
+            miss_g, miss_a, miss_m)
+    return jv

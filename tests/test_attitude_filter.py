@@ -1,0 +1,255 @@
+"""AttitudeFilter on synthetic data, one mechanism per test: streaming, rest and bias, magnetic and
+acceleration disturbances, the velocity (inertial-frame) tilt channel, bad input, the designed tables."""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from cfdesign import rotations as rot
+from cfdesign.errors import AttitudeInputError, CfdesignError
+from cfdesign.nav import AttitudeFilter, AttitudeParams, design_attitude, estimate_attitude
+from cfdesign.nav.attitude_filter import GRAVITY, STATE_FIELDS
+
+RATE = 100.0
+FIELD = np.array([0.0, 20.0, -40.0])        # µT, ENU: north and down (dip 63°)
+BIAS = np.array([0.01, -0.02, 0.015])       # rad/s
+
+
+def motion(n, rate=RATE, still_s=0.0, amplitude=(2.5, 0.8, 0.7)):
+    """A sensor at rest for ``still_s`` and then turning smoothly (rates up to ~1 rad/s): quaternions (N, 4)."""
+    t = np.arange(n) / rate
+    ramp = np.clip((t - still_s) / 2.0, 0.0, 1.0)[:, None]
+    euler = ramp * np.column_stack([amplitude[0] * np.sin(0.3 * t), amplitude[1] * np.sin(0.5 * t + 0.4),
+                                    amplitude[2] * np.sin(0.7 * t + 1.1)])
+    return rot.normalize(rot.from_euler(euler + np.array([0.4, 0.0, 0.0])))
+
+
+def imu(q, rate=RATE, field=None, accel_enu=None, bias=BIAS, seed=1, noise=(0.003, 0.03, 0.3)):
+    """Gyro (rate over each interval + bias + noise), specific force and field readings of an attitude track."""
+    rng = np.random.default_rng(seed)
+    n = len(q)
+    d = rot.multiply(rot.conjugate(q[:-1]), q[1:])
+    d *= np.sign(d[:, :1])
+    rates = np.vstack([np.zeros((1, 3)), 2 * d[:, 1:] * rate])
+    gyr = rates + bias + rng.normal(0, noise[0], (n, 3))
+    R = rot.to_matrix(q)
+    up = np.tile([0.0, 0.0, GRAVITY], (n, 1)) + (0.0 if accel_enu is None else accel_enu)
+    acc = np.einsum("nji,nj->ni", R, up) + rng.normal(0, noise[1], (n, 3))
+    field = np.tile(FIELD, (n, 1)) if field is None else field
+    mag = np.einsum("nji,nj->ni", R, field) + rng.normal(0, noise[2], (n, 3))
+    return gyr, acc, mag
+
+
+def errors(est, q):
+    """Heading and inclination errors (deg) of ``est`` against ``q`` (error in ENU, as BROAD measures)."""
+    e = rot.multiply(est, rot.conjugate(q))
+    e *= np.sign(e[:, :1])
+    heading = np.degrees(2 * np.arctan2(e[:, 3], e[:, 0]))
+    incl = np.degrees(2 * np.arccos(np.clip(np.hypot(e[:, 0], e[:, 3]), 0, 1)))
+    return heading, incl
+
+
+# ---------------------------------------------------------------------- streaming
+def test_stream_and_batch_agree_and_state_restores():
+    q = motion(3000, still_s=5.0)
+    gyr, acc, mag = imu(q)
+    gyr[700], acc[900], mag[1100] = np.nan, 1e6, np.nan
+    batch = AttitudeFilter(RATE).run(gyr, acc, mag)
+    f = AttitudeFilter(RATE)
+    stream = np.array([f.step(g, a, m) for g, a, m in zip(gyr[:1500], acc[:1500], mag[:1500], strict=True)])
+    saved = f.state()
+    assert list(saved) == list(STATE_FIELDS)
+    g = AttitudeFilter(RATE)
+    g.restore(saved)
+    rest = np.array([g.step(*row) for row in zip(gyr[1500:], acc[1500:], mag[1500:], strict=True)])
+    assert np.abs(np.vstack([stream, rest]) - batch).max() <= 1e-12       # they are identical
+    assert g.missing == {"gyr": 1, "acc": 1, "mag": 1}
+    with pytest.raises(AttitudeInputError, match="missing qw"):
+        g.restore({k: v for k, v in saved.items() if k != "qw"})
+    with pytest.raises(AttitudeInputError, match="bx must be finite"):
+        g.restore({**saved, "bx": math.nan})
+
+
+def test_six_d_ignores_the_field_and_holds_heading_at_rest():
+    q = motion(6000, still_s=60.0)                                    # 60 s still
+    gyr, acc, mag = imu(q)
+    f = AttitudeFilter(RATE, magnetometer=False)
+    est = f.run(gyr, acc, None)
+    assert np.array_equal(est, AttitudeFilter(RATE, magnetometer=False).run(gyr, acc, mag * 0 + 5.0))
+    heading, _ = errors(est, q)
+    assert np.ptp(heading[300:]) < 0.3            # a 0.015 rad/s vertical bias: 50° a minute without the rest channel
+    with pytest.raises(AttitudeInputError, match="mag is missing"):
+        AttitudeFilter(RATE).run(gyr, acc, None)
+
+
+# ---------------------------------------------------------------------- rest and bias
+def test_rest_is_detected_and_the_bias_learnt_at_rest():
+    q = motion(1500, still_s=8.0)
+    gyr, acc, mag = imu(q)
+    out = AttitudeFilter(RATE).run(gyr, acc, mag, details=True)
+    t = np.arange(len(q)) / RATE
+    assert not out.rest[t < 1.4].any() and out.rest[(t > 1.7) & (t < 7.9)].all()   # rest_time_s 1.5 s
+    assert not out.rest[t > 9.0].any()
+    assert np.abs(out.bias[int(6 * RATE)] - BIAS).max() < 1e-3            # 0.06 °/s after 4.5 s of rest
+    off = AttitudeFilter(RATE, rest_detection=False).run(gyr, acc, mag, details=True)
+    assert not off.rest.any() and np.abs(off.bias[int(6 * RATE)] - BIAS).max() > 3e-3
+
+
+# ---------------------------------------------------------------------- magnetic disturbance
+def magnet_run(**params):
+    q = motion(9000, still_s=5.0)
+    field = np.tile(FIELD, (len(q), 1))
+    field[4000:6000] += [18.0, -6.0, 12.0]                             # a magnet for 20 s
+    gyr, acc, mag = imu(q, field=field)
+    return q, AttitudeFilter(RATE, **params).run(gyr, acc, mag, details=True)
+
+
+def test_magnetic_disturbance_is_rejected_and_heading_reconverges_without_a_jump():
+    q, out = magnet_run()
+    heading, _ = errors(out.quaternion, q)
+    assert out.mag_disturbed[4020:6000].mean() > 0.95 and not out.mag_disturbed[6100:].any()
+    assert not out.mag_disturbed[1000:4000].any()
+    assert np.abs(heading[4000:6000]).max() < 1.0                     # the gyro carries the heading
+    assert np.abs(heading[7000:]).max() < 1.0
+    assert np.abs(np.diff(heading))[5950:6500].max() < 0.02           # re-converges without a jump (deg/sample)
+    _, off = magnet_run(mag_rejection=False)
+    assert np.abs(errors(off.quaternion, q)[0][4000:6000]).max() > 10.0
+
+
+def test_a_new_homogeneous_field_is_accepted_after_a_while_of_motion():
+    q = motion(9000, still_s=3.0)
+    turn = np.radians(20.0)
+    moved = 1.1 * np.array([math.sin(turn) * 20.0, math.cos(turn) * 20.0, -40.0])   # another room
+    field = np.tile(FIELD, (len(q), 1))
+    field[2000:] = moved
+    gyr, acc, mag = imu(q, field=field)
+    out = AttitudeFilter(RATE).run(gyr, acc, mag, details=True)
+    assert out.mag_disturbed[2050:5900].all()                          # 40 s (mag_new_field_s) ...
+    assert not out.mag_disturbed[6100:].any()                          # ... then the new field is the reference
+    heading, _ = errors(out.quaternion, q)
+    assert abs(np.median(heading[8500:]) - 20.0) < 2.0                  # it now follows the new north
+
+
+# ---------------------------------------------------------------------- acceleration disturbance
+def test_taps_and_vibration_leave_the_tilt_alone():
+    q = motion(4000, still_s=40.0)
+    accel = np.zeros((len(q), 3))
+    accel[1000:3000:50, 0] = 150.0                                    # taps: +150 m/s² ...
+    accel[1001:3000:50, 0] = -150.0                                   # ... and the rebound (no net velocity)
+    accel[1000:3000, 2] += 3.0 * np.sin(2 * np.pi * 40.0 * np.arange(2000) / RATE)   # vibration
+    gyr, acc, mag = imu(q, accel_enu=accel)
+    _, incl = errors(AttitudeFilter(RATE).run(gyr, acc, mag), q)
+    assert incl[1000:].max() < 0.5
+    _, classic = errors(AttitudeFilter(RATE, inertial_tilt=False, rest_detection=False).run(gyr, acc, mag), q)
+    assert classic[1000:].max() > 1.0
+
+
+def test_sustained_acceleration_weights_the_tilt_corrections_down():
+    """Once the integrated speed passes max_speed_mps (4 m/s), the velocity channel runs its
+    disturbance designs: a sustained acceleration above ~4 m/s² no longer pulls the tilt (below
+    that, the default tilt bandwidth absorbs it before the speed grows: 18° either way at 3 m/s²)."""
+    q = motion(4000, still_s=10.0, amplitude=(0.5, 0.1, 0.1))
+    accel = np.zeros((len(q), 3))
+    accel[1500:2300, 0] = 6.0                                          # a vehicle speeding up hard for 8 s
+    accel[2300:3100, 0] = -6.0                                         # and braking
+    gyr, acc, mag = imu(q, accel_enu=accel)
+    out = AttitudeFilter(RATE).run(gyr, acc, mag, details=True)
+    off = AttitudeFilter(RATE, accel_rejection=False).run(gyr, acc, mag, details=True)
+    assert out.accel_level[1500:3100].max() >= 2 and (out.tilt_weight[1500:3100] < 1).any()
+    assert not off.accel_level.any()
+    _, incl_on = errors(out.quaternion, q)
+    _, incl_off = errors(off.quaternion, q)
+    assert incl_on[1500:3200].max() < 0.3 * incl_off[1500:3200].max()    # measured 7° against 37°
+
+
+def test_the_velocity_channel_rides_out_translation():
+    """Back-and-forth translation (bounded velocity) while turning: the inertial-frame velocity
+    channel keeps the tilt; the classic filter on the instantaneous accelerometer does not."""
+    q = motion(6000, still_s=3.0)
+    t = np.arange(len(q)) / RATE
+    accel = np.column_stack([2.0 * np.sin(3.0 * t), 2.0 * np.cos(2.3 * t), 1.5 * np.sin(2.0 * t)]) * (t > 5)[:, None]
+    gyr, acc, mag = imu(q, accel_enu=accel)
+    _, incl = errors(AttitudeFilter(RATE).run(gyr, acc, mag), q)
+    _, classic = errors(AttitudeFilter(RATE, inertial_tilt=False).run(gyr, acc, mag), q)
+    assert np.sqrt(np.mean(incl[1000:] ** 2)) < 0.75                        # measured 0.45°
+    assert np.sqrt(np.mean(classic[1000:] ** 2)) > 2 * np.sqrt(np.mean(incl[1000:] ** 2))   # 1.07°
+
+
+# ---------------------------------------------------------------------- bad input
+def test_impossible_and_non_finite_samples_are_missing_and_counted():
+    q = motion(3000, still_s=5.0)
+    gyr, acc, mag = imu(q)
+    clean = AttitudeFilter(RATE).run(gyr, acc, mag)
+    bad_acc, bad_gyr = acc.copy(), gyr.copy()
+    bad_acc[1000] = [1e6, 0.0, 0.0]                                    # one impossible specific force
+    bad_gyr[1200] = [np.nan, 0.0, 0.0]
+    bad_gyr[1300] = [5e3, 0.0, 0.0]                                    # one impossible rate
+    f = AttitudeFilter(RATE)
+    est = f.run(bad_gyr, bad_acc, mag)
+    assert f.missing == {"gyr": 2, "acc": 1, "mag": 0}
+    assert np.degrees(2 * np.arccos(np.clip(np.abs(np.sum(est * clean, axis=1)), 0, 1))).max() < 0.3
+    assert np.isfinite(estimate_attitude(np.full((50, 3), np.nan), np.full((50, 3), np.nan), None, RATE)).all()
+
+
+@pytest.mark.parametrize("rate", [1e12, 0.0, -5.0, math.nan, math.inf, "fast"])
+def test_bad_rates_are_refused_before_anything_is_allocated(rate):
+    start = time.perf_counter()
+    with pytest.raises(AttitudeInputError, match="rate_hz") as err:
+        estimate_attitude(np.zeros((10, 3)), np.zeros((10, 3)), None, rate)
+    assert "\n" not in str(err.value) and time.perf_counter() - start < 0.5
+    with pytest.raises(AttitudeInputError, match="rate_hz"):
+        AttitudeFilter(rate)
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"declination_rad": math.nan}, "declination_rad must be finite"),
+    ({"declination_rad": 4.0}, "declination_rad must be within"),
+    ({"gyro_noise_density": -1.0}, "gyro_noise_density must be a positive"),
+    ({"heading_noise_density": "x"}, "heading_noise_density must be a number"),
+    ({"mag_rejection": 1}, "mag_rejection must be True or False"),
+    ({"no_such_option": 1.0}, "unknown parameter"),
+])
+def test_bad_parameters_are_refused(kwargs, match):
+    with pytest.raises(CfdesignError, match=match):
+        AttitudeFilter(RATE, **kwargs)
+
+
+# ---------------------------------------------------------------------- the designed tables
+def test_channels_are_designed_tables_and_the_velocity_channel_is_a_butterworth():
+    design = design_attitude(RATE)
+    assert set(design.tables) >= {"velocity", "velocity_rest", "tilt", "heading", "rest"}
+    for table in design.tables.values():
+        assert table.structure == "cf2" and math.isclose(table.sample_time_s, 1 / RATE)
+    p = AttitudeParams()
+    quiet = design_attitude(RATE, AttitudeParams(accel_noise_density=1e-6)).tables["velocity"]
+    k1, k2 = quiet.gains["k1"], quiet.gains["k2"]
+    wn, zeta = math.sqrt(k2 * RATE), k1 * RATE / (2 * math.sqrt(k2 * RATE))
+    assert abs(zeta - 1 / math.sqrt(2)) < 0.01
+    assert abs(wn / math.sqrt(GRAVITY * p.tilt_drift_density / p.velocity_noise_density) - 1) < 0.05
+
+
+def kalman_step(channel, p, T=1 / RATE):
+    """One update and prediction of a channel's covariance, as the filter's step runs it."""
+    q00, q01, q11, r, _, _, _ = channel
+    p00, p01, p11 = p
+    k1, k2 = p00 / (p00 + r), p01 / (p00 + r)
+    a00, a01, a11 = (1 - k1) * p00, (1 - k1) * p01, p11 - k2 * p01
+    return (a00 + 2 * T * a01 + T * T * a11 + q00, a01 + T * a11 + q01, a11 + q11), (k1, k2)
+
+
+def test_the_channels_kalman_recursions_settle_on_the_tables_gains():
+    """The channels run their tables' Kalman recursion: the table's DARE covariance is its fixed
+    point (so its steady gain is the designed one), and from the bias prior it gets there."""
+    design = design_attitude(RATE)
+    for name in ("tilt", "heading", "rest"):
+        table, channel = design.tables[name], design.channels[name]
+        P = np.asarray(table.P[0])
+        (p00, p01, p11), (k1, k2) = kalman_step(channel, (P[0, 0], P[0, 1], P[1, 1]))
+        assert np.allclose([p00, p01, p11], [P[0, 0], P[0, 1], P[1, 1]], rtol=1e-6), name
+        assert np.allclose([k1, k2], [table.gains["k1"], table.gains["k2"]], rtol=1e-6), name
+        p = design.priors[name]
+        for _ in range(100_000):                                # 1000 s
+            p, gains = kalman_step(channel, p)
+        assert abs(gains[0] / table.gains["k1"] - 1) < 0.1, name
