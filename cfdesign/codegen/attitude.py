@@ -43,6 +43,7 @@ def write_attitude_c(attitude_filter, directory, *, prefix="cf_attitude") -> lis
     attitude_filter : cfdesign.nav.AttitudeFilter
         The filter: its rate, parameters, 6D/9D mode, initial attitude and tables.
     directory : str or Path
+        Folder the two files are written to (created with its parents if missing).
     prefix : str
         Prefix of the C names and files; a C identifier.
 
@@ -55,6 +56,13 @@ def write_attitude_c(attitude_filter, directory, *, prefix="cf_attitude") -> lis
     ------
     CfdesignError
         A bad prefix, or the files cannot be written (OutputError).
+
+    Examples
+    --------
+    >>> from cfdesign.nav import AttitudeFilter
+    >>> from cfdesign.codegen.attitude import write_attitude_c
+    >>> [path.name for path in write_attitude_c(AttitudeFilter(100.0), "c_out")]
+    ['cf_attitude.h', 'cf_attitude.c']
     """
     texts = render_attitude_c(attitude_filter, prefix=prefix)
     directory = Path(directory)
@@ -66,7 +74,42 @@ def write_attitude_c(attitude_filter, directory, *, prefix="cf_attitude") -> lis
 
 
 def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
-    """The generated files as ``{file name: text}`` without writing them (see :func:`write_attitude_c`)."""
+    """The generated C99 files of an attitude filter as ``{file name: text}``, without writing them.
+
+    The code is the filter's step for its rate, parameters, 6D/9D mode, initial attitude and
+    designed tables (every number a hexadecimal literal); ``<prefix>_init`` starts from the
+    state :meth:`~cfdesign.nav.AttitudeFilter.reset` gives, not from the filter's current
+    state.  :func:`write_attitude_c` writes the same texts.
+
+    Parameters
+    ----------
+    attitude_filter : cfdesign.nav.AttitudeFilter
+        The filter to export (left unchanged).
+    prefix : str
+        Prefix of the C names (``<prefix>_state``, ``<prefix>_init``, ``<prefix>_step``) and of
+        the file names; must be a C identifier.
+
+    Returns
+    -------
+    dict
+        ``{"<prefix>.h": text, "<prefix>.c": text}``.
+
+    Raises
+    ------
+    CfdesignError
+        ``attitude_filter`` is not an :class:`~cfdesign.nav.AttitudeFilter`, ``prefix`` is not a
+        usable C identifier, or a designed number is not finite.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import AttitudeFilter
+    >>> from cfdesign.codegen.attitude import render_attitude_c
+    >>> files = render_attitude_c(AttitudeFilter(100.0), prefix="imu_att")
+    >>> sorted(files)
+    ['imu_att.c', 'imu_att.h']
+    >>> "void imu_att_init(imu_att_state *s);" in files["imu_att.h"]
+    True
+    """
     from ..nav.attitude_filter import STATE_FIELDS, AttitudeFilter, _coefficients
 
     if not isinstance(attitude_filter, AttitudeFilter):

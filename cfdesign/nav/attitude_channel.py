@@ -44,9 +44,43 @@ _MODEL = "the cf2 chain (order 2): states [angle, rate correction], a rate input
 def channel_spec(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
     """The design spec of one channel: ``cf2`` order 2, discrete, filter gain form, at ``rate_hz``.
 
-    Gyro noise ``gyro_noise_std`` (rad/s per sample), a random-walk gyro bias
-    ``gyro_bias_density`` (rad/s/sqrt(s)) and an angle reading with ``angle_noise_std`` (rad
-    per sample), all at ``rate_hz``.
+    Two sensors at the same rate: ``rate``, the gyro (white noise and a random-walk bias), and
+    ``angle``, the angle reading (white noise).  :func:`design_channel` designs it without
+    sympy; ``cfdesign.design(channel_spec(...))`` gives the same table.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate of the gyro and of the angle reading (Hz).
+    gyro_noise_std : float
+        Gyro white noise, rad/s per sample (std at ``rate_hz``: density times ``sqrt(rate_hz)``).
+    gyro_bias_density : float
+        Random walk of the gyro bias, rad/s/sqrt(s); positive.
+    angle_noise_std : float
+        Noise of the angle reading (e.g. the Magneto-Pendular Sensor's), rad per sample.
+
+    Returns
+    -------
+    FilterSpec
+        The spec named ``attitude channel``, structure ``cf2``, order 2, discrete.
+
+    Raises
+    ------
+    SpecError
+        A figure the spec rejects (a rate that is not positive, a negative noise std, a bias
+        density that is not positive); the message names the field.
+
+    Notes
+    -----
+    The units are those of an attitude channel; :class:`~cfdesign.nav.AttitudeFilter` uses the
+    same chain for its velocity channel in m/s², m/s²/sqrt(s) and m/s.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_channel import channel_spec
+    >>> spec = channel_spec(100.0, 0.002, 1e-5, 0.05)
+    >>> spec.structure, spec.order, spec.discrete, spec.gain_form
+    ('cf2', 2, True, 'filter')
     """
     return parse_spec({
         "name": "attitude channel", "structure": "cf2", "order": 2, "discrete": True, "gain_form": "filter",
@@ -66,8 +100,41 @@ def design_channel(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
     """Gains of one attitude channel from noise figures: :func:`channel_spec` designed without sympy.
 
     The DARE of the model in the module docstring gives the filter-form gain ``[k1, k2]``
-    (``table.gains``), the same as ``cfdesign.design(channel_spec(...))`` bit for bit.
-    Cached: equal arguments return the same :class:`~cfdesign.gains.GainTable`.
+    (``table.gains``), the same as ``cfdesign.design(channel_spec(...))`` bit for bit, from the
+    numeric design stage on the stored structure :data:`STRUCTURE` (Van Loan discretisation,
+    DARE).  Cached: equal arguments return the same :class:`~cfdesign.gains.GainTable`.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate of the channel (Hz).
+    gyro_noise_std : float
+        Gyro white noise, rad/s per sample.
+    gyro_bias_density : float
+        Random walk of the gyro bias, rad/s/sqrt(s).
+    angle_noise_std : float
+        Noise of the angle reading, rad per sample.
+
+    Returns
+    -------
+    GainTable
+        The discrete filter-form table at ``1 / rate_hz``: ``gains`` is ``{'k1': .., 'k2': ..}``
+        (``k1`` dimensionless, ``k2`` in 1/s), with the model ``F, Q, R`` and the DARE
+        covariance ``P``.
+
+    Raises
+    ------
+    AttitudeInputError
+        A figure that is not a finite positive number (checked before the design).
+
+    Examples
+    --------
+    >>> from cfdesign.nav import design_channel
+    >>> table = design_channel(100.0, 0.002, 1e-5, 0.05)
+    >>> round(table.gains["k1"], 6), round(table.gains["k2"], 8)
+    (0.000748, 1.999e-05)
+    >>> table is design_channel(100.0, 0.002, 1e-5, 0.05)
+    True
     """
     return _design_cached(positive("rate_hz", rate_hz), positive("gyro_noise_std", gyro_noise_std),
                           positive("gyro_bias_density", gyro_bias_density),
@@ -86,6 +153,33 @@ def channel_tables(tables, given, design_pair):
         figures is an error.
     design_pair : callable
         Designs ``(tilt, heading)`` from the noise figures.
+
+    Returns
+    -------
+    tuple
+        ``(tilt, heading)``: ``design_pair()`` without ``tables``, else the two tables as
+        :class:`~cfdesign.gains.GainTable` (a spec is designed on :data:`STRUCTURE`).  Whether
+        a table fits the filter's model and sample time is :func:`channel_gains`'s check.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``tables`` and noise figures (``given`` not empty) both given.
+    TableMismatchError
+        ``tables`` is not a pair, an entry is neither a GainTable nor a FilterSpec, or a spec
+        is not the ``cf2`` order-2 discrete channel.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import design_channel
+    >>> from cfdesign.nav.attitude_channel import channel_tables
+    >>> tilt = design_channel(100.0, 0.002, 1e-5, 0.05)
+    >>> channel_tables((tilt, tilt), [], None) == (tilt, tilt)
+    True
+    >>> channel_tables((tilt, tilt), ["gyro_noise_std"], None)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: give either tables or the noise figures (gyro_noise_std), not both
     """
     if tables is None:
         return design_pair()
@@ -101,8 +195,44 @@ def channel_tables(tables, given, design_pair):
 def channel_gains(table, what: str, sample_time_s: float, timing: str) -> tuple:
     """``(k1, k2)``: the update gains of a channel table, after checking it fits (module docstring).
 
-    Raises :class:`~cfdesign.errors.TableMismatchError` naming ``what`` and the mismatch
-    (structure, sample time, model).
+    The table must be the discrete ``cf2`` order-2 channel (``F = [[1, T], [0, 1]]``,
+    ``B = [T, 0]^T``, ``H = [1, 0]``, a rate input and an angle measurement) at the filter's
+    sample time, period 1.  A predictor-form gain is turned into the update gain with
+    :func:`cfdesign.linear.gain_pair`.
+
+    Parameters
+    ----------
+    table : GainTable
+        A filter- or predictor-form table of the channel (its first gain is used).
+    what : str
+        How the error message names the table (``tables[0] (tilt)``).
+    sample_time_s : float
+        The filter's sample time ``T`` (s).
+    timing : str
+        Where the sample time comes from, for the message (``rate_hz 100 Hz``).
+
+    Returns
+    -------
+    tuple of float
+        ``(k1, k2)``, the update gains ``λ+ = λ- + k1 e``, ``c+ = c- + k2 e`` (``k2`` in 1/s).
+
+    Raises
+    ------
+    TableMismatchError
+        A continuous table, other shapes or sensor orders, another sample time or period, or
+        other model matrices; the message names ``what`` and the difference.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import design_channel
+    >>> from cfdesign.nav.attitude_channel import channel_gains
+    >>> table = design_channel(100.0, 0.002, 1e-5, 0.05)
+    >>> channel_gains(table, "tables[0] (tilt)", 0.01, "rate_hz 100 Hz") == (table.gains["k1"], table.gains["k2"])
+    True
+    >>> channel_gains(table, "tables[0] (tilt)", 0.005, "rate_hz 200 Hz")
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.TableMismatchError: tables[0] (tilt): 'attitude channel' has sample time 0.01 s; ...
     """
     T = sample_time_s
     check_fits(table, what, F=[[1.0, T], [0.0, 1.0]], B=[[T], [0.0]], H=[[1.0, 0.0]], orders=(1, 0),
@@ -127,9 +257,40 @@ def gain_schedule(table, gains, bias_std0, steps, rtol=1e-3):
 
     from ``P⁻ = diag(R, bias_std0²)``, run until the gain is within ``rtol`` of the table's
     gain ``gains = (k1, k2)`` (its DARE limit) or for ``steps`` steps; the last entry is the
-    table's gain itself.  Returns two lists.  ``bias_std0 = 0``, or a table whose gains are
-    not the Kalman gains of its ``P`` and ``R`` (fixed gains, which the recursion does not
-    approach), returns the table's gain only.
+    table's gain itself.  ``bias_std0 = 0``, or a table whose gains are not the Kalman gains of
+    its ``P`` and ``R`` (fixed gains, which the recursion does not approach), returns the
+    table's gain only.
+
+    Parameters
+    ----------
+    table : GainTable
+        A channel table (:func:`design_channel`) with its ``F``, ``Q``, ``R`` and ``P``.
+    gains : pair of float
+        The table's update gains ``(k1, k2)`` (:func:`channel_gains`).
+    bias_std0 : float
+        Prior std of the gyro bias (the rate correction), rad/s; the angle starts known to
+        the reading's variance ``R``.
+    steps : int
+        Most recursion steps run (at least one).
+    rtol : float
+        Relative tolerance on both gains at which the recursion stops.
+
+    Returns
+    -------
+    k1, k2 : list of float
+        The gains of the steps from the first sample on, equal lengths (at most ``steps + 1``),
+        each ending with the table's gain.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import design_channel
+    >>> from cfdesign.nav.attitude_channel import gain_schedule
+    >>> table = design_channel(100.0, 0.002, 1e-5, 0.05)
+    >>> k1, k2 = gain_schedule(table, (table.gains["k1"], table.gains["k2"]), 0.0175, 1000)
+    >>> k1[0], k1[-1] == table.gains["k1"], len(k1) == len(k2)
+    (0.5, True, True)
+    >>> gain_schedule(table, (0.3, 0.02), 0.0175, 1000)      # fixed gains: no schedule
+    ([0.3], [0.02])
     """
     k1_inf, k2_inf = gains
     if bias_std0 == 0 or not _is_kalman(table, gains):

@@ -146,7 +146,8 @@ class AttitudeParams:
         ``sqrt(g sigma_tilt / sigma_v)`` (default 0.032: 0.5 rad/s; tuned on BROAD).
     tilt_noise_density : float
         Noise of the tilt the velocity channel yields, rad/sqrt(Hz), as the tilt channel that
-        learns the gyro bias during motion reads it (default 0.004: learns in minutes).
+        learns the gyro bias during motion reads it (default 0.05; the larger, the slower that
+        channel learns the bias).
     heading_noise_density : float
         Magnetometer heading noise including indoor field distortion, rad/sqrt(Hz) (default
         0.008; tuned on BROAD).
@@ -210,7 +211,35 @@ class AttitudeParams:
     inertial_tilt: bool = True
 
     def checked(self) -> AttitudeParams:
-        """The parameters as floats, each finite and in range; AttitudeInputError naming the first that is not."""
+        """Check every parameter and return them converted: numbers as floats, switches as bools.
+
+        Ranges: ``declination_rad`` within [-pi, pi]; ``gyro_bias_std0`` and
+        ``mag_new_field_rotation_rad`` at least 0; every other number in [1e-15, 1e15], and
+        ``mag_tolerance_rad`` below pi/2 as well; the five switches True or False (a Python or
+        numpy bool, not a number).
+
+        Returns
+        -------
+        AttitudeParams
+            A new instance with the converted values (``self`` is frozen and left as it is).
+
+        Raises
+        ------
+        AttitudeInputError
+            The first field, in declaration order, that is not a number (a switch: not a bool), is
+            not finite or is out of its range, then a ``mag_tolerance_rad`` not below pi/2; the
+            message names the field.
+
+        Examples
+        --------
+        >>> from cfdesign.nav import AttitudeParams
+        >>> AttitudeParams(rest_time_s=2).checked().rest_time_s
+        2.0
+        >>> AttitudeParams(mag_tolerance_rad=2.0).checked()
+        Traceback (most recent call last):
+        ...
+        cfdesign.errors.AttitudeInputError: mag_tolerance_rad must be below pi/2, got 2.0
+        """
         values = {}
         for f in fields(self):
             value = getattr(self, f.name)
@@ -277,10 +306,50 @@ class AttitudeDesign:
 def design_attitude(rate_hz, params=None, tables=None) -> AttitudeDesign:
     """Design the tables of :class:`AttitudeFilter` at ``rate_hz`` (cached; no sympy).
 
-    ``tables``: a user's own designs of the ``tilt`` and ``heading`` channels, a dict of
-    :class:`~cfdesign.gains.GainTable` or :class:`~cfdesign.spec.FilterSpec` (``cf2`` order 2,
-    discrete, at ``rate_hz``: e.g. :func:`cfdesign.nav.design_channel`) or the pair
-    ``(tilt, heading)``; TableMismatchError for one that does not fit.
+    Every channel is a ``cf2`` table of :func:`~cfdesign.nav.design_channel`, from the noise
+    densities of ``params`` turned into per-sample stds at ``rate_hz``: the velocity channel's
+    motion, rest and acceleration-disturbance designs, the tilt, heading and zero-rotation
+    channels (module docstring), with the derived thresholds.  Without ``tables`` the design is
+    cached: equal rate and parameters return the same :class:`AttitudeDesign`.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate (Hz), in (0, 1e6].
+    params : AttitudeParams, optional
+        Noise figures and thresholds (checked with :meth:`AttitudeParams.checked`); default
+        ``AttitudeParams()``.
+    tables : dict or pair, optional
+        A user's own designs of the ``tilt`` and/or ``heading`` channels in place of the
+        designed ones: a dict with those keys or the pair ``(tilt, heading)``, each a
+        :class:`~cfdesign.gains.GainTable` or :class:`~cfdesign.spec.FilterSpec` of the ``cf2``
+        order-2 discrete channel at ``rate_hz`` (e.g. :func:`cfdesign.nav.design_channel`).
+
+    Returns
+    -------
+    AttitudeDesign
+        The tables, gains, Kalman-recursion numbers, priors and constants the filter's step
+        runs.
+
+    Raises
+    ------
+    AttitudeInputError
+        A bad rate (checked first) or parameter.
+    TableMismatchError
+        ``tables`` is neither a dict nor a pair, has a key other than ``tilt`` and
+        ``heading``, or holds a table that is not the channel's model at ``1 / rate_hz``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav import design_attitude, design_channel
+    >>> design = design_attitude(100.0)
+    >>> len(design.velocity)            # motion, rest and five disturbance levels
+    7
+    >>> design is design_attitude(100.0)
+    True
+    >>> tilt = design_channel(100.0, 0.002, 1e-5, 0.05)
+    >>> design_attitude(100.0, tables={"tilt": tilt}).tables["tilt"] is tilt
+    True
     """
     rate_hz = _rate(rate_hz)
     params = (AttitudeParams() if params is None else params).checked()
@@ -446,16 +515,35 @@ class AttitudeFilter:
         heading channel starts from a uniform prior).
     tables : dict or pair, optional
         A user's own ``tilt`` and/or ``heading`` channel designs (:func:`design_attitude`).
+    **overrides
+        Fields of :class:`AttitudeParams` replacing those of ``params`` (e.g.
+        ``declination_rad=0.05``, ``mag_rejection=False``).
 
     Raises
     ------
     AttitudeInputError
-        For a bad rate (checked before anything is designed), parameter or initial attitude.
+        For a bad rate (checked before anything is designed), a ``params`` that is not an
+        :class:`AttitudeParams`, an override that is not one of its fields, a bad parameter
+        value or a bad initial attitude.
+    TableMismatchError
+        ``tables`` that do not fit the channels at ``rate_hz`` (:func:`design_attitude`).
 
     Notes
     -----
     ``step`` and ``run`` are the same arithmetic: a run equals its samples stepped one by one
     (tested to 1e-12; they are in fact identical).
+
+    Examples
+    --------
+    A still sensor whose gyro reads 0.01 rad/s about z: after ``rest_time_s`` (1.5 s) the rest
+    is detected and the zero-rotation channel learns the bias.
+
+    >>> import numpy as np
+    >>> from cfdesign.nav import AttitudeFilter
+    >>> f = AttitudeFilter(100.0, magnetometer=False)
+    >>> out = f.run(np.tile([0.0, 0.0, 0.01], (300, 1)), np.tile([0.0, 0.0, 9.81], (300, 1)), details=True)
+    >>> bool(out.rest[-1]), round(float(out.bias[-1, 2]), 3)
+    (True, 0.01)
     """
 
     def __init__(self, rate_hz, params=None, *, magnetometer=True, initial=None, tables=None, **overrides):
@@ -491,11 +579,56 @@ class AttitudeFilter:
         self._s = s
 
     def state(self) -> dict:
-        """A copy of the state, ``{name: float}`` in :data:`STATE_FIELDS` order (plain data: JSON, C)."""
+        """A copy of the filter's state, to save it or to continue it later with :meth:`restore`.
+
+        Returns
+        -------
+        dict
+            ``{name: float}`` in :data:`STATE_FIELDS` order: the attitude ``qw .. qz`` (body ->
+            ENU), the gyro bias ``bx .. bz`` (rad/s, body frame), the channels' states and
+            covariances, the detectors' low-passes and counters.  Plain floats: it can be
+            written as JSON, and it maps field by field onto the generated C struct
+            (:mod:`cfdesign.codegen.attitude`).  The design (rate, parameters, tables) is not
+            part of it.
+
+        Examples
+        --------
+        >>> from cfdesign.nav import AttitudeFilter
+        >>> state = AttitudeFilter(100.0).state()
+        >>> len(state), state["qw"], state["started"]
+        (52, 1.0, 0.0)
+        """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
     def restore(self, state: dict):
-        """Continue from a :meth:`state`; AttitudeInputError for missing, unknown or non-finite fields."""
+        """Continue from a state saved with :meth:`state`.
+
+        The state carries no design: restore it into a filter with the same rate, parameters,
+        mode and tables to continue the run it was taken from.  The values are taken as they are
+        (the attitude is renormalised by the next step).
+
+        Parameters
+        ----------
+        state : dict
+            ``{name: number}`` with exactly the names of :data:`STATE_FIELDS`.
+
+        Raises
+        ------
+        AttitudeInputError
+            ``state`` is not a dict, lacks a field or has an unknown one, has a value that is not
+            a finite number, or its ``qw, qx, qy, qz`` is not near a unit quaternion (norm
+            outside (0.5, 2)); the filter's state is then left unchanged.
+
+        Examples
+        --------
+        >>> from cfdesign.nav import AttitudeFilter
+        >>> f = AttitudeFilter(100.0, magnetometer=False)
+        >>> saved = f.state()
+        >>> q = f.step([0.0, 0.0, 0.1], [0.0, 0.0, 9.81])
+        >>> f.restore(saved)
+        >>> f.step([0.0, 0.0, 0.1], [0.0, 0.0, 9.81]) == q
+        True
+        """
         if not isinstance(state, dict):
             raise AttitudeInputError(f"state must be a dict from AttitudeFilter.state(), got {type(state).__name__}")
         missing = [n for n in STATE_FIELDS if n not in state]
@@ -547,8 +680,43 @@ class AttitudeFilter:
     def step(self, gyr, acc, mag=None) -> tuple:
         """One sample: body rate ``gyr`` (rad/s), specific force ``acc`` (m/s²), field ``mag`` (body frame).
 
-        Each is a sequence of three numbers; ``mag`` is ignored in 6D and None means a missing
-        field reading in 9D.  Returns the attitude ``(w, x, y, z)`` (w >= 0), body -> ENU.
+        Readings that are not finite or impossible (beyond ``gyro_range_rps`` or
+        ``accel_range_mps2``, a zero specific force or field) are not errors: they are counted
+        as missing (:attr:`missing`); a missing rate holds the last good one, a missing specific
+        force or field skips its channel.  Without ``initial``, the first usable specific force
+        sets the tilt (heading zero); until then the attitude stays the identity.
+
+        Parameters
+        ----------
+        gyr : sequence of 3 float
+            Body rate, rad/s, body (sensor) frame.
+        acc : sequence of 3 float
+            Specific force, m/s², body frame (points up at rest).
+        mag : sequence of 3 float, optional
+            Magnetic field, body frame, any consistent unit (Gauss, uT or normalised: the filter
+            uses its direction, its dip and relative changes of its norm); ignored in 6D; None
+            in 9D is a missing reading.
+
+        Returns
+        -------
+        tuple of float
+            The attitude ``(w, x, y, z)`` (w >= 0) after this sample, body -> ENU.
+
+        Raises
+        ------
+        AttitudeInputError
+            ``gyr``, ``acc`` or (in 9D) ``mag`` is not three numbers.
+
+        Examples
+        --------
+        The first sample of a sensor rolled by 0.2 rad sets the tilt from its specific force:
+
+        >>> import math
+        >>> from cfdesign.nav import AttitudeFilter
+        >>> f = AttitudeFilter(100.0, magnetometer=False)
+        >>> q = f.step([0.0, 0.0, 0.0], [0.0, 9.81 * math.sin(0.2), 9.81 * math.cos(0.2)])
+        >>> [round(v, 6) for v in q]
+        [0.995004, 0.099833, 0.0, 0.0]
         """
         try:
             gx, gy, gz = (float(v) for v in gyr)
@@ -578,6 +746,12 @@ class AttitudeFilter:
         -------
         ndarray (N, 4) or AttitudeRun
             Quaternions ``[w, x, y, z]`` (w >= 0), body -> ENU.
+
+        Raises
+        ------
+        AttitudeInputError
+            An array that is not (N, 3) or whose length differs from ``gyr``'s, or no ``mag``
+            in 9D.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
         n = len(gyr)

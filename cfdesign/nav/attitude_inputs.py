@@ -18,7 +18,40 @@ __all__ = ["positive", "vectors", "imu_inputs", "usable_rows", "initial_quaterni
 
 
 def positive(name, value, allow_zero=False) -> float:
-    """``value`` as a finite positive (or non-negative) float; AttitudeInputError naming ``name`` otherwise."""
+    """Check that a scalar is a finite positive (or non-negative) number and return it as a float.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it (``rate_hz``, ``gyro_noise_std``).
+    value : float or str or any object :class:`float` accepts
+        The value to check; its unit is the caller's (Hz, rad/s per sample, ...).
+    allow_zero : bool
+        Accept zero as well (non-negative instead of positive).
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``value`` is not a number, is NaN or infinite, is negative, or is zero while
+        ``allow_zero`` is False; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import positive
+    >>> positive("rate_hz", "100")
+    100.0
+    >>> positive("rate_hz", 0)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: rate_hz must be a finite positive number, got 0.0
+    >>> positive("declination", 0, allow_zero=True)
+    0.0
+    """
     try:
         value = float(value)
     except (TypeError, ValueError):
@@ -30,7 +63,43 @@ def positive(name, value, allow_zero=False) -> float:
 
 
 def vectors(name, value, n=None, allow_none=False):
-    """``value`` as an (N, 3) float array (``n`` rows when given), or None when allowed."""
+    """Check that a value is an array of 3-vectors, one row per sample, and return it as floats.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it (``acc``, ``mag``).
+    value : array_like (N, 3) or None
+        Body-frame readings (rad/s, m/s², a field, m/s: the caller's unit), one row per sample.
+    n : int, optional
+        The number of rows required (the length of the gyro log); any number when None.
+    allow_none : bool
+        Return None for ``value=None`` (an optional sensor) instead of raising.
+
+    Returns
+    -------
+    ndarray (N, 3) or None
+        ``value`` as a float array (not copied when it already is one); None when ``value`` is
+        None and ``allow_none`` is True.  Non-finite entries are kept.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``value`` is not numeric, is not two-dimensional with three columns (None included when
+        not allowed), or has a number of rows other than ``n``; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import vectors
+    >>> vectors("acc", [[0, 0, 9.81], [0, 0, 9.80]]).shape
+    (2, 3)
+    >>> vectors("mag", None, 2, allow_none=True) is None
+    True
+    >>> vectors("acc", [0, 0, 9.81])
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: acc must have shape (N, 3), got (3,)
+    """
     if value is None and allow_none:
         return None
     try:
@@ -45,7 +114,48 @@ def vectors(name, value, n=None, allow_none=False):
 
 
 def imu_inputs(gyr, acc, mag, velocity_body=None):
-    """``(gyr, acc, mag, velocity_body)`` checked: (N, 3) each, N >= 1; ``mag`` and the velocity may be None."""
+    """Check the logs of an attitude filter: equal-length (N, 3) arrays with at least one sample.
+
+    Only shapes are checked: non-finite or zero rows pass (the filters treat them as missing
+    readings, see :func:`usable_rows`).
+
+    Parameters
+    ----------
+    gyr : array_like (N, 3)
+        Body rate, rad/s, body (sensor) frame; sets N, which must be at least 1.
+    acc : array_like (N, 3)
+        Specific force, m/s², body frame (points up at rest).
+    mag : array_like (N, 3) or None
+        Magnetic field, body frame, any consistent unit (Gauss, uT or normalised: only its
+        direction is used); None without a magnetometer.
+    velocity_body : array_like (N, 3), optional
+        Velocity in the body frame, m/s (for the centripetal compensation of the
+        accelerometer); None without.
+
+    Returns
+    -------
+    tuple
+        ``(gyr, acc, mag, velocity_body)`` as float arrays of shape (N, 3), ``mag`` and
+        ``velocity_body`` None when not given.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``gyr`` is empty, an argument is not numeric or not of shape (N, 3), or its row count
+        differs from ``gyr``'s; the message names the argument.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.nav.attitude_inputs import imu_inputs
+    >>> gyr, acc, mag, vel = imu_inputs(np.zeros((4, 3)), [[0, 0, 9.81]] * 4, None)
+    >>> acc.shape, mag, vel
+    ((4, 3), None, None)
+    >>> imu_inputs(np.zeros((4, 3)), np.zeros((3, 3)), None)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: acc has 3 rows but gyr has 4
+    """
     gyr = vectors("gyr", gyr)
     if len(gyr) == 0:
         raise AttitudeInputError("gyr is empty: need at least one sample")
@@ -56,7 +166,33 @@ def imu_inputs(gyr, acc, mag, velocity_body=None):
 
 
 def usable_rows(vectors_):
-    """Rows that can correct the attitude: finite and non-zero (others -> NaN, skipped); None stays None."""
+    """Mark the readings that cannot correct the attitude: rows not finite or all zero become NaN.
+
+    A filter skips the correction of a NaN row (a missing accelerometer or magnetometer sample).
+
+    Parameters
+    ----------
+    vectors_ : ndarray (N, 3) or None
+        Readings in the body frame (specific force in m/s², or a field in any unit), as
+        returned by :func:`vectors`.
+
+    Returns
+    -------
+    ndarray (N, 3) or None
+        A new array: the usable rows unchanged, the others all NaN; None when ``vectors_`` is
+        None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.nav.attitude_inputs import usable_rows
+    >>> usable_rows(np.array([[0.0, 0.0, 9.81], [0.0, 0.0, 0.0], [np.nan, 0.0, 9.81]]))
+    array([[0.  , 0.  , 9.81],
+           [ nan,  nan,  nan],
+           [ nan,  nan,  nan]])
+    >>> usable_rows(None) is None
+    True
+    """
     if vectors_ is None:
         return None
     bad = ~np.isfinite(vectors_).all(axis=1) | ~(np.abs(vectors_).sum(axis=1) > 0)
@@ -64,7 +200,45 @@ def usable_rows(vectors_):
 
 
 def initial_quaternion(acc, mag, declination_rad, initial):
-    """Initial attitude: ``initial`` (a quaternion) or the MPS of the first usable sample."""
+    """The attitude a filter starts from: the given quaternion, else the MPS of the first usable sample.
+
+    Without ``initial``, the Magneto-Pendular Sensor (:func:`~cfdesign.nav.mps.mps_quaternion`,
+    Vasconcelos et al.) of one sample gives it: the first sample whose ``acc`` and ``mag`` rows
+    are both finite or, when there is none (or no magnetometer), the first sample with a finite
+    ``acc`` row, heading zero.  Without any finite ``acc`` row, the identity.
+
+    Parameters
+    ----------
+    acc : ndarray (N, 3)
+        Specific force, m/s², body frame, unusable rows NaN (:func:`usable_rows`).
+    mag : ndarray (N, 3) or None
+        Magnetic field, body frame, any consistent unit (Gauss, uT or normalised), unusable
+        rows NaN; None without a magnetometer (heading zero).
+    declination_rad : float
+        Magnetic declination (rad), positive east.
+    initial : array_like (4,) or None
+        A quaternion ``[w, x, y, z]`` (body -> ENU), any non-zero norm; None: from the samples.
+
+    Returns
+    -------
+    ndarray (4,)
+        Unit quaternion ``[w, x, y, z]``, body -> ENU.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``initial`` is given but is not four finite numbers or is zero.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.nav.attitude_inputs import initial_quaternion
+    >>> initial_quaternion(None, None, 0.0, [2.0, 0.0, 0.0, 0.0])
+    array([1., 0., 0., 0.])
+    >>> acc = np.array([[np.nan, np.nan, np.nan], [0.0, 0.0, 9.81]])
+    >>> initial_quaternion(acc, np.array([[0.0, 0.2, -0.4]] * 2), 0.0, None).round(6).tolist()
+    [1.0, 0.0, 0.0, 0.0]
+    """
     if initial is not None:
         q0 = np.asarray(initial, dtype=float)
         if q0.shape != (4,) or not np.isfinite(q0).all() or np.linalg.norm(q0) == 0:

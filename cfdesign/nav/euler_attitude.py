@@ -129,11 +129,57 @@ class EulerAttitudeFilter:
         self.k2 = np.array([k_heading[1], k_tilt[1], k_tilt[1]])
 
     def run(self, gyr, acc, mag, velocity_body=None, initial=None) -> EulerEstimate:
-        """Filter a log: ``gyr`` (N, 3) rad/s, ``acc`` (N, 3) m/s², ``mag`` (N, 3) or None.
+        """Filter a whole log, sample by sample, from the initial attitude (Vasconcelos et al. Sec. 2.1).
 
-        ``velocity_body`` (N, 3) m/s enables the centripetal compensation; ``initial`` is the
-        initial ``[yaw, pitch, roll]`` (rad, ENU) and defaults to the MPS of the first usable
-        sample.  Returns an :class:`EulerEstimate` (ENU).
+        At each sample the Magneto-Pendular Sensor reading corrects the attitude and the bias,
+        then the gyro propagates the attitude to the next sample.  Each call starts afresh: no
+        state is kept between calls.
+
+        Parameters
+        ----------
+        gyr : array_like (N, 3)
+            Body rate, rad/s, body (sensor) frame, at ``rate_hz``; N >= 1.  A row that is not
+            finite counts as a zero reading.
+        acc : array_like (N, 3)
+            Specific force, m/s², body frame (points up at rest).  A row that is not finite or is
+            zero skips the whole correction of its sample.
+        mag : array_like (N, 3) or None
+            Magnetic field, body frame, any consistent unit (Gauss, uT or normalised: only its
+            direction is used).  A row that is not finite or is zero skips the yaw correction;
+            None: yaw is never corrected (the gyro's integral from the initial yaw).
+        velocity_body : array_like (N, 3), optional
+            Velocity in the body frame, m/s: the MPS then compensates the centripetal
+            acceleration, ``a - ω̂ × v_B`` with the bias-corrected rate (computed per sample,
+            slower).
+        initial : array_like (3,), optional
+            Initial ZYX ``[yaw, pitch, roll]`` (rad), body relative to ENU; default: the MPS of
+            the first usable sample (:func:`~cfdesign.nav.attitude_inputs.initial_quaternion`).
+
+        Returns
+        -------
+        EulerEstimate
+            Per sample, after its correction: Euler angles (yaw wrapped to (-pi, pi]), body-rate
+            gyro bias (rad/s), the quaternion ``[w, x, y, z]`` body -> ENU, and the two tables.
+
+        Raises
+        ------
+        AttitudeInputError
+            An input that is not (N, 3) or whose length differs from ``gyr``'s, an empty
+            ``gyr``, or an ``initial`` that is not three finite numbers.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from cfdesign.nav import EulerAttitudeFilter
+        >>> f = EulerAttitudeFilter(100.0, gyro_noise_std=0.002, gyro_bias_density=1e-5,
+        ...                         tilt_noise_std=0.05, heading_noise_std=0.1)
+        >>> acc = np.tile([0.0, 0.0, 9.81], (200, 1))                              # level, still
+        >>> mag = np.tile([0.2 * np.sin(0.3), 0.2 * np.cos(0.3), -0.4], (200, 1))  # yaw 0.3 rad
+        >>> f.run(np.zeros((200, 3)), acc, mag).euler[-1].round(6)
+        array([0.3, 0. , 0. ])
+        >>> est = f.run(np.tile([0.0, 0.0, 0.01], (200, 1)), acc, None)  # no field: yaw from the gyro
+        >>> round(float(est.euler[-1, 0]), 4)
+        0.0199
         """
         gyr, acc, mag, vel = imu_inputs(gyr, acc, mag, velocity_body)
         acc, mag = usable_rows(acc), usable_rows(mag)
