@@ -168,3 +168,21 @@ def test_sparse_unwrap_equals_numpy(crossings):
     angle = np.cumsum(rng.normal(0, 0.05, 20000)) + np.linspace(0, 2 * np.pi * crossings, 20000)
     wrapped = wrap(angle)
     assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est")])
+def test_step_takes_sensors_named_like_its_own_variables(heading, names):
+    """Sensor names are any identifiers: the compiled step's own names (S, U, PI, LIM, u0,
+    unknown, ...) move out of their way instead of being shadowed or clashing."""
+    import dataclasses
+
+    old = [s.name for s in heading.sensors]
+    ports = tuple(dataclasses.replace(s, name=new) for s, new in zip(heading.sensors, names, strict=True))
+    measured = tuple(names[old.index(m)] for m in heading.schedule.measurements)
+    renamed = dataclasses.replace(heading, sensors=ports,
+                                  schedule=dataclasses.replace(heading.schedule, measurements=measured))
+    data = readings(heading, 300)
+    data["compass"] = wrap(data["compass"] + 3.0)  # innovations across +-pi: the wrap is exercised
+    expected, _ = stream(heading, data)
+    got, _ = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
+    assert np.array_equal(got, expected)
