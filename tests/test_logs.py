@@ -234,3 +234,98 @@ def test_python_result_fields(heading):
     r = run_log(heading, log, reference="truth", std=True)
     assert r.samples == 5000 and set(r.rms) == {"heading"} and r.without_gain == 0
     assert {"heading_std", "gyro_correction_std"} <= set(r.estimates.columns)
+
+
+# ---------------------------------------------------------------------- blocks, ticks and columns
+def _event_log(n):
+    """The heading log as an event log: the IMU rows, and the odometry and compass in rows of their
+    own just after (the same tick)."""
+    log, psi = heading_log(0, 0, n=n, jitter=0.0)
+    events = []
+    for lag, name in ((1e-4, "odometry"), (2e-4, "compass")):
+        ev = log[log[name].notna()][["time", name]].copy()
+        ev["time"] += lag
+        events.append(ev)
+    imu = log.drop(columns=["odometry", "compass"])
+    return pd.concat([imu, *events]).sort_values("time", kind="stable").reset_index(drop=True), psi
+
+
+def test_a_block_boundary_between_rows_of_one_tick_loses_no_reading(heading):
+    """The block ends right after the IMU row of a tick whose odometry and compass rows start the
+    next block: they are still that tick's readings (not 'second readings' dropped)."""
+    log, _ = _event_log(300)
+    one = run_log(heading, log)
+    row = int(np.flatnonzero(log["compass"].notna().to_numpy())[1])  # the compass row of tick 100
+    for rows in (row - 1, row, 1):  # boundary before the odometry row, before the compass row; every row
+        split = run_log(heading, log, block_rows=rows)
+        assert split.unused == {} and np.allclose(split.estimates["heading"], one.estimates["heading"], atol=1e-9)
+
+
+def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
+    """Two compass readings on one tick: the first is used and the second counted, in one block
+    and with a block boundary between them."""
+    log, _ = heading_log(0, 0, n=600, jitter=0.0)
+    clean = run_log(heading, log).estimates["heading"].to_numpy()
+    extra = pd.DataFrame({"time": [2.0004], "compass": [0.0]})  # a bogus second reading at tick 200
+    twice = pd.concat([log, extra]).sort_values("time", kind="stable").reset_index(drop=True)
+    imu = twice["gyro"].notna().to_numpy()
+    row = int(np.flatnonzero(twice["time"].to_numpy() == 2.0004)[0])
+    for rows in (None, row):
+        r = run_log(heading, twice, block_rows=rows)
+        assert r.unused == {"same_tick": {"compass": 1}}
+        assert np.max(np.abs(r.estimates["heading"].to_numpy()[imu] - clean)) < 1e-9
+
+
+def test_text_columns_pass_through_csv_and_parquet_in_blocks(heading, tmp_path, monkeypatch):
+    """Columns that are not sensors are passed through whatever they hold: text (empty in the
+    first block), integers with a gap in a later block; also when the file is read in chunks."""
+    import cfdesign.logs
+
+    log, _ = heading_log(0, 0, n=900)
+    note = np.full(900, None, dtype=object)
+    note[[700, 850]] = ["bump", "stop, then go"]
+    log["note"] = note
+    log["count"] = np.arange(900.0)
+    log.loc[800, "count"] = np.nan
+    log.to_csv(tmp_path / "log.csv", index=False)
+    ref = run_log(heading, log).estimates
+    assert ref["note"].dropna().tolist() == ["bump", "stop, then go"]
+    for chunked in (False, True):
+        if chunked:
+            monkeypatch.setattr(cfdesign.logs, "ONE_PASS_BYTES", 0)
+        for source in (log, tmp_path / "log.csv"):
+            for suffix in (".csv", ".parquet"):
+                out = tmp_path / f"est{suffix}"
+                run_log(heading, source, output=out, block_rows=300)
+                got = pd.read_parquet(out) if suffix == ".parquet" else pd.read_csv(out)
+                assert got["note"].dropna().tolist() == ["bump", "stop, then go"]
+                assert np.array_equal(got["count"].to_numpy(), log["count"].to_numpy(), equal_nan=True)
+                assert np.allclose(got["heading"], ref["heading"], atol=1e-9)
+
+
+def test_log_columns_that_look_like_estimate_columns(heading, tmp_path):
+    """A log column named like a state would replace the estimate: refused on one line.  Columns
+    that merely end in _std or _reference are passed through like the others; a reference may
+    be a sensor's column, in Parquet as in CSV."""
+    log, _ = heading_log(0, 0, n=600)
+    with pytest.raises(DataError, match="column 'heading' has the name of a column of the estimates"):
+        run_log(heading, log.rename(columns={"truth": "heading"}))
+    log["gyro_std"], log["truth_reference"] = 0.01, 1.0
+    r = run_log(heading, log, output=tmp_path / "e.csv")
+    assert {"gyro_std", "truth_reference"} <= set(pd.read_csv(tmp_path / "e.csv").columns) and r.rms == {}
+    log.to_parquet(tmp_path / "log.parquet")
+    r = run_log(heading, tmp_path / "log.parquet", reference="compass")
+    assert set(r.rms) == {"heading"} and r.rms["heading"] == pytest.approx(run_log(heading, log, reference="compass")
+                                                                         .rms["heading"])
+
+
+def test_std_is_that_of_the_gains_each_stretch_ran(heading):
+    """The odometry slips by 3 ticks half-way: the first half runs the table's own gains, the
+    second recomputed ones; each row's predicted std is the one of the gains that ran it."""
+    log, psi = heading_log(0, 0, n=4000, jitter=0.0)
+    odo = np.full(4000, np.nan)
+    odo[0:2000:10], odo[2003::10] = psi[0:2000:10], psi[2003::10]
+    log["odometry"] = wrap(odo)
+    r = run_log(heading, log, std=True)
+    expected = np.sqrt([heading.P_filtered[k % 100][0, 0] for k in range(2000)])
+    assert np.allclose(r.estimates["heading_std"].to_numpy()[:2000], expected, rtol=1e-12)
