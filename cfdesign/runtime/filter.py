@@ -428,8 +428,11 @@ class _LtiBands:
     ``T_i = C_o (A^(i-1) + a_1 A^(i-2) + ... + a_(i-1) I)``
     (:func:`cfdesign.linear.output_adjugate`); so the filter starts from ``zi = T x0`` and
     hands back ``x = T^-1 sum_j zf_j``, exactly the state the streaming recursion would
-    hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill conditioned) use the
-    blocked path instead.  Cost: ``O(n^3)`` once per runtime.
+    hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill conditioned), or whose
+    closed-loop poles are clustered so near ``z = 1`` that the rounding of ``den``'s
+    coefficients moves them by more than :data:`_POLE_RTOL` of their distance to the unit
+    circle (fast sampling of a slow filter: the direct form then drifts from the recursion by
+    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
     """
 
     def __init__(self, den, nums, T, Tinv):
@@ -445,7 +448,7 @@ class _LtiBands:
         T = linear.output_adjugate(ph.A, ph.C[0], den)
         nums = [np.concatenate([[d], T @ g + d * den[1:]]) for g, d in zip(ph.G.T, ph.D[0], strict=True)]
         lti = None
-        if np.linalg.cond(T) < 1e8:
+        if np.linalg.cond(T) < 1e8 and _pole_sensitivity(ph.A, den) < _POLE_RTOL:
             lti = cls(den, nums, T, np.linalg.inv(T))
         rt._lti = lti
         return lti
@@ -468,6 +471,29 @@ class _LtiBands:
             rt.x = x
             linear.wrap_inplace(est)
         return est
+
+
+#: largest pole displacement, relative to the pole's distance to the unit circle, that the
+#: rounding of the IIR path's denominator may cause (its estimates then agree with the step's
+#: to about 1e-9 relative)
+_POLE_RTOL = 1e-8
+
+
+def _pole_sensitivity(A, den) -> float:
+    """``max_i eps sum_k |a_k| |p_i|^(n-k) / |prod_(j != i) (p_i - p_j)| / (1 - |p_i|)``: how far
+    rounding the coefficients of ``den = det(zI - A)`` moves its roots ``p_i`` (first-order
+    perturbation of a simple root), relative to their distance to the unit circle; inf for a
+    repeated root or one on or outside the circle."""
+    p = np.linalg.eigvals(A)
+    worst = 0.0
+    for i, pi in enumerate(p):
+        margin = 1.0 - abs(pi)
+        gap = abs(np.prod(pi - np.delete(p, i)))
+        if margin <= 0 or gap == 0:
+            return np.inf
+        moved = np.finfo(float).eps * np.sum(np.abs(den) * abs(pi) ** np.arange(len(den) - 1, -1, -1)) / gap
+        worst = max(worst, moved / margin)
+    return worst
 
 
 def _unwrap(col):
