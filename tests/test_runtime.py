@@ -188,17 +188,18 @@ def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     assert np.array_equal(got, expected)
 
 
-def test_batch_equals_streaming_for_a_slow_filter_sampled_fast():
-    """A single-rate position filter at 1 kHz: closed-loop poles clustered at z = 0.9999, where
-    the IIR (direct form) path drifted 1e-4 relative from the recursion; the batch run must
-    still be the streaming recursion to rounding."""
+@pytest.mark.parametrize("rate, N", [(1000.0, 30_000), (10_000.0, 200_000)])
+def test_batch_equals_streaming_for_a_slow_filter_sampled_fast(rate, N):
+    """A single-rate position filter at 1 and 10 kHz: closed-loop poles clustered near z = 1,
+    where the IIR (direct form) path drifted 1e-4 relative from the recursion (1 kHz), and the
+    direct form of the lifted block recursion 1e-7 (10 kHz); the batch run must still be the
+    streaming recursion to rounding."""
     spec = cfdesign.spec.parse_spec({"name": "p", "structure": "position", "gain_form": "filter", "sensors": {
-        "accelerometer": {"rate_hz": 1000.0, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-4}},
-        "gps": {"rate_hz": 1000.0, "noise": {"std": 2.0}}}})
+        "accelerometer": {"rate_hz": rate, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "gps": {"rate_hz": rate, "noise": {"std": 2.0}}}})
     table = cfdesign.design(spec)
-    N = 30_000
     rng = np.random.default_rng(0)
-    data = {s.name: np.sin(1e-4 * np.arange(N)) + 0.1 * rng.standard_normal(N) for s in table.sensors}
+    data = {s.name: np.sin(1e-5 * np.arange(N)) + 0.1 * rng.standard_normal(N) for s in table.sensors}
     rt = Runtime(table)
     expected = np.array([rt.step_values(a, g) for a, g in zip(data["accelerometer"], data["gps"], strict=True)])
     batch = Runtime(table)
