@@ -241,7 +241,7 @@ class Runtime:
         :attr:`output`) when ``states`` is true.
 
         The work is vectorised (:meth:`_run_vectorised`, or one IIR filter per sensor for a
-        single-rate table) over every stretch where each scheduled measurement is present;
+        single-rate table that is not an angle table) over every stretch where each scheduled measurement is present;
         the few steps where one is missing run through :meth:`step`'s recursion.  Missing
         inputs hold their last value.  Readings at phases the schedule does not read have no
         gain: they are counted in :attr:`counts` (``unscheduled``).
@@ -275,13 +275,22 @@ class Runtime:
 
     def _run_regular(self, u, y, states):
         """A stretch where every scheduled measurement is present (NaN where it is not read)
-        and the inputs are held: angle readings unwrapped, then the vectorised paths."""
-        y = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
-        if self.period == 1 and not states and self.n <= _SMALL:
+        and the inputs are held: angle readings unwrapped, then the vectorised paths.
+
+        Angle tables: the linear paths run on the unwrapped readings, which is the recursion
+        (with its innovations wrapped) only while every angle innovation stays within pi; the
+        blocked path checks that at every reading, and where it does not hold (a heading that
+        turns more than pi between two readings of a slow sensor, or before its first one) the
+        stretch runs step by step instead."""
+        angles = self._wrap_rows.any()
+        read = ~np.isnan(y) if angles else None
+        unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
+        if self.period == 1 and not states and self.n <= _SMALL and not angles:
             lti = _LtiBands.of(self)
             if lti is not None:
-                return lti.run(self, [*u.T, *y.T])
-        return self._run_vectorised(u, y, states)
+                return lti.run(self, [*u.T, *unwrapped.T])
+        out = self._run_vectorised(u, unwrapped, states, read)
+        return self._run_loop(u, y, states) if out is None else out
 
     def _held_inputs(self, u):
         """Inputs with NaN or inf replaced by the last good value (``u_last`` before the first)."""
@@ -335,10 +344,13 @@ class Runtime:
             self.u_last = u[k]
         return est, xs
 
-    def _run_vectorised(self, u, y, states):
+    def _run_vectorised(self, u, y, states, read=None):
         """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
-        once, vectorised over the blocks (``L`` a multiple of the period)."""
+        once, vectorised over the blocks (``L`` a multiple of the period).
+
+        ``read`` (angle tables): where the angle readings are; returns None, the runtime
+        unchanged, when an angle innovation is not within pi there (:meth:`_run_regular`)."""
         N = len(u)
         # blocks of whole periods; long blocks pay off for small states only (the lifting
         # costs L products of n x n matrices)
@@ -351,7 +363,15 @@ class Runtime:
         Phi, C = self._lift([ph.A for ph in phases], [ph.G for ph in phases], W)
         X = _boundary_states(Phi, C, self.x)  # (P, n): x at the start of every block
         xs, last = np.empty((P, L, self.n)), None
+        angle_rows = np.flatnonzero(self._wrap_rows) if read is not None else ()
+        if len(angle_rows):
+            read = np.concatenate([read, np.zeros((pad, read.shape[1]), dtype=bool)]).reshape(P, L, -1)
+        p = u.shape[1]
         for j, ph in enumerate(phases):
+            for i in angle_rows:  # the prior at this phase of every block: each innovation within pi?
+                at = read[:, j, i]
+                if at.any() and np.any(np.abs(W[at, j, p + i] - X[at] @ self.H[i]) >= np.pi):
+                    return None
             if j == (N - 1) % L:
                 last = X[-1].copy()  # the state before the last sample
             xs[:, j] = X @ ph.C.T + W[:, j] @ ph.D.T if self.posterior else X
@@ -382,7 +402,8 @@ class Runtime:
     def _unwrapped(self, y):
         """Angle readings (NaN where none) made continuous over the readings present and the
         first brought within pi of the current estimate, so that the linear batch paths see no
-        2 pi jumps (consecutive readings must differ by less than pi)."""
+        2 pi jumps.  Right when consecutive readings differ by less than pi; where they do not,
+        :meth:`_run_vectorised` finds an innovation beyond pi and the stretch runs step by step."""
         if not self._wrap_rows.any():
             return y
         y = y.copy()
