@@ -438,7 +438,9 @@ def _lock(table, blocks, cols, source, types=False):
         import pyarrow as pa
 
         schemas = pa.unify_schemas(schemas, promote_options="permissive")
-    return lock_schedule(table, arrivals, last + 1), place.rows, schemas or None
+    from .designer import has_kalman_gains  # fixed gains have no model to recompute them from
+
+    return lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table)), place.rows, schemas or None
 
 
 class _Runner:

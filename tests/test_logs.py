@@ -329,3 +329,15 @@ def test_std_is_that_of_the_gains_each_stretch_ran(heading):
     r = run_log(heading, log, std=True)
     expected = np.sqrt([heading.P_filtered[k % 100][0, 0] for k in range(2000)])
     assert np.allclose(r.estimates["heading_std"].to_numpy()[:2000], expected, rtol=1e-12)
+
+
+def test_fixed_gains_follow_the_slowest_sensor_and_count_the_rest(heading):
+    """A multirate table whose gains are not Kalman gains cannot be recomputed: as docs/logs.md
+    says, it runs locked to the slowest sensor and the readings off its schedule are counted
+    (not an error)."""
+    import dataclasses
+
+    hand = dataclasses.replace(heading, provenance={**heading.provenance, "solver": {"method": "hand-tuned"}})
+    log, _ = heading_log(3, 37, n=1000)
+    r = run_log(hand, log)
+    assert r.unused == {"unscheduled": {"odometry": 100}}
