@@ -341,3 +341,20 @@ def test_fixed_gains_follow_the_slowest_sensor_and_count_the_rest(heading):
     log, _ = heading_log(3, 37, n=1000)
     r = run_log(hand, log)
     assert r.unused == {"unscheduled": {"odometry": 100}}
+
+
+def test_a_rotation_that_is_no_sensor_s_own_offset_is_found():
+    """A 2 Hz compass 10 ticks late and a 5 Hz odometry on time (period 100): one rotation of
+    the schedule, by 60 ticks, fits both; it was missed (the gains recomputed, or with fixed
+    gains the odometry readings left without a gain)."""
+    from cfdesign.timing import lock_schedule
+
+    table = cfdesign.design(parse_spec({"name": "h", "structure": "dckf3", "wrap_angle": True, "sensors": {
+        "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "odometry": {"rate_hz": 5.0, "noise": {"std": 0.005}}, "compass": {"rate_hz": 2.0, "noise": {"std": 0.05}}}}))
+    arrivals = {"compass": np.arange(10, 1000, 50), "odometry": np.arange(0, 1000, 20)}
+    for recompute in (True, False):
+        lock = lock_schedule(table, arrivals, 1000, recompute=recompute)
+        assert [(s.rotation, s.offsets) for s in lock.segments] == [(60, None)]
+        for name, ticks in arrivals.items():
+            assert set((ticks - 60) % 100) <= set(table.schedule.phases(name))
