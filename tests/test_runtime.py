@@ -231,3 +231,20 @@ def test_batch_equals_streaming_when_the_heading_turns_more_than_pi_between_read
             est = est[0] if states else est
             assert np.max(np.abs(wrap(est - expected))) < 1e-9
             assert abs(wrap(batch.x[0] - rt.x[0])) < 1e-9 and abs(batch.x[1] - rt.x[1]) < 1e-9
+
+
+def test_angle_check_does_not_send_ordinary_runs_step_by_step(heading, monkeypatch):
+    """The check of the angle innovations costs one more IIR pass, not the batch speed: a heading
+    that crosses +-pi at an ordinary rate runs without a single step of the loop."""
+    stepped = []
+    loop = Runtime._run_loop
+    monkeypatch.setattr(Runtime, "_run_loop", lambda self, u, y, states: stepped.append(len(u)) or loop(self, u, y,
+                                                                                                         states))
+    N = 5000
+    psi = np.linspace(0.0, 40.0, N)
+    rng = np.random.default_rng(3)
+    data = {"gyro": np.gradient(psi, heading.sample_time_s), "compass": wrap(psi + 0.05 * rng.standard_normal(N)),
+            "odometry": wrap(psi + 0.05 * rng.standard_normal(N))}
+    for states in (False, True):
+        Runtime(heading, x0=[0.0, 0.0]).run(data, states=states)
+    assert stepped == []

@@ -241,7 +241,7 @@ class Runtime:
         :attr:`output`) when ``states`` is true.
 
         The work is vectorised (:meth:`_run_vectorised`, or one IIR filter per sensor for a
-        single-rate table that is not an angle table) over every stretch where each scheduled measurement is present;
+        single-rate table) over every stretch where each scheduled measurement is present;
         the few steps where one is missing run through :meth:`step`'s recursion.  Missing
         inputs hold their last value.  Readings at phases the schedule does not read have no
         gain: they are counted in :attr:`counts` (``unscheduled``).
@@ -279,17 +279,16 @@ class Runtime:
 
         Angle tables: the linear paths run on the unwrapped readings, which is the recursion
         (with its innovations wrapped) only while every angle innovation stays within pi; the
-        blocked path checks that at every reading, and where it does not hold (a heading that
+        batch paths check that at every reading, and where it does not hold (a heading that
         turns more than pi between two readings of a slow sensor, or before its first one) the
         stretch runs step by step instead."""
-        angles = self._wrap_rows.any()
-        read = ~np.isnan(y) if angles else None
+        read = ~np.isnan(y) if self._wrap_rows.any() else None
         unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
-        if self.period == 1 and not states and self.n <= _SMALL and not angles:
-            lti = _LtiBands.of(self)
-            if lti is not None:
-                return lti.run(self, [*u.T, *unwrapped.T])
-        out = self._run_vectorised(u, unwrapped, states, read)
+        lti = _LtiBands.of(self) if self.period == 1 and not states and self.n <= _SMALL else None
+        if lti is not None:
+            out = lti.run(self, [*u.T, *unwrapped.T], read)
+        else:
+            out = self._run_vectorised(u, unwrapped, states, read)
         return self._run_loop(u, y, states) if out is None else out
 
     def _held_inputs(self, u):
@@ -456,8 +455,11 @@ class _LtiBands:
     about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
     """
 
-    def __init__(self, den, nums, T, Tinv):
+    def __init__(self, den, nums, T, Tinv, priors=()):
         self.den, self.nums, self.T, self.Tinv = den, nums, T, Tinv
+        #: angle tables: ``(rows, T_c, nums_c)`` per distinct angle row ``c`` of ``H``, the IIR
+        #: filters of the prior ``c x`` (``T_c`` None: the estimate is that prior)
+        self.priors = priors
 
     @classmethod
     def of(cls, rt):
@@ -470,20 +472,45 @@ class _LtiBands:
         nums = [np.concatenate([[d], T @ g + d * den[1:]]) for g, d in zip(ph.G.T, ph.D[0], strict=True)]
         lti = None
         if np.linalg.cond(T) < 1e8 and _pole_sensitivity(ph.A, den) < _POLE_RTOL:
-            lti = cls(den, nums, T, np.linalg.inv(T))
+            priors = {}
+            for i in np.flatnonzero(rt._wrap_rows):
+                priors.setdefault(tuple(rt.H[i]), []).append(i)
+            checks = []
+            for c, rows in priors.items():
+                if not rt.posterior and np.array_equal(c, ph.C[0]):
+                    checks.append((rows, None, None))
+                    continue
+                Tc = linear.output_adjugate(ph.A, np.array(c), den)  # the prior: C = c, D = 0
+                checks.append((rows, Tc, [np.concatenate([[0.0], Tc @ g]) for g in ph.G.T]))
+            lti = cls(den, nums, T, np.linalg.inv(T), checks)
         rt._lti = lti
         return lti
 
-    def run(self, rt, cols):
+    def _filtered(self, nums, T, x, cols):
+        """``sum_j lfilter(nums[j], den, cols[j])`` started from the state ``x`` (through ``T``),
+        and the final filter state."""
         from scipy.signal import lfilter
 
         zf = np.zeros(len(self.den) - 1)
-        est = None
-        for j, (num, col) in enumerate(zip(self.nums, cols, strict=True)):
-            zi = self.T @ rt.x if j == 0 else np.zeros_like(zf)
+        total = None
+        for j, (num, col) in enumerate(zip(nums, cols, strict=True)):
+            zi = T @ x if j == 0 else np.zeros_like(zf)
             out, z = lfilter(num, self.den, col, zi=zi)
-            est = out if est is None else np.add(est, out, out=est)
+            total = out if total is None else np.add(total, out, out=total)
             zf += z
+        return total, zf
+
+    def run(self, rt, cols, read=None):
+        """The estimates, the runtime advanced; None (the runtime unchanged) when, with ``read``
+        (where the angle readings are), an angle innovation is not within pi."""
+        est, zf = self._filtered(self.nums, self.T, rt.x, cols)
+        p = len(rt.inputs)
+        for rows, Tc, nums in self.priors if read is not None else ():
+            prior = est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0]
+            for i in rows:
+                at = read[:, i]
+                if at.any() and np.any(np.abs(cols[p + i][at] - prior[at]) >= np.pi):
+                    return None
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
