@@ -780,6 +780,8 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     list of dict
         The summary rows, in the order of ``paths``.
     """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:

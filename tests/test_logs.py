@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 import cfdesign
-from cfdesign.errors import DataError
+from cfdesign.errors import CfdesignError, DataError
 from cfdesign.linear import wrap
-from cfdesign.logs import run_log
+from cfdesign.logs import run_log, run_logs
 from cfdesign.runtime import Runtime
 from cfdesign.sim.gaussian import model_log
 from cfdesign.spec import parse_spec
@@ -358,3 +358,16 @@ def test_a_rotation_that_is_no_sensor_s_own_offset_is_found():
         assert [(s.rotation, s.offsets) for s in lock.segments] == [(60, None)]
         for name, ticks in arrivals.items():
             assert set((ticks - 60) % 100) <= set(table.schedule.phases(name))
+
+
+@pytest.mark.parametrize("workers", ["-1", "0"])
+def test_workers_must_be_positive(heading, tmp_path, cli, workers):
+    """--workers -1 started a Dask cluster that never came up: the command hung."""
+    table = heading.save(tmp_path / "g.json")
+    for i in range(2):
+        heading_log(0, 0, n=200, seed=i)[0].to_csv(tmp_path / f"r{i}.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "r0.csv", tmp_path / "r1.csv", "-o", tmp_path / "out",
+                       "--workers", workers)
+    assert code == 2 and "--workers must be a positive number" in err and not (tmp_path / "out").exists()
+    with pytest.raises(CfdesignError, match="workers must be a positive number"):
+        run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=int(workers))
