@@ -796,7 +796,10 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         raise DataError("two logs have the same name; their estimates would overwrite each other")
     text = table.to_json()
     if scheduler:
-        client, cluster = Client(scheduler), None
+        try:
+            client, cluster = Client(scheduler), None
+        except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
+            raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                dashboard_address=None)

@@ -371,3 +371,16 @@ def test_workers_must_be_positive(heading, tmp_path, cli, workers):
     assert code == 2 and "--workers must be a positive number" in err and not (tmp_path / "out").exists()
     with pytest.raises(CfdesignError, match="workers must be a positive number"):
         run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=int(workers))
+
+
+def test_an_unreachable_scheduler_is_a_user_error(heading, tmp_path, cli):
+    """Not an 'internal error, please report it' (exit 3)."""
+    import dask
+    import dask.distributed  # its defaults in dask.config before config.set copies it
+
+    table = heading.save(tmp_path / "g.json")
+    heading_log(0, 0, n=200)[0].to_csv(tmp_path / "r0.csv", index=False)
+    for address in ("tcp://127.0.0.1:1", "nonsense://x"):
+        with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+            code, _, err = cli("run", table, tmp_path / "r0.csv", "-o", tmp_path / "out", "--scheduler", address)
+        assert code == 2 and f"cannot connect to the Dask scheduler {address}" in err, err
