@@ -527,7 +527,9 @@ class _Runner:
         x = np.zeros(self.table.F.shape[0])
         direct = [s.name for s in self.table.measurements
                   if np.array_equal(self.table.H[s.index], np.eye(len(x))[0])]
-        firsts = [(int(np.flatnonzero(~np.isnan(dense[n]))[0]), n) for n in direct if np.any(~np.isnan(dense[n]))]
+        from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
+
+        firsts = [(int(np.flatnonzero(usable(dense[n]))[0]), n) for n in direct if np.any(usable(dense[n]))]
         if firsts:
             x[0] = dense[min(firsts)[1]][min(firsts)[0]]
         return x

@@ -384,3 +384,15 @@ def test_an_unreachable_scheduler_is_a_user_error(heading, tmp_path, cli):
         with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
             code, _, err = cli("run", table, tmp_path / "r0.csv", "-o", tmp_path / "out", "--scheduler", address)
         assert code == 2 and f"cannot connect to the Dask scheduler {address}" in err, err
+
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, 5e12])
+def test_a_rejected_first_reading_is_not_the_start(heading, bad):
+    """The state starts from the first reading the runtime would use: an inf there made every
+    estimate of the log NaN."""
+    log, _ = heading_log(0, 0, n=600)
+    clean = run_log(heading, log.assign(compass=np.where(np.arange(600) == 0, np.nan, log["compass"])))
+    log.loc[0, "compass"] = bad
+    r = run_log(heading, log)
+    assert r.unused == {"rejected": {"compass": 1}}
+    assert np.array_equal(r.estimates["heading"].to_numpy(), clean.estimates["heading"].to_numpy())
