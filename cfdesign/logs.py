@@ -329,6 +329,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
     block_rows = block_rows or BLOCK_ROWS
     frame, source = _source(data, source)
+    if frame is None and output is not None and _same_file(data, output):
+        raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference)
     _check_output_names(table, cols, std, source)
@@ -372,6 +374,14 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if plot is not None:
         write_bytes(plot, _png(plot_log(table, est, cols.references, cols.time)))
     return result
+
+
+def _same_file(a, b) -> bool:
+    """``a`` and ``b`` name one existing file (through links or relative paths as well)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist (yet): not the same file
+        return False
 
 
 def _source(data, source):
@@ -796,6 +806,10 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     targets = [outdir / (Path(p).stem + suffix) for p in paths]
     if len(set(targets)) < len(targets):
         raise DataError("two logs have the same name; their estimates would overwrite each other")
+    same = [str(p) for p, t in zip(paths, targets, strict=True) if _same_file(p, t)]
+    if same:
+        raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
+                        "or with another --format)")
     text = table.to_json()
     if scheduler:
         try:

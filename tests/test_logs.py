@@ -396,3 +396,19 @@ def test_a_rejected_first_reading_is_not_the_start(heading, bad):
     r = run_log(heading, log)
     assert r.unused == {"rejected": {"compass": 1}}
     assert np.array_equal(r.estimates["heading"].to_numpy(), clean.estimates["heading"].to_numpy())
+
+
+def test_the_estimates_never_replace_the_log(heading, tmp_path, cli):
+    """-o naming the log itself (or, for several logs, their own folder in their own format)
+    replaced the logs by the estimates, losing the sensor columns."""
+    table = heading.save(tmp_path / "g.json")
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for i in range(2):
+        heading_log(0, 0, n=200, seed=i)[0].to_csv(folder / f"r{i}.csv", index=False)
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    code, _, err = cli("run", table, folder / "r0.csv", "-o", folder / "r0.csv")
+    assert code == 2 and "is the log itself" in err
+    code, _, err = cli("run", table, folder, "-o", folder, "--workers", "1")
+    assert code == 2 and "would replace the log itself" in err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
