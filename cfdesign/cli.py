@@ -230,6 +230,8 @@ def cmd_run(args) -> int:
     logs = _log_paths(args.data)
     options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
+    if args.workers is not None and args.workers < 1:
+        raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
     if len(logs) > 1 or args.workers or args.scheduler or Path(args.output).is_dir():
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")

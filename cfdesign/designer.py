@@ -841,6 +841,14 @@ def _periodic_gains(F, H, Q, R, schedule, form) -> dict:
                        "monodromy_multipliers": _pairs(sol.monodromy_multipliers)}}
 
 
+def has_kalman_gains(table: GainTable) -> bool:
+    """The table's gains came from its model by a Riccati equation (DARE, periodic DARE, CARE),
+    so :func:`gains_for_schedule` can recompute them for another arrival pattern."""
+    solver = table.provenance.get("solver", {})
+    method = str(solver.get("method", "") if isinstance(solver, dict) else "")
+    return method.startswith(("dare", "periodic_dare", "care"))
+
+
 def gains_for_schedule(table: GainTable, schedule: Schedule) -> GainTable:
     """The table's Kalman gains recomputed for another arrival pattern of its sensors.
 
@@ -854,8 +862,8 @@ def gains_for_schedule(table: GainTable, schedule: Schedule) -> GainTable:
         The table's gains are not Kalman gains (fixed or sparse: they have no model to be
         recomputed from), or the pattern leaves the filter undetectable.
     """
-    method = str(table.provenance.get("solver", {}).get("method", ""))
-    if not (method.startswith("dare") or method.startswith("periodic_dare") or method.startswith("care")):
+    if not has_kalman_gains(table):
+        method = str(table.provenance.get("solver", {}).get("method", ""))
         raise CfdesignError(f"{table.name}: its gains are not Kalman gains ({method or 'unknown method'}), so they "
                             "cannot be recomputed for another arrival pattern")
     result = _periodic_gains(table.F, table.H, table.Q, table.R, schedule, table.gain_form)

@@ -87,7 +87,7 @@ def _check_sizes(d, source):
     """Refuse tables larger than the limits before building arrays from them."""
     if not isinstance(d, dict):
         return
-    period, n = len(d.get("K") or []), len(d.get("F") or [])
+    period, n = (len(v) if isinstance(v, list) else 0 for v in (d.get("K"), d.get("F")))  # other types: the schema
     if period > MAX_PERIOD:
         raise GainTableError(f"{source}: a period of {period} phases is more than {MAX_PERIOD}")
     if n > MAX_STATES:
@@ -151,7 +151,7 @@ def _check_ports(ports, p, m, source):
             raise GainTableError(f"{source}: sensors.{s.name}: role {s.role!r}, order {s.order}, "
                                  f"rate {s.rate_hz} Hz is not a valid port")
     for role, count in (("input", p), ("measurement", m)):
-        idx = [s.index for s in ports if s.role == role]
+        idx = sorted(s.index for s in ports if s.role == role)  # listed in any order
         if idx != list(range(count)):
             raise GainTableError(f"{source}: sensors: {role} indices {sorted(idx)} do not match the {count} "
                                  f"{'columns of B' if role == 'input' else 'rows of H'}")

@@ -87,7 +87,8 @@ def wrap(angle):
     This is the one wrap of cfdesign: the runtime, the simulations and the generated C
     (``templates/filter.c.in``, the same operations in the same order) use it.  An angle
     already in ``(-pi, pi]`` comes back unchanged, bit for bit; an angle outside whose
-    rounded result lands an ulp outside is moved by one more turn.
+    rounded result lands an ulp outside is moved by one more turn.  NaN (a missing angle) and
+    inf give NaN, for a scalar as for an array.
 
     Parameters
     ----------
@@ -123,6 +124,8 @@ def wrap_scalar(a: float) -> float:
     """
     if -math.pi < a <= math.pi:
         return a
+    if not math.isfinite(a):  # NaN (a missing angle) or inf: NaN, as the array path gives
+        return math.nan
     r = a - _TWO_PI * math.ceil((a - math.pi) / _TWO_PI)
     return r - _TWO_PI if r > math.pi else (r + _TWO_PI if r <= -math.pi else r)
 
@@ -143,6 +146,7 @@ def wrap_inplace(a: np.ndarray) -> np.ndarray:
     out = (a <= -math.pi) | (a > math.pi)
     if out.any():
         b = a[out]
+        b[np.isinf(b)] = np.nan  # no turn count (NaN, as wrap_scalar gives)
         b -= _TWO_PI * np.ceil((b - math.pi) / _TWO_PI)
         b[b > math.pi] -= _TWO_PI
         b[b <= -math.pi] += _TWO_PI

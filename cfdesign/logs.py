@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CfdesignError, DataError
+from .errors import CfdesignError, DataError, OutputError
 from .files import open_atomic, write_bytes, write_text
 from .linear import wrap
 
@@ -109,9 +109,15 @@ class _Columns:
     extra: list            # passed through
 
     @property
+    def numeric(self) -> list:
+        """The columns that must hold numbers (time, sensors, references), each once."""
+        cols = ([self.time] if self.time else []) + [*self.sensors.values(), *self.references.values()]
+        return list(dict.fromkeys(cols))
+
+    @property
     def read(self) -> list:
-        cols = [*self.sensors.values(), *self.references.values()]
-        return [c for c in ([self.time] if self.time else []) + cols + self.extra if c]
+        """Every column read, each once (a reference may be a sensor's or the time column)."""
+        return list(dict.fromkeys(self.numeric + self.extra))
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None) -> _Columns:
@@ -333,30 +339,59 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
     block_rows = block_rows or BLOCK_ROWS
     frame, source = _source(data, source)
+    if frame is None and output is not None and _same_file(data, output):
+        raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference)
-    blocks = _blocks(data, frame, cols, block_rows)
-    lock, n_rows = _lock(table, blocks, cols, source)
+    _check_output_names(table, cols, std, source)
+    blocks, whole = _blocks(data, frame, cols, block_rows)
+    parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
+    lock, n_rows, types = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
         raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
     runner = _Runner(table, lock, "prior" if prediction else None, start == "reading")
-    writer = _Writer(output, keep=output is None or plot is not None)
+    if parquet and whole is not None:
+        types = _arrow_types(whole[cols.extra])
+    writer = _Writer(output, keep=output is None or plot is not None, types=types)
     place = _Pass(table, cols, source)
-    with _progress(n_rows, progress) as bar, writer:
-        for block in _blocks(data, frame, cols, block_rows)():
-            values = _numeric(block, cols.read, source, 2 + place.rows)
-            ticks = place.ticks(values)
-            states, phases, _ = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
-            writer.write(_estimates(table, runner, block, cols, values, states, phases, std))
+
+    def run_rows(block, values, ticks):
+        if len(ticks):
+            states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            writer.write(_estimates(table, block, cols, values, states, stds, std))
             bar.update(len(ticks))
+
+    with _progress(n_rows, progress) as bar, writer:
+        pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
+        for block in blocks():
+            values = _numeric(block, cols.numeric, source, 2 + place.rows)
+            ticks = place.ticks(values)
+            if pending is not None:
+                pd = _pandas()
+                block = pd.concat([pending[0], block])
+                values = {k: np.concatenate([pending[1][k], v]) for k, v in values.items()}
+                ticks = np.concatenate([pending[2], ticks])
+            cut = int(np.searchsorted(ticks, ticks[-1])) if len(ticks) else 0
+            pending = (block.iloc[cut:], {k: v[cut:] for k, v in values.items()}, ticks[cut:])
+            run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
+        if pending is not None:
+            run_rows(*pending)
     est = writer.frame()
     result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, lock.notes,
                        Path(output) if output else None, source)
     if plot is not None:
         write_bytes(plot, _png(plot_log(table, est, cols.references, cols.time)))
     return result
+
+
+def _same_file(a, b) -> bool:
+    """``a`` and ``b`` name one existing file (through links or relative paths as well)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist (yet): not the same file
+        return False
 
 
 def _source(data, source):
@@ -367,24 +402,51 @@ def _source(data, source):
 
 
 def _blocks(data, frame, cols, rows):
-    """A function giving the log's blocks each time it is called (two passes need two)."""
+    """``(blocks, whole)``: a function giving the log's blocks each time it is called (two passes
+    need two), and the whole log when it is in memory (a DataFrame, or a file read once), else None."""
     if frame is not None:
-        return lambda: (frame.iloc[i:i + rows] for i in range(0, max(len(frame), 1), rows))
-    path = Path(data)
-    if os.path.getsize(path) < ONE_PASS_BYTES:
+        whole = frame
+    else:
+        path = Path(data)
+        if os.path.getsize(path) >= ONE_PASS_BYTES:
+            return (lambda: read_log(path, cols.read, chunksize=rows)), None
         whole = read_log(path, cols.read)
-        return lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))
-    return lambda: read_log(path, cols.read, chunksize=rows)
+    return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
 
 
-def _lock(table, blocks, cols, source):
-    """First pass: check times and collect the ticks at which each measurement arrives."""
+def _check_output_names(table, cols, std, source):
+    """A column of the log passed through must not take the name of a column the estimates add."""
+    made = [*table.states, *(f"{s}_std" for s in table.states if std or cols.references),
+            *(f"{s}_reference" for s in cols.references)]
+    clash = [c for c in [*([cols.time] if cols.time else []), *cols.extra] if c in made]
+    if clash:
+        raise DataError(f"{source}: column {clash[0]!r} has the name of a column of the estimates "
+                        f"({', '.join(made)}); rename it in the log")
+
+
+def _arrow_types(frame):
+    """The Parquet types of the log's passed-through columns over all its blocks (a column of
+    integers with a gap in a later block is a column of floats; one empty in the first block
+    takes the type of its first value)."""
+    import pyarrow as pa
+
+    schema = pa.Schema.from_pandas(frame, preserve_index=False).remove_metadata()
+    empty = frame.isna().all(axis=0) if len(frame) else None  # no value: any type (CSV chunks read floats)
+    return pa.schema([f.with_type(pa.null()) if empty is not None and empty[f.name] else f for f in schema])
+
+
+def _lock(table, blocks, cols, source, types=False):
+    """First pass: check times and collect the ticks at which each measurement arrives (and,
+    with ``types``, the Parquet types of the passed-through columns over every block)."""
     from .timing import lock_schedule
 
     place = _Pass(table, cols, source)
     arrivals = {s.name: [] for s in table.measurements}
     last = -1
+    schemas = []
     for block in blocks():
+        if types:
+            schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
                           2 + place.rows)
         ticks = place.ticks(values)
@@ -392,7 +454,13 @@ def _lock(table, blocks, cols, source):
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         last = int(ticks[-1]) if len(ticks) else last
     arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
-    return lock_schedule(table, arrivals, last + 1), place.rows
+    if schemas:
+        import pyarrow as pa
+
+        schemas = pa.unify_schemas(schemas, promote_options="permissive")
+    from .designer import has_kalman_gains  # fixed gains have no model to recompute them from
+
+    return lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table)), place.rows, schemas or None
 
 
 class _Runner:
@@ -423,27 +491,29 @@ class _Runner:
         return (tick - seg.rotation) % self.table.period if not seg.offsets else tick % self.table.period
 
     def run(self, ticks, readings):
-        """Output states and phases at ``ticks`` (ascending, may repeat or skip) from the rows'
-        readings; rows on a tick already run (a block boundary inside one tick) get that
-        tick's estimate and their readings are counted as ``same_tick``."""
+        """Output states, phases and predicted standard deviations (of the table that ran each
+        tick) at ``ticks`` (ascending, may repeat or skip) from the rows' readings; rows on a tick
+        already run get that tick's estimate and their readings are counted as ``same_tick``
+        (:func:`run_log` keeps the rows of one tick in one call, so this does not happen there)."""
         n = self.table.F.shape[0]
         if not len(ticks):
-            return np.zeros((0, n)), np.zeros(0, np.int64), self.counts
+            return np.zeros((0, n)), np.zeros(0, np.int64), np.zeros((0, n))
         late = ticks < self.next_tick
         if late.any():
             _merge(self.counts, {"same_tick": {k: int(np.sum(~np.isnan(v[late]))) for k, v in readings.items()
                                                if np.any(~np.isnan(v[late]))}})
-            states, phases, _ = self.run(ticks[~late], {k: v[~late] for k, v in readings.items()})
-            out, ph = np.empty((len(ticks), n)), np.empty(len(ticks), dtype=np.int64)
-            out[late], ph[late] = self.last_out, self.last_phase
-            out[~late], ph[~late] = states, phases
-            return out, ph, self.counts
+            states, phases, stds = self.run(ticks[~late], {k: v[~late] for k, v in readings.items()})
+            out, ph, sd = np.empty((len(ticks), n)), np.empty(len(ticks), dtype=np.int64), np.empty((len(ticks), n))
+            out[late], ph[late], sd[late] = self.last_out, self.last_phase, self.last_std
+            out[~late], ph[~late], sd[~late] = states, phases, stds
+            return out, ph, sd
         first, last = self.next_tick, int(ticks[-1])
         dense = self._dense(ticks, readings, first, last)
         if self.x is None and self.from_reading:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
-        out = np.empty((last - first + 1, self.table.F.shape[0]))
+        out = np.empty((last - first + 1, n))
         phases = np.empty(last - first + 1, dtype=np.int64)
+        stds = np.empty((last - first + 1, n))
         for seg in self.lock.segments:
             a, b = max(seg.start, first), min(seg.stop, last + 1)
             if a >= b:
@@ -457,19 +527,29 @@ class _Runner:
             _, xs = rt.run(part, states=True)
             out[a - first:b - first] = xs
             phases[a - first:b - first] = (rt.phase - (b - a) + np.arange(b - a)) % rt.period
+            stds[a - first:b - first] = self._std(rt)[phases[a - first:b - first]]
             self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
             _merge(self.counts, rt.counts)
-            self.current = rt
         self.next_tick = last + 1
-        self.last_out, self.last_phase = out[-1].copy(), phases[-1]
-        return out[ticks - first], phases[ticks - first], self.counts
+        self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
+        return out[ticks - first], phases[ticks - first], stds[ticks - first]
+
+    def _std(self, rt):
+        """``(period, n)``: predicted standard deviation of every state at each phase of ``rt``'s
+        table, for the estimate it outputs."""
+        if not hasattr(rt, "_log_std"):
+            covs = rt.table.P_filtered if rt.output == "posterior" else rt.table.P
+            rt._log_std = np.sqrt(np.maximum(np.array([np.diag(P) for P in covs]), 0.0))
+        return rt._log_std
 
     def _start(self, dense):
         """The quantity from the first reading of a sensor whose row of H picks it (state 0)."""
         x = np.zeros(self.table.F.shape[0])
         direct = [s.name for s in self.table.measurements
                   if np.array_equal(self.table.H[s.index], np.eye(len(x))[0])]
-        firsts = [(int(np.flatnonzero(~np.isnan(dense[n]))[0]), n) for n in direct if np.any(~np.isnan(dense[n]))]
+        from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
+
+        firsts = [(int(np.flatnonzero(usable(dense[n]))[0]), n) for n in direct if np.any(usable(dense[n]))]
         if firsts:
             x[0] = dense[min(firsts)[1]][min(firsts)[0]]
         return x
@@ -480,10 +560,10 @@ class _Runner:
         dense = {}
         for name, col in readings.items():
             arr = np.full(n, np.nan)
-            ok = ~np.isnan(col)
-            idx = ticks[ok] - first
-            arr[idx] = col[ok]
-            twice = len(idx) - len(np.unique(idx))
+            ok = np.flatnonzero(~np.isnan(col))
+            idx, first_row = np.unique(ticks[ok] - first, return_index=True)  # the first reading of a tick
+            arr[idx] = col[ok[first_row]]
+            twice = len(ok) - len(idx)
             if twice:
                 _merge(self.counts, {"same_tick": {name: twice}})
             dense[name] = arr
@@ -498,25 +578,26 @@ def _merge(into, counts):
             bucket[name] = bucket.get(name, 0) + c
 
 
-def _estimates(table, runner, block, cols, values, states, phases, std):
+def _estimates(table, block, cols, values, states, stds, std):
     pd = _pandas()
     out = {}
     if cols.time:
-        out[cols.time] = block[cols.time].to_numpy()
+        out[cols.time] = block[cols.time].array
     for i, name in enumerate(table.states):
         out[name] = states[:, i]
     if std or cols.references:
-        run_table = runner.current.table
-        covs = run_table.P_filtered if runner.current.output == "posterior" else run_table.P
-        diag = np.sqrt(np.maximum(np.array([np.diag(P) for P in covs]), 0.0))[phases % run_table.period]
         for i, name in enumerate(table.states):
-            out[f"{name}_std"] = diag[:, i]
+            out[f"{name}_std"] = stds[:, i]
     for state, col in cols.references.items():
         out[f"{state}_reference"] = values[col]
     for c in cols.extra:
-        out[c] = block[c].to_numpy()
+        out[c] = block[c].array  # with its dtype (a column of text stays text in every block)
     frame = pd.DataFrame(out)
-    frame.attrs["drop_std"] = not std
+    # the columns only kept in memory (for the plot and the RMS), by name: not by suffix, so that
+    # a column of the log that ends in _std or _reference is passed through like any other
+    frame.attrs["hidden"] = [f"{s}_reference" for s in cols.references] + (
+        [] if std else [f"{s}_std" for s in table.states if f"{s}_std" in out])
+    frame.attrs["references"] = list(cols.references)
     frame.attrs["wrap"] = table.states[0] if table.wrap_angle else None
     return frame
 
@@ -524,10 +605,11 @@ def _estimates(table, runner, block, cols, values, states, phases, std):
 class _Writer:
     """Blocks of estimates to a file (atomically) and/or kept in memory."""
 
-    def __init__(self, path, keep):
+    def __init__(self, path, keep, types=None):
         self.path, self.keep = (Path(path) if path else None), keep
         self.frames, self.errors = [], {}
         self._ctx = self._fh = self._parquet = None
+        self._types = types  # Parquet types of the log's passed-through columns over the whole log
 
     def __enter__(self):
         if self.path is not None:
@@ -546,9 +628,7 @@ class _Writer:
 
     def write(self, frame):
         self._errors(frame)
-        shown = frame.drop(columns=[c for c in frame.columns if c.endswith("_std")]) if frame.attrs.get(
-            "drop_std") else frame
-        shown = shown.drop(columns=[c for c in shown.columns if c.endswith("_reference")])
+        shown = frame.drop(columns=frame.attrs["hidden"])
         if self.keep:
             self.frames.append(frame)
         if self._fh is None:
@@ -559,21 +639,36 @@ class _Writer:
 
             tab = pa.Table.from_pandas(shown, preserve_index=False)
             if self._parquet is None:
-                self._parquet = pq.ParquetWriter(self._fh, tab.schema)
+                schema, whole = tab.schema, self._types  # the whole log's types, not its first block's
+                if whole is not None:
+                    schema = pa.schema([whole.field(f.name) if f.name in whole.names
+                                        and whole.field(f.name).type != pa.null() else f for f in schema],
+                                       metadata=schema.metadata)
+                self._parquet = pq.ParquetWriter(self._fh, schema)
+            if not tab.schema.equals(self._parquet.schema, check_metadata=False):
+                tab = self._cast(tab, self._parquet.schema)
             self._parquet.write_table(tab)
         else:
             shown.to_csv(self._fh, index=False, header=self._fh.tell() == 0, lineterminator="\n")
 
+    @staticmethod
+    def _cast(tab, schema):
+        """A block of the estimates in the file's column types (a log read in chunks may change a
+        column's type between them: integers in one, with gaps as floats in the next)."""
+        try:
+            return tab.select(schema.names).cast(schema)
+        except (ValueError, TypeError, NotImplementedError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+            raise OutputError(f"cannot write Parquet: a column changes type between blocks of the log "
+                              f"({_first_line(exc)}); write CSV, or give the column one type") from None
+
     def _errors(self, frame):
-        for col in frame.columns:
-            if col.endswith("_reference"):
-                state = col[: -len("_reference")]
-                err = frame[state].to_numpy() - frame[col].to_numpy()
-                if frame.attrs.get("wrap") == state:
-                    err = wrap(err)
-                ok = np.isfinite(err)
-                s, n = self.errors.get(state, (0.0, 0))
-                self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
+        for state in frame.attrs.get("references", ()):
+            err = frame[state].to_numpy() - frame[f"{state}_reference"].to_numpy()
+            if frame.attrs.get("wrap") == state:
+                err = wrap(err)
+            ok = np.isfinite(err)
+            s, n = self.errors.get(state, (0.0, 0))
+            self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
 
     def frame(self):
         if not self.frames:
@@ -715,6 +810,8 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         Two logs of the same name (their estimates would overwrite each other), or a log
         that cannot be run (as :func:`run_log`).
     """
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -727,9 +824,16 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     targets = [outdir / (Path(p).stem + suffix) for p in paths]
     if len(set(targets)) < len(targets):
         raise DataError("two logs have the same name; their estimates would overwrite each other")
+    same = [str(p) for p, t in zip(paths, targets, strict=True) if _same_file(p, t)]
+    if same:
+        raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
+                        "or with another --format)")
     text = table.to_json()
     if scheduler:
-        client, cluster = Client(scheduler), None
+        try:
+            client, cluster = Client(scheduler), None
+        except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
+            raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                dashboard_address=None)

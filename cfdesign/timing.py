@@ -233,11 +233,12 @@ def _segment(a, b, offs, patterns, P, recompute):
     """A rotation of the table when every sensor's offset is one shift of the whole schedule."""
     if not offs:
         return Segment(a, b)
-    for c in sorted({o for o in offs.values()}):
+    slowest = max(offs, key=lambda n: patterns[n][2])
+    step = patterns[slowest][2]  # a divisor of the period; every rotation is offs[slowest] mod step
+    for c in range(offs[slowest], P, step):  # (a 2 Hz sensor 10 ticks late, a 5 Hz one on time: 60)
         if all((o - c) % patterns[n][2] == 0 for n, o in offs.items()):
             return Segment(a, b, rotation=c)
     if not recompute:
-        slowest = max(offs, key=lambda n: patterns[n][2])
         return Segment(a, b, rotation=offs[slowest])
     return Segment(a, b, offsets=tuple(sorted(offs.items())))
 

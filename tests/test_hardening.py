@@ -123,6 +123,24 @@ def test_json_tables_with_non_numbers_are_refused(heading, tmp_path, token):
         load_gains(tmp_path / "g.json")
 
 
+@pytest.mark.parametrize("key, value", [("K", 5), ("F", True), ("F", 1.5), ("K", "abc")])
+def test_json_tables_with_matrices_that_are_not_lists_are_a_named_error(heading, tmp_path, cli, key, value):
+    data = json.loads(heading.to_json())
+    data[key] = value
+    (tmp_path / "g.json").write_text(json.dumps(data))
+    with pytest.raises(GainTableError, match=f"schema violation at {key}"):
+        load_gains(tmp_path / "g.json")
+    code, _, err = cli("verify", tmp_path / "g.json")
+    assert code == 2 and "schema violation" in err
+
+
+def test_json_tables_may_list_their_sensors_in_any_order(heading):
+    data = json.loads(heading.to_json())
+    data["sensors"] = data["sensors"][::-1]
+    table = cfdesign.GainTable.from_dict(data)
+    assert table.sensors == heading.sensors
+
+
 @FUZZ
 @given(field=st.sampled_from(["std", "density"]), value=st.sampled_from([1e200, 1e-160, 1e300, 1e-300, 1e101]))
 def test_overflowing_noise_figures_are_named(tmp_path_factory, field, value):

@@ -37,6 +37,13 @@ def test_wrap_range_identity_and_scalar_agreement():
     assert float(linear.wrap(-math.pi)) == math.pi
 
 
+def test_wrap_of_nan_and_inf_is_nan_for_scalars_as_for_arrays():
+    for v in (math.nan, math.inf, -math.inf):
+        assert math.isnan(linear.wrap_scalar(v)) and math.isnan(float(linear.wrap(v)))
+    with np.errstate(all="raise"):  # no invalid-value warning from inf - inf either
+        assert np.isnan(linear.wrap(np.array([math.nan, math.inf, -math.inf, 4.0]))[:3]).all()
+
+
 # ---------------------------------------------------------------------- gain forms
 def _random_table_matrices(seed, n=3, p=1, m=2):
     rng = np.random.default_rng(seed)

@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 import cfdesign
-from cfdesign.errors import DataError
+from cfdesign.errors import CfdesignError, DataError
 from cfdesign.linear import wrap
-from cfdesign.logs import run_log
+from cfdesign.logs import run_log, run_logs
 from cfdesign.runtime import Runtime
 from cfdesign.sim.gaussian import model_log
 from cfdesign.spec import parse_spec
@@ -234,3 +234,181 @@ def test_python_result_fields(heading):
     r = run_log(heading, log, reference="truth", std=True)
     assert r.samples == 5000 and set(r.rms) == {"heading"} and r.without_gain == 0
     assert {"heading_std", "gyro_correction_std"} <= set(r.estimates.columns)
+
+
+# ---------------------------------------------------------------------- blocks, ticks and columns
+def _event_log(n):
+    """The heading log as an event log: the IMU rows, and the odometry and compass in rows of their
+    own just after (the same tick)."""
+    log, psi = heading_log(0, 0, n=n, jitter=0.0)
+    events = []
+    for lag, name in ((1e-4, "odometry"), (2e-4, "compass")):
+        ev = log[log[name].notna()][["time", name]].copy()
+        ev["time"] += lag
+        events.append(ev)
+    imu = log.drop(columns=["odometry", "compass"])
+    return pd.concat([imu, *events]).sort_values("time", kind="stable").reset_index(drop=True), psi
+
+
+def test_a_block_boundary_between_rows_of_one_tick_loses_no_reading(heading):
+    """The block ends right after the IMU row of a tick whose odometry and compass rows start the
+    next block: they are still that tick's readings (not 'second readings' dropped)."""
+    log, _ = _event_log(300)
+    one = run_log(heading, log)
+    row = int(np.flatnonzero(log["compass"].notna().to_numpy())[1])  # the compass row of tick 100
+    for rows in (row - 1, row, 1):  # boundary before the odometry row, before the compass row; every row
+        split = run_log(heading, log, block_rows=rows)
+        assert split.unused == {} and np.allclose(split.estimates["heading"], one.estimates["heading"], atol=1e-9)
+
+
+def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
+    """Two compass readings on one tick: the first is used and the second counted, in one block
+    and with a block boundary between them."""
+    log, _ = heading_log(0, 0, n=600, jitter=0.0)
+    clean = run_log(heading, log).estimates["heading"].to_numpy()
+    extra = pd.DataFrame({"time": [2.0004], "compass": [0.0]})  # a bogus second reading at tick 200
+    twice = pd.concat([log, extra]).sort_values("time", kind="stable").reset_index(drop=True)
+    imu = twice["gyro"].notna().to_numpy()
+    row = int(np.flatnonzero(twice["time"].to_numpy() == 2.0004)[0])
+    for rows in (None, row):
+        r = run_log(heading, twice, block_rows=rows)
+        assert r.unused == {"same_tick": {"compass": 1}}
+        assert np.max(np.abs(r.estimates["heading"].to_numpy()[imu] - clean)) < 1e-9
+
+
+def test_text_columns_pass_through_csv_and_parquet_in_blocks(heading, tmp_path, monkeypatch):
+    """Columns that are not sensors are passed through whatever they hold: text (empty in the
+    first block), integers with a gap in a later block; also when the file is read in chunks."""
+    import cfdesign.logs
+
+    log, _ = heading_log(0, 0, n=900)
+    note = np.full(900, None, dtype=object)
+    note[[700, 850]] = ["bump", "stop, then go"]
+    log["note"] = note
+    log["count"] = np.arange(900.0)
+    log.loc[800, "count"] = np.nan
+    log.to_csv(tmp_path / "log.csv", index=False)
+    ref = run_log(heading, log).estimates
+    assert ref["note"].dropna().tolist() == ["bump", "stop, then go"]
+    for chunked in (False, True):
+        if chunked:
+            monkeypatch.setattr(cfdesign.logs, "ONE_PASS_BYTES", 0)
+        for source in (log, tmp_path / "log.csv"):
+            for suffix in (".csv", ".parquet"):
+                out = tmp_path / f"est{suffix}"
+                run_log(heading, source, output=out, block_rows=300)
+                got = pd.read_parquet(out) if suffix == ".parquet" else pd.read_csv(out)
+                assert got["note"].dropna().tolist() == ["bump", "stop, then go"]
+                assert np.array_equal(got["count"].to_numpy(), log["count"].to_numpy(), equal_nan=True)
+                assert np.allclose(got["heading"], ref["heading"], atol=1e-9)
+
+
+def test_log_columns_that_look_like_estimate_columns(heading, tmp_path):
+    """A log column named like a state would replace the estimate: refused on one line.  Columns
+    that merely end in _std or _reference are passed through like the others; a reference may
+    be a sensor's column, in Parquet as in CSV."""
+    log, _ = heading_log(0, 0, n=600)
+    with pytest.raises(DataError, match="column 'heading' has the name of a column of the estimates"):
+        run_log(heading, log.rename(columns={"truth": "heading"}))
+    log["gyro_std"], log["truth_reference"] = 0.01, 1.0
+    r = run_log(heading, log, output=tmp_path / "e.csv")
+    assert {"gyro_std", "truth_reference"} <= set(pd.read_csv(tmp_path / "e.csv").columns) and r.rms == {}
+    log.to_parquet(tmp_path / "log.parquet")
+    r = run_log(heading, tmp_path / "log.parquet", reference="compass")
+    assert set(r.rms) == {"heading"} and r.rms["heading"] == pytest.approx(run_log(heading, log, reference="compass")
+                                                                         .rms["heading"])
+
+
+def test_std_is_that_of_the_gains_each_stretch_ran(heading):
+    """The odometry slips by 3 ticks half-way: the first half runs the table's own gains, the
+    second recomputed ones; each row's predicted std is the one of the gains that ran it."""
+    log, psi = heading_log(0, 0, n=4000, jitter=0.0)
+    odo = np.full(4000, np.nan)
+    odo[0:2000:10], odo[2003::10] = psi[0:2000:10], psi[2003::10]
+    log["odometry"] = wrap(odo)
+    r = run_log(heading, log, std=True)
+    expected = np.sqrt([heading.P_filtered[k % 100][0, 0] for k in range(2000)])
+    assert np.allclose(r.estimates["heading_std"].to_numpy()[:2000], expected, rtol=1e-12)
+
+
+def test_fixed_gains_follow_the_slowest_sensor_and_count_the_rest(heading):
+    """A multirate table whose gains are not Kalman gains cannot be recomputed: as docs/logs.md
+    says, it runs locked to the slowest sensor and the readings off its schedule are counted
+    (not an error)."""
+    import dataclasses
+
+    hand = dataclasses.replace(heading, provenance={**heading.provenance, "solver": {"method": "hand-tuned"}})
+    log, _ = heading_log(3, 37, n=1000)
+    r = run_log(hand, log)
+    assert r.unused == {"unscheduled": {"odometry": 100}}
+
+
+def test_a_rotation_that_is_no_sensor_s_own_offset_is_found():
+    """A 2 Hz compass 10 ticks late and a 5 Hz odometry on time (period 100): one rotation of
+    the schedule, by 60 ticks, fits both; it was missed (the gains recomputed, or with fixed
+    gains the odometry readings left without a gain)."""
+    from cfdesign.timing import lock_schedule
+
+    table = cfdesign.design(parse_spec({"name": "h", "structure": "dckf3", "wrap_angle": True, "sensors": {
+        "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "odometry": {"rate_hz": 5.0, "noise": {"std": 0.005}}, "compass": {"rate_hz": 2.0, "noise": {"std": 0.05}}}}))
+    arrivals = {"compass": np.arange(10, 1000, 50), "odometry": np.arange(0, 1000, 20)}
+    for recompute in (True, False):
+        lock = lock_schedule(table, arrivals, 1000, recompute=recompute)
+        assert [(s.rotation, s.offsets) for s in lock.segments] == [(60, None)]
+        for name, ticks in arrivals.items():
+            assert set((ticks - 60) % 100) <= set(table.schedule.phases(name))
+
+
+@pytest.mark.parametrize("workers", ["-1", "0"])
+def test_workers_must_be_positive(heading, tmp_path, cli, workers):
+    """--workers -1 started a Dask cluster that never came up: the command hung."""
+    table = heading.save(tmp_path / "g.json")
+    for i in range(2):
+        heading_log(0, 0, n=200, seed=i)[0].to_csv(tmp_path / f"r{i}.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "r0.csv", tmp_path / "r1.csv", "-o", tmp_path / "out",
+                       "--workers", workers)
+    assert code == 2 and "--workers must be a positive number" in err and not (tmp_path / "out").exists()
+    with pytest.raises(CfdesignError, match="workers must be a positive number"):
+        run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=int(workers))
+
+
+def test_an_unreachable_scheduler_is_a_user_error(heading, tmp_path, cli):
+    """Not an 'internal error, please report it' (exit 3)."""
+    import dask
+    import dask.distributed  # its defaults in dask.config before config.set copies it
+
+    table = heading.save(tmp_path / "g.json")
+    heading_log(0, 0, n=200)[0].to_csv(tmp_path / "r0.csv", index=False)
+    for address in ("tcp://127.0.0.1:1", "nonsense://x"):
+        with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+            code, _, err = cli("run", table, tmp_path / "r0.csv", "-o", tmp_path / "out", "--scheduler", address)
+        assert code == 2 and f"cannot connect to the Dask scheduler {address}" in err, err
+
+
+@pytest.mark.parametrize("bad", [np.inf, -np.inf, 5e12])
+def test_a_rejected_first_reading_is_not_the_start(heading, bad):
+    """The state starts from the first reading the runtime would use: an inf there made every
+    estimate of the log NaN."""
+    log, _ = heading_log(0, 0, n=600)
+    clean = run_log(heading, log.assign(compass=np.where(np.arange(600) == 0, np.nan, log["compass"])))
+    log.loc[0, "compass"] = bad
+    r = run_log(heading, log)
+    assert r.unused == {"rejected": {"compass": 1}}
+    assert np.array_equal(r.estimates["heading"].to_numpy(), clean.estimates["heading"].to_numpy())
+
+
+def test_the_estimates_never_replace_the_log(heading, tmp_path, cli):
+    """-o naming the log itself (or, for several logs, their own folder in their own format)
+    replaced the logs by the estimates, losing the sensor columns."""
+    table = heading.save(tmp_path / "g.json")
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for i in range(2):
+        heading_log(0, 0, n=200, seed=i)[0].to_csv(folder / f"r{i}.csv", index=False)
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    code, _, err = cli("run", table, folder / "r0.csv", "-o", folder / "r0.csv")
+    assert code == 2 and "is the log itself" in err
+    code, _, err = cli("run", table, folder, "-o", folder, "--workers", "1")
+    assert code == 2 and "would replace the log itself" in err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before

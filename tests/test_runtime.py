@@ -168,3 +168,83 @@ def test_sparse_unwrap_equals_numpy(crossings):
     angle = np.cumsum(rng.normal(0, 0.05, 20000)) + np.linspace(0, 2 * np.pi * crossings, 20000)
     wrapped = wrap(angle)
     assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est")])
+def test_step_takes_sensors_named_like_its_own_variables(heading, names):
+    """Sensor names are any identifiers: the compiled step's own names (S, U, PI, LIM, u0,
+    unknown, ...) move out of their way instead of being shadowed or clashing."""
+    import dataclasses
+
+    old = [s.name for s in heading.sensors]
+    ports = tuple(dataclasses.replace(s, name=new) for s, new in zip(heading.sensors, names, strict=True))
+    measured = tuple(names[old.index(m)] for m in heading.schedule.measurements)
+    renamed = dataclasses.replace(heading, sensors=ports,
+                                  schedule=dataclasses.replace(heading.schedule, measurements=measured))
+    data = readings(heading, 300)
+    data["compass"] = wrap(data["compass"] + 3.0)  # innovations across +-pi: the wrap is exercised
+    expected, _ = stream(heading, data)
+    got, _ = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
+    assert np.array_equal(got, expected)
+
+
+@pytest.mark.parametrize("rate, N", [(1000.0, 30_000), (10_000.0, 200_000)])
+def test_batch_equals_streaming_for_a_slow_filter_sampled_fast(rate, N):
+    """A single-rate position filter at 1 and 10 kHz: closed-loop poles clustered near z = 1,
+    where the IIR (direct form) path drifted 1e-4 relative from the recursion (1 kHz), and the
+    direct form of the lifted block recursion 1e-7 (10 kHz); the batch run must still be the
+    streaming recursion to rounding."""
+    spec = cfdesign.spec.parse_spec({"name": "p", "structure": "position", "gain_form": "filter", "sensors": {
+        "accelerometer": {"rate_hz": rate, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "gps": {"rate_hz": rate, "noise": {"std": 2.0}}}})
+    table = cfdesign.design(spec)
+    rng = np.random.default_rng(0)
+    data = {s.name: np.sin(1e-5 * np.arange(N)) + 0.1 * rng.standard_normal(N) for s in table.sensors}
+    rt = Runtime(table)
+    expected = np.array([rt.step_values(a, g) for a, g in zip(data["accelerometer"], data["gps"], strict=True)])
+    batch = Runtime(table)
+    est = batch.run(data)
+    assert np.max(np.abs(est - expected)) <= 1e-9 * np.max(np.abs(expected))
+    assert np.max(np.abs(batch.x - rt.x)) <= 1e-9 * np.max(np.abs(rt.x))
+
+
+def test_batch_equals_streaming_when_the_heading_turns_more_than_pi_between_readings(heading):
+    """The batch paths unwrap the angle readings over the readings present; a heading that turns
+    more than pi between two readings of a slow sensor (4 rad/s beside a 1 Hz compass; 20 rad/s at
+    5 Hz) cannot be unwrapped from the readings alone.  The batch run must still be the
+    recursion, whose innovations are wrapped against the estimate."""
+    slow = cfdesign.design(cfdesign.spec.parse_spec({"name": "h", "structure": "dckf3", "wrap_angle": True, "sensors": {
+        "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "odometry": {"rate_hz": 100.0, "noise": {"std": 0.5}},
+        "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}))
+    rng = np.random.default_rng(2)
+    for table, rate in ((slow, 4.0), (heading, 20.0)):
+        N, T = 1500, table.sample_time_s
+        turn = np.where(np.arange(N) > N // 3, rate, 0.1)
+        psi = np.cumsum(turn * T)
+        data = {"gyro": turn + 0.01 * rng.standard_normal(N), "odometry": wrap(psi + 0.5 * rng.standard_normal(N)),
+                "compass": np.where(np.arange(N) % table.period == 0, wrap(psi), np.nan)}
+        for states in (False, True):
+            expected, rt = stream(table, data, x0=[psi[0], 0.0])
+            batch = Runtime(table, x0=[psi[0], 0.0])
+            est = batch.run(data, states=states)
+            est = est[0] if states else est
+            assert np.max(np.abs(wrap(est - expected))) < 1e-9
+            assert abs(wrap(batch.x[0] - rt.x[0])) < 1e-9 and abs(batch.x[1] - rt.x[1]) < 1e-9
+
+
+def test_angle_check_does_not_send_ordinary_runs_step_by_step(heading, monkeypatch):
+    """The check of the angle innovations costs one more IIR pass, not the batch speed: a heading
+    that crosses +-pi at an ordinary rate runs without a single step of the loop."""
+    stepped = []
+    loop = Runtime._run_loop
+    monkeypatch.setattr(Runtime, "_run_loop", lambda self, u, y, states: stepped.append(len(u)) or loop(self, u, y,
+                                                                                                         states))
+    N = 5000
+    psi = np.linspace(0.0, 40.0, N)
+    rng = np.random.default_rng(3)
+    data = {"gyro": np.gradient(psi, heading.sample_time_s), "compass": wrap(psi + 0.05 * rng.standard_normal(N)),
+            "odometry": wrap(psi + 0.05 * rng.standard_normal(N))}
+    for states in (False, True):
+        Runtime(heading, x0=[0.0, 0.0]).run(data, states=states)
+    assert stepped == []

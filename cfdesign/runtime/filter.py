@@ -355,13 +355,21 @@ class Runtime:
 
     def _run_regular(self, u, y, states):
         """A stretch where every scheduled measurement is present (NaN where it is not read)
-        and the inputs are held: angle readings unwrapped, then the vectorised paths."""
-        y = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
-        if self.period == 1 and not states and self.n <= _SMALL:
-            lti = _LtiBands.of(self)
-            if lti is not None:
-                return lti.run(self, [*u.T, *y.T])
-        return self._run_vectorised(u, y, states)
+        and the inputs are held: angle readings unwrapped, then the vectorised paths.
+
+        Angle tables: the linear paths run on the unwrapped readings, which is the recursion
+        (with its innovations wrapped) only while every angle innovation stays within pi; the
+        batch paths check that at every reading, and where it does not hold (a heading that
+        turns more than pi between two readings of a slow sensor, or before its first one) the
+        stretch runs step by step instead."""
+        read = ~np.isnan(y) if self._wrap_rows.any() else None
+        unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
+        lti = _LtiBands.of(self) if self.period == 1 and not states and self.n <= _SMALL else None
+        if lti is not None:
+            out = lti.run(self, [*u.T, *unwrapped.T], read)
+        else:
+            out = self._run_vectorised(u, unwrapped, states, read)
+        return self._run_loop(u, y, states) if out is None else out
 
     def _held_inputs(self, u):
         """Inputs with NaN or inf replaced by the last good value (``u_last`` before the first)."""
@@ -415,10 +423,13 @@ class Runtime:
             self.u_last = u[k]
         return est, xs
 
-    def _run_vectorised(self, u, y, states):
+    def _run_vectorised(self, u, y, states, read=None):
         """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
-        once, vectorised over the blocks (``L`` a multiple of the period)."""
+        once, vectorised over the blocks (``L`` a multiple of the period).
+
+        ``read`` (angle tables): where the angle readings are; returns None, the runtime
+        unchanged, when an angle innovation is not within pi there (:meth:`_run_regular`)."""
         N = len(u)
         # blocks of whole periods; long blocks pay off for small states only (the lifting
         # costs L products of n x n matrices)
@@ -431,7 +442,15 @@ class Runtime:
         Phi, C = self._lift([ph.A for ph in phases], [ph.G for ph in phases], W)
         X = _boundary_states(Phi, C, self.x)  # (P, n): x at the start of every block
         xs, last = np.empty((P, L, self.n)), None
+        angle_rows = np.flatnonzero(self._wrap_rows) if read is not None else ()
+        if len(angle_rows):
+            read = np.concatenate([read, np.zeros((pad, read.shape[1]), dtype=bool)]).reshape(P, L, -1)
+        p = u.shape[1]
         for j, ph in enumerate(phases):
+            for i in angle_rows:  # the prior at this phase of every block: each innovation within pi?
+                at = read[:, j, i]
+                if at.any() and np.any(np.abs(W[at, j, p + i] - X[at] @ self.H[i]) >= np.pi):
+                    return None
             if j == (N - 1) % L:
                 last = X[-1].copy()  # the state before the last sample
             xs[:, j] = X @ ph.C.T + W[:, j] @ ph.D.T if self.posterior else X
@@ -462,7 +481,8 @@ class Runtime:
     def _unwrapped(self, y):
         """Angle readings (NaN where none) made continuous over the readings present and the
         first brought within pi of the current estimate, so that the linear batch paths see no
-        2 pi jumps (consecutive readings must differ by less than pi)."""
+        2 pi jumps.  Right when consecutive readings differ by less than pi; where they do not,
+        :meth:`_run_vectorised` finds an innovation beyond pi and the stretch runs step by step."""
         if not self._wrap_rows.any():
             return y
         y = y.copy()
@@ -508,12 +528,18 @@ class _LtiBands:
     ``T_i = C_o (A^(i-1) + a_1 A^(i-2) + ... + a_(i-1) I)``
     (:func:`cfdesign.linear.output_adjugate`); so the filter starts from ``zi = T x0`` and
     hands back ``x = T^-1 sum_j zf_j``, exactly the state the streaming recursion would
-    hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill conditioned) use the
-    blocked path instead.  Cost: ``O(n^3)`` once per runtime.
+    hold.  Tables whose ``(A, C_o)`` is badly observable (``T`` ill conditioned), or whose
+    closed-loop poles are clustered so near ``z = 1`` that the rounding of ``den``'s
+    coefficients moves them by more than :data:`_POLE_RTOL` of their distance to the unit
+    circle (fast sampling of a slow filter: the direct form then drifts from the recursion by
+    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
     """
 
-    def __init__(self, den, nums, T, Tinv):
+    def __init__(self, den, nums, T, Tinv, priors=()):
         self.den, self.nums, self.T, self.Tinv = den, nums, T, Tinv
+        #: angle tables: ``(rows, T_c, nums_c)`` per distinct angle row ``c`` of ``H``, the IIR
+        #: filters of the prior ``c x`` (``T_c`` None: the estimate is that prior)
+        self.priors = priors
 
     @classmethod
     def of(cls, rt):
@@ -525,21 +551,46 @@ class _LtiBands:
         T = linear.output_adjugate(ph.A, ph.C[0], den)
         nums = [np.concatenate([[d], T @ g + d * den[1:]]) for g, d in zip(ph.G.T, ph.D[0], strict=True)]
         lti = None
-        if np.linalg.cond(T) < 1e8:
-            lti = cls(den, nums, T, np.linalg.inv(T))
+        if np.linalg.cond(T) < 1e8 and _pole_sensitivity(ph.A, den) < _POLE_RTOL:
+            priors = {}
+            for i in np.flatnonzero(rt._wrap_rows):
+                priors.setdefault(tuple(rt.H[i]), []).append(i)
+            checks = []
+            for c, rows in priors.items():
+                if not rt.posterior and np.array_equal(c, ph.C[0]):
+                    checks.append((rows, None, None))
+                    continue
+                Tc = linear.output_adjugate(ph.A, np.array(c), den)  # the prior: C = c, D = 0
+                checks.append((rows, Tc, [np.concatenate([[0.0], Tc @ g]) for g in ph.G.T]))
+            lti = cls(den, nums, T, np.linalg.inv(T), checks)
         rt._lti = lti
         return lti
 
-    def run(self, rt, cols):
+    def _filtered(self, nums, T, x, cols):
+        """``sum_j lfilter(nums[j], den, cols[j])`` started from the state ``x`` (through ``T``),
+        and the final filter state."""
         from scipy.signal import lfilter
 
         zf = np.zeros(len(self.den) - 1)
-        est = None
-        for j, (num, col) in enumerate(zip(self.nums, cols, strict=True)):
-            zi = self.T @ rt.x if j == 0 else np.zeros_like(zf)
+        total = None
+        for j, (num, col) in enumerate(zip(nums, cols, strict=True)):
+            zi = T @ x if j == 0 else np.zeros_like(zf)
             out, z = lfilter(num, self.den, col, zi=zi)
-            est = out if est is None else np.add(est, out, out=est)
+            total = out if total is None else np.add(total, out, out=total)
             zf += z
+        return total, zf
+
+    def run(self, rt, cols, read=None):
+        """The estimates, the runtime advanced; None (the runtime unchanged) when, with ``read``
+        (where the angle readings are), an angle innovation is not within pi."""
+        est, zf = self._filtered(self.nums, self.T, rt.x, cols)
+        p = len(rt.inputs)
+        for rows, Tc, nums in self.priors if read is not None else ():
+            prior = est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0]
+            for i in rows:
+                at = read[:, i]
+                if at.any() and np.any(np.abs(cols[p + i][at] - prior[at]) >= np.pi):
+                    return None
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
@@ -548,6 +599,29 @@ class _LtiBands:
             rt.x = x
             linear.wrap_inplace(est)
         return est
+
+
+#: largest pole displacement, relative to the pole's distance to the unit circle, that the
+#: rounding of the IIR path's denominator may cause (its estimates then agree with the step's
+#: to about 1e-9 relative)
+_POLE_RTOL = 1e-8
+
+
+def _pole_sensitivity(A, den) -> float:
+    """``max_i eps sum_k |a_k| |p_i|^(n-k) / |prod_(j != i) (p_i - p_j)| / (1 - |p_i|)``: how far
+    rounding the coefficients of ``den = det(zI - A)`` moves its roots ``p_i`` (first-order
+    perturbation of a simple root), relative to their distance to the unit circle; inf for a
+    repeated root or one on or outside the circle."""
+    p = np.linalg.eigvals(A)
+    worst = 0.0
+    for i, pi in enumerate(p):
+        margin = 1.0 - abs(pi)
+        gap = abs(np.prod(pi - np.delete(p, i)))
+        if margin <= 0 or gap == 0:
+            return np.inf
+        moved = np.finfo(float).eps * np.sum(np.abs(den) * abs(pi) ** np.arange(len(den) - 1, -1, -1)) / gap
+        worst = max(worst, moved / margin)
+    return worst
 
 
 def _unwrap(col):
@@ -568,9 +642,11 @@ def _unwrap(col):
 
 def _boundary_states(Phi, C, x0):
     """``X[p+1] = Phi X[p] + C[p]``, ``X[0] = x0``: for all p at once with scipy's lfilter (small
-    states, many blocks), else block by block (O(n^2) each; never O(n^4))."""
+    states, many blocks, poles the direct form keeps: :func:`_pole_sensitivity`), else block by
+    block (O(n^2) each; never O(n^4))."""
     n, P = len(x0), len(C)
-    if n > 6 or P < 4 * n * n:
+    den = linear.characteristic_polynomial(Phi) if n <= 6 and P >= 4 * n * n else None
+    if den is None or _pole_sensitivity(Phi, den) >= _POLE_RTOL:  # (clustered poles: the direct form drifts)
         out = np.empty((P, n))
         x = np.asarray(x0, dtype=float)
         for p in range(P):
@@ -579,7 +655,6 @@ def _boundary_states(Phi, C, x0):
         return out
     from scipy.signal import lfilter
 
-    den = linear.characteristic_polynomial(Phi)
     # Z[k+1] = Phi Z[k] + S[k], Z[0] = 0, S = [x0, C[0], C[1], ...]: then X[p] = Z[p + 1]
     S = np.vstack([x0[None, :], C])
     out = np.zeros((P + 1, n))

@@ -97,56 +97,72 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         raise ValueError("a posterior estimate needs an invertible F")
     active = table.schedule.mask()
     wrap_rows = [bool(table.wrap_angle) and s.order == 0 for s in table.measurements]
-    xs, us, es = [f"x{i}" for i in range(n)], [f"u{j}" for j in range(p)], [f"e{i}" for i in range(m)]
-    ys = [f"y{i}" for i in range(m)]
     names = [s.name for s in table.sensors]
     if len(set(names)) != len(names) or not all(_IDENTIFIER.match(x) and not keyword.iskeyword(x) for x in names):
         raise ValueError("sensor names must be distinct ASCII identifiers")
+    # every name of the source other than the sensors' keywords is this module's; a sensor may be
+    # called anything (``S``, ``PI``, ``u0``, ``unknown``), so an internal name it takes gets a ``_``
+    taken = set(names)
+
+    def fresh(base):
+        name = base
+        while name in taken:
+            name += "_"
+        taken.add(name)
+        return name
+
+    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
+                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make")}
+    xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
+    es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
+    nx = [fresh(f"n{r}") for r in range(n)]
+    S_, U_, REJ_, UNS_, LIM, PI, WRAP = (N[k] for k in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP"))
+    K_, A_, L_, ph, est = (N[k] for k in ("K", "A", "L", "ph", "est"))
     lines = []
     add = lines.append
     if n > 4:
-        add(f"    {', '.join(xs)}, = S[:{n}]")
+        add(f"    {', '.join(xs)}, = {S_}[:{n}]")
     else:
         for i in range(n):
-            add(f"    x{i} = S[{i}]")
+            add(f"    {xs[i]} = {S_}[{i}]")
     if P > 1:
-        add(f"    ph = S[{n}]")
-    for j in range(p):  # an input outside the limit (inf) or missing (NaN) holds the last one
-        add(f"    if -LIM <= u{j} <= LIM:")
-        add(f"        U[{j}] = u{j}")
+        add(f"    {ph} = {S_}[{n}]")
+    for j, u in enumerate(us):  # an input outside the limit (inf) or missing (NaN) holds the last one
+        add(f"    if -{LIM} <= {u} <= {LIM}:")
+        add(f"        {U_}[{j}] = {u}")
         add("    else:")
-        add(f"        if u{j} == u{j}:")
-        add(f"            REJ[{j}] += 1")
-        add(f"        u{j} = U[{j}]")
+        add(f"        if {u} == {u}:")
+        add(f"            {REJ_}[{j}] += 1")
+        add(f"        {u} = {U_}[{j}]")
     single = P == 1
     if m and not single:
-        add("    K = KP[ph]")
-        add("    A = AC[ph]")
+        add(f"    {K_} = {N['KP']}[{ph}]")
+        add(f"    {A_} = {N['AC']}[{ph}]")
         if posterior:
-            add("    L = LP[ph]")
+            add(f"    {L_} = {N['LP']}[{ph}]")
     for i in range(m):
-        add(f"    e{i} = 0.0")
-        add(f"    if -LIM <= y{i} <= LIM:")
+        add(f"    {es[i]} = 0.0")
+        add(f"    if -{LIM} <= {ys[i]} <= {LIM}:")
         if single and not active[0, i]:
-            add(f"        UNS[{i}] += 1")
+            add(f"        {UNS_}[{i}] += 1")
         else:
             pad = "        " if single else "            "
             if not single:
-                add(f"        if A[{i}]:")
-            add(f"{pad}e{i} = y{i} - ({_dot(H[i], xs)})")
+                add(f"        if {A_}[{i}]:")
+            add(f"{pad}{es[i]} = {ys[i]} - ({_dot(H[i], xs)})")
             if wrap_rows[i]:
-                add(f"{pad}if e{i} > PI or e{i} <= -PI:")
-                add(f"{pad}    e{i} = WRAP(e{i})")
+                add(f"{pad}if {es[i]} > {PI} or {es[i]} <= -{PI}:")
+                add(f"{pad}    {es[i]} = {WRAP}({es[i]})")
             if not single:
                 add("        else:")
-                add(f"            UNS[{i}] += 1")
-        add(f"    elif y{i} == y{i}:")
-        add(f"        REJ[{p + i}] += 1")
+                add(f"            {UNS_}[{i}] += 1")
+        add(f"    elif {ys[i]} == {ys[i]}:")
+        add(f"        {REJ_}[{p + i}] += 1")
     if posterior:
         row = [L[0][0, i] for i in range(m)] if single else [any(l0[0, i] != 0 for l0 in L) for i in range(m)]
-        add(f"    est = x0 + ({_dot(row, es, None if single else 'L')})" if any(row) else "    est = x0")
+        add(f"    {est} = {xs[0]} + ({_dot(row, es, None if single else L_)})" if any(row) else f"    {est} = {xs[0]}")
     else:
-        add("    est = x0")
+        add(f"    {est} = {xs[0]}")
     for r in range(n):
         terms = [_dot(F[r], xs)]
         if B[r].any():
@@ -156,30 +172,31 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
                 terms.append(_dot(Kp[0][r], es))
             else:
                 used = [any(k[r, i] != 0 for k in Kp) for i in range(m)]
-                flat = [f"K[{r * m + i}]*e{i}" for i in range(m) if used[i]]
+                flat = [f"{K_}[{r * m + i}]*{es[i]}" for i in range(m) if used[i]]
                 terms.append(" + ".join(flat) or "0.0")
-        add(f"    n{r} = " + " + ".join(f"({t})" for t in terms))
+        add(f"    {nx[r]} = " + " + ".join(f"({t})" for t in terms))
     if table.wrap_angle:
-        add("    if n0 > PI or n0 <= -PI:")
-        add("        n0 = WRAP(n0)")
-        add("    if est > PI or est <= -PI:")
-        add("        est = WRAP(est)")
-    add(f"    S[:{n}] = {', '.join(f'n{r}' for r in range(n))},")
+        add(f"    if {nx[0]} > {PI} or {nx[0]} <= -{PI}:")
+        add(f"        {nx[0]} = {WRAP}({nx[0]})")
+        add(f"    if {est} > {PI} or {est} <= -{PI}:")
+        add(f"        {est} = {WRAP}({est})")
+    add(f"    {S_}[:{n}] = {', '.join(nx)},")
     if P > 1:
-        add(f"    S[{n}] = (ph + 1) % {P}")
-    add("    return est")
+        add(f"    {S_}[{n}] = ({ph} + 1) % {P}")
+    add(f"    return {est}")
     body = "\n".join("    " + line for line in lines)
-    keywords = ", ".join(f"{name}=NAN" for name in names)
+    keywords = ", ".join(f"{name}={N['NAN']}" for name in names)
     rename = "".join(f"        {v} = {name}\n" for v, name in zip(us + ys, names, strict=True))
-    source = (f"def make(S, U, REJ, UNS):\n"
-              f"    def step({keywords + ', ' if names else ''}**unknown):\n"
-              f"        if unknown:\n            UNKNOWN(unknown)\n{rename}{body}\n"
+    unknown_ = N["unknown"]
+    source = (f"def {N['make']}({S_}, {U_}, {REJ_}, {UNS_}):\n"
+              f"    def step({keywords + ', ' if names else ''}**{unknown_}):\n"
+              f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
               f"    def step_values({', '.join(us + ys)}):\n{body}\n"
               f"    return step, step_values\n")
-    namespace = {"LIM": float(limit), "PI": math.pi, "WRAP": wrap_scalar, "NAN": math.nan, "UNKNOWN": unknown,
-                 "KP": [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
-                 "LP": [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
-                 "AC": [tuple(bool(v) for v in row) for row in active]}
+    namespace = {LIM: float(limit), PI: math.pi, WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
+                 N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
+                 N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
+                 N["AC"]: [tuple(bool(v) for v in row) for row in active]}
     exec(compile(source, f"<cfdesign step of a {n}-state table>", "exec"), namespace)
-    step, step_values = namespace["make"](S, U, REJ, UNS)
+    step, step_values = namespace[N["make"]](S, U, REJ, UNS)
     return step, step_values, source
