@@ -227,6 +227,8 @@ def cmd_run(args) -> int:
     from .logs import run_log, run_logs
 
     table = load_gains(args.table)
+    if Path(args.output).resolve() == Path(args.table).resolve():
+        raise CfdesignError(f"-o {args.output} is the gain table: the estimates would replace it")
     logs = _log_paths(args.data)
     options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
@@ -321,25 +323,10 @@ def cmd_discretize(args) -> int:
     return 0
 
 
-_FIGURE_FORMATS = ("png", "pdf", "svg")
-
-
 def _figure_bytes(fig, target) -> bytes:
-    """``fig`` rendered in memory in the format ``target``'s suffix names (png without one)."""
-    import io
+    from .plot import figure_bytes
 
-    import matplotlib.pyplot as plt
-
-    fmt = Path(target).suffix.lstrip(".").lower() or "png"
-    try:
-        if fmt not in _FIGURE_FORMATS:
-            raise CfdesignError(f"cannot write {target}: unknown image format {fmt!r} "
-                                f"(use {', '.join('.' + f for f in _FIGURE_FORMATS)})")
-        buffer = io.BytesIO()
-        fig.savefig(buffer, dpi=120, format=fmt)
-        return buffer.getvalue()
-    finally:
-        plt.close(fig)
+    return figure_bytes(fig, target)
 
 
 def _add_structure(p):

@@ -268,16 +268,18 @@ class _Pass:
             from .timing import place
 
             t = values[self.cols.time]
-            if self.t0 is None and n:
-                self.t0 = t[0]
             both = t if self.last_time is None else np.concatenate([[self.last_time], t])
             base = np.ones(len(both), dtype=bool)
             for s in self.table.inputs:
                 col = values[self.cols.sensors[s.name]]
                 base[len(both) - n:] &= ~np.isnan(col)
+            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock)
+                first = np.flatnonzero(base[len(both) - n:])
+                self.t0 = t[first[0]] if first.size else t[0]
             place(both, self.table.sample_time_s, base_rows=base, source=self.source,
                   first_line=2 + self.rows - (0 if self.last_time is None else 1))
-            ticks = np.rint((t - self.t0) / self.table.sample_time_s).astype(np.int64)
+            # a reading logged before the first input row is used at tick 0
+            ticks = np.maximum(np.rint((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
             if n:
                 self.last_time = t[-1]
         self.rows += n
@@ -351,6 +353,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
         raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
+    if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
+        _check_plot_target(plot)
     runner = _Runner(table, lock, "prior" if prediction else None, start == "reading")
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
@@ -382,7 +386,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, lock.notes,
                        Path(output) if output else None, source)
     if plot is not None:
-        write_bytes(plot, _png(plot_log(table, est, cols.references, cols.time)))
+        from .plot import figure_bytes
+
+        write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
     return result
 
 
@@ -392,6 +398,19 @@ def _same_file(a, b) -> bool:
         return os.path.samefile(a, b)
     except OSError:  # one does not exist (yet): not the same file
         return False
+
+
+def _check_plot_target(plot):
+    from .plot import FIGURE_FORMATS
+
+    path = Path(plot)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    if fmt not in FIGURE_FORMATS:
+        raise OutputError(f"cannot write {plot}: unknown image format {fmt!r} "
+                          f"(use {', '.join('.' + f for f in FIGURE_FORMATS)})")
+    if path.is_dir() or not (path.parent if str(path.parent) else Path(".")).is_dir():
+        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if path.is_dir() else
+                                                      f"no folder {path.parent}"))
 
 
 def _source(data, source):
@@ -763,19 +782,6 @@ def _broken(angle):
     out = np.array(angle, dtype=float)
     out[1:][np.abs(np.diff(out)) > np.pi] = np.nan
     return out
-
-
-def _png(fig) -> bytes:
-    import io
-
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    try:
-        fig.savefig(buf, dpi=110, format="png")
-    finally:
-        plt.close(fig)
-    return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------- many logs

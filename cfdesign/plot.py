@@ -6,7 +6,7 @@ import numpy as np
 
 from .analysis import frequency_response
 
-__all__ = ["bode_plot", "table_bode_plot", "lifted_system"]
+__all__ = ["bode_plot", "table_bode_plot", "lifted_system", "figure_bytes", "FIGURE_FORMATS"]
 
 
 def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
@@ -205,3 +205,44 @@ def _multirate_figure(table, omega, hz, title, fig):
     ax_mag.legend(fontsize=8)
     fig.tight_layout()
     return fig
+
+
+#: image formats the commands write, by file suffix
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def figure_bytes(fig, target) -> bytes:
+    """``fig`` rendered in memory in the format the suffix of ``target`` names, then closed.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    target : str or Path
+        The file the bytes are for: ``.png`` (also without a suffix), ``.pdf`` or ``.svg``.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    CfdesignError
+        Another suffix (the bytes would not be what the name says).
+    """
+    import io
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    from .errors import CfdesignError
+
+    fmt = Path(target).suffix.lstrip(".").lower() or "png"
+    try:
+        if fmt not in FIGURE_FORMATS:
+            raise CfdesignError(f"cannot write {target}: unknown image format {fmt!r} "
+                                f"(use {', '.join('.' + f for f in FIGURE_FORMATS)})")
+        buffer = io.BytesIO()
+        fig.savefig(buffer, dpi=120, format=fmt)
+        return buffer.getvalue()
+    finally:
+        plt.close(fig)

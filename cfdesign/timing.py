@@ -6,7 +6,8 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 ``docs/logs.md``):
 
 1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``,
-   ``t0`` the log's first time: the nearest tick, so a reading is used at most ``T/2`` before
+   ``t0`` the time of the log's first row where the input sensors read (the base clock; a
+   reading logged before it is used at tick 0): the nearest tick, so a reading is used at most ``T/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
    does not move it).  Times must be finite and strictly increasing, and the rate of the input
    sensors' rows must be the table's base rate within 1 %.

@@ -194,3 +194,17 @@ def test_generated_code_matches_committed_copy(tables):
                                               lineterm=""))
         assert got == want, f"{name} differs from the committed copy ({regenerate}):\n{diff}"
         np.testing.assert_allclose(got_numbers, want_numbers, rtol=1e-9, atol=1e-15, err_msg=name)
+
+
+@needs_cc
+def test_c_treats_inf_and_huge_readings_as_missing_like_python(tables, tmp_path):
+    """inf, -inf and readings beyond the runtime's limit are missing in C as in Python (the
+    state never becomes NaN)."""
+    table = tables["dckf3"]
+    data = {k: v[:5000].copy() for k, v in readings(table).items()}
+    data["compass"][[10, 200]] = [np.inf, 1e13]
+    data["gyro"][[50, 51]] = [-np.inf, 2e12]
+    rt, names = Runtime(table), list(data)
+    py = np.array([rt.step(**{n: data[n][k] for n in names}) for k in range(5000)])
+    c = run_c(table, data, tmp_path, "double")
+    assert np.isfinite(c).all() and difference(table, c, py) <= 1e-12

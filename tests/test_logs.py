@@ -412,3 +412,21 @@ def test_the_estimates_never_replace_the_log(heading, tmp_path, cli):
     code, _, err = cli("run", table, folder, "-o", folder, "--workers", "1")
     assert code == 2 and "would replace the log itself" in err
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+def test_tick_zero_is_the_first_input_row_and_outputs_are_checked(heading, tmp_path, cli):
+    """A compass row logged 4 ms before the first IMU row does not shift the IMU rows onto each
+    other's ticks; a plot named .jpg and an output that is the gain table are refused."""
+    log, psi = heading_log(0, 0, n=6000, jitter=0.0)
+    early = pd.DataFrame({"time": [-0.004], "compass": [wrap(psi[0])]})
+    shifted = pd.concat([early, log.assign(compass=np.nan)], ignore_index=True)
+    r = run_log(heading, shifted)
+    assert "same_tick" not in r.unused and r.samples == 6001
+    table = heading.save(tmp_path / "g.json")
+    log.to_csv(tmp_path / "log.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv", "--plot", tmp_path / "p.jpg")
+    assert code == 2 and "unknown image format 'jpg'" in err and not (tmp_path / "e.csv").exists()
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", table)
+    assert code == 2 and "is the gain table" in err and cfdesign.load_gains(table).name == heading.name
+    with pytest.raises(cfdesign.CfdesignError, match="x0 must be 2 finite numbers"):
+        Runtime(heading, x0=[1.0, 2.0, 3.0])

@@ -13,6 +13,7 @@ import numpy as np
 from .. import __version__, linear
 from ..errors import CfdesignError, OutputError
 from ..files import write_files
+from ..runtime.filter import READING_LIMIT
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
 
@@ -215,6 +216,7 @@ def _fields(table, prefix, precision, output) -> dict:
         "PREFIX": prefix.upper(), "real": real, "ceil": ceil, "n": n, "p": p, "m": m, "p_alloc": max(p, 1),
         "m_alloc": max(m, 1), "period": table.period,
         "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
+        "reading_limit": _literal(READING_LIMIT, suffix, "reading limit"),
         "posterior": int(output == "posterior"), "output": output, "wrap_angle": int(bool(table.wrap_angle)),
         "active": _initializer(_padded(active, (table.period, max(m, 1)), "schedule").astype(int), ""),
         "measured": _initializer(active.any(axis=1).astype(int), ""),
@@ -252,7 +254,7 @@ def _innovations(table, prefix, H, x) -> list:
     for i, row in enumerate(H):
         diff = f"y[{i}] - ({_sum(prefix + '_H', i, row, x)})"
         value = f"{prefix}_wrap({diff})" if table.wrap_angle and i in angle else diff
-        out.append(f"e[{i}] = (isnan(y[{i}]) || !{prefix}_ACTIVE[phase][{i}]) ? 0 : {value};")
+        out.append(f"e[{i}] = ({prefix.upper()}_USABLE(y[{i}]) && {prefix}_ACTIVE[phase][{i}]) ? {value} : 0;")
     return out
 
 

@@ -128,7 +128,9 @@ class Runtime:
         self._active = table.schedule.mask()
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
-        self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(self.n)
+        self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(-1)
+        if self._x0.shape != (self.n,) or not np.all(np.isfinite(self._x0)):
+            raise CfdesignError(f"x0 must be {self.n} finite numbers for {table.name}, got {np.asarray(x0).tolist()}")
         from .step import compile_step
 
         self._S = [0.0] * self.n + [0]                        # the state floats, then the phase
