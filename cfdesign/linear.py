@@ -143,14 +143,22 @@ def wrap_inplace(a: np.ndarray) -> np.ndarray:
     ndarray
         ``a``.
     """
-    out = (a <= -math.pi) | (a > math.pi)
-    if out.any():
-        b = a[out]
-        b[np.isinf(b)] = np.nan  # no turn count (NaN, as wrap_scalar gives)
-        b -= _TWO_PI * np.ceil((b - math.pi) / _TWO_PI)
-        b[b > math.pi] -= _TWO_PI
-        b[b <= -math.pi] += _TWO_PI
-        a[out] = b
+    if not a.size:
+        return a
+    lo, hi = a.min(), a.max()
+    if lo > -math.pi and hi <= math.pi:  # all inside: nothing to do (NaN fails these comparisons)
+        return a
+    if not (np.isfinite(lo) and np.isfinite(hi)):  # inf has no turn count: NaN, as wrap_scalar gives
+        a[np.isinf(a)] = np.nan
+    with np.errstate(invalid="ignore"):
+        t = np.subtract(a, math.pi)  # a - 2 pi ceil((a - pi) / (2 pi)); an entry inside gets 0 turns
+        np.divide(t, _TWO_PI, out=t)
+        np.ceil(t, out=t)
+        np.multiply(t, _TWO_PI, out=t)
+        np.subtract(a, t, out=a)
+        if np.nanmax(a, initial=-math.inf) > math.pi or np.nanmin(a, initial=math.inf) <= -math.pi:
+            a[a > math.pi] -= _TWO_PI  # a result rounded an ulp outside: one more turn
+            a[a <= -math.pi] += _TWO_PI
     return a
 
 

@@ -430,3 +430,10 @@ def test_tick_zero_is_the_first_input_row_and_outputs_are_checked(heading, tmp_p
     assert code == 2 and "is the gain table" in err and cfdesign.load_gains(table).name == heading.name
     with pytest.raises(cfdesign.CfdesignError, match="x0 must be 2 finite numbers"):
         Runtime(heading, x0=[1.0, 2.0, 3.0])
+
+
+def test_a_sensor_without_readings_is_reported(heading):
+    log, _ = heading_log(0, 0, n=2000)
+    log["compass"] = np.nan
+    assert run_log(heading, log).notes == ["compass has no reading in the log: the gains are still those designed "
+                                           "with it (re-design without it for the best estimate)"]

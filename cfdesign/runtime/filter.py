@@ -35,6 +35,8 @@ __all__ = ["Runtime", "wrap", "usable", "READING_LIMIT"]
 _BLOCK = 64
 #: states up to this size run the IIR and long-block batch paths; larger ones step block by block
 _SMALL = 12
+#: "every reading present" for the IIR path's innovation check
+_ALL = object()
 _NAN = float("nan")
 #: readings larger than this in magnitude (SI units: rad, m, rad/s, m/s^2, ...) are not
 #: physical: they are treated as missing and counted, like inf, so that they cannot overflow
@@ -329,6 +331,10 @@ class Runtime:
             length.
         """
         cols = self._columns(readings)
+        if not states and self.period == 1 and self.n <= _SMALL and len(cols[0]) and all(map(_clean, cols)):
+            out = self._run_clean(cols)  # the common case: every reading present, single rate
+            if out is not None:
+                return out
         u, y = self._split(cols)
         N = len(u)
         if N == 0:
@@ -354,6 +360,21 @@ class Runtime:
         if states:
             return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
         return np.concatenate(pieces)
+
+    def _run_clean(self, cols):
+        """Single-rate, every reading present and usable: one IIR filter per sensor on the
+        columns as they are (angle columns unwrapped), no copies into matrices; None when the
+        IIR path does not apply or an angle innovation is not within pi (then the general path)."""
+        lti = _LtiBands.of(self)
+        if lti is None:
+            return None
+        p = len(self.inputs)
+        cols = list(cols)
+        for i in np.flatnonzero(self._wrap_rows):
+            col = _unwrap(cols[p + i])
+            shift = 2 * np.pi * np.round((col[0] - float(self.H[i] @ self.x)) / (2 * np.pi))
+            cols[p + i] = col - shift if shift else col
+        return lti.run(self, cols, _ALL if self._wrap_rows.any() else None)
 
     def _run_regular(self, u, y, states):
         """A stretch where every scheduled measurement is present (NaN where it is not read)
@@ -537,11 +558,14 @@ class _LtiBands:
     about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
     """
 
-    def __init__(self, den, nums, T, Tinv, priors=()):
+    def __init__(self, den, nums, T, Tinv, priors=(), from_post=None):
         self.den, self.nums, self.T, self.Tinv = den, nums, T, Tinv
         #: angle tables: ``(rows, T_c, nums_c)`` per distinct angle row ``c`` of ``H``, the IIR
         #: filters of the prior ``c x`` (``T_c`` None: the estimate is that prior)
         self.priors = priors
+        #: ``(L0, 1 - sum L0)`` when every row of ``H`` reads state 0 and the output is the
+        #: posterior: then ``x0 = (est - L0 y) / (1 - sum L0)`` gives the prior without a filter
+        self.from_post = from_post
 
     @classmethod
     def of(cls, rt):
@@ -557,14 +581,19 @@ class _LtiBands:
             priors = {}
             for i in np.flatnonzero(rt._wrap_rows):
                 priors.setdefault(tuple(rt.H[i]), []).append(i)
-            checks = []
+            checks, from_post = [], None
+            e0 = np.eye(rt.n)[0]
+            if rt.posterior and priors and all(np.array_equal(h, e0) for h in rt.H):
+                L0 = rt.L[0][0]
+                if abs(1.0 - L0.sum()) > 1e-3:
+                    from_post = (L0, 1.0 - L0.sum())
             for c, rows in priors.items():
-                if not rt.posterior and np.array_equal(c, ph.C[0]):
+                if (not rt.posterior and np.array_equal(c, ph.C[0])) or from_post is not None:
                     checks.append((rows, None, None))
                     continue
                 Tc = linear.output_adjugate(ph.A, np.array(c), den)  # the prior: C = c, D = 0
                 checks.append((rows, Tc, [np.concatenate([[0.0], Tc @ g]) for g in ph.G.T]))
-            lti = cls(den, nums, T, np.linalg.inv(T), checks)
+            lti = cls(den, nums, T, np.linalg.inv(T), checks, from_post)
         rt._lti = lti
         return lti
 
@@ -587,11 +616,17 @@ class _LtiBands:
         (where the angle readings are), an angle innovation is not within pi."""
         est, zf = self._filtered(self.nums, self.T, rt.x, cols)
         p = len(rt.inputs)
+        shared = None
+        if read is not None and self.from_post is not None:  # the prior of state 0, from the estimate
+            L0, scale = self.from_post
+            shared = est - sum(g * c for g, c in zip(L0, cols[p:], strict=True) if g)
+            shared /= scale
         for rows, Tc, nums in self.priors if read is not None else ():
-            prior = est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0]
+            prior = shared if shared is not None else (est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0])
             for i in rows:
-                at = read[:, i]
-                if at.any() and np.any(np.abs(cols[p + i][at] - prior[at]) >= np.pi):
+                at = slice(None) if read is _ALL else read[:, i]
+                gap = cols[p + i][at] - prior[at]
+                if gap.size and (gap.max() >= np.pi or gap.min() <= -np.pi):
                     return None
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
@@ -624,6 +659,12 @@ def _pole_sensitivity(A, den) -> float:
         moved = np.finfo(float).eps * np.sum(np.abs(den) * abs(pi) ** np.arange(len(den) - 1, -1, -1)) / gap
         worst = max(worst, moved / margin)
     return worst
+
+
+def _clean(col) -> bool:
+    """Every value a usable reading (no NaN, inf or beyond :data:`READING_LIMIT`): two passes,
+    no temporaries; NaN fails both comparisons."""
+    return bool(col.min() >= -READING_LIMIT and col.max() <= READING_LIMIT)
 
 
 def _unwrap(col):
