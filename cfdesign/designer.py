@@ -651,10 +651,10 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     table = design_from_structure(structure, spec)
     if table.period == 1:
         obs = observer if observer is not None else build_structure(spec)
-        form = table.gain_form if obs.discrete else None
-        exact = obs.with_gain_matrix(table.K[0], form, table.sample_time_s).proof().holds
+        exact = _output_observer(obs, table).proof().holds  # the bands of the estimate the table outputs
         table = replace(table, checks={**table.checks, "complementary": exact,
-                                       "complementary_method": "exact proof with the designed gains"})
+                                       "complementary_method": f"exact proof with the designed gains, "
+                                                               f"{table.output} output"})
     return table
 
 
@@ -1130,7 +1130,8 @@ def designed_observer(spec: FilterSpec, table: GainTable):
     Returns
     -------
     cfdesign.symbolic.Observer
-        With numeric gains: its bands, proof, poles and zeros are the table's.
+        With numeric gains, in the gain form whose estimate is the table's output: its bands,
+        proof, poles and zeros are those of the estimate the table runs.
 
     Raises
     ------
@@ -1139,6 +1140,15 @@ def designed_observer(spec: FilterSpec, table: GainTable):
     """
     if table.period != 1:
         raise CfdesignError(f"{table.name} is periodic (period {table.period}): its bands change with the phase")
-    obs = build_structure(spec)
-    form = table.gain_form if obs.discrete else None
-    return obs.with_gain_matrix(table.K[0], form, table.sample_time_s)
+    return _output_observer(build_structure(spec), table)
+
+
+def _output_observer(obs, table):
+    """``obs`` with the table's gain written in the form whose estimate is the table's output:
+    the update gain in filter form for a posterior table, the predictor gain for a prior one
+    (:func:`cfdesign.linear.gain_pair`); its bands are those of the estimate that runs."""
+    if not obs.discrete:
+        return obs.with_gain_matrix(table.K[0], None, None)
+    Kp, L = linear.gain_pair(table.F, table.K[0], table.gain_form)
+    form, K = ("filter", L) if table.output == "posterior" else ("predictor", Kp)
+    return obs.with_gain_matrix(K, form, table.sample_time_s)

@@ -284,3 +284,20 @@ def test_numeric_stage_runs_without_sympy():
             "assert t.period == 50 and t.checks['stable']\n"
             "assert 'sympy' not in sys.modules, 'sympy imported'\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("output", ["posterior", "prior"])
+def test_the_bode_observer_has_the_bands_of_the_estimate_that_runs(output):
+    """`cfdesign design --bode` and `design()`'s exact proof use the bands of the table's output:
+    the same as verify's numeric bands of that output."""
+    from cfdesign.verify import band_polynomials
+
+    spec = dataclasses.replace(load_spec(example_path("robot-heading")), output=output)
+    table = design(spec)
+    symbolic = designed_observer(spec, table).band_coefficients()
+    numeric, _ = band_polynomials(table)
+    z = np.exp(1j * np.linspace(0.05, 3.0, 25))
+    for name, (num, den) in numeric.items():
+        ref = np.polyval(symbolic[name][0], z) / np.polyval(symbolic[name][1], z)
+        assert np.allclose(np.polyval(num, z) / np.polyval(den, z), ref, rtol=1e-8, atol=1e-12), name
+    assert table.checks["complementary"] and output in table.checks["complementary_method"]
