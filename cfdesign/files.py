@@ -20,7 +20,7 @@ from pathlib import Path
 
 from .errors import OutputError
 
-__all__ = ["write_files", "write_text", "write_bytes", "open_atomic"]
+__all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic"]
 
 
 def _umask_mode() -> int:
@@ -174,3 +174,30 @@ def write_bytes(path, data: bytes) -> Path:
         The file cannot be written; a previous file is left as it was.
     """
     return write_files({path: data})[0]
+
+
+def write_into(directory, texts: dict) -> list:
+    """A set of files ``{file name: text}`` in ``directory`` (created if missing), all or nothing.
+
+    Parameters
+    ----------
+    directory : str or Path
+    texts : dict
+        ``{file name: str or bytes}``.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    OutputError
+        The directory cannot be created or a file cannot be written; no file was replaced.
+    """
+    directory = Path(directory)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot write to {directory}: {exc.strerror or exc}") from None
+    return write_files({directory / name: text for name, text in texts.items()})

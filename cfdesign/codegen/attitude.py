@@ -28,8 +28,8 @@ from pathlib import Path
 from string import Template
 
 from .. import __version__
-from ..errors import CfdesignError, OutputError
-from ..files import write_files
+from ..errors import CfdesignError
+from ..files import write_into
 from .c99 import _comment_text, check_c_identifier
 
 __all__ = ["render_attitude_c", "write_attitude_c"]
@@ -64,13 +64,7 @@ def write_attitude_c(attitude_filter, directory, *, prefix="cf_attitude") -> lis
     >>> [path.name for path in write_attitude_c(AttitudeFilter(100.0), "c_out")]
     ['cf_attitude.h', 'cf_attitude.c']
     """
-    texts = render_attitude_c(attitude_filter, prefix=prefix)
-    directory = Path(directory)
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot write C code to {directory}: {exc.strerror or exc}") from None
-    return write_files({directory / name: text for name, text in texts.items()})
+    return write_into(directory, render_attitude_c(attitude_filter, prefix=prefix))
 
 
 def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:

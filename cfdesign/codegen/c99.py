@@ -11,8 +11,8 @@ from string import Template
 import numpy as np
 
 from .. import __version__, linear
-from ..errors import CfdesignError, OutputError
-from ..files import write_files
+from ..errors import CfdesignError
+from ..files import write_into
 from ..runtime.filter import READING_LIMIT
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
@@ -77,13 +77,7 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
     >>> [p.name for p in write_c(table, tempfile.mkdtemp(), prefix="heading")]
     ['heading_gains.h', 'heading_filter.h', 'heading_filter.c']
     """
-    texts = render_c(table, prefix=prefix, precision=precision, output=output)
-    directory = Path(directory)
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot write C code to {directory}: {exc.strerror or exc}") from None
-    return write_files({directory / name: text for name, text in texts.items()})
+    return write_into(directory, render_c(table, prefix=prefix, precision=precision, output=output))
 
 
 def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
