@@ -79,6 +79,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from ..errors import AttitudeInputError
+from ..linear import wrap_scalar
 from .attitude_channel import design_channel
 
 __all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", "GRAVITY", "STATE_FIELDS",
@@ -824,18 +825,6 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt)
 
 
-def _wrap(a: float) -> float:
-    """``a`` wrapped to (-pi, pi] (:func:`cfdesign.linear.wrap_scalar`'s formula; in-range angles unchanged)."""
-    if -math.pi < a <= math.pi:
-        return a
-    r = a - 2 * math.pi * math.ceil((a - math.pi) / (2 * math.pi))
-    if r > math.pi:
-        r -= 2 * math.pi
-    elif r <= -math.pi:
-        r += 2 * math.pi
-    return r
-
-
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """One sample on the state list ``s`` (:data:`STATE_FIELDS`); returns the velocity design used (-1: none).
 
@@ -1021,7 +1010,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 new_n = new_time = new_turn = 0.0
             disturbed = 1.0 if dist else 0.0
             if not dist and math.sqrt(mex * mex + mey * mey) > 1e-9 * nm:
-                eh = _wrap(north - math.atan2(mey, mex))
+                eh = wrap_scalar(north - math.atan2(mey, mex))
                 q00, q01, q11, rr, kal, hk1, hk2 = heading
                 if kal:
                     den = h00 + rr

@@ -268,6 +268,8 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
         from ..errors import SpecError
 
         raise SpecError(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
+    from ..linear import wrap
+
     ground = scenario == "ground"
     d = _ground(seed, duration_s) if ground else _helicopter(seed, duration_s)
     names = [f for f in (filters or FILTERS) if ground or f != "ekf002"]  # the planar EKF is for ground vehicles
@@ -278,7 +280,7 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
             p = np.column_stack([est.x, est.y])
             pos, outage = _position_errors(p, d["truth_p"][:, :2], d["outage"])
             yaw_true = _truth_yaw(d["truth_q"])
-            heading = _rms_deg(np.angle(np.exp(1j * (est.theta - yaw_true))))
+            heading = _rms_deg(wrap(est.theta - yaw_true))
             out.append(Result(scenario, name, pos, outage, heading, math.nan, 1e6 * seconds / len(d["gyr"])))
             continue
         if name == "adaptive":
