@@ -14,6 +14,7 @@ from importlib import import_module
 
 from .errors import CfdesignError, GainError, ProofError, RiccatiError, SpecError, StructureError
 
+#: The version of cfdesign
 __version__ = "0.1.0"
 
 _LAZY = {

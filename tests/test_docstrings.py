@@ -238,3 +238,42 @@ def test_the_checker_catches_regressions():
     errs = problems("bad", bad, "function")
     assert any("['b']" in e for e in errs) and any("Returns" in e for e in errs)
     assert any("SpecError" in e for e in errs)
+
+
+def _constants():
+    """``[(qualified name, module, name)]`` for every public name that is data (not a function,
+    class or module), under the module whose source assigns it."""
+    out = []
+    for module_name, module in _modules().items():
+        try:
+            source = inspect.getsource(module)
+        except (OSError, TypeError):
+            continue
+        for name in getattr(module, "__all__", ()):
+            obj = getattr(module, name)
+            if inspect.ismodule(obj) or inspect.isclass(obj) or callable(obj):
+                continue
+            if re.search(rf"^{re.escape(name)}\s*(:[^=\n]*)?=", source, re.M):
+                out.append((f"{module_name}.{name}", source, name))
+    return out
+
+
+CONSTANTS = _constants()
+
+
+@pytest.mark.parametrize("qual,source,name", CONSTANTS, ids=[q for q, _, _ in CONSTANTS])
+def test_public_constants_are_documented(qual, source, name):
+    """autodoc shows module data in the reference only with a ``#:`` comment (or a docstring
+    after it): the line above the assignment is such a comment."""
+    lines = source.splitlines()
+    at = next(i for i, line in enumerate(lines) if re.match(rf"{re.escape(name)}\s*(:[^=]*)?=", line))
+    above = lines[at - 1].lstrip() if at else ""
+    below = lines[at + 1].lstrip() if at + 1 < len(lines) else ""
+    assert above.startswith("#:") or below.startswith(('"""', "'''")), \
+        f"{qual} has no '#:' comment above its assignment: it does not appear in the API reference"
+
+
+def test_constants_are_found():
+    names = {q for q, _, _ in CONSTANTS}
+    assert {"cfdesign.__version__", "cfdesign.reproduce.carreira.TABLE_I",
+            "cfdesign.riccati.refinement.MAX_NEWTON"} <= names

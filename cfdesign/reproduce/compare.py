@@ -46,9 +46,11 @@ import numpy as np
 
 __all__ = ["Result", "compare", "add_arguments", "run", "FILTERS", "SCENARIOS"]
 
+#: The filters compared, ``{name: description}`` (``--filters`` takes the names)
 FILTERS = {"cf": "complementary filter (Vasconcelos et al., designed gains)",
            "adaptive": "adaptive CF (Alves Neto et al.)",
            "ekf003": "strapdown INS/GPS/magnetometer EKF, 22 states", "ekf002": "planar odometry/gyro/GPS EKF"}
+#: The simulated scenarios: a ground robot and the helicopter manoeuvre
 SCENARIOS = ("ground", "helicopter")
 
 

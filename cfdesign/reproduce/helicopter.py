@@ -74,7 +74,10 @@ class Tuning:
     calibrated: bool = False
 
 
+#: The tuning of Table 2's nominal row (biases estimated from zero)
 NOMINAL = Tuning()
+#: The tuning of the paper's small-bias-gain figures: slow bias random walks, filters started
+#: from the true biases
 SMALL_BIAS_GAINS = Tuning(accel_bias_density=1e-4, gyro_bias_density=1e-6, calibrated=True)
 
 

@@ -21,7 +21,9 @@ import numpy as np
 __all__ = ["EPS", "TINY", "Problem", "herm", "rel", "distance", "realify", "complexify", "standard_form",
            "from_standard", "gain"]
 
+#: Machine epsilon of float64 (the unit of the convergence and distance tolerances)
 EPS = np.finfo(float).eps
+#: Smallest normal float64 (guards divisions by a zero norm)
 TINY = np.finfo(float).tiny
 
 

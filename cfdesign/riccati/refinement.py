@@ -33,6 +33,7 @@ from .problem import EPS, TINY, Problem, herm, rel
 
 __all__ = ["Evaluation", "evaluate", "update", "newton_refine", "MAX_NEWTON"]
 
+#: Most Newton (Kleinman) refinement steps taken on one solution
 MAX_NEWTON = 12
 # Below this bound on (step size) * (condition number) the residual is updated rather than
 # re-evaluated (its error then moves X by less than 1e-6 u ||X||) and the factorisation of the
