@@ -122,6 +122,7 @@ def oadev(y, rate_hz: float, m=None):
     y : array_like
         Readings at a constant rate, in the sensor's unit ``u`` (rad/s for a gyro).
     rate_hz : float
+        Sample rate of ``y`` (Hz).
     m : array_like of int, optional
         Averaging factors; default :func:`octave_taus`.
 
@@ -592,6 +593,7 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     Parameters
     ----------
     fits : sequence of NoiseFit
+        The fits to write, one ``[sensor]`` table each.
     source : str
         The log's name, for the header comment.
     unit : str
@@ -640,6 +642,7 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     Parameters
     ----------
     fits : sequence of NoiseFit
+        The fits to draw, one curve (and its fitted terms) each.
     ax : matplotlib.axes.Axes, optional
         Axes to draw into (default: a new figure).
     unit : str

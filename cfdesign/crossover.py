@@ -142,6 +142,7 @@ def crossover_check(structure, model, K, form, output, dt, hz) -> list:
     Parameters
     ----------
     structure : cfdesign.designer.Structure
+        The structure whose crossover constraints are checked.
     model : dict
         ``F, B, H`` (discrete at ``dt``).
     K : array_like, shape (n, m)

@@ -278,6 +278,7 @@ class Structure:
         Parameters
         ----------
         d : dict
+            A dictionary as written by :meth:`to_dict`.
 
         Returns
         -------
@@ -328,6 +329,7 @@ def build_structure(spec: FilterSpec):
     Parameters
     ----------
     spec : FilterSpec
+        The parsed design file.
 
     Returns
     -------
@@ -399,6 +401,7 @@ def numeric_structure(spec: FilterSpec) -> Structure:
     Parameters
     ----------
     spec : FilterSpec
+        The parsed design file.
 
     Returns
     -------

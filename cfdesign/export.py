@@ -26,6 +26,7 @@ def write_gain_csv(table, path) -> Path:
     Parameters
     ----------
     table : GainTable
+        The gain table to write.
     path : str or Path
         CSV file to write.
 

@@ -106,6 +106,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     Parameters
     ----------
     path : str or Path
+        The file to write; it replaces ``path`` only when the block exits without an error.
     mode : str
         ``'w'`` (text) or ``'wb'``.
     **kwargs
@@ -142,7 +143,9 @@ def write_text(path, text: str) -> Path:
     Parameters
     ----------
     path : str or Path
+        The file to write.
     text : str
+        Its whole content.
 
     Returns
     -------
@@ -162,7 +165,9 @@ def write_bytes(path, data: bytes) -> Path:
     Parameters
     ----------
     path : str or Path
+        The file to write.
     data : bytes
+        Its whole content.
 
     Returns
     -------
@@ -182,6 +187,7 @@ def write_into(directory, texts: dict) -> list:
     Parameters
     ----------
     directory : str or Path
+        The folder; created if it does not exist.
     texts : dict
         ``{file name: str or bytes}``.
 

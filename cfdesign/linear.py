@@ -199,7 +199,9 @@ def gain_pair(F, K, form: str):
     Parameters
     ----------
     F : ndarray (n, n)
+        State transition matrix.
     K : ndarray (n, m)
+        Gain in ``form``.
     form : {'predictor', 'filter', 'continuous'}
 
     Returns
@@ -224,7 +226,9 @@ def closed_loop(F, H, K, form: str) -> np.ndarray:
     Parameters
     ----------
     F : array_like, shape (n, n)
+        State matrix (transition matrix when discrete).
     H : array_like, shape (m, n)
+        Measurement matrix.
     K : array_like, shape (n, m)
         Gain in ``form``.
     form : {'predictor', 'filter', 'continuous'}
@@ -326,6 +330,7 @@ def posterior_covariance(P, H, L, R) -> np.ndarray:
     P : array_like, shape (n, n)
         Prior covariance.
     H : array_like, shape (m, n)
+        Measurement matrix.
     L : array_like, shape (n, m)
         Update gain.
     R : array_like, shape (m, m)
@@ -346,6 +351,7 @@ def is_stable(eigenvalues, domain: str) -> bool:
     Parameters
     ----------
     eigenvalues : array_like
+        Eigenvalues (poles) to test.
     domain : {'s', 'z'}
 
     Returns
@@ -362,6 +368,7 @@ def spectral_margin(eigenvalues, domain: str) -> float:
     Parameters
     ----------
     eigenvalues : array_like
+        Eigenvalues (poles) to measure.
     domain : {'s', 'z'}
 
     Returns
@@ -450,6 +457,7 @@ def characteristic_polynomial(A) -> np.ndarray:
     Parameters
     ----------
     A : array_like, shape (n, n)
+        Square matrix.
 
     Returns
     -------
@@ -469,6 +477,7 @@ def output_adjugate(A, c, den=None) -> np.ndarray:
     Parameters
     ----------
     A : array_like, shape (n, n)
+        State matrix of the realisation.
     c : array_like, shape (n,)
         Output row.
     den : array_like, optional
@@ -500,6 +509,7 @@ def adjugate_coefficients(A, den=None) -> np.ndarray:
     Parameters
     ----------
     A : array_like, shape (n, n)
+        Square matrix.
     den : array_like, optional
         :func:`characteristic_polynomial` of ``A``, if already known.
 

@@ -294,6 +294,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     Parameters
     ----------
     table : GainTable
+        The gain table the log is run through.
     data : str, Path or pandas.DataFrame
         A CSV or Parquet file, or a DataFrame.
     output : str or Path, optional
@@ -728,6 +729,7 @@ def plot_log(table, estimates, references=None, time=None):
     Parameters
     ----------
     table : GainTable
+        The gain table the estimates came from (it names the states and sensors).
     estimates : pandas.DataFrame
         :attr:`LogResult.estimates` (with the ``<state>_std`` and ``<state>_reference``
         columns that :func:`run_log` adds when references are given).
@@ -792,8 +794,11 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     Parameters
     ----------
     table : GainTable
+        The gain table every log is run through.
     paths : list of str or Path
+        The logs (CSV or Parquet).
     outdir : str or Path
+        Folder the estimates are written to, one file per log.
     workers : int, optional
         Processes of a local Dask cluster (default: the number of CPUs).
     scheduler : str, optional

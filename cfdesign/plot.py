@@ -26,6 +26,7 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     hz : bool
         Label the frequency axis in Hz instead of rad/s.
     title : str, optional
+        Figure title; default: "Bode diagram of" the observer's name and its domain.
     fig : matplotlib Figure, optional
         Figure to draw into (two axes are added).
 
@@ -95,6 +96,7 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     Parameters
     ----------
     table : GainTable
+        The gain table whose bands are drawn.
     omega : array_like, optional
         Angular frequencies (rad/s); default: a grid spanning the poles.
     hz : bool
@@ -217,6 +219,7 @@ def figure_bytes(fig, target) -> bytes:
     Parameters
     ----------
     fig : matplotlib.figure.Figure
+        The figure to render.
     target : str or Path
         The file the bytes are for: ``.png`` (also without a suffix), ``.pdf`` or ``.svg``.
 

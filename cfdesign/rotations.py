@@ -34,6 +34,7 @@ def multiply(p, q):
     Parameters
     ----------
     p, q : array_like, shape (..., 4)
+        Unit quaternions ``[w, x, y, z]`` (scalar first); they broadcast.
 
     Returns
     -------

@@ -176,6 +176,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     Parameters
     ----------
     table : GainTable
+        The gain table whose schedule the arrivals are matched to.
     arrivals : dict
         ``{sensor: ascending int array of ticks}`` where the log has a reading.
     n_ticks : int

@@ -69,6 +69,7 @@ def phase_realisation(table, phase: int = 0, output: str | None = None):
     Parameters
     ----------
     table : GainTable
+        The gain table whose realisation is wanted.
     phase : int
         Phase of the gain schedule.
     output : {'posterior', 'prior'}, optional
@@ -88,6 +89,7 @@ def band_polynomials(table, phase: int = 0, output: str | None = None):
     Parameters
     ----------
     table : GainTable
+        The gain table whose bands are wanted.
     phase : int
         Phase of the gain schedule.
     output : {'posterior', 'prior'}, optional
@@ -124,6 +126,7 @@ def frequency_grid(table, points: int = 400) -> np.ndarray:
     Parameters
     ----------
     table : GainTable
+        The gain table whose bands the grid must resolve.
     points : int
         Number of frequencies.
 
@@ -258,6 +261,7 @@ def numeric_checks(table) -> list:
     Parameters
     ----------
     table : GainTable
+        The gain table to check.
 
     Returns
     -------

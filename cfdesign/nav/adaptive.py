@@ -192,13 +192,19 @@ class AdaptiveCF:
 
         Parameters
         ----------
-        gyr : (N, 3) body rate (rad/s), the mean over the interval ending at row ``k``.
-        acc : (N, 3) specific force (m/s², body).
-        mag : (N, 3) magnetic field (body, any unit).
-        odometry_speed : (N,) forward speed (m/s).
-        gps_enu : (N, 3) ENU position fixes (m); NaN rows without a fix.
-        n_satellites : (N,) satellites seen.
-        initial_position : (3,), optional
+        gyr : array_like, shape (N, 3)
+            Body rate (rad/s, body frame), the mean over the interval ending at row ``k``.
+        acc : array_like, shape (N, 3)
+            Specific force (m/s², body frame).
+        mag : array_like, shape (N, 3)
+            Magnetic field (body frame, any unit).
+        odometry_speed : array_like, shape (N,)
+            Forward speed (m/s).
+        gps_enu : array_like, shape (N, 3)
+            Position fixes (m, ENU frame); NaN rows without a fix.
+        n_satellites : array_like, shape (N,)
+            Satellites seen.
+        initial_position : array_like, shape (3,), optional
             Position at row 0; default: the estimate starts at the first GPS fix (NaN before it).
 
         Returns

@@ -49,6 +49,7 @@ def first_finite(rows):
     Parameters
     ----------
     rows : ndarray, shape (N, k)
+        Rows to search, in order.
 
     Returns
     -------

@@ -128,6 +128,7 @@ def check_fits(table: GainTable, what: str, *, F, B, H, orders: tuple, sample_ti
     Parameters
     ----------
     table : GainTable
+        The designed table to check.
     what : str
         How the message names the table (e.g. ``tables[0] (tilt)``).
     F, B, H : array_like

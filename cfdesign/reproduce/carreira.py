@@ -229,6 +229,7 @@ def run_filter(row: Row, table, sc, signals: dict) -> np.ndarray:
     Parameters
     ----------
     row : Row
+        The table row: which sensor is in which band.
     table : GainTable
         The row's designed table (:func:`design_row`).
     sc : cfdesign.sim.robot_heading.Scenario
@@ -321,6 +322,7 @@ class Reproduction:
         Parameters
         ----------
         row : Row
+            The table row.
 
         Returns
         -------

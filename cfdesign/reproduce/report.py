@@ -100,9 +100,11 @@ def format_table(title: str, headers, rows) -> str:
     Parameters
     ----------
     title : str
+        Heading printed above the table.
     headers : sequence of str
         Names of the label columns.
     rows : sequence of Comparison
+        The rows: ours beside the paper's.
 
     Returns
     -------

@@ -44,11 +44,14 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
 
     Parameters
     ----------
-    A, Q : array_like, shape (n, n)
-        ``Q`` Hermitian (it may be indefinite).
+    A : array_like, shape (n, n)
+        State matrix.
     B : array_like, shape (n, m)
+        Input matrix.
+    Q : array_like, shape (n, n)
+        State weight, Hermitian (it may be indefinite).
     R : array_like, shape (m, m)
-        Hermitian and nonsingular.
+        Input weight, hermitian and nonsingular.
     S : array_like, shape (n, m), optional
         Cross weight, zero by default.
     E : array_like, shape (n, n), optional
@@ -111,11 +114,14 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
 
     Parameters
     ----------
-    A, Q : array_like, shape (n, n)
-        ``Q`` Hermitian (it may be indefinite).
+    A : array_like, shape (n, n)
+        State matrix.
     B : array_like, shape (n, m)
+        Input matrix.
+    Q : array_like, shape (n, n)
+        State weight, Hermitian (it may be indefinite).
     R : array_like, shape (m, m)
-        Hermitian.
+        Input weight, hermitian.
     S : array_like, shape (n, m), optional
         Cross weight, zero by default.
     E : array_like, shape (n, n), optional

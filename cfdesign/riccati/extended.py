@@ -26,6 +26,7 @@ def two_sum(a, b):
     Parameters
     ----------
     a, b : float or ndarray
+        Summands.
 
     Returns
     -------
@@ -85,7 +86,9 @@ def dd_dot(a, b):
     Parameters
     ----------
     a : ndarray, shape (n, k)
+        Left factor.
     b : ndarray, shape (k, m)
+        Right factor.
 
     Returns
     -------
@@ -124,6 +127,7 @@ def dd(a):
     Parameters
     ----------
     a : ndarray or (ndarray, ndarray)
+        A double matrix or a ``(high, low)`` pair.
 
     Returns
     -------
@@ -144,6 +148,7 @@ def dd_add(x, y, sign=1.0):
     x : ndarray or (ndarray, ndarray)
         A double matrix or a double-double pair ``(hi, lo)``.
     y : ndarray or (ndarray, ndarray)
+        Second term: a double matrix or a ``(high, low)`` pair.
     sign : float
         1 or -1.
 
@@ -171,6 +176,7 @@ def dd_mul(x, y):
     x : ndarray or (ndarray, ndarray)
         A double matrix or a double-double pair ``(hi, lo)``.
     y : ndarray or (ndarray, ndarray)
+        Right factor: a double matrix or a ``(high, low)`` pair.
 
     Returns
     -------

@@ -33,6 +33,7 @@ def herm(M):
     Parameters
     ----------
     M : ndarray, shape (n, n)
+        Square matrix.
 
     Returns
     -------
@@ -47,6 +48,7 @@ def rel(a, b):
     Parameters
     ----------
     a, b : ndarray
+        Numerator and denominator.
 
     Returns
     -------
@@ -62,6 +64,7 @@ def distance(kind, lam):
     ----------
     kind : {'care', 'dare'}
     lam : array_like of complex
+        Eigenvalues (``'care'``: of ``s``; ``'dare'``: of ``z``).
 
     Returns
     -------
@@ -132,6 +135,7 @@ class Problem:
         Parameters
         ----------
         M : ndarray
+            Right-hand side.
         transpose : bool
             Solve with ``E^T``.
 
@@ -152,6 +156,7 @@ class Problem:
         Parameters
         ----------
         K : ndarray, shape (m, n)
+            Gain.
 
         Returns
         -------
@@ -168,6 +173,7 @@ def realify(M):
     Parameters
     ----------
     M : ndarray or None
+        Complex matrix; None passes through.
 
     Returns
     -------
@@ -185,6 +191,7 @@ def complexify(M, rows, cols):
     Parameters
     ----------
     M : ndarray, shape (2 rows, 2 cols)
+        Real representation as built by :func:`realify`.
     rows, cols : int
         Size of the complex matrix.
 
@@ -227,6 +234,7 @@ def from_standard(p: Problem, Y):
     p : Problem
         The validated equation.
     Y : ndarray, shape (n, n)
+        Solution in standard coordinates.
 
     Returns
     -------
@@ -245,6 +253,7 @@ def gain(p: Problem, X):
     p : Problem
         The validated equation.
     X : ndarray, shape (n, n)
+        Riccati solution.
 
     Returns
     -------

@@ -15,6 +15,7 @@ def frozen(*arrays):
     Parameters
     ----------
     *arrays : array_like
+        Arrays to copy.
 
     Returns
     -------

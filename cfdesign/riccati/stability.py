@@ -53,6 +53,7 @@ def closed_loop_eigenvalues(p: Problem, K):
     p : Problem
         The validated equation.
     K : ndarray, shape (m, n)
+        Gain.
 
     Returns
     -------

@@ -28,6 +28,7 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
     name : str
         The matrix's name in messages (``"Q must be 3x3 (got 2x3)"``).
     value : array_like
+        The user's matrix (a scalar counts as 1 x 1).
     shape : (int or None, int or None) or 'square'
         Required shape; None entries are free.
     hermitian : bool
@@ -83,6 +84,7 @@ def min_eig(M):
     Parameters
     ----------
     M : ndarray, shape (n, n)
+        Hermitian matrix.
 
     Returns
     -------
@@ -113,7 +115,9 @@ def covariance_data(F, H, Q, R):
     Parameters
     ----------
     F : array_like, shape (n, n)
+        State transition matrix.
     H : array_like, shape (p, n)
+        Measurement matrix.
     Q : array_like, shape (n, n)
         Process-noise covariance, positive semidefinite.
     R : array_like, shape (p, p)
@@ -148,11 +152,17 @@ def problem_data(kind, A, B, Q, R, S, E):
     ----------
     kind : {'care', 'dare'}
     A : array_like, shape (n, n)
+        State matrix.
     B : array_like, shape (n, m)
+        Input matrix.
     Q : array_like, shape (n, n)
+        State weight, Hermitian.
     R : array_like, shape (m, m)
+        Input weight, Hermitian and nonsingular.
     S : array_like, shape (n, m), or None
+        Cross weight.
     E : array_like, shape (n, n), or None
+        Descriptor matrix, nonsingular.
 
     Returns
     -------
@@ -202,6 +212,7 @@ def fmt_mode(kind, lam):
     ----------
     kind : {'care', 'dare'}
     lam : complex
+        The eigenvalue.
 
     Returns
     -------
@@ -230,8 +241,11 @@ def unreachable_mode(kind, A, E, B, boundary_only=False):
     ----------
     kind : {'care', 'dare'}
     A : ndarray, shape (n, n)
+        State matrix.
     E : ndarray, shape (n, n), or None
+        Descriptor matrix; None for the identity.
     B : ndarray, shape (n, m)
+        Input matrix.
     boundary_only : bool
         Test only modes on the boundary (not the unstable ones).
 
@@ -275,6 +289,7 @@ def check_modes(kind, A, B, Q, R, S, E, dual):
     A, B, Q, R, S : ndarray
         The validated data.
     E : ndarray or None
+        Descriptor matrix; None for the identity.
     dual : bool
         Phrase the messages for the estimator problem (``A = F'``, ``B = H'``).
 

@@ -186,12 +186,14 @@ class HeadingSensor(_Sensor):
         Per-sample std (rad) at ``rate_hz``, or a density (rad/sqrt(Hz)).
     bias : Bias
         Offset: constant ``value`` (rad) or a random walk (rad/sqrt(s), starting at ``value``).
+    rate_hz : float, optional
+        Sensor rate (Hz); default the trajectory's.  As for :class:`RateSensor`.
+    dropout : float
+        Probability that a reading is missing (NaN).
     drift_rad_s : float
-        A constant rate error integrated into the heading (odometry's wheel-radius error).
+        A constant rate error (rad/s) integrated into the heading (odometry's wheel-radius error).
     perturbation : callable, optional
         Heading-dependent error ``f(true heading)`` (rad), e.g. :class:`MagneticPerturbation`.
-    rate_hz, dropout
-        As for :class:`RateSensor`.
     """
 
     drift_rad_s: float = 0.0
@@ -337,6 +339,7 @@ def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
     Parameters
     ----------
     truth : ndarray, shape (N, ...)
+        The true signal, one row per sample.
     std : float
         Noise per sample.
     every : int
@@ -344,6 +347,7 @@ def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
     name : str
         Stream name (the noise is seeded by ``(seed, crc32(name))``).
     seed : int
+        Seed of the noise generator.
 
     Returns
     -------

@@ -144,6 +144,8 @@ def from_segments(segments, *, dt_s: float, start_heading_rad: float = 0.0, spee
     Parameters
     ----------
     segments : sequence of Segment or (straight_s, turn_rad, turn_s)
+        The pieces, in order: a straight of ``straight_s`` seconds, then a turn through
+        ``turn_rad`` (rad) taking ``turn_s`` seconds.
     dt_s : float
         Sample time (s).
     start_heading_rad : float

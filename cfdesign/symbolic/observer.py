@@ -387,6 +387,11 @@ class Observer:
     GainError
         A sample time that is not positive.
 
+    Notes
+    -----
+    For sensor ``i`` with state-space route ``(A, B_i, C_o, D_i)`` the band is
+    ``T_i = (C_o adj(vI - A) B_i + D_i det(vI - A)) / det(vI - A) * rel_i(v)``.
+
     Examples
     --------
     A two-band filter written by hand: a gyro rate drives the angle, a compass measures it.
@@ -400,11 +405,6 @@ class Observer:
     {'gyro': s/(k + s), 'compass': k/(k + s)}
     >>> obs.proof().holds
     True
-
-    Notes
-    -----
-    For sensor ``i`` with state-space route ``(A, B_i, C_o, D_i)`` the band is
-    ``T_i = (C_o adj(vI - A) B_i + D_i det(vI - A)) / det(vI - A) * rel_i(v)``.
     """
 
     def __init__(self, F, B, H, K, sensors, *, domain="s", sample_time=None,
@@ -571,6 +571,7 @@ class Observer:
         Parameters
         ----------
         sensor : Sensor
+            The sensor whose relation to the common quantity is wanted.
 
         Returns
         -------
