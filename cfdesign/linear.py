@@ -617,18 +617,89 @@ def band_responses(real: Realisation, ports, domain: str, dt, omega, row: int = 
         v = 1.0 + shift
         base = np.eye(len(real.A)) - real.A if real.delta is None else real.delta
     T = _resolvent_outputs(base, shift, real.G, real.C[row]) + real.D[row]
-    orders = [s.order for s in ports]
+    orders = sorted({s.order for s in ports})
     if domain == "s":
-        rel = {d: v**d for d in set(orders)}
+        rel = {d: (v**d, np.zeros(len(v))) for d in orders}
     else:
-        M = max(orders, default=0)
-        if M:
-            Fd, Bd = zoh_chain(M, dt)
-            Gc = np.linalg.solve(shift[:, None, None] * np.eye(M) + (np.eye(M) - Fd),
-                                 np.broadcast_to(Bd[:, None], (len(v), M, 1)))[..., 0]
-            Gc = np.concatenate([Gc, np.ones((len(v), 1))], axis=1)
-        rel = {d: np.ones(len(v)) if d == 0 else Gc[:, d] / Gc[:, 0] for d in set(orders)}
-    return {s.name: T[:, j] * rel[s.order] for j, s in enumerate(ports)}
+        rel = dict(zip(orders, zip(*zoh_relation_response(orders, dt, shift), strict=True), strict=True))
+    return {s.name: _scaled_product(T[:, j], *rel[s.order]) for j, s in enumerate(ports)}
+
+
+def zoh_relation_response(orders, dt: float, shift):
+    r"""The ZOH chain relations ``rel_d = G_d / G_0`` at ``z = 1 + shift``, as mantissa and exponent.
+
+    ``G_i`` is the transfer from the held ``M``-th derivative to the sampled ``i``-th
+    (``M = max(orders)``; :func:`zoh_chain`).  With ``G_i = dt^(M-i) eta_i / (M-i)!`` the chain
+    ``(zI - F) G = B`` becomes free of ``dt`` and of factorials:
+
+    .. math::
+
+        (z - 1)\,\eta_i = \sum_{j=i+1}^{M} \binom{M-i}{j-i} \eta_j, \qquad \eta_M = 1,
+
+    a back substitution (componentwise backward stable) whose entries stay in range when the
+    vector is rescaled by powers of two as it grows, and
+    ``rel_d = dt^-d M!/(M-d)! eta_d / eta_0``.  Solving ``(zI - F) G = B`` as it stands
+    under- and overflows for long chains (``G_0 ~ dt^M / (z - 1)^M``) and loses ``G_0`` near
+    its zero at ``z = -1`` in a normwise solve.
+
+    Parameters
+    ----------
+    orders : sequence of int
+        Derivative orders, ascending.
+    dt : float
+        Sample time (s).
+    shift : ndarray of complex
+        ``z - 1`` at each frequency (``expm1(j omega dt)``).
+
+    Returns
+    -------
+    mantissas : list of ndarray of complex
+        One per order.
+    exponents : list of ndarray of float
+        ``rel_d = mantissa * 2**exponent``.
+    """
+    M = max(orders, default=0)
+    nf = len(shift)
+    eta = np.zeros((nf, M + 1), dtype=complex)
+    eta[:, M] = 1.0
+    scale = np.zeros(nf)  # eta (true) = eta (stored) * 2**scale
+    for i in range(M - 1, -1, -1):
+        binom = np.array([math.comb(M - i, j - i) for j in range(i + 1, M + 1)], dtype=float)
+        eta[:, i] = (eta[:, i + 1:] @ binom) / shift  # eta_M = 1 carries the input term
+        big = np.abs(eta[:, i])
+        grow = np.where(big > 2.0**500, np.ceil(np.log2(np.maximum(big, 1.0))), 0.0)
+        eta *= np.exp2(-grow)[:, None]
+        scale += grow
+    mants, exps = [], []
+    for d in orders:
+        m_d, e_d = _frexp(eta[:, d])
+        m_0, e_0 = _frexp(eta[:, 0])
+        factor = math.lgamma(M + 1) - math.lgamma(M - d + 1)
+        with np.errstate(divide="ignore", invalid="ignore"):  # eta_0 out of range: no finite relation
+            mants.append(np.where(m_0 != 0, m_d / np.where(m_0 != 0, m_0, 1.0), np.inf))
+        exps.append(e_d - e_0 + (factor / math.log(2) - d * math.log2(dt)))
+    return mants, exps
+
+
+def _frexp(x):
+    """``x = m * 2**e`` for complex ``x`` (``|m|`` in [0.5, 1), ``e`` float; 0 gives ``(0, 0)``)."""
+    _, e = np.frexp(np.abs(x))
+    return np.ldexp(x.real, -e) + 1j * np.ldexp(x.imag, -e), e.astype(float)
+
+
+def _scaled_product(t, m, e):
+    """``t * m * 2**e`` without intermediate over- or underflow.
+
+    ``inf`` where the product is beyond the double range or a factor is not finite (a band
+    that cannot be evaluated; the callers report it instead of a NaN).
+    """
+    mt, et = _frexp(np.where(np.isfinite(t), t, 0.0))
+    total = e + et
+    bad = ~(np.isfinite(t) & np.isfinite(m) & (total < 1000))
+    with np.errstate(under="ignore"):
+        out = mt * np.where(bad, 0.0, m) * np.exp2(np.where(bad, 0.0, total))
+    out[bad] = np.inf
+    return out
 
 
 def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
@@ -639,6 +710,7 @@ def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
     is that of one factorisation, not one per frequency.
     """
     n = len(base)
+    base, G, c = _balanced(base, G, c)
     if n <= 12:
         X = np.linalg.solve(shift[:, None, None] * np.eye(n) + base, np.broadcast_to(G, (len(shift), *G.shape)))
         return np.einsum("i,kij->kj", c, X)
@@ -655,6 +727,23 @@ def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
     return out
 
 
+def _balanced(base, G, c):
+    """``(D^-1 base D, D^-1 G, c D)``: the same ``c (vI + base)^-1 G`` with balanced states.
+
+    ``D`` is the diagonal power-of-two scaling of LAPACK's ``gebal`` (Parlett and Reinsch,
+    "Balancing a matrix for calculation of eigenvalues and eigenvectors", Numer. Math. 13,
+    1969), so the similarity is exact.  Without it a state whose scale differs by orders of
+    magnitude from the others (the ``dt^i`` of a kinematic chain) is lost in a normwise
+    backward-stable solve: an n = 10 chain at 100 Hz gave bands off by 20 near Nyquist.
+    """
+    from scipy.linalg import matrix_balance
+
+    if not len(base) or not np.all(np.isfinite(base)):
+        return base, G, c
+    _, (d, _) = matrix_balance(base, permute=False, separate=True)
+    return base / d[:, None] * d[None, :], G / d[:, None], c * d
+
+
 def complementarity_error(responses: dict) -> float:
     """Scale-aware error of the identity ``sum_i T_i = 1`` on a frequency grid.
 
@@ -667,8 +756,11 @@ def complementarity_error(responses: dict) -> float:
     -------
     float
         ``max |sum_i T_i - 1| / (1 + sum_i |T_i|)``: the error relative to the size of the
-        terms that cancel (rounding gives about 1e-15).
+        terms that cancel (rounding gives about 1e-15); ``inf`` when a band is not finite
+        somewhere on the grid (it cannot be evaluated in double precision there).
     """
+    if not all(np.all(np.isfinite(r)) for r in responses.values()):
+        return math.inf
     total = sum(responses.values())
     size = 1.0 + sum(np.abs(r) for r in responses.values())
     return float(np.max(np.abs(total - 1.0) / size))

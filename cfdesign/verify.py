@@ -164,9 +164,10 @@ def _complementarity(table) -> list:
                     f"tolerance {IDENTITY_RTOL:g}")]
     if len(table.K) == 1:
         err = _grid_error(table)
-        checks.append(Check("complementary (frequency grid)", err <= GRID_RTOL,
-                            f"max |sum of bands - 1| / (1 + sum |band|) = {err:.2e} over 400 frequencies, "
-                            f"tolerance {GRID_RTOL:g}"))
+        detail = (f"max |sum of bands - 1| / (1 + sum |band|) = {err:.2e} over 400 frequencies, tolerance {GRID_RTOL:g}"
+                  if np.isfinite(err) else "cannot be evaluated accurately: a band is beyond the double range on "
+                  "the grid (the sensor relations of this chain order over- or underflow)")
+        checks.append(Check("complementary (frequency grid)", err <= GRID_RTOL, detail))
     return checks
 
 

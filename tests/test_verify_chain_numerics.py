@@ -1,0 +1,55 @@
+"""verify on long kinematic chains: the frequency-grid check is evaluated accurately or says it cannot."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from cfdesign import linear
+from cfdesign.gains import GainTable, Schedule, SensorPort
+from cfdesign.riccati import kalman_discrete
+from cfdesign.verify import verify_table
+
+
+def _chain_table(n, dt, K=None):
+    F, b = linear.zoh_chain(n, dt)
+    H = np.eye(n)[:1]
+    if K is None:  # the Kalman gain of the chain driven by white noise on its top derivative
+        K = kalman_discrete(F, H, np.outer(b, b), np.array([[1e-2]])).K_filter
+    return GainTable(name=f"chain {n}", structure="custom", domain="z", sample_time_s=dt, gain_form="filter",
+                     sensors=(SensorPort("u", "input", 0, n, 1 / dt), SensorPort("y", "measurement", 0, 0, 1 / dt)),
+                     F=F, B=b[:, None], H=H, K=[K], P=[np.eye(n)], P_filtered=[np.eye(n)],
+                     schedule=Schedule.from_names(["y"], [["y"]]), Q=np.eye(n), R=np.eye(1),
+                     states=tuple(f"d{i}" for i in range(n)))
+
+
+def _grid(checks):
+    return next(c for c in checks if c.name == "complementary (frequency grid)")
+
+
+@pytest.mark.parametrize("n", [6, 10])
+def test_grid_check_passes_a_kalman_chain_at_100_hz(n):
+    # states scaled dt^i apart: an unbalanced solve gave an input band off by 20 near Nyquist (n = 10)
+    check = _grid(verify_table(_chain_table(n, 0.01)))
+    assert check.ok, check.detail
+
+
+def test_zoh_relations_match_the_direct_solve():
+    dt, M = 0.1, 5
+    shift = np.expm1(1j * np.array([0.3, 3.0, 30.0]) * dt)
+    F, B = linear.zoh_chain(M, dt)
+    G = np.array([np.linalg.solve((1 + s) * np.eye(M) - F, B) for s in shift])
+    G = np.concatenate([G, np.ones((len(shift), 1))], axis=1)
+    mants, exps = linear.zoh_relation_response([0, 1, 3, M], dt, shift)
+    for d, m, e in zip([0, 1, 3, M], mants, exps, strict=True):
+        np.testing.assert_allclose(m * np.exp2(e), G[:, d] / G[:, 0], rtol=1e-12)
+
+
+def test_n200_chain_gives_no_nan_and_no_warning():
+    n = 200
+    K = np.zeros((n, 1))
+    K[0, 0], K[1, 0] = 0.5, 0.01
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check = _grid(verify_table(_chain_table(n, 0.01, K)))
+    assert not check.ok and "cannot be evaluated accurately" in check.detail and "nan" not in check.detail
