@@ -113,7 +113,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
         sensors=tuple(SensorPort(s.name, s.role, s.index, s.order, float(rate_hz)) for s in table.sensors),
         F=F, B=B, H=np.asarray(table.H, dtype=float), K=[K], P=[P], P_filtered=[P_filtered],
         schedule=Schedule.from_names(names, [list(names)]), Q=Q, R=R, gains={}, wrap_angle=table.wrap_angle,
-        output=output, options={**table.options, "discrete": True},
+        output=output, states=table.states, options={**table.options, "discrete": True},
         provenance={**table.provenance, "solver": {
             "method": f"discretised from the continuous table at {rate_hz:g} Hz: F = expm(F T), Kp = Gamma K with "
                       "Gamma = int_0^T expm(F t) dt (innovation held); error from the Lyapunov equation",

@@ -56,3 +56,9 @@ def test_cli_discretize(cli, continuous, tmp_path):
     assert code == 2 and "already discrete" in err
     with pytest.raises(GainTableError, match="do not stabilise"):
         discretize_table(continuous, 0.01)
+
+
+def test_discretised_table_keeps_the_state_names(continuous):
+    """The estimates of a discretised table are named as the design named them (not x0, x1)."""
+    assert continuous.states == ("angle", "rate_correction")
+    assert discretize_table(continuous, 100.0).states == continuous.states
