@@ -58,7 +58,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     The base rate is the fastest sensor's (or ``1/sample_time_s``).  A sensor at ``rate_hz``
     reads every ``base/rate`` ticks: when that ratio is a fraction ``p/q`` (a 3 Hz GPS beside a
     100 Hz IMU: ``100/3``) it reads ``q`` times every ``p`` ticks, at the ticks nearest its
-    arrival times ``j/rate + offset`` (``round(j p/q) + round(offset/T)``: 0, 33, 67 for the GPS).
+    arrival times ``j/rate + offset`` (``round(j p/q + offset/T)``, where :mod:`cfdesign.timing` places
+    them: 0, 33, 67 for the GPS).
     The period is the least common multiple of the ``p``.  Input sensors drive the model every
     step and must run at the base rate.
 
@@ -110,8 +111,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
                         "choose rates with a smaller common multiple")
     ticks = {}
     for name, r in ratios.items():
-        shift = round(offsets_s.get(name, 0.0) * base)
-        ticks[name] = [math.floor(j * r + 0.5) + shift for j in range(period * r.denominator // r.numerator)]
+        shift = offsets_s.get(name, 0.0) * base
+        ticks[name] = [math.floor(j * r + shift + 0.5) for j in range(period * r.denominator // r.numerator)]
     return 1.0 / base, Schedule.from_ticks(list(ratios), ticks, period)
 
 
