@@ -769,7 +769,7 @@ def state_names(structure, spec) -> tuple:
         if s.role == "input" and s.bias_state is not None:
             rows = np.flatnonzero(Bc[:, s.index])
             sign = Fc[rows[0], s.bias_state] * Bc[rows[0], s.index] if rows.size else 1.0
-            names[s.bias_state] = f"{s.name}_{'correction' if sign > 0 else 'bias'}"
+            names[s.bias_state] = f"{_bias_owner(structure, spec, s)}_{'correction' if sign > 0 else 'bias'}"
     for _ in range(n):  # state j is the derivative of state i when i' = j
         for i, d in list(order.items()):
             for j in np.flatnonzero(Fc[i] == 1.0):
@@ -781,6 +781,16 @@ def state_names(structure, spec) -> tuple:
     if len(set(names)) < n:
         names = [f"{name}_{i}" if names.count(name) > 1 else name for i, name in enumerate(names)]
     return tuple(names)
+
+
+def _bias_owner(structure, spec, port) -> str:
+    """The name a bias state takes: its input sensor's, or, when several inputs share it (two
+    gyros of a chain, averaged), the quantity they measure (``rate``): it is the correction
+    of their weighted mean, not of one of them."""
+    shared = [s for s in structure.sensors if s.role == "input" and s.bias_state == port.bias_state]
+    if len(shared) < 2:
+        return port.name
+    return spec.sensor(port.name).measures or "input"
 
 
 def _split_gains(structure, gains):
