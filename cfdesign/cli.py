@@ -161,15 +161,16 @@ def _summary(table) -> str:
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
     else:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
+    of = f"of {table.states[0]}"
     if table.domain == "z":
         other = "prior" if table.output == "posterior" else "posterior"
         names = {"posterior": "estimate after each step's readings (posterior)",
                  "prior": "one-step prediction (prior)"}
-        lines.append(f"  predicted steady-state std, {names[table.output]}: {table.predicted_std:.6g}  "
+        lines.append(f"  predicted steady-state std {of}, {names[table.output]}: {_std_text(table, table.output)}  "
                      "<- the default output")
-        lines.append(f"  predicted steady-state std, {names[other]}: {table.predicted_std_of(other):.6g}")
+        lines.append(f"  predicted steady-state std {of}, {names[other]}: {_std_text(table, other)}")
     else:
-        lines.append(f"  predicted steady-state std of the estimate: {table.predicted_std:.6g}")
+        lines.append(f"  predicted steady-state std {of}: {table.predicted_std:.6g}")
     c = table.checks
     roots = c.get("poles", c.get("monodromy_multipliers"))
     what = "poles" if "poles" in c else "monodromy multipliers"
@@ -185,6 +186,17 @@ def _summary(table) -> str:
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
     return "\n".join(lines)
+
+
+def _std_text(table, output: str) -> str:
+    """The predicted std of state 0 for ``output``; a multirate table's worst phase and its RMS
+    over the period (what a log's error averages to), both named."""
+    worst = table.predicted_std_of(output)
+    if table.period == 1:
+        return f"{worst:.6g}"
+    covs = table.P_filtered if output == "posterior" else table.P
+    rms = (sum(float(c[0, 0]) for c in covs) / len(covs)) ** 0.5
+    return f"{worst:.6g} at the worst phase, {rms:.6g} RMS over the period"
 
 
 def cmd_export(args) -> int:

@@ -58,7 +58,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     The base rate is the fastest sensor's (or ``1/sample_time_s``).  A sensor at ``rate_hz``
     reads every ``base/rate`` ticks: when that ratio is a fraction ``p/q`` (a 3 Hz GPS beside a
     100 Hz IMU: ``100/3``) it reads ``q`` times every ``p`` ticks, at the ticks nearest its
-    arrival times ``j/rate + offset`` (``round(j p/q) + round(offset/T)``: 0, 33, 67 for the GPS).
+    arrival times ``j/rate + offset`` (``round(j p/q + offset/T)``, where :mod:`cfdesign.timing` places
+    them: 0, 33, 67 for the GPS).
     The period is the least common multiple of the ``p``.  Input sensors drive the model every
     step and must run at the base rate.
 
@@ -110,8 +111,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
                         "choose rates with a smaller common multiple")
     ticks = {}
     for name, r in ratios.items():
-        shift = round(offsets_s.get(name, 0.0) * base)
-        ticks[name] = [math.floor(j * r + 0.5) + shift for j in range(period * r.denominator // r.numerator)]
+        shift = offsets_s.get(name, 0.0) * base
+        ticks[name] = [math.floor(j * r + shift + 0.5) for j in range(period * r.denominator // r.numerator)]
     return 1.0 / base, Schedule.from_ticks(list(ratios), ticks, period)
 
 
@@ -771,7 +772,7 @@ def state_names(structure, spec) -> tuple:
         if s.role == "input" and s.bias_state is not None:
             rows = np.flatnonzero(Bc[:, s.index])
             sign = Fc[rows[0], s.bias_state] * Bc[rows[0], s.index] if rows.size else 1.0
-            names[s.bias_state] = f"{s.name}_{'correction' if sign > 0 else 'bias'}"
+            names[s.bias_state] = f"{_bias_owner(structure, spec, s)}_{'correction' if sign > 0 else 'bias'}"
     for _ in range(n):  # state j is the derivative of state i when i' = j
         for i, d in list(order.items()):
             for j in np.flatnonzero(Fc[i] == 1.0):
@@ -783,6 +784,16 @@ def state_names(structure, spec) -> tuple:
     if len(set(names)) < n:
         names = [f"{name}_{i}" if names.count(name) > 1 else name for i, name in enumerate(names)]
     return tuple(names)
+
+
+def _bias_owner(structure, spec, port) -> str:
+    """The name a bias state takes: its input sensor's, or, when several inputs share it (two
+    gyros of a chain, averaged), the quantity they measure (``rate``): it is the correction
+    of their weighted mean, not of one of them."""
+    shared = [s for s in structure.sensors if s.role == "input" and s.bias_state == port.bias_state]
+    if len(shared) < 2:
+        return port.name
+    return spec.sensor(port.name).measures or "input"
 
 
 def _split_gains(structure, gains):

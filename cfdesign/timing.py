@@ -197,8 +197,8 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
                          "(re-design without it for the best estimate)")
         phases, step = _pattern(sched, name)
         expected = len(phases) / (P * dt)
-        if len(ticks) >= 10:  # the typical spacing: gaps (a dropped reading) do not change it
-            rates[name] = 1.0 / (max(float(np.median(np.diff(ticks))), 1.0) * dt)
+        if len(ticks) >= 10:
+            rates[name] = _arrival_rate(ticks, len(phases), dt)
         if name in rates and abs(rates[name] - expected) > 0.05 * expected:
             notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz: "
                          "readings off its schedule have no gain")
@@ -226,6 +226,32 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): each stretch runs with the gains of its own pattern")
     return Lock(segments or [Segment(0, n_ticks)], main, rates, notes)
+
+
+def _arrival_rate(ticks, per_period: int, dt: float) -> float:
+    """Arrivals per second of a sensor, from the typical span of ``per_period`` readings.
+
+    A sensor at a fraction of the base rate (8 Hz on a 20 Hz tick) arrives 3, 2, 3, 2 ...
+    ticks apart, so the median of single spacings is 2 or 3 by the count's parity; the
+    median span of ``per_period`` consecutive readings (``q`` readings every ``p`` ticks)
+    is exact, and gaps (a dropped reading) do not change it.
+
+    Parameters
+    ----------
+    ticks : ndarray of int
+        Ascending arrival ticks (at least two).
+    per_period : int
+        Readings of the sensor in one period of the table's schedule.
+    dt : float
+        Base sample time (s).
+
+    Returns
+    -------
+    float
+    """
+    q = max(1, min(per_period, len(ticks) // 2))
+    span = float(np.median(ticks[q:] - ticks[:-q]))
+    return q / (max(span, float(q)) * dt)
 
 
 def _current(runs, tick):

@@ -139,3 +139,11 @@ def test_cfn_full_and_discrete_from_the_design_file(discrete):
 def test_cli_prove_takes_full_and_discrete(cli):
     code, out, _ = cli("prove", "cfn", "--bands", "3", "--full", "--discrete")
     assert code == 0 and "k22" in out and "z" in out and "HOLDS" in out
+
+
+def test_the_bias_state_two_gyros_share_is_named_after_their_quantity(spec_file):
+    """It corrects the weighted mean of both gyros; naming it after the last one (gyro_b_correction)
+    read as gyro_b's own bias."""
+    from cfdesign.designer import design
+
+    assert design(load_spec(spec_file)).states == ("angle", "rate_correction")

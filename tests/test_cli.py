@@ -110,3 +110,12 @@ def test_reproduce_help_lists_the_papers_by_name_not_the_aliases():
     assert code == 0
     assert "carreira" in stdout and "helicopter" in stdout and "compare" in stdout
     assert "seed0" not in stdout
+
+
+def test_design_names_the_state_of_its_predicted_std_and_the_phase_of_a_multirate_one(cli):
+    """The printed std is state 0's (position), and for a multirate table the worst phase's,
+    beside its RMS over the period (what the error of a log averages to)."""
+    code, out, err = cli("design", "--example", "position")
+    assert code == 0, err
+    line = next(x for x in out.splitlines() if "<- the default output" in x)
+    assert "std of position" in line and "at the worst phase" in line and "RMS over the period" in line

@@ -301,3 +301,18 @@ def test_the_bode_observer_has_the_bands_of_the_estimate_that_runs(output):
         ref = np.polyval(symbolic[name][0], z) / np.polyval(symbolic[name][1], z)
         assert np.allclose(np.polyval(num, z) / np.polyval(den, z), ref, rtol=1e-8, atol=1e-12), name
     assert table.checks["complementary"] and output in table.checks["complementary_method"]
+
+
+def test_an_offset_sensor_at_a_fractional_rate_is_scheduled_where_its_readings_land():
+    """3 Hz GPS 0.124 s late on a 50 Hz tick: readings at 6.2, 22.87, 39.53 ticks land (as
+    cfdesign.timing.place puts them) on 6, 23, 40; round(offset) + round(j p/q) gave 6, 23, 39,
+    so a log matching the design file ran as a 'drifting' sensor with recomputed gains."""
+    from cfdesign.timing import place
+
+    dt, s = multirate_schedule({"imu": 50.0, "gps": 3.0}, inputs=["imu"], offsets_s={"gps": 0.124})
+    imu = np.arange(50) * dt
+    gps = 0.124 + np.arange(3) / 3.0
+    t = np.concatenate([imu, gps])
+    order = np.argsort(t, kind="stable")
+    ticks = place(t[order], dt, base_rows=order < 50)[np.argsort(order)][50:]
+    assert s.phases("gps") == tuple(int(k) for k in ticks) == (6, 23, 40)

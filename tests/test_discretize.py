@@ -56,3 +56,19 @@ def test_cli_discretize(cli, continuous, tmp_path):
     assert code == 2 and "already discrete" in err
     with pytest.raises(GainTableError, match="do not stabilise"):
         discretize_table(continuous, 0.01)
+
+
+def test_discretised_table_keeps_the_state_names(continuous):
+    """The estimates of a discretised table are named as the design named them (not x0, x1)."""
+    assert continuous.states == ("angle", "rate_correction")
+    assert discretize_table(continuous, 100.0).states == continuous.states
+
+
+def test_a_multirate_continuous_table_is_refused_with_its_slow_sensor_named():
+    """A 10 Hz position beside 100 Hz sensors: the discretised table would read it at every step."""
+    table = design(parse_spec({"structure": "cf3", "sensors": {
+        "acceleration": {"rate_hz": 100.0, "noise": {"density": 0.003}},
+        "velocity": {"rate_hz": 100.0, "noise": {"std": 0.01}},
+        "position": {"rate_hz": 10.0, "noise": {"std": 0.05}}}, "gains": {"k1": 12.566, "k2": 15.791}}))
+    with pytest.raises(GainTableError, match=r"position runs at 10 Hz.*discrete = true"):
+        discretize_table(table, 100.0)

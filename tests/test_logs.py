@@ -437,3 +437,20 @@ def test_a_sensor_without_readings_is_reported(heading):
     log["compass"] = np.nan
     assert run_log(heading, log).notes == ["compass has no reading in the log: the gains are still those designed "
                                            "with it (re-design without it for the best estimate)"]
+
+
+@pytest.mark.parametrize("readings", [11, 12])
+def test_a_fractional_rate_sensor_is_locked_whatever_the_count_of_its_readings(readings):
+    """An 8 Hz angle on a 20 Hz base arrives 3, 2, 3, 2 ... ticks apart: the median single
+    spacing was 3 (6.67 Hz) for an even count, the sensor was called off-rate and its late
+    readings were left without a gain."""
+    from cfdesign.designer import design
+    from cfdesign.timing import lock_schedule
+
+    table = design(parse_spec({"structure": "cf2", "order": 1, "discrete": True, "sensors": {
+        "rate": {"rate_hz": 20.0, "noise": {"std": 0.01}},
+        "angle": {"rate_hz": 8.0, "noise": {"std": 0.05}}}}))
+    phases = [k for k in range(table.period) if table.schedule.rows(k)]
+    ticks = (np.array(phases)[None, :] + table.period * np.arange(readings)[:, None]).ravel()[:readings] + 1
+    lock = lock_schedule(table, {"angle": ticks}, int(ticks[-1]) + 5)
+    assert lock.offsets == {"angle": 1} and not any("arrives at" in n for n in lock.notes)
