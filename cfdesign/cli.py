@@ -161,7 +161,7 @@ def _summary(table) -> str:
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
     else:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
-    of = f"of {table.states[0]}"
+    of = f"of {table.states[0]}{_unit(table)}"
     if table.domain == "z":
         other = "prior" if table.output == "posterior" else "posterior"
         names = {"posterior": "estimate after each step's readings (posterior)",
@@ -181,11 +181,23 @@ def _summary(table) -> str:
         lines.append("  crossovers: " + ", ".join(f"{a}/{b} at {f:g} Hz (magnitude ratio {r:.6f})"
                                                   for a, b, f, r in solver["crossovers"]))
     if solver.get("kalman_predicted_variance") is not None:
-        lines.append(f"  predicted std of these gains: {solver['predicted_variance'] ** 0.5:.6g}; Kalman optimum for "
-                     f"the same sensors: {solver['kalman_predicted_variance'] ** 0.5:.6g}")
+        which = f" ({table.output} output)" if table.domain == "z" else ""
+        mine, best = solver["predicted_variance"] ** 0.5, solver["kalman_predicted_variance"] ** 0.5
+        lines.append(f"  predicted std of these gains{which}: {mine:.6g}; Kalman optimum for the same sensors{which}: "
+                     f"{best:.6g}")
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
     return "\n".join(lines)
+
+
+#: the unit of the common quantity, by the name the designer gives state 0 (designer.state_names)
+_UNITS = {"heading": "rad", "angle": "rad", "position": "m"}
+
+
+def _unit(table) -> str:
+    """`` (rad)`` or `` (m)`` after the name of state 0 when its quantity is known."""
+    unit = _UNITS.get(table.states[0]) if table.states else None
+    return f" ({unit})" if unit else ""
 
 
 def _std_text(table, output: str) -> str:
