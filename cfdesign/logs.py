@@ -35,6 +35,8 @@ TIME_COLUMNS = ("time", "t")
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
 ONE_PASS_BYTES = 200_000_000
+#: rows where the inputs read over which the log's base rate is measured (the first ones)
+RATE_SAMPLE = 1_000_000
 
 
 def _pandas():
@@ -258,6 +260,8 @@ class _Pass:
         self.t0 = None
         self.last_time = None
         self.rows = 0
+        self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
+        self._sampled = 0
 
     def ticks(self, values):
         """Ticks of a block's rows (``row index`` when the log has no time column)."""
@@ -277,13 +281,27 @@ class _Pass:
                 first = np.flatnonzero(base[len(both) - n:])
                 self.t0 = t[first[0]] if first.size else t[0]
             place(both, self.table.sample_time_s, base_rows=base, source=self.source,
-                  first_line=2 + self.rows - (0 if self.last_time is None else 1))
+                  first_line=2 + self.rows - (0 if self.last_time is None else 1), rate=False)
+            self._sample(t[base[len(both) - n:]])
             # a reading logged before the first input row is used at tick 0
             ticks = np.maximum(np.rint((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
             if n:
                 self.last_time = t[-1]
         self.rows += n
         return ticks
+
+    def _sample(self, times):
+        if self._sampled < RATE_SAMPLE:
+            self.base_times.append(times[:RATE_SAMPLE - self._sampled])
+            self._sampled += len(self.base_times[-1])
+
+    def check_rate(self):
+        """The log's base rate against the table's, once over the log (not per block: a block of a
+        few jittered rows cannot tell the rate), from the rows where the inputs read."""
+        if self.cols.time is not None and self.base_times:
+            from .timing import check_rate
+
+            check_rate(np.concatenate(self.base_times), self.table.sample_time_s, self.source)
 
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
@@ -472,6 +490,7 @@ def _lock(table, blocks, cols, source, types=False):
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         last = int(ticks[-1]) if len(ticks) else last
+    place.check_rate()
     arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
     if schemas:
         import pyarrow as pa
