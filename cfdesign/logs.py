@@ -866,7 +866,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     try:
         futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
                    for p, t in zip(paths, targets, strict=True)]
-        rows = client.gather(futures, errors="skip")
+        rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log
         done = {r["log"]: r for r in rows}
         rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
                 for p, f in zip(paths, futures, strict=True)]
@@ -892,7 +892,10 @@ def _run_one(table_json, path, target, options):
     from .gains import GainTable
 
     table = GainTable.from_dict(json.loads(table_json))
-    return run_log(table, path, output=target, source=path, **options).summary()
+    try:
+        return run_log(table, path, output=target, source=path, **options).summary()
+    except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
+        return {"log": path, "samples": 0, "error": _first_line(exc)}
 
 
 def _summary_csv(rows) -> str:

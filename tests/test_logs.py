@@ -208,7 +208,7 @@ def test_bad_logs_one_line_exit_2_nothing_written(name, tmp_path, cli):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["g.json", name, "out.csv"])
 
 
-def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli):
+def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
     table = heading.save(tmp_path / "g.json")
     folder = tmp_path / "logs"
     folder.mkdir()
@@ -217,6 +217,9 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli):
     (folder / "broken.csv").write_text("time,gyro\n0,1\n")
     code, _, err = cli("run", table, folder, "-o", tmp_path / "out", "--workers", "2", "--reference", "truth")
     assert code == 2 and "broken.csv: " in err and "missing column(s) compass, odometry" in err
+    # one line naming the log once; no worker's "Compute Failed" and traceback on the terminal
+    assert len(err.strip().splitlines()) == 1 and err.count("broken.csv") == 1, err
+    assert "Compute Failed" not in capfd.readouterr().err
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
     assert list(summary["log"].map(lambda p: p.split("/")[-1])) == ["broken.csv", "robot0.csv", "robot1.csv",
                                                                     "robot2.csv"]
