@@ -479,6 +479,7 @@ def _lock(table, blocks, cols, source, types=False):
 
     place = _Pass(table, cols, source)
     arrivals = {s.name: [] for s in table.measurements}
+    inputs = dict.fromkeys((s.name for s in table.inputs), 0)  # readings of each input sensor
     last = -1
     schemas = []
     for block in blocks():
@@ -489,6 +490,8 @@ def _lock(table, blocks, cols, source, types=False):
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
+        for name in inputs:
+            inputs[name] += int(np.sum(np.isfinite(values[cols.sensors[name]])))
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -498,7 +501,10 @@ def _lock(table, blocks, cols, source, types=False):
         schemas = pa.unify_schemas(schemas, promote_options="permissive")
     from .designer import has_kalman_gains  # fixed gains have no model to recompute them from
 
-    return lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table)), place.rows, schemas or None
+    lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
+    lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
+                      for name, count in inputs.items() if not count]
+    return lock, place.rows, schemas or None
 
 
 class _Runner:

@@ -455,3 +455,6 @@ def test_a_sensor_without_readings_is_reported(heading):
     log["compass"] = np.nan
     assert run_log(heading, log).notes == ["compass has no reading in the log: the gains are still those designed "
                                            "with it (re-design without it for the best estimate)"]
+    log["gyro"] = np.nan  # an input that never reads: the run integrates nothing, and says so
+    assert run_log(heading, log).notes[0] == "gyro (an input) has no reading in the log: the estimates run on an " \
+                                             "input of zero"
