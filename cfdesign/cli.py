@@ -266,7 +266,8 @@ def cmd_run(args) -> int:
                         **options)
         failed = [r for r in rows if "error" in r]
         for r in failed:
-            print(f"cfdesign: {r['log']}: {r['error']}", file=sys.stderr)
+            named = r["error"] if r["error"].startswith(r["log"]) else f"{r['log']}: {r['error']}"
+            print(f"cfdesign: {named}", file=sys.stderr)
         print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}")
         return 2 if failed else 0
     result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)

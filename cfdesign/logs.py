@@ -35,6 +35,8 @@ TIME_COLUMNS = ("time", "t")
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
 ONE_PASS_BYTES = 200_000_000
+#: rows where the inputs read over which the log's base rate is measured (the first ones)
+RATE_SAMPLE = 1_000_000
 
 
 def _pandas():
@@ -258,6 +260,8 @@ class _Pass:
         self.t0 = None
         self.last_time = None
         self.rows = 0
+        self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
+        self._sampled = 0
 
     def ticks(self, values):
         """Ticks of a block's rows (``row index`` when the log has no time column)."""
@@ -277,13 +281,27 @@ class _Pass:
                 first = np.flatnonzero(base[len(both) - n:])
                 self.t0 = t[first[0]] if first.size else t[0]
             place(both, self.table.sample_time_s, base_rows=base, source=self.source,
-                  first_line=2 + self.rows - (0 if self.last_time is None else 1))
+                  first_line=2 + self.rows - (0 if self.last_time is None else 1), rate=False)
+            self._sample(t[base[len(both) - n:]])
             # a reading logged before the first input row is used at tick 0
             ticks = np.maximum(np.rint((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
             if n:
                 self.last_time = t[-1]
         self.rows += n
         return ticks
+
+    def _sample(self, times):
+        if self._sampled < RATE_SAMPLE:
+            self.base_times.append(times[:RATE_SAMPLE - self._sampled])
+            self._sampled += len(self.base_times[-1])
+
+    def check_rate(self):
+        """The log's base rate against the table's, once over the log (not per block: a block of a
+        few jittered rows cannot tell the rate), from the rows where the inputs read."""
+        if self.cols.time is not None and self.base_times:
+            from .timing import check_rate
+
+            check_rate(np.concatenate(self.base_times), self.table.sample_time_s, self.source)
 
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
@@ -462,6 +480,7 @@ def _lock(table, blocks, cols, source, types=False):
 
     place = _Pass(table, cols, source)
     arrivals = {s.name: [] for s in table.measurements}
+    inputs = dict.fromkeys((s.name for s in table.inputs), 0)  # readings of each input sensor
     last = -1
     schemas = []
     for block in blocks():
@@ -472,7 +491,10 @@ def _lock(table, blocks, cols, source, types=False):
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
+        for name in inputs:
+            inputs[name] += int(np.sum(np.isfinite(values[cols.sensors[name]])))
         last = int(ticks[-1]) if len(ticks) else last
+    place.check_rate()
     arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
     if schemas:
         import pyarrow as pa
@@ -480,7 +502,10 @@ def _lock(table, blocks, cols, source, types=False):
         schemas = pa.unify_schemas(schemas, promote_options="permissive")
     from .designer import has_kalman_gains  # fixed gains have no model to recompute them from
 
-    return lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table)), place.rows, schemas or None
+    lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
+    lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
+                      for name, count in inputs.items() if not count]
+    return lock, place.rows, schemas or None
 
 
 class _Runner:
@@ -852,7 +877,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     try:
         futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
                    for p, t in zip(paths, targets, strict=True)]
-        rows = client.gather(futures, errors="skip")
+        rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log
         done = {r["log"]: r for r in rows}
         rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
                 for p, f in zip(paths, futures, strict=True)]
@@ -878,7 +903,10 @@ def _run_one(table_json, path, target, options):
     from .gains import GainTable
 
     table = GainTable.from_dict(json.loads(table_json))
-    return run_log(table, path, output=target, source=path, **options).summary()
+    try:
+        return run_log(table, path, output=target, source=path, **options).summary()
+    except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
+        return {"log": path, "samples": 0, "error": _first_line(exc)}
 
 
 def _summary_csv(rows) -> str:

@@ -33,13 +33,15 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "place", "Segment", "Lock", "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
+#: time-stamp jitter (in ticks) allowed at each end of the span the base rate is measured over
+JITTER_TICKS = 0.05
 
 
-def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2):
+def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -55,6 +57,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         Name of the log, for messages.
     first_line : int
         File line of the first row (messages name lines as a spreadsheet does).
+    rate : bool
+        Check the base rate (False: the caller checks it once over the whole log, with
+        :func:`check_rate`; a block of a few rows cannot tell a jittered rate from a wrong one).
 
     Returns
     -------
@@ -81,17 +86,31 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         what = "repeats" if d[back[0]] == 0 else "goes back from"
         raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
                         "line before (times must increase)")
-    check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
+    if rate:
+        check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return np.rint((t - t[0]) / dt).astype(np.int64)
 
 
 def check_rate(t, dt, source):
-    """The median spacing of ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates)."""
+    """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
+
+    The spacing is the span of ``t`` over the ticks it covers (each step counted in units of the
+    median step, so that a dropped row counts as the ticks it skips), not the median step
+    itself: time-stamp jitter of a few percent of a tick moves a single step by as much, but the
+    span only by the jitter of its two ends.  That much (:data:`JITTER_TICKS` at each end) is
+    allowed on top of :data:`RATE_RTOL`, so a short log is not refused for its jitter.
+    """
+    t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return
-    spacing = float(np.median(np.diff(t)))
-    if abs(spacing - dt) > RATE_RTOL * dt:
-        raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (median spacing {spacing:.6g} s) "
+    steps = np.diff(t)
+    unit = float(np.median(steps))
+    if not unit > 0:
+        return
+    ticks = float(np.sum(np.maximum(np.rint(steps / unit), 1.0)))
+    spacing = float(t[-1] - t[0]) / ticks
+    if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
+        raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "
                         f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate")
 
 
