@@ -556,6 +556,33 @@ class _Runner:
         dense = self._dense(ticks, readings, first, last)
         if self.x is None and self.from_reading:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
+        if self.lock.varying:
+            out, phases, stds = self._run_arrivals(dense, first, last)
+        else:
+            out, phases, stds = self._run_segments(dense, first, last)
+        self.next_tick = last + 1
+        self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
+        return out[ticks - first], phases[ticks - first], stds[ticks - first]
+
+    def _run_arrivals(self, dense, first, last):
+        """Ticks ``first..last`` through the Kalman filter over the actual arrivals
+        (:class:`~cfdesign.runtime.arrivals.ArrivalKalman`), its state carried between blocks."""
+        if not hasattr(self, "_arrivals"):
+            from .runtime.arrivals import ArrivalKalman
+
+            self._arrivals = ArrivalKalman(self.table, self.output, self.x)
+        kf = self._arrivals
+        N = last - first + 1
+        u = np.column_stack([dense[s.name] for s in self.table.inputs]) if self.table.inputs else np.zeros((N, 0))
+        y = np.column_stack([dense[s.name] for s in self.table.measurements])
+        kf.counts = {}
+        out, stds = kf.run(u, y)
+        _merge(self.counts, kf.counts)
+        return out, np.arange(first, last + 1) % self.table.period, stds
+
+    def _run_segments(self, dense, first, last):
+        """Ticks ``first..last`` through the table's segments (:class:`~cfdesign.timing.Lock`)."""
+        n = self.table.F.shape[0]
         out = np.empty((last - first + 1, n))
         phases = np.empty(last - first + 1, dtype=np.int64)
         stds = np.empty((last - first + 1, n))
@@ -575,9 +602,7 @@ class _Runner:
             stds[a - first:b - first] = self._std(rt)[phases[a - first:b - first]]
             self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
             _merge(self.counts, rt.counts)
-        self.next_tick = last + 1
-        self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
-        return out[ticks - first], phases[ticks - first], stds[ticks - first]
+        return out, phases, stds
 
     def _std(self, rt):
         """``(period, n)``: predicted standard deviation of every state at each phase of ``rt``'s

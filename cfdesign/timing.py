@@ -21,7 +21,13 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    had it known the offsets.  A sensor whose offset wanders (a rate that drifts, arrivals that
    slip by a tick) gets a new segment with the gains of its new offset, so no reading is left
    without a gain; only a table without a model to recompute from (fixed gains) leaves the
-   readings off its schedule unused, and those are counted and reported.
+   readings off its schedule unused, and those are counted and reported.  When the pattern
+   keeps changing (the stretches average fewer than :data:`STEADY_PERIODS` periods: a rate
+   that drifts, arrivals that straddle half a tick), no periodic gain is the right one for
+   long: the log then runs the Kalman filter of the table's model with each tick's gain from
+   the covariance recursion over the readings as they arrive
+   (:class:`cfdesign.runtime.arrivals.ArrivalKalman`), which converges to the periodic gains
+   wherever the pattern holds still.
 """
 
 from __future__ import annotations
@@ -37,6 +43,9 @@ __all__ = ["RATE_RTOL", "JITTER_TICKS", "place", "check_rate", "Segment", "Lock"
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
+#: arrival patterns that last fewer periods than this on average are not steady: the log runs
+#: the Kalman filter over the actual arrivals instead of periodic gains per stretch
+STEADY_PERIODS = 20
 #: time-stamp jitter (in ticks) allowed at each end of the span the base rate is measured over
 JITTER_TICKS = 0.05
 
@@ -148,12 +157,16 @@ class Lock:
         ``{sensor: arrivals per second}`` measured in the log.
     notes : list of str
         One line each for what a user should know (offsets, recomputed gains, rate mismatches).
+    varying : bool
+        The pattern is not steady (module docstring): run the Kalman filter over the actual
+        arrivals, not the segments.
     """
 
     segments: list
     offsets: dict = field(default_factory=dict)
     rate_hz: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    varying: bool = False
 
     @property
     def recomputed(self) -> bool:
@@ -241,10 +254,15 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
                      + " after the table's schedule: " + ("gains recomputed for the arrival pattern (periodic DARE "
                                                             "of the table's model)" if any(s.offsets for s in segments)
                                                             else "the schedule is locked to the arrivals"))
-    if len(segments) > 1:
+    varying = recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments)
+    if varying:
+        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
+                     "sensor): the log runs the Kalman filter of the table's model with gains from the readings "
+                     "as they arrive")
+    elif len(segments) > 1:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): each stretch runs with the gains of its own pattern")
-    return Lock(segments or [Segment(0, n_ticks)], main, rates, notes)
+    return Lock(segments or [Segment(0, n_ticks)], main, rates, notes, varying)
 
 
 def _arrival_rate(ticks, per_period: int, dt: float) -> float:

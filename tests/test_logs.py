@@ -113,8 +113,8 @@ def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
 
 
 def test_a_drifting_sensor_is_followed(heading):
-    """The compass's clock runs 0.5 % fast: its arrivals slip through the schedule, each stretch
-    runs with the gains of its own pattern, no reading is lost."""
+    """The compass's clock runs 0.5 % fast: its arrivals slip through the schedule, the log runs
+    the Kalman filter over the readings as they arrive, no reading is lost."""
     log, psi = heading_log(0, 0, n=40_000, jitter=0.0)
     com = np.full(40_000, np.nan)
     arrivals = np.round(np.arange(0, 40_000, 100 / 1.005)).astype(int)
@@ -123,6 +123,44 @@ def test_a_drifting_sensor_is_followed(heading):
     result = run_log(heading, log, reference="truth")
     assert result.unused == {} and any("changes" in n for n in result.notes)
     assert rms_after(result.estimates["heading"].to_numpy(), psi) < 3 * heading.predicted_std
+
+
+def test_drifting_clocks_on_both_slow_sensors_meet_the_predicted_error(heading):
+    """Odometry 2 % fast, compass 2 % slow: the pattern changes on almost every compass reading,
+    so no periodic gain holds; the Kalman filter over the actual arrivals uses every reading
+    and its error is the predicted one (and each row's std is that of its own tick)."""
+    n = 30_000
+    log, psi = heading_log(0, 0, n=n, jitter=0.0)
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    k_odo = np.round(3 + np.arange(0, n, 10 / 1.02)).astype(int)
+    k_com = np.round(37 + np.arange(0, n - 40, 100 / 0.98)).astype(int)
+    rng = np.random.default_rng(1)
+    odo[k_odo[k_odo < n]] = psi[k_odo[k_odo < n]] + 0.005 * rng.standard_normal(np.sum(k_odo < n))
+    com[k_com] = psi[k_com] + 0.05 * rng.standard_normal(len(k_com))
+    log["odometry"], log["compass"] = wrap(odo), wrap(com)
+    result = run_log(heading, log, std=True)
+    assert result.unused == {} and any("as they arrive" in n for n in result.notes)
+    err = rms_after(result.estimates["heading"].to_numpy(), psi)
+    predicted = float(np.sqrt(np.mean(result.estimates["heading_std"].to_numpy()[3000:] ** 2)))
+    assert 0.75 * predicted < err < 1.25 * predicted, (err, predicted)
+
+
+def test_the_arrival_kalman_filter_is_the_table_on_its_own_schedule(heading):
+    """On the schedule the table was designed for, the covariance recursion starts at the DARE's
+    fixed point and stays there: the same estimates as the table's runtime, the table's stds."""
+    from cfdesign.runtime.arrivals import ArrivalKalman
+
+    log, _ = heading_log(0, 0, n=1000, jitter=0.0)
+    readings = {s: log[s].to_numpy() for s in ("gyro", "odometry", "compass")}
+    x0 = [0.5, 0.0]
+    _, expected = Runtime(heading, x0=x0).run(readings, states=True)
+    kf = ArrivalKalman(heading, x0=x0)
+    y = np.column_stack([readings[s.name] for s in heading.measurements])
+    states, stds = kf.run(readings["gyro"][:, None], y)
+    assert np.max(np.abs(wrap(states[:, 0] - expected[:, 0]))) < 1e-9
+    assert np.max(np.abs(states[:, 1] - expected[:, 1])) < 1e-9
+    table_std = np.sqrt([np.diag(heading.P_filtered[k % heading.period]) for k in range(1000)])
+    assert np.allclose(stds, table_std, rtol=1e-9)
 
 
 # ---------------------------------------------------------------------- the logs people have

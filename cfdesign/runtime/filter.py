@@ -29,7 +29,7 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "READING_LIMIT"]
+__all__ = ["Runtime", "wrap", "usable", "held", "READING_LIMIT"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -65,6 +65,28 @@ def usable(a) -> np.ndarray:
     a = np.asarray(a, dtype=float)
     with np.errstate(invalid="ignore"):
         return np.isfinite(a) & (np.abs(a) <= READING_LIMIT)
+
+
+def held(u, bad, u_last) -> np.ndarray:
+    """Inputs with the values marked ``bad`` replaced by the last good one of their column.
+
+    Parameters
+    ----------
+    u : ndarray, shape (N, p)
+        Inputs per step.
+    bad : ndarray of bool, shape (N, p)
+        Values not to use (missing or rejected).
+    u_last : ndarray, shape (p,)
+        The inputs held before the first step.
+
+    Returns
+    -------
+    ndarray, shape (N, p)
+    """
+    u = np.vstack([u_last[None, :], u])
+    good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])
+    idx = np.maximum.accumulate(np.where(good, np.arange(len(u))[:, None], 0), axis=0)
+    return np.take_along_axis(u, idx, axis=0)[1:]
 
 
 class Runtime:
@@ -400,10 +422,7 @@ class Runtime:
         if not bad.any():
             return u
         self._count("rejected_inputs", bad & ~np.isnan(u))
-        u = np.vstack([self.u_last[None, :], u])
-        good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])
-        idx = np.maximum.accumulate(np.where(good, np.arange(len(u))[:, None], 0), axis=0)
-        return np.take_along_axis(u, idx, axis=0)[1:]
+        return held(u, bad, self.u_last)
 
     def _count(self, what, mask):
         if mask.any():
