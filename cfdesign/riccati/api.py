@@ -334,8 +334,8 @@ def _notes(kind, st: Stability, fwd, R, dual):
     if st.status == "marginal":
         where = "imaginary axis" if kind == "care" else "unit circle"
         notes.append(f"marginal solution: the closed loop cannot be certified stable, an eigenvalue lies on the "
-                     f"{where} within the uncertainty of X (eigenvalue margin {st.margin:.3g}, closed-loop "
-                     f"uncertainty {st.uncertainty:.3g}); X is the maximal, not a stabilising, solution")
+                     f"{where} within the uncertainty of X (eigenvalue margin {st.margin:.3g}, its uncertainty "
+                     f"{st.margin_uncertainty:.3g}); X is the maximal, not a stabilising, solution")
     if fwd > 1e-6:
         notes.append(f"estimated relative forward error {fwd:.3g}: the solution is ill-conditioned")
     if kind == "care" and not dual and min_eig(R) <= 0:
