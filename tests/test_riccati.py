@@ -595,3 +595,23 @@ def test_marginal_warning_names_the_uncertainty_that_decided():
     assert abs(margin) <= unc
     rho = np.abs(sla.eigvals(F - est.K_predictor @ H)).max()  # scipy's margin, independently
     assert abs(margin - (1 - rho)) <= unc
+
+
+@pytest.mark.parametrize("dt", [0.01, 1.0])
+def test_n50_chain_is_refused_as_too_ill_conditioned(dt):
+    """An n = 50 kinematic chain (ZOH, position measured, noise on the 50th derivative).  In
+    exact arithmetic (an 80-digit doubling solution) the Kalman gain rounded to double is
+    stabilising (spectral radius 0.9692 at dt = 1, 0.99969 at dt = 0.01), but one-ulp changes
+    of the gain move the spectral radius by 3e-3, and the covariance, even after the ideal
+    diagonal scaling, has condition 2e19: Newton's correction stays at half of X from every
+    estimate.  scipy gives up too; the error must say why instead of 'not stabilising'."""
+    from cfdesign.errors import AccuracyError
+    from cfdesign.linear import zoh_chain
+
+    n = 50
+    F, b = zoh_chain(n, dt)
+    H, Q, R = np.eye(n)[:1], np.outer(b, b), np.eye(1)
+    with pytest.raises((np.linalg.LinAlgError, ValueError)):
+        sla.solve_discrete_are(F.T, H.T, Q, R)
+    with pytest.raises(AccuracyError, match="too ill-conditioned for double precision"):
+        kalman_discrete(F, H, Q, R)

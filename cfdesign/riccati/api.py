@@ -288,8 +288,17 @@ def _best_candidate(p: Problem, refine, rtol):
         rel_res = np.linalg.norm(ev.res) / max(ev.theta, TINY)
         if st.status != "unstable" and rel_res <= rtol:
             return _Candidate(X, ev, steps, fwd, method), st, rel_res
-        seen.append(f"{method}: " + (f"relative residual {rel_res:.3g}" if rel_res > rtol else "not stabilising"))
+        what = f"relative residual {rel_res:.3g}" if rel_res > rtol else (
+            "not stabilising" if st.status == "unstable" else "marginal")
+        if not fwd <= _UNCONVERGED:  # Newton stalls: its correction is a sizeable part of X
+            cond = st.omega_inv_norm * ev.theta / max(np.linalg.norm(X), TINY)
+            what += f", Newton's correction {fwd:.2g} of X, condition estimate {cond:.2g}"
+        seen.append(f"{method}: {what}")
     return None, seen
+
+
+# a Newton correction above this fraction of X at the end of the refinement: not converged
+_UNCONVERGED = 1e-2
 
 
 def _no_solution(p: Problem, seen):
@@ -300,7 +309,11 @@ def _no_solution(p: Problem, seen):
             f"no stabilising solution: the {pencil} pencil has an eigenvalue on the stability boundary "
             f"({fmt_mode(p.kind, lam)}); the closed loop would be marginal at best")
     tried = "; ".join(seen) if seen else "every solver failed"
-    raise AccuracyError(f"could not compute an accurate stabilising {p.kind.upper()} solution ({tried})")
+    why = ""
+    if seen and all("Newton's correction" in s for s in seen):
+        why = (": the equation is too ill-conditioned for double precision (Newton's method on the double-double "
+               "residual does not converge from any estimate: X is not determined to any digit)")
+    raise AccuracyError(f"could not compute an accurate stabilising {p.kind.upper()} solution{why} ({tried})")
 
 
 def _solve(kind, A, B, Q, R, S, E, refine, rtol, dual=False):
