@@ -67,6 +67,7 @@ __all__ = [
     "band_responses",
     "complementarity_error",
     "identity_residual",
+    "identity_polynomial",
     "is_stable",
     "spectral_margin",
 ]
@@ -845,6 +846,28 @@ def identity_residual(bands: dict) -> float:
     >>> identity_residual({"rate": ([1.0, 0.0], [1.0, 2.0]), "angle": ([2.0], [1.0, 2.0])})
     0.0
     """
+    total, scale = identity_polynomial(bands)
+    return float(np.abs(total).max(initial=0.0) / scale)
+
+
+def identity_polynomial(bands: dict):
+    """``sum_i num_i/den_i - 1`` cleared of denominators, and the size of its terms.
+
+    Equal denominators are multiplied in once.
+
+    Parameters
+    ----------
+    bands : dict
+        ``{sensor: (num, den)}`` polynomials.
+
+    Returns
+    -------
+    total : ndarray
+        Coefficients of ``sum_i num_i prod_(others) den - prod den``, highest power first.
+    scale : float
+        Largest coefficient of the terms summed (:func:`identity_residual` is
+        ``max |total| / scale``).
+    """
     dens = []  # the distinct denominators (bands of one filter share them exactly)
     for _, d in bands.values():
         if not any(len(d) == len(e) and np.array_equal(d, e) for e in dens):
@@ -856,7 +879,7 @@ def identity_residual(bands: dict) -> float:
         term = np.convolve(num, _product(others))
         total = np.polyadd(total, term)
         scale = max(scale, np.abs(term).max())
-    return float(np.abs(total).max(initial=0.0) / scale)
+    return total, float(scale)
 
 
 def _product(polys):

@@ -92,3 +92,41 @@ def test_grid_check_still_fails_a_non_complementary_long_chain():
     for table in (bad_F, bad_B):
         check = _grid(verify_table(table))
         assert not check.ok, check.detail
+
+
+def _identity(checks):
+    return next(c for c in checks if c.name == "complementary (polynomial identity)")
+
+
+def test_identity_check_says_when_double_precision_cannot_decide():
+    """n = 20 Kalman chain at 100 Hz: the bands sum to one exactly for any gain, but the degree-20
+    coefficients carry rounding errors of 4e-4 (reversing the state order changes the residual
+    from 4.5e-4 to 2.9e-4).  The check cannot PASS on that, but must say that double precision
+    cannot decide it rather than report a non-complementary table; the grid check passes."""
+    checks = verify_table(_chain_table(20, 0.01))
+    check = _identity(checks)
+    assert not check.ok and "cannot be decided in double precision" in check.detail
+    assert _grid(checks).ok
+
+
+@pytest.mark.parametrize("n", [4, 6, 10])
+def test_identity_check_small_tables_and_genuine_failures(n):
+    """Small tables are decided as before (PASS, no note), and a model F off by 1e-6 is a plain
+    FAIL: its residual (2e-6) stands far above the rounding estimate (1e-14 .. 1e-10)."""
+    good = _chain_table(n, 0.01)
+    check = _identity(verify_table(good))
+    assert (check.ok or n == 10) and ("cannot be decided" in check.detail) == (n == 10)
+    F = good.F.copy()
+    F[0, 1] *= 1 + 1e-6
+    check = _identity(verify_table(dataclasses.replace(good, F=F)))
+    assert not check.ok and "cannot be decided" not in check.detail
+    assert 1e-6 <= float(check.detail.split("size ")[1].split(",")[0]) <= 1e-5
+
+
+def test_identity_check_does_not_pass_overflowing_coefficients():
+    """A gain of 1e300 overflows the coefficients to NaN; 'NaN > worst' is false, so the check
+    used to PASS with 'relative coefficient size 0.00e+00'."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        check = _identity(verify_table(_chain_table(8, 1.0, np.full((8, 1), 1e300))))
+    assert not check.ok and "not finite" in check.detail
