@@ -288,8 +288,17 @@ def _best_candidate(p: Problem, refine, rtol):
         rel_res = np.linalg.norm(ev.res) / max(ev.theta, TINY)
         if st.status != "unstable" and rel_res <= rtol:
             return _Candidate(X, ev, steps, fwd, method), st, rel_res
-        seen.append(f"{method}: " + (f"relative residual {rel_res:.3g}" if rel_res > rtol else "not stabilising"))
+        what = f"relative residual {rel_res:.3g}" if rel_res > rtol else (
+            "not stabilising" if st.status == "unstable" else "marginal")
+        if not fwd <= _UNCONVERGED:  # Newton stalls: its correction is a sizeable part of X
+            cond = st.omega_inv_norm * ev.theta / max(np.linalg.norm(X), TINY)
+            what += f", Newton's correction {fwd:.2g} of X, condition estimate {cond:.2g}"
+        seen.append(f"{method}: {what}")
     return None, seen
+
+
+# a Newton correction above this fraction of X at the end of the refinement: not converged
+_UNCONVERGED = 1e-2
 
 
 def _no_solution(p: Problem, seen):
@@ -300,7 +309,11 @@ def _no_solution(p: Problem, seen):
             f"no stabilising solution: the {pencil} pencil has an eigenvalue on the stability boundary "
             f"({fmt_mode(p.kind, lam)}); the closed loop would be marginal at best")
     tried = "; ".join(seen) if seen else "every solver failed"
-    raise AccuracyError(f"could not compute an accurate stabilising {p.kind.upper()} solution ({tried})")
+    why = ""
+    if seen and all("Newton's correction" in s for s in seen):
+        why = (": the equation is too ill-conditioned for double precision (Newton's method on the double-double "
+               "residual does not converge from any estimate: X is not determined to any digit)")
+    raise AccuracyError(f"could not compute an accurate stabilising {p.kind.upper()} solution{why} ({tried})")
 
 
 def _solve(kind, A, B, Q, R, S, E, refine, rtol, dual=False):
@@ -334,8 +347,8 @@ def _notes(kind, st: Stability, fwd, R, dual):
     if st.status == "marginal":
         where = "imaginary axis" if kind == "care" else "unit circle"
         notes.append(f"marginal solution: the closed loop cannot be certified stable, an eigenvalue lies on the "
-                     f"{where} within the uncertainty of X (eigenvalue margin {st.margin:.3g}, closed-loop "
-                     f"uncertainty {st.uncertainty:.3g}); X is the maximal, not a stabilising, solution")
+                     f"{where} within the uncertainty of X (eigenvalue margin {st.margin:.3g}, its uncertainty "
+                     f"{st.margin_uncertainty:.3g}); X is the maximal, not a stabilising, solution")
     if fwd > 1e-6:
         notes.append(f"estimated relative forward error {fwd:.3g}: the solution is ill-conditioned")
     if kind == "care" and not dual and min_eig(R) <= 0:

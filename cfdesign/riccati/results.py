@@ -51,14 +51,18 @@ class RiccatiSolution:
     residual : float
         Frobenius norm of the Riccati residual at ``X``, evaluated in double-double arithmetic.
     relative_residual : float
-        ``residual`` divided by the sum of the Frobenius norms of the terms of the equation.
+        ``residual`` divided by ``theta``: the sum of the Frobenius norms of the terms of the
+        equation plus ``||Omega|| ||X||``, the first-order change of the residual under a unit
+        relative change of ``X`` (:func:`cfdesign.riccati.refinement.evaluate`); so the
+        correctly rounded solution scores about ``eps`` even when the gain term is small
+        through cancellation (near-singular ``R``).
     condition : float
         Estimated relative condition number ``||Omega^-1|| * theta / ||X||`` where ``Omega`` is
         the Frechet derivative of the Riccati operator at ``X`` (the Lyapunov operator
         ``D -> Ac' D E + E' D Ac`` or the Stein operator ``D -> Ac' D Ac - E' D E``),
         ``||Omega^-1||`` is computed exactly in the spectral norm as ``||Omega^-1(I)||_2``
         (valid because ``Omega^-1`` is a positive map when the closed loop is stable), and
-        ``theta`` is the size of the terms of the equation.  ``condition * relative_residual``
+        ``theta`` is the scale of ``relative_residual``.  ``condition * relative_residual``
         bounds the relative forward error to first order.
     forward_error : float
         Estimated relative forward error ``||X - X_exact||_F / ||X||_F``: the size of the Newton

@@ -35,7 +35,11 @@ class Stability:
     robust : float
         Certified distance to instability of the closed loop (0 without a certificate).
     uncertainty : float
-        Uncertainty of the closed-loop matrix.
+        Uncertainty of the closed-loop matrix (what ``robust`` is compared with).
+    margin_uncertainty : float
+        Uncertainty of ``margin`` from the eigenvalue test (what ``margin`` is compared with:
+        it decides 'marginal' and 'unstable'); NaN when the Lyapunov certificate settled the
+        status and the eigenvalue test did not run.
     """
     eigenvalues: np.ndarray
     margin: float  # eigenvalue distance to the boundary
@@ -43,6 +47,7 @@ class Stability:
     omega_inv_norm: float  # ||Omega^-1(I)||_2
     robust: float  # certified distance to instability of the closed loop
     uncertainty: float  # uncertainty of the closed-loop matrix
+    margin_uncertainty: float = float("nan")  # uncertainty of the eigenvalue margin (eigenvalue test only)
 
 
 def closed_loop_eigenvalues(p: Problem, K):
@@ -151,6 +156,7 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
     with np.errstate(all="ignore"):
         K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)
     robust, unc = _lyapunov_radius(p, cl, K, K2)
+    unc_eig = float("nan")
     if robust > unc:
         status = "stable"
         if p.E is None:
@@ -161,4 +167,4 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
     else:
         lam, margin, unc_eig = _eigen_margin(p, K, K2)
         status = "stable" if margin > unc_eig else ("unstable" if margin < -unc_eig else "marginal")
-    return Stability(lam, margin, status, cl.omega_inv_norm, float(robust), float(unc))
+    return Stability(lam, margin, status, cl.omega_inv_norm, float(robust), float(unc), unc_eig)
