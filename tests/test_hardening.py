@@ -49,6 +49,14 @@ MUTATIONS = {
     "rate": lambda t: dataclasses.replace(t, sensors=tuple(dataclasses.replace(s, rate_hz=s.rate_hz * 2)
                                                            if s.name == "gyro" else s for s in t.sensors)),
     "structure": lambda t: dataclasses.replace(t, structure="cf3"),
+    # read by the runtime too: Q, R (gains recomputed for another arrival pattern), P (--std),
+    # the state names (the estimate columns) and whether the gains are Kalman gains
+    "Q": lambda t: dataclasses.replace(t, Q=t.Q * 1.01),
+    "R": lambda t: dataclasses.replace(t, R=t.R * 0.99),
+    "P": lambda t: dataclasses.replace(t, P=[P * 1.01 for P in t.P]),
+    "P_filtered": lambda t: dataclasses.replace(t, P_filtered=[P * 1.01 for P in t.P_filtered]),
+    "states": lambda t: dataclasses.replace(t, states=t.states[::-1]),
+    "kalman": lambda t: dataclasses.replace(t, provenance={**t.provenance, "solver": {"method": "fixed"}}),
 }
 
 
