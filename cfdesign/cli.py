@@ -460,7 +460,8 @@ def main(argv=None) -> int:
     debug = "--debug" in argv
     try:
         args = build_parser(argv).parse_args(argv)
-        return args.run(args)
+        with _quiet_arithmetic(debug):
+            return args.run(args)
     except CfdesignError as exc:
         _error(exc)
         return exc.exit_code
@@ -476,6 +477,18 @@ def main(argv=None) -> int:
         print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
               "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
         return InternalError.exit_code
+
+
+def _quiet_arithmetic(debug):
+    """numpy's overflow and invalid-value warnings off: what they would say, a check or a named error
+    says on one line (``--debug`` shows them)."""
+    import contextlib
+
+    if debug:
+        return contextlib.nullcontext()
+    import numpy as np
+
+    return np.errstate(all="ignore")
 
 
 def _one_line(text: str, limit: int = 300) -> str:

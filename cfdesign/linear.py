@@ -678,7 +678,8 @@ def identity_residual(bands: dict) -> float:
     -------
     float
         0 for an exact identity, about the rounding level for a numerically complementary
-        set; ``cfdesign verify`` requires at most 1e-12.
+        set; ``cfdesign verify`` requires at most 1e-12.  ``inf`` when the coefficients overflow
+        (never NaN, which every tolerance test would pass).
 
     Examples
     --------
@@ -697,7 +698,8 @@ def identity_residual(bands: dict) -> float:
         term = np.convolve(num, _product(others))
         total = np.polyadd(total, term)
         scale = max(scale, np.abs(term).max())
-    return float(np.abs(total).max(initial=0.0) / scale)
+    residual = float(np.abs(total).max(initial=0.0) / scale)
+    return residual if np.isfinite(residual) else np.inf  # coefficients that overflowed are no identity
 
 
 def _product(polys):

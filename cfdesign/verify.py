@@ -151,7 +151,8 @@ def _grid_error(table, phase: int = 0) -> float:
 def _complementarity(table) -> list:
     worst, worst_phase = 0.0, 0
     for k in range(len(table.K)):
-        residual = linear.identity_residual(band_polynomials(table, k)[0])
+        with np.errstate(over="ignore", invalid="ignore"):
+            residual = linear.identity_residual(band_polynomials(table, k)[0])
         if residual > worst:
             worst, worst_phase = residual, k
     ok = worst <= IDENTITY_RTOL
@@ -170,18 +171,24 @@ def _complementarity(table) -> list:
 def _stability(table) -> Check:
     maps = [linear.closed_loop(table.F, table.H, K, table.gain_form) for K in table.K]
     if len(maps) == 1:
-        eig = np.linalg.eigvals(maps[0])
+        eig = _eigvals(maps[0])
         what, margin = "closed-loop poles", (eig.real.max() if table.domain == "s" else np.abs(eig).max())
         ok = margin < 0 if table.domain == "s" else margin < 1
         bound = "max real part" if table.domain == "s" else "spectral radius"
     else:
         Phi = np.eye(len(table.F))
-        for A in maps:
-            Phi = A @ Phi
-        eig = np.linalg.eigvals(Phi)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for A in maps:
+                Phi = A @ Phi
+        eig = _eigvals(Phi)
         what, bound, margin = "monodromy multipliers", "spectral radius", np.abs(eig).max()
         ok = margin < 1
     return Check(f"stable ({what})", bool(ok), f"{bound} {margin:.6g}")
+
+
+def _eigvals(M) -> np.ndarray:
+    """Eigenvalues of ``M``; ``[inf]`` when it overflowed (a product of phases that grows without bound)."""
+    return np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.array([np.inf])
 
 
 #: what a gain table holds that changes what the runtime computes, besides the numbers (``states``

@@ -287,3 +287,45 @@ def test_zero_size_riccati_data_is_a_named_error(solver, capfd):
     with pytest.raises(RiccatiError, match="0x0: a Riccati equation needs at least one state"):
         getattr(ric, solver)(np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)))
     assert "DGGES" not in capfd.readouterr().err  # no raw LAPACK message
+
+
+# ---------------------------------------------------------------------- found by a second pass
+@FUZZ
+@given(key=st.sampled_from(["F", "B", "H", "K", "Q", "R", "P", "rate_hz", "sample_time_s", "order"]),
+       value=st.sampled_from([10 ** 400, -(10 ** 400), 1e300, 5e-324, 1e-300, 2.0 ** 63]))
+def test_out_of_range_table_numbers_are_named_or_fail_verify(heading, position, tmp_path_factory, key, value):
+    from conftest import run_cli
+
+    for table in (heading, position):
+        d = json.loads(table.to_json())
+        if key in ("rate_hz", "order"):
+            d["sensors"][0][key] = value
+        elif key == "sample_time_s":
+            d[key] = value
+        else:
+            row = d[key][0] if key in ("K", "P") else d[key]
+            row[-1][0] = value
+        path = tmp_path_factory.mktemp("t") / "g.json"
+        path.write_text(json.dumps(d))
+        code, out, err = run_cli("verify", path)
+        assert code in (0, 1, 2), (key, value, err)
+        assert code != 0 or abs(value) < 1 or key in ("P", "Q", "R"), (key, value, out)  # no PASS of a huge one
+        assert "internal error" not in err and len(err.strip().splitlines()) <= 1, (key, value, err)
+
+
+def test_an_overflowing_identity_is_no_identity():
+    from cfdesign.linear import identity_residual
+
+    assert identity_residual({"a": ([np.nan], [1.0]), "b": ([1.0], [1.0])}) == np.inf
+
+
+@pytest.mark.parametrize("rate", [1e300, 1e-300, float("nan")])
+def test_discretize_refuses_rates_beyond_the_limits(tmp_path, cli, rate):
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save(tmp_path / "c.json")
+    code, _, err = cli("discretize", table, "--rate-hz", rate, "-o", tmp_path / "d.json")
+    assert code == 2 and "--rate-hz" in err
+    d = json.loads((tmp_path / "c.json").read_text())
+    d["F"][1][1] = -1e300
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 50, "-o", tmp_path / "d.json")
+    assert code == 2 and "overflows" in err and not (tmp_path / "d.json").exists()
