@@ -329,3 +329,11 @@ def test_discretize_refuses_rates_beyond_the_limits(tmp_path, cli, rate):
     (tmp_path / "c.json").write_text(json.dumps(d))
     code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 50, "-o", tmp_path / "d.json")
     assert code == 2 and "overflows" in err and not (tmp_path / "d.json").exists()
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/mem"), reason="needs /proc/self/mem (a file whose read fails)")
+@pytest.mark.parametrize("command", [["noise", "/proc/self/mem", "--column", "a", "--rate-hz", "5"],
+                                     ["verify", "/proc/self/mem"], ["design", "/proc/self/mem"]])
+def test_a_read_that_fails_after_the_open_is_a_named_error(cli, command):
+    code, _, err = cli(*command)
+    assert code == 2 and "cannot read" in err and "/proc/self/mem: Input/output error" in err
