@@ -38,6 +38,9 @@ MAX_PERIOD = 10_000
 MAX_STATES = 500
 #: highest derivative order a sensor may read (cfn has at most 7 bands: orders 0 to 6)
 MAX_ORDER = 6
+#: largest magnitude of a table's matrix entries: with states within the runtime's
+#: :data:`~cfdesign.runtime.filter.STATE_LIMIT` (the same) no product of one step can overflow
+MAX_ENTRY = 1e150
 #: sample times and rates a table may have (seconds, hertz): beyond them the frequency grid and
 #: the ZOH relations lose every digit
 MAX_RATE_HZ = 1e9
@@ -920,6 +923,9 @@ def _array(value, shape, what) -> np.ndarray:
     _shape_of(a, shape, what)
     if not np.isfinite(a).all():
         raise GainTableError(f"{what} has a value that is not finite")
+    if a.size and np.abs(a).max() > MAX_ENTRY:
+        raise GainTableError(f"{what} has an entry of magnitude {np.abs(a).max():.3g}, beyond the limit "
+                             f"{MAX_ENTRY:g} of a filter's numbers")
     return a
 
 

@@ -109,7 +109,8 @@ def test_bad_readings_are_missing_counted_and_never_spread(heading, data):
 
 
 @FUZZ
-@given(state=st.fixed_dictionaries({"x": st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3),
+@given(state=st.fixed_dictionaries({"x": st.lists(st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [1.7e308, -1e200, 1e150]), max_size=3),
                                     "phase": st.one_of(st.integers(-2, 3), st.floats(), st.booleans(), st.text()),
                                     "u_last": st.lists(st.floats(), max_size=2)}))
 def test_restore_validates_what_it_is_given(heading, state):
@@ -121,6 +122,17 @@ def test_restore_validates_what_it_is_given(heading, state):
         assert rt.state() == before
         return
     assert np.all(np.isfinite(rt.x)) and rt.phase == 0
+    for _ in range(3):  # a state it accepts cannot overflow (1.7e308 did: every estimate NaN)
+        rt.step(gyro=0.0, compass=0.1, odometry=0.1)
+    assert np.all(np.isfinite(rt.x))
+
+
+def test_table_entries_beyond_the_limit_are_named(heading, tmp_path):
+    d = json.loads(heading.to_json())
+    d["F"][0][1] = 1e200
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    with pytest.raises(GainTableError, match=r"F has an entry of magnitude 1e\+200, beyond the limit"):
+        load_gains(tmp_path / "g.json")
 
 
 @pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
