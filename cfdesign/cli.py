@@ -13,7 +13,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import CfdesignError, GainError, InternalError, SpecError
-from .files import write_files
+from .files import check_distinct, write_files
 
 __all__ = ["main", "parse_gains"]
 
@@ -121,6 +121,7 @@ def cmd_design(args) -> int:
     if args.spec and args.example:
         raise CfdesignError("give a design file or --example, not both")
     path = args.spec or example_path(args.example or "robot-heading")
+    check_distinct({"the design file": path, "-o": args.output, "--bode": args.bode})
     spec = load_spec(path)
     try:
         table = design(spec)
@@ -190,6 +191,7 @@ def _summary(table) -> str:
 def cmd_export(args) -> int:
     from .gains import load_gains
 
+    check_distinct({"the gain table": args.table, "-o": args.output})
     table = load_gains(args.table)
     if args.format == "json":
         written = [table.save(args.output)]
@@ -226,9 +228,8 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import run_log, run_logs
 
+    check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
-    if Path(args.output).resolve() == Path(args.table).resolve():
-        raise CfdesignError(f"-o {args.output} is the gain table: the estimates would replace it")
     logs = _log_paths(args.data)
     options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
@@ -294,6 +295,7 @@ def cmd_noise(args) -> int:
         raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
     if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
         raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    check_distinct({"the log": args.log, "-o": args.output, "--plot": args.plot})
     columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
     if not columns:
         raise CfdesignError("cfdesign noise: name at least one --column")
@@ -316,6 +318,7 @@ def cmd_discretize(args) -> int:
     from .discretize import discretize_table
     from .gains import load_gains
 
+    check_distinct({"the gain table": args.table, "-o": args.output})
     table = discretize_table(load_gains(args.table), args.rate_hz, args.gain_form)
     print(_summary(table))
     for path in write_files({args.output: table.to_json()}):

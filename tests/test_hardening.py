@@ -349,3 +349,34 @@ def test_discretize_refuses_rates_beyond_the_limits(tmp_path, cli, rate):
 def test_a_read_that_fails_after_the_open_is_a_named_error(cli, command):
     code, _, err = cli(*command)
     assert code == 2 and "cannot read" in err and "/proc/self/mem: Input/output error" in err
+
+
+@pytest.mark.parametrize("roles", [("-o", "--bode"), ("-o", "spec")])
+def test_one_file_for_two_roles_is_refused_and_nothing_is_lost(tmp_path, cli, roles):
+    spec = tmp_path / "d.toml"
+    spec.write_text(cfdesign.example_path("cf3").read_text())
+    target = tmp_path / "x.png"
+    target.write_bytes(b"previous")
+    paths = {"-o": target, "--bode": target, "spec": spec}
+    argv = ["design", spec] + [a for r in roles if r != "spec" for a in (r, paths[r])]
+    if "spec" in roles:
+        argv += ["--bode", spec]
+    code, _, err = cli(*argv)
+    assert code == 2 and "one file for both" in err
+    assert target.read_bytes() == b"previous" and spec.read_text() == cfdesign.example_path("cf3").read_text()
+
+
+def test_run_and_noise_refuse_an_output_that_is_another(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    log = tmp_path / "log.csv"
+    log.write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.0,0.0\n" for k in range(40)))
+    (tmp_path / "link.json").symlink_to(table)
+    for argv in (["run", table, log, "-o", tmp_path / "e.png", "--plot", tmp_path / "e.png"],
+                 ["run", tmp_path / "link.json", log, "-o", table],
+                 ["noise", log, "--column", "gyro", "--rate-hz", 5, "-o", tmp_path / "n.png", "--plot",
+                  tmp_path / "n.png"],
+                 ["discretize", table, "--rate-hz", 5, "-o", table],
+                 ["export", table, "--format", "csv", "-o", tmp_path / "link.json"]):
+        code, _, err = cli(*argv)
+        assert code == 2 and "one file for both" in err, (argv, err)
+    assert cfdesign.load_gains(table).name == heading.name and not (tmp_path / "e.png").exists()
