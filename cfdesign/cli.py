@@ -460,7 +460,14 @@ def main(argv=None) -> int:
     0
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    debug = "--debug" in argv
+    stdout, sys.stdout = sys.stdout, _PipeSafe(sys.stdout)  # a closed pipe must not stop the writes
+    try:
+        return _main(argv, "--debug" in argv)
+    finally:
+        sys.stdout = stdout
+
+
+def _main(argv, debug) -> int:
     try:
         args = build_parser(argv).parse_args(argv)
         with _quiet_arithmetic(debug):
@@ -503,6 +510,37 @@ def _one_line(text: str, limit: int = 300) -> str:
 def _error(exc):
     message = _one_line(str(exc), 2000)
     print(message if message.startswith("cfdesign") else f"cfdesign: error: {message}", file=sys.stderr)
+
+
+class _PipeSafe:
+    """stdout that goes quiet when its reader has gone (``cfdesign design -o g.json | head -c1``):
+    the command still writes its files (a summary printed first to a closed pipe stopped
+    design, noise and discretize before their outputs, with exit status 0)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def _gone(self):
+        import io
+
+        _quiet_stdout()
+        self._stream = io.StringIO()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _quiet_stdout():

@@ -380,3 +380,28 @@ def test_run_and_noise_refuse_an_output_that_is_another(heading, tmp_path, cli):
         code, _, err = cli(*argv)
         assert code == 2 and "one file for both" in err, (argv, err)
     assert cfdesign.load_gains(table).name == heading.name and not (tmp_path / "e.png").exists()
+
+
+@pytest.mark.parametrize("argv, outputs", [
+    (["design", "--example", "cf3", "-o", "g.json", "--bode", "b.png"], ["g.json", "b.png"]),
+    (["discretize", "c.json", "--rate-hz", "50", "-o", "d.json"], ["d.json"])])
+def test_a_closed_pipe_on_stdout_does_not_stop_the_writes(tmp_path, monkeypatch, argv, outputs):
+    import sys
+
+    from cfdesign.cli import main
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+        def fileno(self):
+            raise ValueError("no file")  # _quiet_stdout has nothing to redirect
+
+    monkeypatch.chdir(tmp_path)
+    cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save("c.json")
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(argv) == 0
+    assert all((tmp_path / name).stat().st_size > 0 for name in outputs)
