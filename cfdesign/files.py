@@ -49,8 +49,8 @@ def check_distinct(named: dict):
 def _same(a: Path, b: Path) -> bool:
     try:
         return os.path.samefile(a, b)
-    except OSError:  # one does not exist yet
-        return a.resolve() == b.resolve()
+    except OSError:  # one does not exist yet (or is a symlink loop, which resolve() refuses)
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 def _umask_mode() -> int:

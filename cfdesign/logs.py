@@ -874,7 +874,10 @@ def _run_one(table_json, path, target, options):
     from .gains import GainTable
 
     table = GainTable.from_dict(json.loads(table_json))
-    return run_log(table, path, output=target, source=path, **options).summary()
+    try:
+        return run_log(table, path, output=target, source=path, **options).summary()
+    except CfdesignError as exc:  # a bad log is a result (a row of the summary), not a failed task that Dask
+        return {"log": path, "samples": 0, "error": _first_line(exc)}  # logs with its traceback on stderr
 
 
 def _summary_csv(rows) -> str:

@@ -405,3 +405,19 @@ def test_a_closed_pipe_on_stdout_does_not_stop_the_writes(tmp_path, monkeypatch,
     monkeypatch.setattr(sys, "stdout", Closed())
     assert main(argv) == 0
     assert all((tmp_path / name).stat().st_size > 0 for name in outputs)
+
+
+def test_a_symlink_loop_as_output_is_a_named_error(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    (tmp_path / "loop.json").symlink_to(tmp_path / "loop.json")
+    for fmt in ("json", "csv", "c"):
+        code, _, err = cli("export", table, "--format", fmt, "-o", tmp_path / "loop.json")
+        assert code in (0, 2) and "internal" not in err, err  # the loop is replaced by the file
+
+
+def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp_path):
+    from cfdesign.logs import _run_one
+
+    (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
+    row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
+    assert row["samples"] == 0 and "missing column(s) gyro" in row["error"]
