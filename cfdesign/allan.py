@@ -736,6 +736,8 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
             raise DataError(f"{path}: empty file (expected a header naming the columns)") from None
         except (UnicodeDecodeError, csv.Error) as exc:
             raise DataError(f"{path}: not a readable CSV file: {exc}") from None
+        except OSError as exc:  # a read that fails after the open (EIO, a device)
+            raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
         missing = [c for c in wanted if c not in header]
         if missing:
             raise DataError(f"{path}: no column {_comment(missing[0])!r} (header: "
@@ -763,6 +765,8 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
                     values[j].append(v)
         except (UnicodeDecodeError, csv.Error) as exc:
             raise DataError(f"{path} line {line}: not readable CSV: {exc}") from None
+        except OSError as exc:
+            raise DataError(f"cannot read {path} (line {line}): {exc.strerror or exc}") from None
     data = {c: np.array(v) for c, v in zip(wanted, values, strict=True)}
     rate = None
     if time_column:

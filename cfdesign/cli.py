@@ -13,7 +13,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import CfdesignError, GainError, InternalError, SpecError
-from .files import write_files
+from .files import check_distinct, write_files
 
 __all__ = ["main", "parse_gains"]
 
@@ -121,6 +121,7 @@ def cmd_design(args) -> int:
     if args.spec and args.example:
         raise CfdesignError("give a design file or --example, not both")
     path = args.spec or example_path(args.example or "robot-heading")
+    check_distinct({"the design file": path, "-o": args.output, "--bode": args.bode})
     spec = load_spec(path)
     try:
         table = design(spec)
@@ -214,6 +215,7 @@ def _std_text(table, output: str) -> str:
 def cmd_export(args) -> int:
     from .gains import load_gains
 
+    check_distinct({"the gain table": args.table, "-o": args.output})
     table = load_gains(args.table)
     if args.format == "json":
         written = [table.save(args.output)]
@@ -250,9 +252,8 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import run_log, run_logs
 
+    check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
-    if Path(args.output).resolve() == Path(args.table).resolve():
-        raise CfdesignError(f"-o {args.output} is the gain table: the estimates would replace it")
     logs = _log_paths(args.data)
     options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
@@ -319,6 +320,7 @@ def cmd_noise(args) -> int:
         raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
     if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
         raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    check_distinct({"the log": args.log, "-o": args.output, "--plot": args.plot})
     columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
     if not columns:
         raise CfdesignError("cfdesign noise: name at least one --column")
@@ -341,6 +343,7 @@ def cmd_discretize(args) -> int:
     from .discretize import discretize_table
     from .gains import load_gains
 
+    check_distinct({"the gain table": args.table, "-o": args.output})
     table = discretize_table(load_gains(args.table), args.rate_hz, args.gain_form)
     print(_summary(table))
     for path in write_files({args.output: table.to_json()}):
@@ -482,10 +485,18 @@ def main(argv=None) -> int:
     0
     """
     argv = sys.argv[1:] if argv is None else list(argv)
-    debug = "--debug" in argv
+    stdout, sys.stdout = sys.stdout, _PipeSafe(sys.stdout)  # a closed pipe must not stop the writes
+    try:
+        return _main(argv, "--debug" in argv)
+    finally:
+        sys.stdout = stdout
+
+
+def _main(argv, debug) -> int:
     try:
         args = build_parser(argv).parse_args(argv)
-        return args.run(args)
+        with _quiet_arithmetic(debug):
+            return args.run(args)
     except CfdesignError as exc:
         _error(exc)
         return exc.exit_code
@@ -503,6 +514,18 @@ def main(argv=None) -> int:
         return InternalError.exit_code
 
 
+def _quiet_arithmetic(debug):
+    """numpy's overflow and invalid-value warnings off: what they would say, a check or a named error
+    says on one line (``--debug`` shows them)."""
+    import contextlib
+
+    if debug:
+        return contextlib.nullcontext()
+    import numpy as np
+
+    return np.errstate(all="ignore")
+
+
 def _one_line(text: str, limit: int = 300) -> str:
     """Text safe to print on one line: control characters replaced, length capped."""
     text = "".join(c if c.isprintable() else " " for c in text)
@@ -512,6 +535,37 @@ def _one_line(text: str, limit: int = 300) -> str:
 def _error(exc):
     message = _one_line(str(exc), 2000)
     print(message if message.startswith("cfdesign") else f"cfdesign: error: {message}", file=sys.stderr)
+
+
+class _PipeSafe:
+    """stdout that goes quiet when its reader has gone (``cfdesign design -o g.json | head -c1``):
+    the command still writes its files (a summary printed first to a closed pipe stopped
+    design, noise and discretize before their outputs, with exit status 0)."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def _gone(self):
+        import io
+
+        _quiet_stdout()
+        self._stream = io.StringIO()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _quiet_stdout():

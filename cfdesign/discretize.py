@@ -28,14 +28,13 @@ numpy and scipy only.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 
 from . import linear
 from .errors import GainTableError
-from .gains import GainTable, Schedule, SensorPort
+from .gains import MAX_RATE_HZ, GainTable, Schedule, SensorPort
 from .noise import van_loan, zoh
 
 __all__ = ["discretize_table", "innovation_hold"]
@@ -91,15 +90,19 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     if table.domain != "s":
         raise GainTableError(f"{table.name} is already discrete (T = {table.sample_time_s:g} s); discretize "
                              "takes a continuous table")
-    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (math.isfinite(rate_hz)
-                                                                                  and rate_hz > 0):
-        raise GainTableError(f"--rate-hz must be a positive number of hertz, got {rate_hz!r}")
+    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
+            1 / MAX_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
+        raise GainTableError(f"--rate-hz must be a positive number of hertz (from {1 / MAX_RATE_HZ:g} to "
+                             f"{MAX_RATE_HZ:g}), got {rate_hz!r}")
     if gain_form not in ("predictor", "filter"):
         raise GainTableError(f"gain form must be predictor or filter, got {gain_form!r}")
     _check_single_rate(table)
     T = 1.0 / rate_hz
     F, B = zoh(table.F, table.B, T)
     Kp = innovation_hold(table.F, T) @ table.K[0]
+    if not all(np.isfinite(M).all() for M in (F, B, Kp)):
+        raise GainTableError(f"{table.name}: at {rate_hz:g} Hz the discretised model overflows (expm(F T) is not "
+                             "finite): the continuous model is far faster than the step")
     K = Kp if gain_form == "predictor" else np.linalg.solve(F, Kp)
     eig = np.linalg.eigvals(linear.closed_loop(F, table.H, K, gain_form))
     if not linear.is_stable(eig, "z"):

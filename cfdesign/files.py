@@ -20,7 +20,37 @@ from pathlib import Path
 
 from .errors import OutputError
 
-__all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic"]
+__all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct"]
+
+
+def check_distinct(named: dict):
+    """Refuse a command whose files name one file twice (an output that is an input or another
+    output would replace it: ``-o x.png --bode x.png`` lost the gain table).
+
+    Parameters
+    ----------
+    named : dict
+        ``{role: path}`` (``'-o'``, ``'--plot'``, ``'the gain table'``); ``None`` paths are skipped.
+        Paths are the same when they resolve to one path or name one existing file (links).
+
+    Raises
+    ------
+    OutputError
+        Two roles name the same file; the message names both.
+    """
+    items = [(role, Path(path)) for role, path in named.items() if path is not None and str(path) != ""]
+    for i, (role, path) in enumerate(items):
+        for other, earlier in items[:i]:
+            if _same(path, earlier):
+                raise OutputError(f"{role} {path} is {other} {earlier}: one file for both, one would replace the "
+                                  "other")
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist yet (or is a symlink loop, which resolve() refuses)
+        return os.path.realpath(a) == os.path.realpath(b)
 
 
 def _umask_mode() -> int:
@@ -46,8 +76,9 @@ def write_files(contents: dict) -> list:
     ------
     OutputError
         A target cannot be written (its directory is missing or read-only, it is a directory,
-        the disk is full); no target was changed.
+        the disk is full) or two targets are one file; no target was changed.
     """
+    check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
     staged = []
     try:
         for path, data in contents.items():

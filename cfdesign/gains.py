@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import keyword
-import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -37,6 +36,14 @@ __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "sch
 MAX_TABLE_BYTES = 64_000_000
 MAX_PERIOD = 10_000
 MAX_STATES = 500
+#: highest derivative order a sensor may read (cfn has at most 7 bands: orders 0 to 6)
+MAX_ORDER = 6
+#: largest magnitude of a table's matrix entries: with states within the runtime's
+#: :data:`~cfdesign.runtime.filter.STATE_LIMIT` (the same) no product of one step can overflow
+MAX_ENTRY = 1e150
+#: sample times and rates a table may have (seconds, hertz): beyond them the frequency grid and
+#: the ZOH relations lose every digit
+MAX_RATE_HZ = 1e9
 
 #: version of the JSON layout written by :meth:`GainTable.save`
 FORMAT_VERSION = 1
@@ -79,6 +86,7 @@ def validate(data: dict, source: str = "gain table"):
         message names the field.
     """
     _check_sizes(data, source)
+    _check_numbers(data, source)
     _check_schema(data, source)
     return GainTable._from_json(data, source)
 
@@ -92,6 +100,19 @@ def _check_sizes(d, source):
         raise GainTableError(f"{source}: a period of {period} phases is more than {MAX_PERIOD}")
     if n > MAX_STATES:
         raise GainTableError(f"{source}: {n} states is more than {MAX_STATES}")
+
+
+def _check_numbers(value, source, where=""):
+    """Refuse a number that is not a finite double (an integer of 400 digits) before any use."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _check_numbers(item, source, f"{where}/{key}" if where else str(key))
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            _check_numbers(item, source, f"{where}/{i}")
+    elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2 ** 1023:
+        raise GainTableError(f"{source}: {where or '(top level)'}: {str(value)[:20]}... is beyond the range of a "
+                             "double")
 
 
 def _check_schema(data, source):
@@ -114,10 +135,10 @@ def _check_table(t, source):
     if (t.domain == "s") != (t.gain_form == "continuous"):
         raise GainTableError(f"{source}: gain_form {t.gain_form!r} does not go with domain {t.domain!r}")
     dt = t.sample_time_s
-    if t.domain == "z" and not (isinstance(dt, (int, float)) and not isinstance(dt, bool) and math.isfinite(dt)
-                                and dt > 0):
-        raise GainTableError(f"{source}: sample_time_s must be a positive number of seconds for a discrete "
-                             f"table, got {dt!r}")
+    if t.domain == "z" and not (isinstance(dt, (int, float)) and not isinstance(dt, bool)
+                                and 1 / MAX_RATE_HZ <= dt <= MAX_RATE_HZ):
+        raise GainTableError(f"{source}: sample_time_s must be a positive number of seconds (from {1 / MAX_RATE_HZ:g} "
+                             f"to {MAX_RATE_HZ:g}) for a discrete table, got {dt!r}")
     if len(t.K) > MAX_PERIOD:
         raise GainTableError(f"{source}: a period of {len(t.K)} phases is more than {MAX_PERIOD}")
     n = np.shape(t.F)[0] if np.ndim(t.F) == 2 else 0
@@ -147,9 +168,11 @@ def _check_ports(ports, p, m, source):
     for s in ports:
         if not (isinstance(s.name, str) and s.name.isascii() and s.name.isidentifier()) or keyword.iskeyword(s.name):
             raise GainTableError(f"{source}: sensors: name {s.name!r} is not an ASCII identifier (or is a keyword)")
-        if s.role not in ("input", "measurement") or s.order < 0 or not s.rate_hz > 0:
-            raise GainTableError(f"{source}: sensors.{s.name}: role {s.role!r}, order {s.order}, "
-                                 f"rate {s.rate_hz} Hz is not a valid port")
+        if (s.role not in ("input", "measurement") or not 0 <= s.order <= MAX_ORDER
+                or not 1 / MAX_RATE_HZ <= s.rate_hz <= MAX_RATE_HZ):
+            raise GainTableError(f"{source}: sensors.{s.name}: role {s.role!r}, order {str(s.order)[:20]}, "
+                                 f"rate {s.rate_hz} Hz is not a valid port (order 0 to {MAX_ORDER}, rate "
+                                 f"{1 / MAX_RATE_HZ:g} to {MAX_RATE_HZ:g} Hz)")
     for role, count in (("input", p), ("measurement", m)):
         idx = sorted(s.index for s in ports if s.role == role)  # listed in any order
         if idx != list(range(count)):
@@ -900,6 +923,9 @@ def _array(value, shape, what) -> np.ndarray:
     _shape_of(a, shape, what)
     if not np.isfinite(a).all():
         raise GainTableError(f"{what} has a value that is not finite")
+    if a.size and np.abs(a).max() > MAX_ENTRY:
+        raise GainTableError(f"{what} has an entry of magnitude {np.abs(a).max():.3g}, beyond the limit "
+                             f"{MAX_ENTRY:g} of a filter's numbers")
     return a
 
 

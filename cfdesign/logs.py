@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CfdesignError, DataError, OutputError
-from .files import open_atomic, write_bytes, write_text
+from .files import check_distinct, open_atomic, write_bytes, write_text
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
@@ -362,6 +362,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     frame, source = _source(data, source)
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
+    check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference)
     _check_output_names(table, cols, std, source)

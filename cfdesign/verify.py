@@ -182,7 +182,8 @@ _UNDECIDED_FACTOR = 10.0
 def _complementarity(table) -> list:
     worst, worst_phase = 0.0, 0
     for k in range(len(table.K)):
-        residual = linear.identity_residual(band_polynomials(table, k)[0])
+        with np.errstate(over="ignore", invalid="ignore"):
+            residual = linear.identity_residual(band_polynomials(table, k)[0])
         if not residual <= worst:
             worst, worst_phase = residual, k
     ok = worst <= IDENTITY_RTOL
@@ -209,22 +210,36 @@ def _complementarity(table) -> list:
 def _stability(table) -> Check:
     maps = [linear.closed_loop(table.F, table.H, K, table.gain_form) for K in table.K]
     if len(maps) == 1:
-        eig = np.linalg.eigvals(maps[0])
+        eig = _eigvals(maps[0])
         what, margin = "closed-loop poles", (eig.real.max() if table.domain == "s" else np.abs(eig).max())
         ok = margin < 0 if table.domain == "s" else margin < 1
         bound = "max real part" if table.domain == "s" else "spectral radius"
     else:
         Phi = np.eye(len(table.F))
-        for A in maps:
-            Phi = A @ Phi
-        eig = np.linalg.eigvals(Phi)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for A in maps:
+                Phi = A @ Phi
+        eig = _eigvals(Phi)
         what, bound, margin = "monodromy multipliers", "spectral radius", np.abs(eig).max()
         ok = margin < 1
     return Check(f"stable ({what})", bool(ok), f"{bound} {margin:.6g}")
 
 
-#: what a gain table holds that changes what the runtime computes, besides the numbers
-_RUNNING_FIELDS = ("structure", "domain", "gain_form", "output", "wrap_angle", "sensors", "schedule")
+def _eigvals(M) -> np.ndarray:
+    """Eigenvalues of ``M``; ``[inf]`` when it overflowed (a product of phases that grows without bound)."""
+    return np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.array([np.inf])
+
+
+#: what a gain table holds that changes what the runtime computes, besides the numbers (``states``
+#: names the estimate columns and the references; whether the gains are Kalman gains decides
+#: whether a log whose sensors arrive off the schedule gets gains recomputed from ``Q, R``)
+_RUNNING_FIELDS = ("structure", "domain", "gain_form", "output", "wrap_angle", "sensors", "schedule", "states",
+                   "kalman_gains")
+
+#: matrices the runtime reads besides the gains: the model, the noise ``Q, R`` (gains recomputed
+#: for another arrival pattern) and the covariances ``P, P_filtered`` (``--std`` and the plot's band)
+_MODEL = ("F", "B", "H", "Q", "R")
+_COVARIANCES = ("P", "P_filtered")
 
 
 def _same_design(table, spec, rtol) -> list:
@@ -234,25 +249,40 @@ def _same_design(table, spec, rtol) -> list:
     from .designer import design
 
     fresh = design(spec)
-    checks = [Check(f"spec: {name}", False, f"the table has {_show(getattr(table, name))}, the spec gives "
-                    f"{_show(getattr(fresh, name))}")
-              for name in _RUNNING_FIELDS if getattr(table, name) != getattr(fresh, name)]
+    checks = [Check(f"spec: {name}", False, f"the table has {_show(_field(table, name))}, the spec gives "
+                    f"{_show(_field(fresh, name))}")
+              for name in _RUNNING_FIELDS if _field(table, name) != _field(fresh, name)]
     if (table.sample_time_s is None) != (fresh.sample_time_s is None) or (
             table.sample_time_s and abs(table.sample_time_s - fresh.sample_time_s) > rtol * fresh.sample_time_s):
         checks.append(Check("spec: sample_time_s", False, f"the table has {table.sample_time_s!r} s, the spec gives "
                             f"{fresh.sample_time_s!r} s"))
     if checks:  # different filters: comparing their numbers says nothing more
         return checks
-    model = max(_relative(getattr(fresh, m), getattr(table, m)) for m in ("F", "B", "H"))
+    model = max(((_relative(getattr(fresh, m), getattr(table, m)), m) for m in _MODEL), key=lambda w: w[0])
+    cov = max(((_relative(getattr(fresh, m)[k], getattr(table, m)[k]), f"{m}[{k}]") for m in _COVARIANCES
+               for k in range(table.period)), key=lambda w: w[0])
     worst = max((_worst_gain(fresh, table, k) for k in range(table.period)), key=lambda w: w[0])
-    ok = model <= rtol and worst[0] <= rtol
-    detail = f"max relative difference: gains {worst[0]:.2e}{worst[1]}; model {model:.2e}; tolerance {rtol:g}"
+    ok = max(model[0], cov[0], worst[0]) <= rtol
+    detail = (f"max relative difference: gains {worst[0]:.2e}{worst[1]}; model {model[0]:.2e}"
+              f"{_at(model)}; covariances {cov[0]:.2e}{_at(cov)}; tolerance {rtol:g}")
     checks = [Check("gains match the spec", ok, detail)]
     if spec.sha256 and table.provenance.get("spec_sha256") not in ("", spec.sha256):
         checks.append(Check("spec hash (note)", True, "the spec file differs from the one the table was designed "
                             "from (same gains, so only comments or formatting changed)"
                             if ok else "the spec file differs from the one the table was designed from"))
     return checks
+
+
+def _field(table, name):
+    if name == "kalman_gains":
+        from .designer import has_kalman_gains
+
+        return has_kalman_gains(table)
+    return getattr(table, name)
+
+
+def _at(worst) -> str:
+    return f" (in {worst[1]})" if worst[0] > 0 else ""
 
 
 def _relative(a, b) -> float:

@@ -49,6 +49,14 @@ MUTATIONS = {
     "rate": lambda t: dataclasses.replace(t, sensors=tuple(dataclasses.replace(s, rate_hz=s.rate_hz * 2)
                                                            if s.name == "gyro" else s for s in t.sensors)),
     "structure": lambda t: dataclasses.replace(t, structure="cf3"),
+    # read by the runtime too: Q, R (gains recomputed for another arrival pattern), P (--std),
+    # the state names (the estimate columns) and whether the gains are Kalman gains
+    "Q": lambda t: dataclasses.replace(t, Q=t.Q * 1.01),
+    "R": lambda t: dataclasses.replace(t, R=t.R * 0.99),
+    "P": lambda t: dataclasses.replace(t, P=[P * 1.01 for P in t.P]),
+    "P_filtered": lambda t: dataclasses.replace(t, P_filtered=[P * 1.01 for P in t.P_filtered]),
+    "states": lambda t: dataclasses.replace(t, states=t.states[::-1]),
+    "kalman": lambda t: dataclasses.replace(t, provenance={**t.provenance, "solver": {"method": "fixed"}}),
 }
 
 
@@ -101,7 +109,8 @@ def test_bad_readings_are_missing_counted_and_never_spread(heading, data):
 
 
 @FUZZ
-@given(state=st.fixed_dictionaries({"x": st.lists(st.floats(allow_nan=True, allow_infinity=True), max_size=3),
+@given(state=st.fixed_dictionaries({"x": st.lists(st.floats(allow_nan=True, allow_infinity=True) | st.sampled_from(
+    [1.7e308, -1e200, 1e150]), max_size=3),
                                     "phase": st.one_of(st.integers(-2, 3), st.floats(), st.booleans(), st.text()),
                                     "u_last": st.lists(st.floats(), max_size=2)}))
 def test_restore_validates_what_it_is_given(heading, state):
@@ -113,6 +122,17 @@ def test_restore_validates_what_it_is_given(heading, state):
         assert rt.state() == before
         return
     assert np.all(np.isfinite(rt.x)) and rt.phase == 0
+    for _ in range(3):  # a state it accepts cannot overflow (1.7e308 did: every estimate NaN)
+        rt.step(gyro=0.0, compass=0.1, odometry=0.1)
+    assert np.all(np.isfinite(rt.x))
+
+
+def test_table_entries_beyond_the_limit_are_named(heading, tmp_path):
+    d = json.loads(heading.to_json())
+    d["F"][0][1] = 1e200
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    with pytest.raises(GainTableError, match=r"F has an entry of magnitude 1e\+200, beyond the limit"):
+        load_gains(tmp_path / "g.json")
 
 
 @pytest.mark.parametrize("token", ["NaN", "Infinity", "-Infinity"])
@@ -279,3 +299,125 @@ def test_zero_size_riccati_data_is_a_named_error(solver, capfd):
     with pytest.raises(RiccatiError, match="0x0: a Riccati equation needs at least one state"):
         getattr(ric, solver)(np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)))
     assert "DGGES" not in capfd.readouterr().err  # no raw LAPACK message
+
+
+# ---------------------------------------------------------------------- found by a second pass
+@FUZZ
+@given(key=st.sampled_from(["F", "B", "H", "K", "Q", "R", "P", "rate_hz", "sample_time_s", "order"]),
+       value=st.sampled_from([10 ** 400, -(10 ** 400), 1e300, 5e-324, 1e-300, 2.0 ** 63]))
+def test_out_of_range_table_numbers_are_named_or_fail_verify(heading, position, tmp_path_factory, key, value):
+    from conftest import run_cli
+
+    for table in (heading, position):
+        d = json.loads(table.to_json())
+        if key in ("rate_hz", "order"):
+            d["sensors"][0][key] = value
+        elif key == "sample_time_s":
+            d[key] = value
+        else:
+            row = d[key][0] if key in ("K", "P") else d[key]
+            row[-1][0] = value
+        path = tmp_path_factory.mktemp("t") / "g.json"
+        path.write_text(json.dumps(d))
+        code, out, err = run_cli("verify", path)
+        assert code in (0, 1, 2), (key, value, err)
+        assert code != 0 or abs(value) < 1 or key in ("P", "Q", "R"), (key, value, out)  # no PASS of a huge one
+        assert "internal error" not in err and len(err.strip().splitlines()) <= 1, (key, value, err)
+
+
+def test_an_overflowing_identity_is_no_identity():
+    from cfdesign.linear import identity_residual
+
+    assert identity_residual({"a": ([np.nan], [1.0]), "b": ([1.0], [1.0])}) == np.inf
+
+
+@pytest.mark.parametrize("rate", [1e300, 1e-300, float("nan")])
+def test_discretize_refuses_rates_beyond_the_limits(tmp_path, cli, rate):
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save(tmp_path / "c.json")
+    code, _, err = cli("discretize", table, "--rate-hz", rate, "-o", tmp_path / "d.json")
+    assert code == 2 and "--rate-hz" in err
+    d = json.loads((tmp_path / "c.json").read_text())
+    d["F"][1][1] = 1e5  # expm(F T) = e^2000
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 50, "-o", tmp_path / "d.json")
+    assert code == 2 and "overflows" in err and not (tmp_path / "d.json").exists()
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/mem"), reason="needs /proc/self/mem (a file whose read fails)")
+@pytest.mark.parametrize("command", [["noise", "/proc/self/mem", "--column", "a", "--rate-hz", "5"],
+                                     ["verify", "/proc/self/mem"], ["design", "/proc/self/mem"]])
+def test_a_read_that_fails_after_the_open_is_a_named_error(cli, command):
+    code, _, err = cli(*command)
+    assert code == 2 and "cannot read" in err and "/proc/self/mem: Input/output error" in err
+
+
+@pytest.mark.parametrize("roles", [("-o", "--bode"), ("-o", "spec")])
+def test_one_file_for_two_roles_is_refused_and_nothing_is_lost(tmp_path, cli, roles):
+    spec = tmp_path / "d.toml"
+    spec.write_text(cfdesign.example_path("cf3").read_text())
+    target = tmp_path / "x.png"
+    target.write_bytes(b"previous")
+    paths = {"-o": target, "--bode": target, "spec": spec}
+    argv = ["design", spec] + [a for r in roles if r != "spec" for a in (r, paths[r])]
+    if "spec" in roles:
+        argv += ["--bode", spec]
+    code, _, err = cli(*argv)
+    assert code == 2 and "one file for both" in err
+    assert target.read_bytes() == b"previous" and spec.read_text() == cfdesign.example_path("cf3").read_text()
+
+
+def test_run_and_noise_refuse_an_output_that_is_another(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    log = tmp_path / "log.csv"
+    log.write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.0,0.0\n" for k in range(40)))
+    (tmp_path / "link.json").symlink_to(table)
+    for argv in (["run", table, log, "-o", tmp_path / "e.png", "--plot", tmp_path / "e.png"],
+                 ["run", tmp_path / "link.json", log, "-o", table],
+                 ["noise", log, "--column", "gyro", "--rate-hz", 5, "-o", tmp_path / "n.png", "--plot",
+                  tmp_path / "n.png"],
+                 ["discretize", table, "--rate-hz", 5, "-o", table],
+                 ["export", table, "--format", "csv", "-o", tmp_path / "link.json"]):
+        code, _, err = cli(*argv)
+        assert code == 2 and "one file for both" in err, (argv, err)
+    assert cfdesign.load_gains(table).name == heading.name and not (tmp_path / "e.png").exists()
+
+
+@pytest.mark.parametrize("argv, outputs", [
+    (["design", "--example", "cf3", "-o", "g.json", "--bode", "b.png"], ["g.json", "b.png"]),
+    (["discretize", "c.json", "--rate-hz", "50", "-o", "d.json"], ["d.json"])])
+def test_a_closed_pipe_on_stdout_does_not_stop_the_writes(tmp_path, monkeypatch, argv, outputs):
+    import sys
+
+    from cfdesign.cli import main
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+        def fileno(self):
+            raise ValueError("no file")  # _quiet_stdout has nothing to redirect
+
+    monkeypatch.chdir(tmp_path)
+    cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save("c.json")
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(argv) == 0
+    assert all((tmp_path / name).stat().st_size > 0 for name in outputs)
+
+
+def test_a_symlink_loop_as_output_is_a_named_error(heading, tmp_path, cli):
+    table = heading.save(tmp_path / "g.json")
+    (tmp_path / "loop.json").symlink_to(tmp_path / "loop.json")
+    for fmt in ("json", "csv", "c"):
+        code, _, err = cli("export", table, "--format", fmt, "-o", tmp_path / "loop.json")
+        assert code in (0, 2) and "internal" not in err, err  # the loop is replaced by the file
+
+
+def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp_path):
+    from cfdesign.logs import _run_one
+
+    (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
+    row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
+    assert row["samples"] == 0 and "missing column(s) gyro" in row["error"]

@@ -29,7 +29,7 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "READING_LIMIT"]
+__all__ = ["Runtime", "wrap", "usable", "held", "READING_LIMIT", "STATE_LIMIT"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -42,6 +42,9 @@ _NAN = float("nan")
 #: physical: they are treated as missing and counted, like inf, so that they cannot overflow
 #: the state
 READING_LIMIT = 1e12
+#: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
+#: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
+STATE_LIMIT = 1e150
 
 
 def usable(a) -> np.ndarray:
@@ -251,7 +254,8 @@ class Runtime:
         ------
         CfdesignError
             The snapshot does not fit this table (keys, sizes, a phase outside the period) or
-            holds a value that is not a finite number; the runtime is left unchanged.
+            holds a value that is not a finite number (or beyond :data:`STATE_LIMIT`); the runtime
+            is left unchanged.
         """
         x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name)
         self.x, self.phase, self.u_last = x, phase, u_last
@@ -553,8 +557,8 @@ def _snapshot(state, n, period, p, name):
     phase = state["phase"]
     if x.shape != (n,) or u_last.shape != (p,):
         fail(f"x must have {n} entries and u_last {p}")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u_last))):
-        fail("x and u_last must be finite numbers")
+    if not (np.all(np.abs(x) <= STATE_LIMIT) and np.all(np.abs(u_last) <= STATE_LIMIT)):
+        fail(f"x and u_last must be finite numbers of magnitude at most {STATE_LIMIT:g}")
     if isinstance(phase, bool) or not isinstance(phase, (int, np.integer)) or not 0 <= phase < period:
         fail(f"phase must be an integer with 0 <= phase < {period}, got {phase!r}")
     return x, int(phase), u_last
