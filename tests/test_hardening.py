@@ -16,6 +16,7 @@ import cfdesign
 from cfdesign.errors import CfdesignError, GainTableError, SpecError
 from cfdesign.gains import Schedule, load_gains
 from cfdesign.runtime import Runtime
+from cfdesign.spec import parse_spec
 from cfdesign.verify import verify_table
 
 FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -331,9 +332,16 @@ def test_an_overflowing_identity_is_no_identity():
     assert identity_residual({"a": ([np.nan], [1.0]), "b": ([1.0], [1.0])}) == np.inf
 
 
+def single_rate_continuous():
+    """A continuous table whose sensors share one rate (what ``discretize`` takes)."""
+    return cfdesign.design(parse_spec({"structure": "cf2", "order": 2, "sensors": {
+        "rate": {"rate_hz": 100.0, "noise": {"density": 1.7e-3}, "bias": {"model": "random_walk", "density": 2e-4}},
+        "angle": {"rate_hz": 100.0, "noise": {"density": 0.01}}}}))
+
+
 @pytest.mark.parametrize("rate", [1e300, 1e-300, float("nan")])
 def test_discretize_refuses_rates_beyond_the_limits(tmp_path, cli, rate):
-    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save(tmp_path / "c.json")
+    table = single_rate_continuous().save(tmp_path / "c.json")
     code, _, err = cli("discretize", table, "--rate-hz", rate, "-o", tmp_path / "d.json")
     assert code == 2 and "--rate-hz" in err
     d = json.loads((tmp_path / "c.json").read_text())
@@ -401,7 +409,7 @@ def test_a_closed_pipe_on_stdout_does_not_stop_the_writes(tmp_path, monkeypatch,
             raise ValueError("no file")  # _quiet_stdout has nothing to redirect
 
     monkeypatch.chdir(tmp_path)
-    cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3"))).save("c.json")
+    single_rate_continuous().save("c.json")
     monkeypatch.setattr(sys, "stdout", Closed())
     assert main(argv) == 0
     assert all((tmp_path / name).stat().st_size > 0 for name in outputs)
