@@ -36,8 +36,9 @@ __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "sch
 MAX_TABLE_BYTES = 64_000_000
 MAX_PERIOD = 10_000
 MAX_STATES = 500
-#: highest derivative order a sensor may read (cfn has at most 7 bands: orders 0 to 6)
-MAX_ORDER = 6
+#: highest derivative order a sensor may read: a kinematic chain of n states is driven by the
+#: n-th derivative, so the largest state bounds it
+MAX_ORDER = MAX_STATES
 #: largest magnitude of a table's matrix entries: with states within the runtime's
 #: :data:`~cfdesign.runtime.filter.STATE_LIMIT` (the same) no product of one step can overflow
 MAX_ENTRY = 1e150

@@ -108,6 +108,22 @@ def check_rate(t, dt, source):
     itself: time-stamp jitter of a few percent of a tick moves a single step by as much, but the
     span only by the jitter of its two ends.  That much (:data:`JITTER_TICKS` at each end) is
     allowed on top of :data:`RATE_RTOL`, so a short log is not refused for its jitter.
+
+    Parameters
+    ----------
+    t : array_like
+        Times (s) of the rows where the input sensors read, ascending; fewer than three are
+        not checked.
+    dt : float
+        The table's base tick (s).
+    source : str
+        Name of the log, for the message.
+
+    Raises
+    ------
+    DataError
+        The log's base rate differs from ``1/dt`` by more than the tolerance; the message gives
+        both rates.
     """
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
