@@ -145,6 +145,21 @@ def test_ten_million_samples_stay_bounded(heading):
     assert worst < 1.0 and np.all(np.isfinite(rt.x))
 
 
+@pytest.mark.parametrize("bad", ["0.1", None, 1j, np.array([1.0, 2.0])])
+@pytest.mark.parametrize("sensor", ["gyro", "odometry"])
+def test_a_reading_that_is_no_number_is_named_and_changes_nothing(heading, sensor, bad):
+    """The step compares every reading before it stores anything: an input held from the step
+    that failed, or a count, would otherwise change what the next step computes."""
+    rt = Runtime(heading)
+    rt.step(gyro=0.3, compass=0.2, odometry=0.1)
+    before = rt.state()
+    with pytest.raises(CfdesignError, match=f"^{sensor}: reading .* is not a number"):
+        rt.step(**{"gyro": 0.9, "compass": 0.4, "odometry": 0.5, sensor: bad})
+    with pytest.raises(CfdesignError, match="is not a number"):
+        rt.step_values(*[bad if name == sensor else 0.5 for name in ("gyro", "compass", "odometry")])
+    assert rt.state() == before and rt.counts == {}
+
+
 def test_bad_inputs(heading):
     rt = Runtime(heading)
     with pytest.raises(CfdesignError, match="unknown sensor"):

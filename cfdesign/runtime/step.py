@@ -21,11 +21,23 @@ import keyword
 import math
 import re
 
+from ..errors import CfdesignError
 from ..linear import gain_pair, wrap_scalar
 
+#: states up to this size are read and written element by element
+_UNROLLED = 16
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 __all__ = ["compile_step"]
+
+
+def _is_number(v) -> bool:
+    """A reading the step can compare with the limit (a real number; NaN and inf included)."""
+    try:
+        -1.0 <= v <= 1.0  # noqa: B015 - the comparison is the test
+    except (TypeError, ValueError):  # text, None, complex; an array of several values
+        return False
+    return True
 
 
 def _num(v: float) -> str:
@@ -86,6 +98,12 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     ValueError
         The posterior asked of a table whose ``F`` is singular, or sensor names that are not
         distinct identifiers.
+
+    Notes
+    -----
+    The steps compare every reading with ``limit`` before they store anything, so a reading
+    that is not a number (text, None, a complex) raises :class:`~cfdesign.errors.CfdesignError`
+    naming its sensor and leaves the state, the held inputs and the counts as they were.
     """
     F, B, H = table.F, table.B, table.H
     n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period
@@ -112,7 +130,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         return name
 
     N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
-                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make")}
+                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make", "NOT_A_NUMBER")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
     es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
     nx = [fresh(f"n{r}") for r in range(n)]
@@ -120,15 +138,25 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     K_, A_, L_, ph, est = (N[k] for k in ("K", "A", "L", "ph", "est"))
     lines = []
     add = lines.append
-    if n > 4:
+    if n > _UNROLLED:  # element by element is faster for small states (no tuple, no slice)
         add(f"    {', '.join(xs)}, = {S_}[:{n}]")
     else:
         for i in range(n):
             add(f"    {xs[i]} = {S_}[{i}]")
     if P > 1:
         add(f"    {ph} = {S_}[{n}]")
+    # every reading is compared before anything is stored: a reading that is not a number
+    # (text, None, complex) raises in a comparison, and then nothing has changed
+    oks = [fresh(f"ok{j}") for j in range(p + m)]
+    add("    try:")
+    for ok, v in zip(oks, us + ys, strict=True):
+        add(f"        {ok} = -{LIM} <= {v} <= {LIM}")
+    if not oks:
+        add("        pass")
+    add("    except (TypeError, ValueError):")
+    add(f"        {N['NOT_A_NUMBER']}(({', '.join(us + ys)}{',' if len(us + ys) == 1 else ''}))")
     for j, u in enumerate(us):  # an input outside the limit (inf) or missing (NaN) holds the last one
-        add(f"    if -{LIM} <= {u} <= {LIM}:")
+        add(f"    if {oks[j]}:")
         add(f"        {U_}[{j}] = {u}")
         add("    else:")
         add(f"        if {u} == {u}:")
@@ -142,7 +170,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
             add(f"    {L_} = {N['LP']}[{ph}]")
     for i in range(m):
         add(f"    {es[i]} = 0.0")
-        add(f"    if -{LIM} <= {ys[i]} <= {LIM}:")
+        add(f"    if {oks[p + i]}:")
         if single and not active[0, i]:
             add(f"        {UNS_}[{i}] += 1")
         else:
@@ -180,7 +208,11 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         add(f"        {nx[0]} = {WRAP}({nx[0]})")
         add(f"    if {est} > {PI} or {est} <= -{PI}:")
         add(f"        {est} = {WRAP}({est})")
-    add(f"    {S_}[:{n}] = {', '.join(nx)},")
+    if n > _UNROLLED:
+        add(f"    {S_}[:{n}] = {', '.join(nx)},")
+    else:
+        for i in range(n):
+            add(f"    {S_}[{i}] = {nx[i]}")
     if P > 1:
         add(f"    {S_}[{n}] = ({ph} + 1) % {P}")
     add(f"    return {est}")
@@ -193,7 +225,12 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
               f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
               f"    def step_values({', '.join(us + ys)}):\n{body}\n"
               f"    return step, step_values\n")
+    def not_a_number(values):
+        bad = next(name for name, v in zip(names, values, strict=True) if not _is_number(v))
+        raise CfdesignError(f"{bad}: reading {values[names.index(bad)]!r} is not a number")
+
     namespace = {LIM: float(limit), PI: math.pi, WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
+                 N["NOT_A_NUMBER"]: not_a_number,
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}
