@@ -39,8 +39,15 @@ Method (:func:`identify_noise`):
    over a ``tau`` range holding at least two points, and over that range the measured
    log-log slope must agree with the model's (the slope check).  Otherwise the term is
    ``None`` with the reason (for example: a recording too short for the random walk to
-   dominate at any ``tau`` it can resolve);
-5. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
+   dominate at any ``tau`` it can resolve).  Terms that fail are dropped one at a time - the
+   one with the smallest share of the fitted variance first - and the rest refitted: two terms
+   that share the last octaves (a random walk and a rate ramp) split them, so that neither
+   dominates until the other is gone;
+5. over the last octaves of a recording one realisation of a rate random walk can look like a
+   ramp.  Where the fit keeps a ramp and no random walk, the random walk is fitted in its place,
+   and kept unless it fits clearly worse (its weighted chi-square larger by
+   :data:`RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
+6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
 
 Why not allantools: its ``oadev`` computes the same deviation (the tests and
@@ -79,6 +86,9 @@ _ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": 
 MIN_SAMPLES = 16
 #: share of the fitted variance a term must reach to dominate
 DOMINANCE = 0.5
+#: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
+#: for the ramp to be reported instead (about a 2-sigma preference for the ramp)
+RAMP_EVIDENCE = 4.0
 #: confidence level of the intervals
 CONFIDENCE = 0.95
 
@@ -438,18 +448,56 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
-    active, dropped = list(TERMS), {}
-    while True:  # fit, drop the terms the data do not show, refit with the rest
-        coef, cov, edf, used = _fit(tau, adev**2, m, len(y) + 1, active, 1.0 / rate_hz)
-        terms, missing = _terms(tau, adev, edf, coef, cov, used, len(y) / rate_hz, 1.0 / rate_hz)
+    fit = _eliminate(tau, adev, m, len(y), float(rate_hz), list(TERMS))
+    terms = fit[1]
+    if "rate_ramp" in terms and "random_walk" not in terms:
+        # over the last few octaves of a recording one realisation of a rate random walk can
+        # look like a ramp; where the random walk explains the same octaves in place of the ramp,
+        # it is the model kept (the common gyro term, and the one a design file takes)
+        active = [k for k in TERMS if k in terms or k == "random_walk"]
+        walk = _eliminate(tau, adev, m, len(y), float(rate_hz), [k for k in active if k != "rate_ramp"])
+        worse = _misfit(tau, adev, walk, 1.0 / rate_hz) - _misfit(tau, adev, fit, 1.0 / rate_hz)
+        if "random_walk" in walk[1] and worse < RAMP_EVIDENCE:
+            walk[2]["rate_ramp"] = (f"a rate random walk explains the same octaves (from "
+                                    f"{walk[1]['random_walk'].tau_range_s[0]:.3g} s); the recording cannot tell "
+                                    "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
+            fit = walk
+    coef, terms, missing, edf = fit
+    coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
+    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _misfit(tau, adev, fit, dt) -> float:
+    """Weighted squared misfit of a fit's variance model (each octave point's variance estimate
+    has a relative std of ``sqrt(2 / edf)``): a chi-square, to compare two models."""
+    coef, _, _, edf = fit
+    model = np.maximum((_basis(tau, dt) * coef).sum(axis=1), 1e-300)
+    return float(np.sum(edf / 2.0 * (adev**2 / model - 1.0) ** 2))
+
+
+def _eliminate(tau, adev, m, n, rate_hz, active):
+    """Fit the ``active`` terms, drop the one the data show least, refit with the rest, until
+    every term left is identified: ``(coef, terms, missing, edf)``."""
+    active, dropped = list(active), {}
+    while True:
+        coef, cov, edf, used = _fit(tau, adev**2, m, n + 1, active, 1.0 / rate_hz)
+        terms, missing = _terms(tau, adev, edf, coef, cov, used, n / rate_hz, 1.0 / rate_hz)
         gone = [k for k in active if k not in terms]
         if not gone:
             break
-        dropped.update({k: missing[k] for k in gone})
-        active = [k for k in active if k in terms]
-    missing = {**dropped, **missing}
-    coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
-    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+        # one at a time: terms that share a stretch of tau (a random walk and a rate ramp over
+        # the last octaves of an hour) split it, so neither dominates until the other is gone
+        weakest = min(gone, key=lambda k: _largest_share(tau, coef, k, 1.0 / rate_hz))
+        dropped[weakest] = missing[weakest]
+        active.remove(weakest)
+    return coef, terms, {**missing, **dropped}, edf  # a dropped term keeps the reason it was dropped for
+
+
+def _largest_share(tau, coef, key, dt):
+    """The largest share of the fitted Allan variance a term has at any tau (0 when unused)."""
+    parts = _basis(tau, dt) * coef
+    share = parts[:, list(TERMS).index(key)] / np.maximum(parts.sum(axis=1), 1e-300)
+    return float(share.max(initial=0.0))
 
 
 def _basis(tau, dt=0.0):

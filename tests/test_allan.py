@@ -62,6 +62,29 @@ def test_random_walk_only_returns_only_the_random_walk():
     assert fit.white_density is None
 
 
+def test_a_random_walk_that_looks_like_a_ramp_is_the_random_walk():
+    """One hour of N = 2e-3 and K = 5e-5: over the last octaves this realisation of the random
+    walk is fitted as well by a rate ramp, and eliminating both terms at once lost K (every term
+    reported 'no share').  The elimination drops one term at a time and keeps the random walk
+    where it explains the same octaves; the dropped terms keep their reasons."""
+    rng = np.random.default_rng(0)
+    f, n = 100.0, 360_000
+    x = 2e-3 * math.sqrt(f) * rng.standard_normal(n) + np.cumsum(5e-5 / math.sqrt(f) * rng.standard_normal(n))
+    fit = identify_noise(x, f)
+    assert fit.random_walk_density == pytest.approx(5e-5, rel=0.25)
+    assert "rate_ramp" not in fit.terms and "no share" not in fit.missing["bias_instability"]
+
+
+def test_a_genuine_rate_ramp_is_reported_as_a_ramp():
+    """A linear drift of 1e-6 u/s under white noise (two hours) has the ramp's slope +1 over
+    four octaves: the random walk fits it clearly worse, so the ramp is what is reported."""
+    rng = np.random.default_rng(3)
+    f, n = 100.0, 720_000
+    x = 2e-3 * math.sqrt(f) * rng.standard_normal(n) + 1e-6 * np.arange(n) / f
+    fit = identify_noise(x, f)
+    assert fit.random_walk_density is None and fit.terms["rate_ramp"].value == pytest.approx(1e-6, rel=0.15)
+
+
 def test_a_recording_too_short_for_the_random_walk_says_so():
     fit = identify_noise(gyro(60, seed=3), RATE)  # the random walk dominates only beyond ~15 s averaging
     assert fit.random_walk_density is None
