@@ -191,13 +191,9 @@ def _summary(table) -> str:
     return "\n".join(lines)
 
 
-#: the unit of the common quantity, by the name the designer gives state 0 (designer.state_names)
-_UNITS = {"heading": "rad", "angle": "rad", "position": "m"}
-
-
 def _unit(table) -> str:
-    """`` (rad)`` or `` (m)`` after the name of state 0 when its quantity is known."""
-    unit = _UNITS.get(table.states[0]) if table.states else None
+    """`` (rad)`` or `` (m)`` after the name of state 0 when its unit is known."""
+    unit = table.state_units()[0]
     return f" ({unit})" if unit else ""
 
 
@@ -278,8 +274,9 @@ def cmd_run(args) -> int:
         detail = "; ".join(f"{kind}: " + ", ".join(f"{k} {v}" for k, v in per.items())
                            for kind, per in result.unused.items())
         print(f"cfdesign: {result.without_gain} readings were not used ({detail})", file=sys.stderr)
+    units = dict(zip(table.states, table.state_units(), strict=True))
     for state, rms in result.rms.items():
-        print(f"RMS error of {state}: {rms:.6g}")
+        print(f"RMS error of {state}: {rms:.6g}" + (f" {units[state]}" if units.get(state) else ""))
     print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0
 

@@ -36,7 +36,7 @@ from scipy import linalg, optimize
 
 from . import __version__, linear
 from .errors import CfdesignError, SpecError
-from .gains import MAX_PERIOD, GainTable, Schedule, SensorPort
+from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import QUANTITY_ORDERS, FilterSpec
@@ -748,9 +748,6 @@ def _check_wrap(spec, structure):
                         "wrapping to (-pi, pi] applies to headings and other angles only")
 
 
-_DERIVATIVES = {"linear": ("position", "velocity", "acceleration", "jerk", "snap"),
-                "angle": ("angle", "angle_rate", "angle_acceleration", "angle_jerk", "angle_snap"),
-                "heading": ("heading", "heading_rate", "heading_acceleration", "heading_jerk", "heading_snap")}
 
 
 def state_names(structure, spec) -> tuple:
@@ -780,7 +777,7 @@ def state_names(structure, spec) -> tuple:
     for i in range(n):
         if names[i] is None:
             d = order.get(i)
-            names[i] = _DERIVATIVES[family][d] if d is not None and d < 5 else f"x{i}"
+            names[i] = DERIVATIVE_NAMES[family][d] if d is not None and d < 5 else f"x{i}"
     if len(set(names)) < n:
         names = [f"{name}_{i}" if names.count(name) > 1 else name for i, name in enumerate(names)]
     return tuple(names)

@@ -28,8 +28,18 @@ import numpy as np
 from . import linear
 from .errors import GainTableError
 from .linear import GAIN_FORMS
+from .spec import QUANTITY_ORDERS
 
-__all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION"]
+__all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION",
+           "DERIVATIVE_NAMES"]
+
+#: the names the designer gives a chain's states, by family and derivative order
+#: (:func:`cfdesign.designer.state_names`), and the unit of each family's quantity
+DERIVATIVE_NAMES = {"linear": ("position", "velocity", "acceleration", "jerk", "snap"),
+                    "angle": ("angle", "angle_rate", "angle_acceleration", "angle_jerk", "angle_snap"),
+                    "heading": ("heading", "heading_rate", "heading_acceleration", "heading_jerk", "heading_snap")}
+_FAMILY_UNITS = {"linear": "m", "angle": "rad", "heading": "rad"}
+_PER_SECOND = ("", "/s", "/s²", "/s³", "/s⁴")
 
 #: largest gain table file read (bytes) and largest period and state a table may have: checked
 #: before anything is allocated or computed (the designer caps the period at the same value)
@@ -597,6 +607,43 @@ class GainTable:
         if len(names) != n or len(set(names)) != n or not all(isinstance(s, str) and s.isascii() and s.isidentifier()
                                                              for s in names):
             raise GainTableError(f"{self.name}: states must be {n} distinct ASCII identifiers, got {list(names)}")
+
+    def state_units(self) -> tuple:
+        """The unit of every state, where the state names tell it (``''`` where they do not).
+
+        The designer names a chain's states by their quantity and derivative order
+        (``heading``, ``heading_rate``; ``position``, ``velocity``; :data:`DERIVATIVE_NAMES`)
+        and a bias state after its sensor (``gyro_bias``, ``accelerometer_correction``): such a
+        state has the unit of what its sensor reads.  Angles are in rad, positions in m, their
+        derivatives per second to the power of the order.  A table with other names (a user's
+        own, ``x0``, ...) has no known units.
+
+        Returns
+        -------
+        tuple of str
+            One unit per state, in the order of :attr:`states`.
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position"))).state_units()
+        ('m', 'm/s', 'm/s²')
+        """
+        family = next((f for f, names in DERIVATIVE_NAMES.items() if self.states and self.states[0] == names[0]), None)
+        if family is None:
+            return ("",) * len(self.states)
+        orders = {s.name: s.order for s in self.sensors}
+        units = []
+        for name in self.states:
+            owner = name.rsplit("_", 1)[0] if name.endswith(("_bias", "_correction")) else None
+            if name in DERIVATIVE_NAMES[family]:
+                order = DERIVATIVE_NAMES[family].index(name)
+            elif owner is not None:
+                order = orders.get(owner, QUANTITY_ORDERS.get(owner))  # a shared bias: `rate_correction`
+            else:
+                order = None
+            units.append(_FAMILY_UNITS[family] + _PER_SECOND[order] if order is not None and order < 5 else "")
+        return tuple(units)
 
     @property
     def period(self) -> int:

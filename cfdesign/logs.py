@@ -801,6 +801,7 @@ def plot_log(table, estimates, references=None, time=None):
     x = estimates[time].to_numpy() if time else np.arange(len(estimates))
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
+    units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
     for name in table.states:
         ax = next(ax_iter)
         est = estimates[name].to_numpy()
@@ -816,13 +817,13 @@ def plot_log(table, estimates, references=None, time=None):
             if band is not None:
                 ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
             ok = np.isfinite(err)
-            ax2.set_ylabel(f"{name} error")
+            ax2.set_ylabel(f"{name} error{units[name]}")
             ax2.set_title(f"RMS {np.sqrt(np.mean(err[ok] ** 2)):.3g}", fontsize=9, loc="right")
             ax2.legend(loc="upper right", fontsize=8)
         elif f"{name}_std" in estimates:
             band = 2 * estimates[f"{name}_std"].to_numpy()
             ax.fill_between(x, est - band, est + band, color="0.85", label="predicted ±2σ")
-        ax.set_ylabel(name)
+        ax.set_ylabel(f"{name}{units[name]}")
         ax.legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel(f"{time} (s)" if time else "row")
     fig.suptitle(table.name, fontsize=10)

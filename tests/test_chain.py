@@ -147,3 +147,16 @@ def test_the_bias_state_two_gyros_share_is_named_after_their_quantity(spec_file)
     from cfdesign.designer import design
 
     assert design(load_spec(spec_file)).states == ("angle", "rate_correction")
+
+
+def test_state_units_follow_the_state_names(spec_file):
+    """Units of every state from the designer's names: the shared bias of two gyros is a rate."""
+    import dataclasses
+
+    import cfdesign
+
+    assert design(load_spec(spec_file)).state_units() == ("rad", "rad/s")
+    position = design(load_spec(cfdesign.example_path("position")))
+    assert position.state_units() == ("m", "m/s", "m/s²")
+    renamed = dataclasses.replace(position, states=("p", "v", "b"))
+    assert renamed.state_units() == ("", "", "")
