@@ -656,7 +656,8 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
              "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
              "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
-             "# Add measures = \"...\" and copy the tables into your design file.", ""]
+             "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
+             "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
     for fit in fits:
         key = _key(fit.name)
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))

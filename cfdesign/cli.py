@@ -376,7 +376,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("bode", help="Bode plot of every band and of their sum")
     _add_structure(p)
-    p.add_argument("--gains", required=True, help="gain values, e.g. k1=2,k2=1")
+    p.add_argument("--gains", required=True, help="gain values, named as cfdesign prove prints them "
+                                                  "(cf3: k1=2,k2=1; continuous gains in SI units, 1/s, 1/s^2, ...)")
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
     p.add_argument("-o", "--output", required=True, help="PNG (or PDF/SVG) file to write")
     p.add_argument("--hz", action="store_true", help="frequency axis in Hz instead of rad/s")
@@ -384,8 +385,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
     p.add_argument("spec", nargs="?", help="design file (TOML); omitted: the built-in example")
-    p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), cf3, ckf3, "
-                                      "position")
+    p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
+                                      "ckf3, position")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
     p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
@@ -393,10 +394,13 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
     p.add_argument("table", help="gain table (JSON) from cfdesign design")
-    p.add_argument("--format", choices=["json", "csv", "c"], required=True)
+    p.add_argument("--format", choices=["json", "csv", "c"], required=True,
+                   help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
     p.add_argument("-o", "--output", required=True, help="file (json, csv) or directory (c)")
-    p.add_argument("--precision", choices=["double", "float"], default="double", help="C only: real type")
-    p.add_argument("--prefix", help="C only: identifier prefix of the generated code")
+    p.add_argument("--precision", choices=["double", "float"], default="double",
+                   help="C only: real type (default double)")
+    p.add_argument("--prefix", help="C only: identifier prefix of the generated code (default: the table's "
+                                    "structure, e.g. dckf3_step)")
     p.add_argument("--prediction", action="store_true",
                    help="C only: the step returns the one-step prediction instead of the table's output "
                         "(by default the estimate after each step's readings)")
@@ -405,7 +409,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
     p.add_argument("table", help="gain table (JSON)")
     p.add_argument("--spec", help="design file the table should come from")
-    p.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance for the gain comparison")
+    p.add_argument("--rtol", type=float, default=1e-9,
+                   help="relative tolerance of the comparison with --spec (default 1e-9)")
     p.set_defaults(run=cmd_verify)
 
     p = sub.add_parser("run", help="run a gain table on logs (CSV or Parquet) of timestamped sensor readings",
@@ -447,7 +452,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
     p.add_argument("table", help="continuous gain table (JSON)")
     p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
-    p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor")
+    p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor",
+                   help="gain form of the discrete table (default predictor)")
     p.add_argument("-o", "--output", required=True, help="discrete gain table (JSON) to write")
     p.set_defaults(run=cmd_discretize)
 

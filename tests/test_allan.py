@@ -156,6 +156,7 @@ def test_noise_entries_design_a_filter(cli, tmp_path):
     log = _log(tmp_path / "gyro.csv", {"gyro": gyro(600, seed=7)}, time=False)
     assert cli("noise", log, "--column", "gyro", "--rate-hz", 100, "-o", tmp_path / "n.toml")[0] == 0
     text = (tmp_path / "n.toml").read_text()
+    assert 'port = "rate"' in text  # the header says what a pasted table needs besides measures
     sensors = tomllib.loads(text)["sensors"]
     sensors["gyro"].setdefault("bias", {"model": "random_walk", "density": K_TRUE})  # 600 s may not show K
     sensors["gyro"]["port"] = "rate"

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from cfdesign.cli import main, parse_gains
+from cfdesign.cli import build_parser, main, parse_gains
 
 
 def run(*args, cwd=None):
@@ -110,6 +110,15 @@ def test_reproduce_help_lists_the_papers_by_name_not_the_aliases():
     assert code == 0
     assert "carreira" in stdout and "helicopter" in stdout and "compare" in stdout
     assert "seed0" not in stdout
+
+
+def test_design_help_names_every_built_in_example():
+    """``--example`` accepts every key of ``EXAMPLES``; its help says so (``dckf3`` was left out)."""
+    from cfdesign.spec import EXAMPLES
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command").choices["design"]
+    text = " ".join(next(a for a in sub._actions if a.dest == "example").help.split())
+    assert all(name in text.replace(",", " ").split() for name in EXAMPLES), text
 
 
 def test_design_names_the_state_of_its_predicted_std_and_the_phase_of_a_multirate_one(cli):

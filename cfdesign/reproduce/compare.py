@@ -334,8 +334,10 @@ def add_arguments(parser):
     argparse.ArgumentParser
         ``parser``, with the options added.
     """
-    parser.add_argument("--scenario", choices=[*SCENARIOS, "all"], default="all")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--scenario", choices=[*SCENARIOS, "all"], default="all",
+                        help="the ground robot with a GPS outage, the helicopter of Vasconcelos et al., or both "
+                             "(default all)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the simulated scenarios (default 0)")
     parser.add_argument("--duration", type=float, default=300.0, help="ground scenario length in s (default 300)")
     parser.add_argument("--json", action="store_true", help="print the numbers as JSON")
     return parser
