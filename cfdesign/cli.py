@@ -160,8 +160,11 @@ def _summary(table) -> str:
         for k, K in enumerate(table.K):
             if table.schedule.rows(k):
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
-    else:
+    elif table.gains:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
+    else:  # a table without named gains (discretised, recomputed): the matrix, a row per state
+        rows = ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in table.K[0].tolist())
+        lines.append(f"  K = [{rows}] (rows: {', '.join(table.states)})")
     of = f"of {table.states[0]}{_unit(table)}"
     if table.domain == "z":
         other = "prior" if table.output == "posterior" else "posterior"
@@ -386,7 +389,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
     p.add_argument("spec", nargs="?", help="design file (TOML); omitted: the built-in example")
     p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
-                                      "ckf3, position")
+                                      "ckf3, position, tilt")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
     p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
     p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")

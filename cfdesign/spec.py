@@ -70,6 +70,7 @@ EXAMPLES = {
     "cf3": "cf3_continuous.toml",
     "ckf3": "ckf3_continuous.toml",
     "position": "position_imu_gps.toml",
+    "tilt": "tilt_cf2_continuous.toml",
 }
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
              "description", "gains", "wrap_angle", "output", "crossover", "full"}

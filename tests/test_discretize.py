@@ -72,3 +72,12 @@ def test_a_multirate_continuous_table_is_refused_with_its_slow_sensor_named():
         "position": {"rate_hz": 10.0, "noise": {"std": 0.05}}}, "gains": {"k1": 12.566, "k2": 15.791}}))
     with pytest.raises(GainTableError, match=r"position runs at 10 Hz.*discrete = true"):
         discretize_table(table, 100.0)
+
+
+def test_the_built_in_tilt_example_discretises_and_verifies(tmp_path, cli):
+    """The example the docs point ``cfdesign discretize`` at: continuous, every sensor at 200 Hz."""
+    code, _, err = cli("design", "--example", "tilt", "-o", tmp_path / "c.json")
+    assert code == 0, err
+    code, out, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 200, "-o", tmp_path / "d.json")
+    assert code == 0 and "K = [[" in out, err
+    assert all(c.ok for c in verify_table(load_gains(tmp_path / "d.json")))
