@@ -135,5 +135,10 @@ def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
     assert "malloc" not in files["imu_att.c"] and "#include <math.h>" in files["imu_att.c"]
     with pytest.raises(CfdesignError, match="C identifier"):
         render_attitude_c(AttitudeFilter(100.0), prefix="1bad")
+    for bad in ("math", "stddef", "Stdio"):         # <prefix>.h would shadow the standard header under -I
+        with pytest.raises(CfdesignError, match="C standard header"):
+            render_attitude_c(AttitudeFilter(100.0), prefix=bad)
+    with pytest.raises(CfdesignError, match="reserved"):
+        render_attitude_c(AttitudeFilter(100.0), prefix="_imu")
     with pytest.raises(CfdesignError, match="AttitudeFilter"):
         render_attitude_c("not a filter")
