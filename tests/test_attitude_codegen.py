@@ -114,6 +114,20 @@ def test_c_runs_an_initial_attitude_and_the_ablation_switches(tmp_path):
     assert np.degrees(2 * np.arccos(min(1.0, abs(q_c[0] @ initial)))) < 1.0     # starts from the initial attitude
 
 
+@needs_cc
+def test_c_agrees_through_the_acceleration_levels_and_their_time_limit(tmp_path):
+    """A 5 deg/s bias from a moving start: the levels engage, run out of time (max_accel_time_s)
+    and the velocity channel restarts; C follows Python through it and through a restored state."""
+    gyr, acc, _ = readings(n=6000)
+    gyr = gyr + np.radians([5.0, -4.0, 5.0])
+    f = AttitudeFilter(100.0, magnetometer=False, max_accel_time_s=10.0)
+    out = f.run(gyr, acc, None, details=True)
+    assert out.accel_level.max() >= 1
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, None)
+    assert np.abs(q_c - out.quaternion).max() <= 1e-9
+    assert state_c["accel_time"] == f.state()["accel_time"]
+
+
 def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
     files = render_attitude_c(AttitudeFilter(285.0, declination_rad=0.1), prefix="imu_att")
     assert set(files) == {"imu_att.h", "imu_att.c"}
@@ -121,5 +135,10 @@ def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
     assert "malloc" not in files["imu_att.c"] and "#include <math.h>" in files["imu_att.c"]
     with pytest.raises(CfdesignError, match="C identifier"):
         render_attitude_c(AttitudeFilter(100.0), prefix="1bad")
+    for bad in ("math", "stddef", "Stdio"):         # <prefix>.h would shadow the standard header under -I
+        with pytest.raises(CfdesignError, match="C standard header"):
+            render_attitude_c(AttitudeFilter(100.0), prefix=bad)
+    with pytest.raises(CfdesignError, match="reserved"):
+        render_attitude_c(AttitudeFilter(100.0), prefix="_imu")
     with pytest.raises(CfdesignError, match="AttitudeFilter"):
         render_attitude_c("not a filter")

@@ -163,6 +163,20 @@ def test_sustained_acceleration_weights_the_tilt_corrections_down():
     assert incl_on[1500:3200].max() < 0.3 * incl_off[1500:3200].max()    # measured 7° against 37°
 
 
+def test_a_tilt_error_does_not_lock_the_acceleration_levels():
+    """A 5 deg/s gyro bias from a moving start tilts the estimate, the integrated speed passes
+    max_speed_mps and the levels weight the tilt corrections down; the speed then grew without end
+    (310 m/s, level 5 to the last sample, inclination 104 deg RMS). After max_accel_time_s the
+    velocity channel restarts on its motion design and corrects the tilt."""
+    q = motion(9000, still_s=0.0)
+    gyr, acc, _ = imu(q, bias=np.radians([5.0, -4.0, 5.0]))
+    out = AttitudeFilter(RATE, magnetometer=False).run(gyr, acc, None, details=True)
+    assert out.accel_level.max() >= 1                                     # the levels did engage
+    assert out.speed[-3000:].max() < 8.0 and not out.accel_level[-3000:].any()   # measured 3.9 m/s
+    _, incl = errors(out.quaternion, q)
+    assert np.sqrt(np.mean(incl[-3000:] ** 2)) < 25.0                     # measured 11 deg (was 104)
+
+
 def test_the_velocity_channel_rides_out_translation():
     """Back-and-forth translation (bounded velocity) while turning: the inertial-frame velocity
     channel keeps the tilt; the classic filter on the instantaneous accelerometer does not."""

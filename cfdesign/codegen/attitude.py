@@ -45,7 +45,8 @@ def write_attitude_c(attitude_filter, directory, *, prefix="cf_attitude") -> lis
     directory : str or Path
         Folder the two files are written to (created with its parents if missing).
     prefix : str
-        Prefix of the C names and files; a C identifier.
+        Prefix of the C names and files; a C identifier, not starting with ``_``, not the name
+        of a C99 standard header (``math``: the file ``math.h`` would replace ``<math.h>``).
 
     Returns
     -------
@@ -81,7 +82,8 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         The filter to export (left unchanged).
     prefix : str
         Prefix of the C names (``<prefix>_state``, ``<prefix>_init``, ``<prefix>_step``) and of
-        the file names; must be a C identifier.
+        the file names; a C identifier, not starting with ``_``, not the name of a C99
+        standard header.
 
     Returns
     -------
@@ -108,11 +110,11 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
 
     if not isinstance(attitude_filter, AttitudeFilter):
         raise CfdesignError(f"an AttitudeFilter is needed, got {type(attitude_filter).__name__}")
-    prefix = check_c_identifier(prefix, "C prefix")
+    prefix = _check_prefix(prefix)
     design = attitude_filter.design
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
      new_s, new_rot, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels, use_bias,
-     inertial) = _coefficients(design)
+     inertial, max_acc_s) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -127,6 +129,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "T": _hex(T), "rest_alpha": _hex(rest_alpha), "rest_gyro_th2": _hex(th_g2), "rest_accel_th2": _hex(th_a2),
         "rest_bias_th2": _hex(th_b2), "rest_time": _hex(rest_min), "mag_alpha": _hex(m_alpha),
         "mag_ref_alpha": _hex(ref_alpha), "north": _hex(north), "speed2": _hex(speed2),
+        "max_accel_time": _hex(max_acc_s),
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "hold_var": _hex(hold_var),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
@@ -145,6 +148,27 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         header = _header(name, what, attitude_filter)
         out[name] = Template(_template(f"attitude.{stem}.in")).substitute(fields, header=header)
     return out
+
+
+#: the headers of the C99 standard library: a file ``<prefix>.h`` of one of these names, found
+#: through ``-I``, would be included in place of the standard one (``math.h``: no ``ceil``)
+C99_HEADERS = frozenset("""
+    assert complex ctype errno fenv float inttypes iso646 limits locale math setjmp signal stdarg
+    stdbool stddef stdint stdio stdlib string tgmath time wchar wctype
+""".split())
+
+
+def _check_prefix(prefix) -> str:
+    """``prefix`` checked: a C identifier, not starting with ``_`` (its names are file-scope, and its
+    header guard would be ``_X_H``: both reserved) and not the name of a C99 standard header."""
+    prefix = check_c_identifier(prefix, "C prefix")
+    if prefix.startswith("_"):
+        raise CfdesignError(f"C prefix {prefix!r} starts with '_': names with file scope that do are reserved "
+                            "in C (and so is its header guard); C code needs another prefix")
+    if prefix.lower() in C99_HEADERS:
+        raise CfdesignError(f"C prefix {prefix!r} would write {prefix}.h, the name of a C standard header, which "
+                            "the generated code includes; C code needs another prefix")
+    return prefix
 
 
 def _gravity() -> float:

@@ -46,7 +46,9 @@ Modes and their tables (one design each): the velocity channel runs a rest desig
 otherwise, and designs with a larger velocity noise (factors 4, 16, ... 1024: the tilt bandwidth
 halved at each level) when the speed the channel has integrated exceeds ``max_speed_mps``
 (level ``1 + floor(log2(v² / max_speed²))``) (a sustained acceleration: the specific force
-is not gravity plus a bounded velocity change, so the tilt corrections are weighted down).
+is not gravity plus a bounded velocity change, so the tilt corrections are weighted down), for at
+most ``max_accel_time_s`` at a time (longer, it is a tilt error: the velocity restarts from zero
+on the motion design).
 Every threshold is in physical units, derived from the noise figures where it can be:
 
 * rest: for ``rest_time_s`` the gyro and the specific force stay within
@@ -113,6 +115,7 @@ STATE_FIELDS = (
     "norm_new", "dip_new", "new_n",      # candidate new field (while disturbed), readings averaged
     "new_time", "new_turn",              # time the candidate held (s) and the rotation meanwhile (rad)
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
+    "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
 )
@@ -174,6 +177,11 @@ class AttitudeParams:
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4).
+    max_accel_time_s : float
+        Longest a sustained acceleration is taken to last (s, default 30; chosen, not tuned: no
+        dev trial reaches ``max_speed_mps``).  A speed beyond ``max_speed_mps`` for longer is a
+        tilt error (a gyro bias, a wrong initial attitude), not an acceleration: the velocity
+        channel restarts from zero velocity and runs its motion design for as long again.
     gyro_range_rps, accel_range_mps2 : float
         Readings above these magnitudes are impossible and treated as missing (defaults
         100 rad/s and 1000 m/s²).
@@ -204,6 +212,7 @@ class AttitudeParams:
     mag_new_field_s: float = 40.0
     mag_new_field_rotation_rad: float = math.pi / 2
     max_speed_mps: float = 4.0
+    max_accel_time_s: float = 30.0
     gyro_range_rps: float = 100.0
     accel_range_mps2: float = 1000.0
     rest_detection: bool = True
@@ -600,7 +609,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (52, 1.0, 0.0)
+        (53, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -825,7 +834,7 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             c["mag_alpha"], c["mag_ref_alpha"], c["north"], c["speed2"], c["gyro_range2"], c["accel_range2"],
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
-            p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt)
+            p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s)
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -835,10 +844,10 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial) = coef
+     use_motion_bias, inertial, max_acc_s) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, lgx, lgy, lgz, started,
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, lgx, lgy, lgz, started,
      miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
@@ -931,14 +940,24 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             vx = vy = 0.0
         vx += T * (r0 * ax + r1 * ay + r2 * az)
         vy += T * (r3 * ax + r4 * ay + r5 * az)
+        level = 0.0
         if rest:
-            level = 0.0
+            acc_time = 0.0
             jv = 1
         else:
             vv = vx * vx + vy * vy
-            level = 0.0
-            if use_levels and vv > speed2:
-                level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
+            if acc_time < 0.0:
+                acc_time = min(0.0, acc_time + T)           # after a tilt error: the motion design
+            elif use_levels and vv > speed2:
+                acc_time += T
+                if acc_time < max_acc_s:
+                    level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
+                else:
+                    # longer than an acceleration lasts: a tilt error, which only the motion design corrects
+                    vx = vy = 0.0
+                    acc_time = -max_acc_s
+            else:
+                acc_time = 0.0
             jv = 0 if level == 0.0 else 1 + int(level)
         k1v, k2v = velocity[jv]
         evx, evy = -vx, -vy
@@ -1078,6 +1097,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, lgx, lgy, lgz, started,
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, lgx, lgy, lgz, started,
             miss_g, miss_a, miss_m)
     return jv
