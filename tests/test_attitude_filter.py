@@ -271,3 +271,19 @@ def test_the_channels_kalman_recursions_settle_on_the_tables_gains():
         for _ in range(100_000):                                # 1000 s
             p, gains = kalman_step(channel, p)
         assert abs(gains[0] / table.gains["k1"] - 1) < 0.1, name
+
+
+def test_readings_in_other_units_are_warned_of():
+    """An accelerometer in g (median 1) or a gyro in deg/s runs, with a warning naming the unit."""
+    rng = np.random.default_rng(0)
+    gyr, acc = 0.01 * rng.standard_normal((200, 3)), np.tile([0.0, 0.0, 9.81], (200, 1))
+    f = AttitudeFilter(100.0, magnetometer=False)
+    with pytest.warns(UserWarning, match="m/s²"):
+        f.run(gyr, acc / 9.81)
+    with pytest.warns(UserWarning, match="deg/s"):
+        f.run(np.degrees(gyr) + 40.0, acc)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f.run(gyr, acc)

@@ -765,6 +765,12 @@ class AttitudeFilter:
         AttitudeInputError
             An array that is not (N, 3) or whose length differs from ``gyr``'s, or no ``mag``
             in 9D.
+
+        Warns
+        -----
+        UserWarning
+            The arrays look like other units: a median specific force outside 3 to 30 (``acc``
+            in g?) or a median rate above 20 (``gyr`` in deg/s?).  The filter runs anyway.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
         n = len(gyr)
@@ -819,12 +825,30 @@ def _arrays(gyr, acc, mag, nine):
 
     gyr = vectors("gyr", gyr)
     acc = vectors("acc", acc, len(gyr))
-    if nine:
-        if mag is None:
-            raise AttitudeInputError("mag is missing: this filter is 9D (magnetometer=True); give mag or build a "
-                                     "6D filter with magnetometer=False")
-        return gyr, acc, vectors("mag", mag, len(gyr))
-    return gyr, acc, None
+    if nine and mag is None:
+        raise AttitudeInputError("mag is missing: this filter is 9D (magnetometer=True); give mag or build a "
+                                 "6D filter with magnetometer=False")
+    mag = vectors("mag", mag, len(gyr)) if nine else None
+    _check_units(gyr, acc)
+    return gyr, acc, mag
+
+
+def _check_units(gyr, acc):
+    """Warn when the arrays look like other units than rad/s and m/s²: the median specific
+    force of a hand-held or vehicle IMU is near g (9.8 m/s², 1 in g), its median rate far
+    below 20 rad/s (a median of 20 in deg/s is an ordinary motion).  The filter runs anyway."""
+    import warnings
+
+    with np.errstate(invalid="ignore"):
+        a = np.linalg.norm(acc, axis=1)
+        w = np.linalg.norm(gyr, axis=1)
+    a, w = a[np.isfinite(a)], w[np.isfinite(w)]
+    if len(a) and not 3.0 <= float(np.median(a)) <= 30.0:
+        warnings.warn(f"acc: the median specific force is {float(np.median(a)):.3g}; the filter takes m/s² (gravity "
+                      "9.81): readings in g need multiplying by 9.80665", UserWarning, stacklevel=3)
+    if len(w) and float(np.median(w)) > 20.0:
+        warnings.warn(f"gyr: the median rate is {float(np.median(w)):.3g}; the filter takes rad/s: readings in "
+                      "deg/s need multiplying by pi/180", UserWarning, stacklevel=3)
 
 
 def _coefficients(design: AttitudeDesign) -> tuple:
