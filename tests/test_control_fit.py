@@ -77,3 +77,26 @@ def test_multirate_table_bode_and_lifted_system():
 def test_cli_bode_in_hz(cli, tmp_path):
     code, _, err = cli("bode", "cf2", "--order", "2", "--gains", "k1=2,k2=1", "--hz", "-o", tmp_path / "b.png")
     assert code == 0, err
+
+
+def test_from_statespace_checks_named_signals_and_sensor_types():
+    """A system whose signals carry names of their own must agree with the sensors; sensors that
+    are not Sensor objects are a StructureError, not a raw TypeError or AttributeError."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    k = [[sp.Symbol("k")]]
+    named = control.ss([[0]], [[1]], [[1]], [[0]], inputs=["gyro"], outputs=["compass"], name="heading")
+    assert Observer.from_statespace(named, k, sensors).proof().holds
+    for inputs, outputs, wrong in ((["odometry"], ["compass"], "input 0 is named 'odometry'"),
+                                   (["gyro"], ["magnetometer"], "output 0 is named 'magnetometer'")):
+        sys = control.ss([[0]], [[1]], [[1]], [[0]], inputs=inputs, outputs=outputs)
+        with pytest.raises(StructureError, match=wrong):
+            Observer.from_statespace(sys, k, sensors)
+    anonymous = control.ss([[0]], [[1]], [[1]], [[0]])  # python-control's u[0] / y[0]: any sensor names
+    assert Observer.from_statespace(anonymous, k, sensors).proof().holds
+    for bad in (None, "gyro", sensors[0], [("gyro", "rate")]):
+        with pytest.raises(StructureError, match="sensors must be"):
+            Observer.from_statespace(anonymous, k, bad)
+        with pytest.raises(StructureError, match="sensors must be"):
+            Observer([[0]], [[1]], [[1]], k, bad)
