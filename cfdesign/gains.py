@@ -757,9 +757,10 @@ class GainTable:
         Parameters
         ----------
         omega : array_like, optional
-            Frequencies (rad/s, or Hz with ``hz=True``); default: a grid spanning the poles.
+            Angular frequencies in rad/s, also with ``hz=True`` (as ``control.bode_plot``);
+            default: a grid spanning the poles.
         hz : bool
-            Frequency axis in Hz instead of rad/s.
+            Label the frequency axis in Hz instead of rad/s.
         title : str, optional
             Figure title (default: the table's name).
         fig : matplotlib.figure.Figure, optional
