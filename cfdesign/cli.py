@@ -161,8 +161,10 @@ def _summary(table) -> str:
         for k, K in enumerate(table.K):
             if table.schedule.rows(k):
                 lines.append(f"  K[{k}] = {K.ravel().tolist()}")
-    else:
+    elif table.gains:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
+    else:  # no named gains (a discretised table): the matrix
+        lines.append(f"  K = {table.K[0].tolist()} ({table.gain_form})")
     of = f"of {table.states[0]}{_unit(table)}"
     if table.domain == "z":
         other = "prior" if table.output == "posterior" else "posterior"
@@ -177,7 +179,9 @@ def _summary(table) -> str:
     roots = c.get("poles", c.get("monodromy_multipliers"))
     what = "poles" if "poles" in c else "monodromy multipliers"
     lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
-    lines.append(f"  complementary (exact proof): {c['complementary']}; stable: {c['stable']}")
+    exact = str(c.get("complementary_method", "exact proof")).startswith("exact proof")
+    how = "exact proof" if exact else "structural, checked numerically"  # a discretised table has no exact proof
+    lines.append(f"  complementary ({how}): {c['complementary']}; stable: {c['stable']}")
     solver = table.provenance["solver"]
     if "crossover_hz" in solver:
         lines.append("  crossovers: " + ", ".join(f"{a}/{b} at {f:g} Hz (magnitude ratio {r:.6f})"
