@@ -788,6 +788,16 @@ class GainTable:
         ------
         GainTableError
             A multirate table (its bands change with the phase).
+
+        Notes
+        -----
+        The observer is built from the table's stored doubles, taken as exact rationals, so its
+        proof is exact arithmetic on those numbers.  A ``chain`` with two or more inputs of one
+        order (two gyros) stores weighted ``B`` columns whose rounded sum can miss the chain's
+        column by an ulp: its proof then fails by about 1e-17 although the design was proved
+        (the table does not record the exact weights).  ``cfdesign verify`` checks such tables
+        with a rounding tolerance; :func:`cfdesign.designer.designed_observer` with the design
+        file rebuilds the exact structure.
         """
         from .symbolic.observer import Observer, Sensor
 
