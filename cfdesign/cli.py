@@ -139,13 +139,14 @@ def cmd_design(args) -> int:
 
 
 def _bode_png(spec, table, target, hz=False) -> bytes:
-    """The Bode plot of a designed single-rate filter, rendered in memory."""
+    """The Bode plot of a designed filter, rendered in memory: the bands of a single-rate
+    filter; for a multirate one, its gains per phase and the lifted system at the period rate
+    (:meth:`GainTable.bode`)."""
     from .designer import designed_observer
     from .plot import bode_plot
 
     if table.period != 1:
-        raise CfdesignError(f"{table.name} is multirate (period {table.period}): its bands change with the phase, "
-                            "so there is no single Bode plot; leave out --bode")
+        return _figure_bytes(table.bode(hz=hz), target)
     return _figure_bytes(bode_plot(designed_observer(spec, table), hz=hz), target)
 
 
@@ -179,7 +180,9 @@ def _summary(table) -> str:
     roots = c.get("poles", c.get("monodromy_multipliers"))
     what = "poles" if "poles" in c else "monodromy multipliers"
     lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
-    lines.append(f"  complementary (exact proof): {c['complementary']}; stable: {c['stable']}")
+    exact = str(c.get("complementary_method", "exact proof")).startswith("exact proof")
+    how = "exact proof" if exact else "structural, checked numerically"  # a discretised table has no exact proof
+    lines.append(f"  complementary ({how}): {c['complementary']}; stable: {c['stable']}")
     solver = table.provenance["solver"]
     if "crossover_hz" in solver:
         lines.append("  crossovers: " + ", ".join(f"{a}/{b} at {f:g} Hz (magnitude ratio {r:.6f})"
@@ -391,7 +394,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
                                       "ckf3, position, tilt")
     p.add_argument("-o", "--output", help="write the gain table (JSON) here")
-    p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter")
+    p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter (multirate: "
+                   "its gains per phase and the lifted system at the period rate)")
     p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_design)
 

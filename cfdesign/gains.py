@@ -804,9 +804,10 @@ class GainTable:
         Parameters
         ----------
         omega : array_like, optional
-            Frequencies (rad/s, or Hz with ``hz=True``); default: a grid spanning the poles.
+            Angular frequencies in rad/s, also with ``hz=True`` (as ``control.bode_plot``);
+            default: a grid spanning the poles.
         hz : bool
-            Frequency axis in Hz instead of rad/s.
+            Label the frequency axis in Hz instead of rad/s.
         title : str, optional
             Figure title (default: the table's name).
         fig : matplotlib.figure.Figure, optional
@@ -834,6 +835,16 @@ class GainTable:
         ------
         GainTableError
             A multirate table (its bands change with the phase).
+
+        Notes
+        -----
+        The observer is built from the table's stored doubles, taken as exact rationals, so its
+        proof is exact arithmetic on those numbers.  A ``chain`` with two or more inputs of one
+        order (two gyros) stores weighted ``B`` columns whose rounded sum can miss the chain's
+        column by an ulp: its proof then fails by about 1e-17 although the design was proved
+        (the table does not record the exact weights).  ``cfdesign verify`` checks such tables
+        with a rounding tolerance; :func:`cfdesign.designer.designed_observer` with the design
+        file rebuilds the exact structure.
         """
         from .symbolic.observer import Observer, Sensor
 

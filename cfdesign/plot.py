@@ -75,12 +75,20 @@ def _finish_axes(ax_mag, ax_ph, resp, unit, title):
     low = max(-80.0, min(np.nanmin(resp.magnitude_db(k)) for k in resp.bands)) - 5
     ax_mag.set_ylim(low, 10)
     ax_mag.set_ylabel("magnitude (dB)")
-    ax_mag.set_title(title)
+    ax_mag.set_title(_wrapped(title))
     ax_mag.legend(loc="lower left", bbox_to_anchor=(0.0, 0.08), fontsize=8)
     ax_ph.set_ylabel("phase (deg)")
     ax_ph.set_xlabel(f"frequency ({unit})" + (" - up to Nyquist" if resp.dt else ""))
     for ax in (ax_mag, ax_ph):
         ax.grid(True, which="both", alpha=0.3)
+
+
+def _wrapped(title: str, width: int = 72) -> str:
+    """A title broken into lines that fit the figure's width (a long table name was clipped at
+    both ends)."""
+    import textwrap
+
+    return "\n".join(textwrap.fill(line, width) for line in str(title).splitlines() or [""])
 
 
 def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = None, fig=None):
@@ -98,9 +106,9 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     table : GainTable
         The gain table whose bands are drawn.
     omega : array_like, optional
-        Angular frequencies (rad/s); default: a grid spanning the poles.
+        Angular frequencies in rad/s, also with ``hz=True``; default: a grid spanning the poles.
     hz : bool
-        Frequency axis in Hz instead of rad/s.
+        Label the frequency axis in Hz instead of rad/s.
     title : str, optional
         Figure title.
     fig : matplotlib.figure.Figure, optional
@@ -182,13 +190,14 @@ def _multirate_figure(table, omega, hz, title, fig):
     ax_k, ax_mag = fig.subplots(2, 1)
     K = np.array(table.K)
     phases = np.arange(table.period)
+    states = table.states
     for j, s in enumerate(table.measurements):
         for i in range(K.shape[1]):
             if np.any(K[:, i, j]):
-                ax_k.step(phases, K[:, i, j], where="post", label=f"K[{i}, {s.name}]")
+                ax_k.step(phases, K[:, i, j], where="post", label=f"K[{states[i]}, {s.name}] ({table.gain_form})")
     ax_k.set_xlabel("phase (base-rate steps)")
     ax_k.set_ylabel("gain")
-    ax_k.set_title(title or f"{table.name}: gains per phase (period {table.period})")
+    ax_k.set_title(_wrapped(title or f"{table.name}: gains per phase (period {table.period})"))
     ax_k.grid(True, alpha=0.3)
     ax_k.legend(fontsize=8)
     sys = lifted_system(table)

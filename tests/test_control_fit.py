@@ -77,3 +77,50 @@ def test_multirate_table_bode_and_lifted_system():
 def test_cli_bode_in_hz(cli, tmp_path):
     code, _, err = cli("bode", "cf2", "--order", "2", "--gains", "k1=2,k2=1", "--hz", "-o", tmp_path / "b.png")
     assert code == 0, err
+
+
+def test_from_statespace_checks_named_signals_and_sensor_types():
+    """A system whose signals carry names of their own must agree with the sensors; sensors that
+    are not Sensor objects are a StructureError, not a raw TypeError or AttributeError."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    k = [[sp.Symbol("k")]]
+    named = control.ss([[0]], [[1]], [[1]], [[0]], inputs=["gyro"], outputs=["compass"], name="heading")
+    assert Observer.from_statespace(named, k, sensors).proof().holds
+    for inputs, outputs, wrong in ((["odometry"], ["compass"], "input 0 is named 'odometry'"),
+                                   (["gyro"], ["magnetometer"], "output 0 is named 'magnetometer'")):
+        sys = control.ss([[0]], [[1]], [[1]], [[0]], inputs=inputs, outputs=outputs)
+        with pytest.raises(StructureError, match=wrong):
+            Observer.from_statespace(sys, k, sensors)
+    anonymous = control.ss([[0]], [[1]], [[1]], [[0]])  # python-control's u[0] / y[0]: any sensor names
+    assert Observer.from_statespace(anonymous, k, sensors).proof().holds
+    for bad in (None, "gyro", sensors[0], [("gyro", "rate")]):
+        with pytest.raises(StructureError, match="sensors must be"):
+            Observer.from_statespace(anonymous, k, bad)
+        with pytest.raises(StructureError, match="sensors must be"):
+            Observer([[0]], [[1]], [[1]], k, bad)
+
+
+def test_cli_design_bode_of_a_multirate_table(cli, tmp_path):
+    """design --bode draws what GainTable.bode draws for a multirate table (it was refused)."""
+    code, _, err = cli("design", "--example", "position", "--bode", tmp_path / "p.png", "--hz")
+    assert code == 0, err
+    assert (tmp_path / "p.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_bode_omega_is_rad_per_s_also_in_hz_and_titles_fit(dckf3):
+    """omega is in rad/s whatever the axis unit (as control.bode_plot); a long table name is
+    wrapped instead of clipped; multirate gains are labelled with the state names."""
+    import dataclasses
+
+    fig = dckf3.bode(omega=[0.1, 1.0, 2.0], hz=True)
+    assert np.allclose(fig.axes[0].lines[0].get_xdata(), np.array([0.1, 1.0, 2.0]) / (2 * np.pi))
+    long = dataclasses.replace(dckf3, name="a rather long table name " * 6)
+    fig = long.bode()
+    fig.canvas.draw()
+    box = fig.axes[0].title.get_window_extent()
+    assert box.x0 >= 0 and box.x1 <= fig.bbox.x1
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    labels = table.bode().axes[0].get_legend_handles_labels()[1]
+    assert labels and {label.split(",")[0].removeprefix("K[") for label in labels} <= set(table.states)

@@ -9,7 +9,7 @@ form; a continuous table is refused):
   table's provenance;
 * ``<prefix>_filter.h``: ``typedef double|float <prefix>_real``, the plain-data state
   ``<prefix>_state {x, u_last, phase}``, ``<prefix>_init`` and ``<prefix>_step``;
-* ``<prefix>_filter.c``: the step, C99 with ``<math.h>`` only (``isnan``, ``fmod``), no
+* ``<prefix>_filter.c``: the step, C99 with ``<math.h>`` only (``ceil`` or ``ceilf``, for the angle wrap), no
   allocation, no globals beyond the constant tables.
 
 The step has the semantics of :meth:`cfdesign.runtime.Runtime.step` (NaN is a missing

@@ -29,6 +29,7 @@ from __future__ import annotations
 import keyword
 import math
 import numbers
+from collections.abc import Iterable
 from dataclasses import dataclass
 from fractions import Fraction
 from functools import cached_property
@@ -303,6 +304,31 @@ def _chain_transfers(Fd, Bd):
     return [sp.cancel(col[i] / det) for i in range(m)] + [sp.Integer(1)]
 
 
+def _sensor_tuple(sensors) -> tuple:
+    """``sensors`` as a tuple of :class:`Sensor`, or a StructureError saying what was given."""
+    if isinstance(sensors, (str, bytes, Sensor)) or not isinstance(sensors, Iterable):
+        raise StructureError(f"sensors must be a sequence of Sensor, got {type(sensors).__name__}")
+    sensors = tuple(sensors)
+    bad = [type(x).__name__ for x in sensors if not isinstance(x, Sensor)]
+    if bad:
+        raise StructureError(f"sensors must be Sensor objects (Sensor.input, Sensor.measurement), got {bad[0]}")
+    return sensors
+
+
+def _check_signal_names(sys, sensors) -> None:
+    """Refuse a python-control system whose own input/output names differ from the sensors'."""
+    for role, labels, default in (("input", sys.input_labels, "u"), ("measurement", sys.output_labels, "y")):
+        by_index = {x.index: x.name for x in sensors if x.role == role}
+        for i, label in enumerate(labels):
+            if label == f"{default}[{i}]" or i not in by_index:
+                continue  # python-control's default name, or a missing sensor (reported by the observer)
+            if label != by_index[i]:
+                what = "input" if role == "input" else "output"
+                raise StructureError(f"{sys.name}: {what} {i} is named {label!r} but the {role} sensor at index {i} "
+                                     f"is {by_index[i]!r}; name the sensors after the system's signals "
+                                     "(or reorder them)")
+
+
 def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     if hasattr(value, "dt") and hasattr(value, "ninputs"):  # a python-control system, not a matrix
         raise StructureError(f"{name} is a python-control {type(value).__name__}, not a matrix; build the observer "
@@ -434,7 +460,7 @@ class Observer:
         self.domain, self.sample_time, self.gain_form, self.name = domain, sample_time, gain_form, name
         self.variable = s if domain == "s" else z
         self.output = _matrix("output", output if output is not None else [[1] + [0] * (n - 1)], 1, n)
-        self.sensors = self._check_sensors(tuple(sensors))
+        self.sensors = self._check_sensors(_sensor_tuple(sensors))
         if domain == "s":
             continuous = (F, B)
         elif continuous is not None:
@@ -469,8 +495,27 @@ class Observer:
         Raises
         ------
         StructureError
-            ``sys`` is not a state-space system, has a feedthrough, or an unspecified sample time
-            (``dt=True``).
+            ``sys`` is not a state-space system, has a feedthrough or an unspecified sample time
+            (``dt=True``); or its inputs and outputs carry names of their own
+            (not python-control's ``u[i]`` / ``y[i]``) that differ from the sensors' names at
+            the same column of ``B`` or row of ``C``.
+        GainError
+            An entry that is not finite.
+
+        Notes
+        -----
+        Named signals (``control.ss(..., inputs=['gyro'], outputs=['compass'])``) are checked
+        against the sensors, so a sensor cannot silently read another signal's column.
+
+        Examples
+        --------
+        >>> import control, sympy as sp
+        >>> from cfdesign import Observer, Sensor
+        >>> sys = control.ss([[0]], [[1]], [[1]], [[0]], inputs=["gyro"], outputs=["compass"], name="heading")
+        >>> obs = Observer.from_statespace(sys, [[sp.Symbol("k")]],
+        ...                                [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)])
+        >>> obs.name, obs.proof().holds
+        ('heading', True)
         """
         import control
 
@@ -481,11 +526,16 @@ class Observer:
             raise StructureError(f"{sys.name}: D must be zero (measurements read the state, no feedthrough)")
         if sys.dt is True:
             raise StructureError(f"{sys.name}: discrete with an unspecified sample time (dt=True); give dt in seconds")
+        sensors = _sensor_tuple(sensors)
+        _check_signal_names(sys, sensors)
         discrete = bool(sys.dt)
-        to_exact = lambda M: [[exact_number(float(v), "entry") for v in row] for row in np.asarray(M)]  # noqa: E731
-        return cls(to_exact(sys.A), to_exact(sys.B), to_exact(sys.C), K, sensors, domain="z" if discrete else "s",
-                   sample_time=float(sys.dt) if discrete else None, gain_form=gain_form,
-                   name=name or sys.name)
+
+        def to_exact(label, M):
+            return [[exact_number(float(v), f"{label} entry") for v in row] for row in np.asarray(M)]
+
+        return cls(to_exact("A", sys.A), to_exact("B", sys.B), to_exact("C", sys.C), K, sensors,
+                   domain="z" if discrete else "s", sample_time=float(sys.dt) if discrete else None,
+                   gain_form=gain_form, name=name or sys.name)
 
     # ------------------------------------------------------------------ structure
     def _check_sensors(self, sensors):
