@@ -161,8 +161,12 @@ def _references(table, reference, header, source) -> dict:
     return out
 
 
-def _numeric(df, columns, source, first_line):
-    """The columns as float arrays; a cell that is not a number is an error naming its line."""
+def _numeric(df, columns, source, first_line, time=None):
+    """The columns as float arrays; a cell that is not a number is an error naming its line.
+
+    The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
+    in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
+    without a time zone is taken as UTC; only differences matter)."""
     pd = _pandas()
     out = {}
     for c in columns:
@@ -170,13 +174,45 @@ def _numeric(df, columns, source, first_line):
         if s.dtype.kind in "fiub":
             out[c] = s.to_numpy(dtype=float)
             continue
+        if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
+            out[c] = _epoch_seconds(s)
+            continue
         text = s.astype("string").str.strip()
         values = pd.to_numeric(text.where(text != ""), errors="coerce")
         bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy() & (text != "").to_numpy())
+        if bad.size and c == time and len(bad) == int((text.notna() & (text != "")).sum()):  # no number: dates?
+            dates, not_date = _dates(text.where(text != ""))
+            if not_date is None:
+                out[c] = dates
+                continue
+            if not_date != bad[0]:  # dates, but this cell is none
+                raise DataError(f"{source} line {first_line + not_date}: column {c!r} is neither a number nor a "
+                                f"date: {s.iloc[not_date]!r}")
         if bad.size:
             raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is not a number: {s.iloc[bad[0]]!r}")
         out[c] = values.to_numpy(dtype=float)
     return out
+
+
+def _dates(text):
+    """``(epoch seconds, None)`` for a column of ISO 8601 dates, or ``(None, i)`` with ``i`` the
+    first cell that is not one."""
+    pd = _pandas()
+    try:
+        parsed = pd.to_datetime(text, utc=True, errors="coerce", format="ISO8601")
+    except (ValueError, TypeError):
+        return None, 0
+    wrong = np.flatnonzero((parsed.isna() & text.notna()).to_numpy())
+    return (None, int(wrong[0])) if wrong.size else (_epoch_seconds(parsed), None)
+
+
+def _epoch_seconds(s):
+    """A datetime series as float seconds since 1970-01-01 UTC (naive dates taken as UTC); NaT is NaN."""
+    pd = _pandas()
+    s = pd.Series(s)
+    if s.dt.tz is None:
+        s = s.dt.tz_localize("UTC")
+    return ((s - pd.Timestamp(0, tz="UTC")) / pd.Timedelta(seconds=1)).to_numpy(dtype=float)
 
 
 # ---------------------------------------------------------------------------- reading
@@ -319,8 +355,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
         no DataFrame (bounded memory for big logs).
     time : str, optional
-        The time column (seconds); default ``time`` or ``t`` when present, else every row is
-        one base tick.
+        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time`` or
+        ``t`` when present, else every row is one base tick.
     mapping : dict, optional
         ``{sensor: column}`` where the log names a sensor differently.
     reference : str or list of str, optional
@@ -390,7 +426,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, 2 + place.rows)
+            values = _numeric(block, cols.numeric, source, 2 + place.rows, cols.time)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -488,7 +524,7 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          2 + place.rows)
+                          2 + place.rows, cols.time)
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
@@ -798,7 +834,7 @@ def plot_log(table, estimates, references=None, time=None):
     refs = references or {}
     rows = sum(2 if s in refs else 1 for s in table.states)
     fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
-    x = estimates[time].to_numpy() if time else np.arange(len(estimates))
+    x, xlabel = _time_axis(estimates, time)
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
     units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
@@ -825,10 +861,22 @@ def plot_log(table, estimates, references=None, time=None):
             ax.fill_between(x, est - band, est + band, color="0.85", label="predicted ±2σ")
         ax.set_ylabel(f"{name}{units[name]}")
         ax.legend(loc="upper right", fontsize=8)
-    axes[-1, 0].set_xlabel(f"{time} (s)" if time else "row")
+    axes[-1, 0].set_xlabel(xlabel)
     fig.suptitle(table.name, fontsize=10)
     fig.tight_layout()
     return fig
+
+
+def _time_axis(estimates, time):
+    """``(x, label)``: the time column in seconds (dates as seconds after the first row), or the
+    row number."""
+    if not time:
+        return np.arange(len(estimates)), "row"
+    col = estimates[time]
+    if col.dtype.kind in "fiu":
+        return col.to_numpy(dtype=float), f"{time} (s)"
+    x = _numeric(estimates, [time], "estimates", 2, time)[time]
+    return x - x[0], f"{time} (s after {col.iloc[0]})"
 
 
 def _broken(angle):

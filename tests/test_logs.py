@@ -164,6 +164,27 @@ def test_the_arrival_kalman_filter_is_the_table_on_its_own_schedule(heading):
 
 
 # ---------------------------------------------------------------------- the logs people have
+def test_dates_as_times_run_as_seconds(heading, tmp_path):
+    """ISO 8601 text in a CSV and a time-zone-aware datetime column in Parquet are placed as the
+    same times in seconds; the estimates equal those of the numeric log, the time column is
+    written back as it was; a cell that is no date is named."""
+    log, _ = heading_log(3, 37, n=3000)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    start = pd.Timestamp("2024-05-01T12:00:00")
+    dated = log.assign(time=(start + pd.to_timedelta(log["time"] - log["time"].iloc[0], unit="s")))
+    iso = dated.assign(time=dated["time"].dt.strftime("%Y-%m-%dT%H:%M:%S.%f"))
+    iso.to_csv(tmp_path / "iso.csv", index=False)
+    dated.assign(time=dated["time"].dt.tz_localize("Europe/Lisbon")).to_parquet(tmp_path / "dt.parquet")
+    for path in (tmp_path / "iso.csv", tmp_path / "dt.parquet"):
+        result = run_log(heading, path)
+        assert np.allclose(result.estimates["heading"].to_numpy(), expected, atol=1e-12, rtol=0), path
+    assert run_log(heading, tmp_path / "iso.csv").estimates["time"].iloc[1] == iso["time"].iloc[1]
+    iso.loc[5, "time"] = "soon"
+    iso.to_csv(tmp_path / "bad.csv", index=False)
+    with pytest.raises(DataError, match="line 7: column 'time' is neither a number nor a date: 'soon'"):
+        run_log(heading, tmp_path / "bad.csv")
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
