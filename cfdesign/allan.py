@@ -755,7 +755,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     columns : sequence of str
         Columns to read.
     time_column : str, optional
-        Column of times (s) to take the rate from.
+        Column of times to take the rate from: seconds, or ISO 8601 dates.
 
     Returns
     -------
@@ -804,9 +804,10 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
                 for j, col in enumerate(index):
                     cell = row[col].strip() if col < len(row) else ""
                     try:
-                        v = float(cell)
+                        v = float(cell) if wanted[j] != time_column else _seconds(cell)
                     except ValueError:
-                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is not a number: "
+                        what = "a number or an ISO 8601 date" if wanted[j] == time_column else "a number"
+                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is not {what}: "
                                         f"{_comment(cell)[:40]!r}") from None
                     if not math.isfinite(v):
                         raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is {cell!r}; the "
@@ -821,6 +822,18 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     if time_column:
         rate = _rate_from_time(path, time_column, data.pop(time_column))
     return rate, {c: data[c] for c in columns}
+
+
+def _seconds(cell: str) -> float:
+    """A time cell as seconds: a number, or an ISO 8601 date as seconds since 1970-01-01 UTC (a
+    date without a time zone taken as UTC, as :func:`cfdesign.logs.run_log` reads it)."""
+    try:
+        return float(cell)
+    except ValueError:
+        from datetime import datetime, timezone
+
+        when = datetime.fromisoformat(cell)  # ValueError: neither
+        return (when if when.tzinfo else when.replace(tzinfo=timezone.utc)).timestamp()
 
 
 def _rate_from_time(path, name, t) -> float:

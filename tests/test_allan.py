@@ -187,3 +187,22 @@ def test_cli_bad_cells_and_times_name_the_line(cli, tmp_path):
                                             for i, t in enumerate([0, 0.01, 0.02, 0.5, 0.51] + [0.52] * 0)))
     code, _, err = cli("noise", log, "--column", "gyro", "--time", "time")
     assert code == 2 and "line 5" in err and "evenly sampled" in err
+
+
+def test_cli_time_column_of_dates(cli, tmp_path):
+    """ISO 8601 times give the rate as seconds do (as ``cfdesign run`` reads them); a time cell
+    that is neither is named."""
+    rng = np.random.default_rng(2)
+    x = 0.01 * rng.standard_normal(4000)
+    start = 1714564800.0  # 2024-05-01T12:00:00 UTC
+    from datetime import datetime, timezone
+
+    dates = [datetime.fromtimestamp(start + k / 100, timezone.utc).isoformat() for k in range(4000)]
+    (tmp_path / "s.csv").write_text("time,gyro\n" + "".join(f"{k / 100},{v}\n" for k, v in enumerate(x)))
+    (tmp_path / "d.csv").write_text("time,gyro\n" + "".join(f"{d},{v}\n" for d, v in zip(dates, x, strict=True)))
+    outs = [cli("noise", tmp_path / f, "--column", "gyro", "--time", "time") for f in ("s.csv", "d.csv")]
+    assert outs[0][0] == outs[1][0] == 0 and outs[0][1] == outs[1][1]
+    (tmp_path / "d.csv").write_text("time,gyro\n" + "".join(f"{d},{v}\n" for d, v in zip(dates, x, strict=True))
+                                    + "later,0.1\n")
+    code, _, err = cli("noise", tmp_path / "d.csv", "--column", "gyro", "--time", "time")
+    assert code == 2 and "line 4002" in err and "ISO 8601 date" in err
