@@ -777,7 +777,7 @@ def state_names(structure, spec) -> tuple:
     for i in range(n):
         if names[i] is None:
             d = order.get(i)
-            names[i] = DERIVATIVE_NAMES[family][d] if d is not None and d < 5 else f"x{i}"
+            names[i] = DERIVATIVE_NAMES[family][d] if d is not None and d < len(DERIVATIVE_NAMES[family]) else f"x{i}"
     if len(set(names)) < n:
         names = [f"{name}_{i}" if names.count(name) > 1 else name for i, name in enumerate(names)]
     return tuple(names)

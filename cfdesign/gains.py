@@ -35,11 +35,12 @@ __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "sch
 
 #: the names the designer gives a chain's states, by family and derivative order
 #: (:func:`cfdesign.designer.state_names`), and the unit of each family's quantity
-DERIVATIVE_NAMES = {"linear": ("position", "velocity", "acceleration", "jerk", "snap"),
-                    "angle": ("angle", "angle_rate", "angle_acceleration", "angle_jerk", "angle_snap"),
-                    "heading": ("heading", "heading_rate", "heading_acceleration", "heading_jerk", "heading_snap")}
+_ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
+DERIVATIVE_NAMES = {"linear": ("position", "velocity", *_ORDERS),
+                    "angle": ("angle", "angle_rate", *(f"angle_{d}" for d in _ORDERS)),
+                    "heading": ("heading", "heading_rate", *(f"heading_{d}" for d in _ORDERS))}
 _FAMILY_UNITS = {"linear": "m", "angle": "rad", "heading": "rad"}
-_PER_SECOND = ("", "/s", "/s²", "/s³", "/s⁴")
+_PER_SECOND = ("", "/s", "/s²", "/s³", "/s⁴", "/s⁵", "/s⁶")
 
 #: largest gain table file read (bytes) and largest period and state a table may have: checked
 #: before anything is allocated or computed (the designer caps the period at the same value)
@@ -635,6 +636,8 @@ class GainTable:
         orders = {s.name: s.order for s in self.sensors}
         units = []
         for name in self.states:
+            stem, _, index = name.rpartition("_")
+            name = stem if index.isdigit() and stem else name  # velocity_1: a name made unique by its index
             owner = name.rsplit("_", 1)[0] if name.endswith(("_bias", "_correction")) else None
             if name in DERIVATIVE_NAMES[family]:
                 order = DERIVATIVE_NAMES[family].index(name)
@@ -642,7 +645,8 @@ class GainTable:
                 order = orders.get(owner, QUANTITY_ORDERS.get(owner))  # a shared bias: `rate_correction`
             else:
                 order = None
-            units.append(_FAMILY_UNITS[family] + _PER_SECOND[order] if order is not None and order < 5 else "")
+            units.append(_FAMILY_UNITS[family] + _PER_SECOND[order] if order is not None and order < len(_PER_SECOND)
+                         else "")
         return tuple(units)
 
     @property

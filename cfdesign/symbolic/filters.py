@@ -24,13 +24,15 @@ from __future__ import annotations
 import sympy as sp
 
 from ..errors import StructureError
+from ..gains import DERIVATIVE_NAMES as _NAMES
 from .observer import Observer, Sensor, T, integrator_chain, s, z, zoh
 
 __all__ = ["cf2", "cf3", "ckf3", "dckf3", "cfn", "chain", "position", "ckf3_printed", "dckf3_printed",
            "eq32_denominator", "STRUCTURES", "STRUCTURE_OPTIONS", "structure"]
 
-#: names of the derivatives of the common quantity, by order (sensor names of cfn)
-DERIVATIVE_NAMES = ("position", "velocity", "acceleration", "jerk", "snap", "crackle", "pop")
+#: names of the derivatives of the common quantity, by order (sensor names of cfn): the
+#: designer's names of a linear chain's states (:data:`cfdesign.gains.DERIVATIVE_NAMES`)
+DERIVATIVE_NAMES = _NAMES["linear"]
 
 
 def _observer(Fc, Bc, H, K, sensors, name, discrete):
