@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from decimal import Decimal
 
 import numpy as np
 import pytest
@@ -145,7 +146,7 @@ def test_ten_million_samples_stay_bounded(heading):
     assert worst < 1.0 and np.all(np.isfinite(rt.x))
 
 
-@pytest.mark.parametrize("bad", ["0.1", None, 1j, np.array([1.0, 2.0])])
+@pytest.mark.parametrize("bad", ["0.1", None, 1j, np.array([1.0, 2.0]), Decimal("0.1")])
 @pytest.mark.parametrize("sensor", ["gyro", "odometry"])
 def test_a_reading_that_is_no_number_is_named_and_changes_nothing(heading, sensor, bad):
     """The step compares every reading before it stores anything: an input held from the step

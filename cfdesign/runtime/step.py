@@ -34,8 +34,8 @@ __all__ = ["compile_step"]
 def _is_number(v) -> bool:
     """A reading the step can compare with the limit (a real number; NaN and inf included)."""
     try:
-        -1.0 <= v <= 1.0  # noqa: B015 - the comparison is the test
-    except (TypeError, ValueError):  # text, None, complex; an array of several values
+        -1.0 <= v + 0.0 <= 1.0  # noqa: B015 - the operations are the test
+    except (TypeError, ValueError):  # text, None, complex, a Decimal; an array of several values
         return False
     return True
 
@@ -101,9 +101,10 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
 
     Notes
     -----
-    The steps compare every reading with ``limit`` before they store anything, so a reading
-    that is not a number (text, None, a complex) raises :class:`~cfdesign.errors.CfdesignError`
-    naming its sensor and leaves the state, the held inputs and the counts as they were.
+    The steps add every reading to a float and compare it with ``limit`` before they store
+    anything, so a reading that is not a real number they can compute with (text, None, a
+    complex, a ``Decimal``) raises :class:`~cfdesign.errors.CfdesignError` naming its sensor
+    and leaves the state, the held inputs and the counts as they were.
     """
     F, B, H = table.F, table.B, table.H
     n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period
@@ -145,12 +146,13 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
             add(f"    {xs[i]} = {S_}[{i}]")
     if P > 1:
         add(f"    {ph} = {S_}[{n}]")
-    # every reading is compared before anything is stored: a reading that is not a number
-    # (text, None, complex) raises in a comparison, and then nothing has changed
+    # every reading is added to a float and compared before anything is stored: a reading that
+    # is not a real number the step can compute with (text, None, complex, a Decimal) raises
+    # there, and then nothing has changed
     oks = [fresh(f"ok{j}") for j in range(p + m)]
     add("    try:")
     for ok, v in zip(oks, us + ys, strict=True):
-        add(f"        {ok} = -{LIM} <= {v} <= {LIM}")
+        add(f"        {ok} = -{LIM} <= {v} + 0.0 <= {LIM}")
     if not oks:
         add("        pass")
     add("    except (TypeError, ValueError):")
