@@ -40,6 +40,7 @@ from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import QUANTITY_ORDERS, FilterSpec
+from .timing import nearest_tick
 
 #: structures stored for use without the symbolic engine (:meth:`Structure.load`)
 STRUCTURES_DIR = Path(__file__).resolve().parent / "structures"
@@ -112,7 +113,7 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     ticks = {}
     for name, r in ratios.items():
         shift = offsets_s.get(name, 0.0) * base
-        ticks[name] = [math.floor(j * r + shift + 0.5) for j in range(period * r.denominator // r.numerator)]
+        ticks[name] = [int(nearest_tick(j * r + shift)) for j in range(period * r.denominator // r.numerator)]
     return 1.0 / base, Schedule.from_ticks(list(ratios), ticks, period)
 
 

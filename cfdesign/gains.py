@@ -33,9 +33,9 @@ from .spec import QUANTITY_ORDERS
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION",
            "DERIVATIVE_NAMES"]
 
+_ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
 #: the names the designer gives a chain's states, by family and derivative order
 #: (:func:`cfdesign.designer.state_names`), and the unit of each family's quantity
-_ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
 DERIVATIVE_NAMES = {"linear": ("position", "velocity", *_ORDERS),
                     "angle": ("angle", "angle_rate", *(f"angle_{d}" for d in _ORDERS)),
                     "heading": ("heading", "heading_rate", *(f"heading_{d}" for d in _ORDERS))}

@@ -305,7 +305,7 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import place
+            from .timing import nearest_tick, place
 
             t = values[self.cols.time]
             both = t if self.last_time is None else np.concatenate([[self.last_time], t])
@@ -320,7 +320,7 @@ class _Pass:
                   first_line=2 + self.rows - (0 if self.last_time is None else 1), rate=False)
             self._sample(t[base[len(both) - n:]])
             # a reading logged before the first input row is used at tick 0
-            ticks = np.maximum(np.rint((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
+            ticks = np.maximum(nearest_tick((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
             if n:
                 self.last_time = t[-1]
         self.rows += n

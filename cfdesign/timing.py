@@ -5,7 +5,8 @@ phases at which each measurement sensor is read.  A log says when each reading h
 steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 ``docs/logs.md``):
 
-1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``,
+1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``
+   (:func:`nearest_tick`: halves up),
    ``t0`` the time of the log's first row where the input sensors read (the base clock; a
    reading logged before it is used at tick 0): the nearest tick, so a reading is used at most ``T/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
@@ -39,7 +40,8 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "nearest_tick", "place", "check_rate", "Segment", "Lock",
+           "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -48,6 +50,32 @@ RATE_RTOL = 0.01
 STEADY_PERIODS = 20
 #: time-stamp jitter (in ticks) allowed at each end of the span the base rate is measured over
 JITTER_TICKS = 0.05
+
+
+def nearest_tick(x):
+    """The tick nearest to ``x`` (in ticks), halves rounded up: ``floor(x + 1/2)``.
+
+    The one rounding of placement (:func:`place`, :func:`cfdesign.logs.run_log`) and of the
+    designer's schedules (``offset_s``, fractional rates:
+    :func:`cfdesign.designer.multirate_schedule`), so that a reading exactly half a tick late
+    lands on the tick the design put it on.
+
+    Parameters
+    ----------
+    x : float or array_like
+        Positions in ticks.
+
+    Returns
+    -------
+    float or ndarray
+        The nearest whole ticks (as floats).
+
+    Examples
+    --------
+    >>> nearest_tick([2.5, 3.5, -0.5, 1.49]).tolist()
+    [3.0, 4.0, 0.0, 1.0]
+    """
+    return np.floor(np.asarray(x, dtype=float) + 0.5)
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True):
@@ -97,7 +125,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
                         "line before (times must increase)")
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
-    return np.rint((t - t[0]) / dt).astype(np.int64)
+    return nearest_tick((t - t[0]) / dt).astype(np.int64)
 
 
 def check_rate(t, dt, source):

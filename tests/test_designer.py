@@ -316,3 +316,18 @@ def test_an_offset_sensor_at_a_fractional_rate_is_scheduled_where_its_readings_l
     order = np.argsort(t, kind="stable")
     ticks = place(t[order], dt, base_rows=order < 50)[np.argsort(order)][50:]
     assert s.phases("gps") == tuple(int(k) for k in ticks) == (6, 23, 40)
+
+
+@pytest.mark.parametrize("offset, expected", [(0.01, (1,)), (0.05, (3,)), (0.03, (2,))])
+def test_half_tick_offsets_are_scheduled_where_placement_puts_them(offset, expected):
+    """1 Hz GPS exactly half a tick late (0.01 s, 0.05 s at 50 Hz): the designer and the log's
+    placement use one rounding (timing.nearest_tick, halves up); they differed (floor(x + 1/2)
+    against numpy's round-half-even) and a log matching the design file was re-locked."""
+    from cfdesign.timing import place
+
+    dt, s = multirate_schedule({"imu": 50.0, "gps": 1.0}, inputs=["imu"], offsets_s={"gps": offset})
+    imu = np.arange(50) * dt
+    t = np.concatenate([imu, [offset]])
+    order = np.argsort(t, kind="stable")
+    placed = place(t[order], dt, base_rows=order < 50)[np.argsort(order)][50]
+    assert s.phases("gps") == expected == (int(placed),)
