@@ -825,15 +825,14 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
 
 
 def _seconds(cell: str) -> float:
-    """A time cell as seconds: a number, or an ISO 8601 date as seconds since 1970-01-01 UTC (a
-    date without a time zone taken as UTC, as :func:`cfdesign.logs.run_log` reads it)."""
+    """A time cell as seconds: a number, or a date (:func:`cfdesign.timing.date_seconds`, as
+    :func:`cfdesign.logs.run_log` reads it); ValueError when it is neither."""
     try:
         return float(cell)
     except ValueError:
-        from datetime import datetime, timezone
+        from .timing import date_seconds
 
-        when = datetime.fromisoformat(cell)  # ValueError: neither
-        return (when if when.tzinfo else when.replace(tzinfo=timezone.utc)).timestamp()
+        return date_seconds(cell)
 
 
 def _rate_from_time(path, name, t) -> float:

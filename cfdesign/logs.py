@@ -185,25 +185,28 @@ def _numeric(df, columns, source, first_line, time=None):
             if not_date is None:
                 out[c] = dates
                 continue
-            if not_date != bad[0]:  # dates, but this cell is none
-                raise DataError(f"{source} line {first_line + not_date}: column {c!r} is neither a number nor a "
-                                f"date: {s.iloc[not_date]!r}")
-        if bad.size:
-            raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is not a number: {s.iloc[bad[0]]!r}")
+            bad = [not_date]  # the first cell that is no date either
+        if len(bad):
+            what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
+            raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is {what}: {s.iloc[bad[0]]!r}")
         out[c] = values.to_numpy(dtype=float)
     return out
 
 
 def _dates(text):
-    """``(epoch seconds, None)`` for a column of ISO 8601 dates, or ``(None, i)`` with ``i`` the
-    first cell that is not one."""
-    pd = _pandas()
-    try:
-        parsed = pd.to_datetime(text, utc=True, errors="coerce", format="ISO8601")
-    except (ValueError, TypeError):
-        return None, 0
-    wrong = np.flatnonzero((parsed.isna() & text.notna()).to_numpy())
-    return (None, int(wrong[0])) if wrong.size else (_epoch_seconds(parsed), None)
+    """``(epoch seconds, None)`` for a column of ISO 8601 dates (:func:`cfdesign.timing.date_seconds`),
+    or ``(None, i)`` with ``i`` the first cell that is not one."""
+    from .timing import date_seconds
+
+    def seconds(cell):
+        try:
+            return date_seconds(cell)
+        except (TypeError, ValueError):  # NA (an empty cell) is a TypeError: NaN, the others are named
+            return math.nan
+
+    values = text.map(seconds, na_action="ignore").to_numpy(dtype=float)
+    wrong = np.flatnonzero(np.isnan(values) & text.notna().to_numpy())
+    return (None, int(wrong[0])) if wrong.size else (values, None)
 
 
 def _epoch_seconds(s):

@@ -40,8 +40,8 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "nearest_tick", "place", "check_rate", "Segment", "Lock",
-           "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "date_seconds", "nearest_tick", "place", "check_rate",
+           "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -50,6 +50,41 @@ RATE_RTOL = 0.01
 STEADY_PERIODS = 20
 #: time-stamp jitter (in ticks) allowed at each end of the span the base rate is measured over
 JITTER_TICKS = 0.05
+
+
+def date_seconds(text: str) -> float:
+    """An ISO 8601 date and time as seconds since 1970-01-01 UTC.
+
+    The one reading of dates in time columns (:func:`cfdesign.logs.run_log`,
+    ``cfdesign noise --time``): Python's :meth:`datetime.datetime.fromisoformat`
+    (``2024-05-01T12:00:00.010``, ``2024-05-01 12:00:00,5+01:00``, a trailing ``Z``); a date
+    without a time zone is taken as UTC (only differences between rows matter).
+
+    Parameters
+    ----------
+    text : str
+        The cell.
+
+    Returns
+    -------
+    float
+        Seconds (microsecond resolution).
+
+    Raises
+    ------
+    ValueError
+        The text is not an ISO 8601 date.
+
+    Examples
+    --------
+    >>> date_seconds("1970-01-01T00:01:00.5Z")
+    60.5
+    """
+    from datetime import datetime, timezone
+
+    text = text.strip()
+    when = datetime.fromisoformat(text[:-1] + "+00:00" if text.endswith(("Z", "z")) else text)
+    return (when if when.tzinfo else when.replace(tzinfo=timezone.utc)).timestamp()
 
 
 def nearest_tick(x):

@@ -206,3 +206,11 @@ def test_cli_time_column_of_dates(cli, tmp_path):
                                     + "later,0.1\n")
     code, _, err = cli("noise", tmp_path / "d.csv", "--column", "gyro", "--time", "time")
     assert code == 2 and "line 4002" in err and "ISO 8601 date" in err
+    # the same column through cfdesign run reads the same times (one date reader)
+    from cfdesign.logs import _numeric
+    from cfdesign.timing import date_seconds
+
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({"time": ["2024-05-01T12:00:00,5", "2024-05-01 12:00:01.25+01:00", "2024-05-01T11:00:02Z"]})
+    assert _numeric(frame, ["time"], "log", 2, "time")["time"].tolist() == [
+        date_seconds(c) for c in frame["time"]] == [1714564800.5, 1714564801.25 - 3600, 1714561202.0]

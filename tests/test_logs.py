@@ -181,7 +181,7 @@ def test_dates_as_times_run_as_seconds(heading, tmp_path):
     assert run_log(heading, tmp_path / "iso.csv").estimates["time"].iloc[1] == iso["time"].iloc[1]
     iso.loc[5, "time"] = "soon"
     iso.to_csv(tmp_path / "bad.csv", index=False)
-    with pytest.raises(DataError, match="line 7: column 'time' is neither a number nor a date: 'soon'"):
+    with pytest.raises(DataError, match="line 7: column 'time' is neither a number nor an ISO 8601 date: 'soon'"):
         run_log(heading, tmp_path / "bad.csv")
 
 
