@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linear import wrap_scalar
+from ..linear import posterior_covariance, wrap_inplace, wrap_scalar
 from .filter import held, usable
 
 __all__ = ["ArrivalKalman"]
@@ -112,8 +112,8 @@ class ArrivalKalman:
             P = F @ P_post @ F.T + Q
             if self.wrap_angle:
                 x[0] = wrap_scalar(x[0])
-        if self.wrap_angle and N:
-            states[:, 0] = [wrap_scalar(v) for v in states[:, 0]]
+        if self.wrap_angle:
+            wrap_inplace(states[:, 0])
         self.x, self.P = x, 0.5 * (P + P.T)
         if N:
             self.u_last = u[-1].copy()
@@ -130,8 +130,7 @@ class ArrivalKalman:
             e[i] = wrap_scalar(e[i])
         PHt = P @ H.T
         L = np.linalg.solve(H @ PHt + R, PHt.T).T
-        A = np.eye(self.n) - L @ H
-        return x + L @ e, A @ P @ A.T + L @ R @ L.T
+        return x + L @ e, posterior_covariance(P, H, L, R)
 
     def _cleaned(self, u, y):
         """Inputs held over missing or rejected values; rejected readings made missing; both counted."""
