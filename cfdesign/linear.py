@@ -1,7 +1,8 @@
 """The numeric meaning of a gain table: gain forms, closed loop, bands, one angle wrap.
 
-numpy only: this is the module the runtime, the designer, ``verify``, the analysis and the
-C generator share, so that a gain form means one thing everywhere.  The symbolic engine
+numpy only on the runtime's path (the frequency responses of :func:`band_responses`, which
+the runtime never calls, use scipy's balancing and Schur form): this is the module the runtime,
+the designer, ``verify``, the analysis and the C generator share, so that a gain form means one thing everywhere.  The symbolic engine
 (:mod:`cfdesign.symbolic.observer`) derives the same objects exactly; the tests hold the two
 against each other.  Derivations: ``docs/derivations.md``, sections "One observer" and
 "Gain forms".
@@ -794,12 +795,33 @@ def _balanced(base, G, c):
     magnitude from the others (the ``dt^i`` of a kinematic chain) is lost in a normwise
     backward-stable solve: an n = 10 chain at 100 Hz gave bands off by 20 near Nyquist.
     """
-    from scipy.linalg import matrix_balance
-
     if not len(base) or not np.all(np.isfinite(base)):
         return base, G, c
-    _, (d, _) = matrix_balance(base, permute=False, separate=True)
+    d = balancing(base)
     return base / d[:, None] * d[None, :], G / d[:, None], c * d
+
+
+def balancing(M) -> np.ndarray:
+    """The diagonal ``d`` (powers of two) of LAPACK's ``gebal`` scaling of ``M``, no permutation.
+
+    ``D^-1 M D`` with ``D = diag(d)`` has rows and columns of comparable norms (Parlett and
+    Reinsch, "Balancing a matrix for calculation of eigenvalues and eigenvectors", Numer. Math.
+    13, 1969) and is exactly similar to ``M`` (powers of two).  Used by the frequency responses
+    here and by the Riccati solvers' closed loop (:mod:`cfdesign.riccati.lyapunov`).  scipy.
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+        A finite square matrix.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    from scipy.linalg import matrix_balance
+
+    _, (d, _) = matrix_balance(M, permute=False, separate=True)
+    return d
 
 
 def complementarity_error(responses: dict) -> float:

@@ -24,6 +24,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.linalg import lapack
 
+from ..linear import balancing
 from .problem import TINY, Problem, from_standard, herm
 
 __all__ = ["stein", "ClosedLoop"]
@@ -80,12 +81,10 @@ def _balance(M):
     A scaling within a factor 4 is dropped (``S = I``): it would change little, and without
     it one solve serves both the certificate and the condition number.
     """
-    Ms, _, _, scale, info = lapack.dgebal(M, scale=1, permute=0)
-    if info < 0:
-        raise ValueError(f"balancing the closed loop failed (dgebal info {info})")
+    scale = balancing(M)
     if scale.max(initial=1.0) <= 4 * scale.min(initial=1.0):
         return M, np.ones(M.shape[0])
-    return Ms, scale
+    return M / scale[:, None] * scale[None, :], scale
 
 
 class ClosedLoop:

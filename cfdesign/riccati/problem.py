@@ -27,6 +27,25 @@ EPS = np.finfo(float).eps
 TINY = np.finfo(float).tiny
 
 
+def norm2_bound(M) -> float:
+    """An upper bound of the spectral norm: ``min(||M||_F, sqrt(||M||_1 ||M||_inf))``.
+
+    Both bound ``||M||_2`` (Golub and Van Loan, *Matrix Computations*, 4th ed., 2.3.2) at the
+    cost of sums, no SVD.
+
+    Parameters
+    ----------
+    M : ndarray
+        A matrix.
+
+    Returns
+    -------
+    float
+    """
+    a = np.abs(M)
+    return float(min(np.linalg.norm(M), np.sqrt(a.sum(axis=0).max(initial=0.0) * a.sum(axis=1).max(initial=0.0))))
+
+
 def herm(M):
     """Hermitian part ``(M + M')/2`` (exactly Hermitian in floating point).
 

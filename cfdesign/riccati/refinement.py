@@ -29,7 +29,7 @@ from scipy.linalg import lapack
 from ..errors import AccuracyError
 from .extended import dd_add, dd_dot, dd_mul, dd_t, dd_val, two_sum
 from .lyapunov import ClosedLoop
-from .problem import EPS, TINY, Problem, herm, rel
+from .problem import EPS, TINY, Problem, herm, norm2_bound, rel
 
 __all__ = ["Evaluation", "evaluate", "update", "newton_refine", "MAX_NEWTON"]
 
@@ -167,12 +167,6 @@ def evaluate(p: Problem, X) -> Evaluation:
     return Evaluation(herm(res), G, theta)
 
 
-def _norm2_bound(M):
-    """An upper bound of ``||M||_2``: ``min(||M||_F, sqrt(||M||_1 ||M||_inf))``."""
-    a = np.abs(M)
-    return min(np.linalg.norm(M), np.sqrt(a.sum(axis=0).max(initial=0.0) * a.sum(axis=1).max(initial=0.0)))
-
-
 def _omega_bound(p: Problem, K):
     """An upper bound of ``||Omega||`` (Frobenius to Frobenius), the linearised Riccati operator at ``K``.
 
@@ -180,8 +174,8 @@ def _omega_bound(p: Problem, K):
     ``||Omega|| <= 2 ||Ac||_2 ||E||_2`` or ``||Ac||_2^2 + ||E||_2^2``.
     """
     Ac = p.A - p.B @ K
-    a = _norm2_bound(Ac)
-    e = 1.0 if p.E is None else _norm2_bound(p.E)
+    a = norm2_bound(Ac)
+    e = 1.0 if p.E is None else norm2_bound(p.E)
     return 2 * a * e if p.kind == "care" else a * a + e * e
 
 

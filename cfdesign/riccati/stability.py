@@ -14,7 +14,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from .lyapunov import ClosedLoop
-from .problem import EPS, Problem, distance, gain, herm
+from .problem import EPS, Problem, distance, gain, herm, norm2_bound
 
 __all__ = ["Stability", "stability", "closed_loop_eigenvalues"]
 
@@ -114,8 +114,7 @@ def _lyapunov_radius(p: Problem, cl: ClosedLoop, K, K2):
     if p.kind == "care":
         return 0.5 / ynorm, float(unc)
     Ac = Ms + np.eye(p.n)
-    absAc = np.abs(Ac)  # first with an upper bound of ||Ac||_2 (a smaller, still valid radius)
-    for ac in (min(np.linalg.norm(Ac), np.sqrt(absAc.sum(axis=0).max() * absAc.sum(axis=1).max())), None):
+    for ac in (norm2_bound(Ac), None):  # first with an upper bound of ||Ac||_2 (a smaller, still valid radius)
         if ac is None:
             ac = np.sqrt(np.linalg.eigvalsh(Ac.T @ Ac)[-1])  # ||Ac||_2
         radius = (1 / ynorm) / (np.sqrt(ac**2 + 1 / ynorm) + ac)  # no cancellation
