@@ -180,8 +180,7 @@ def _summary(table) -> str:
     roots = c.get("poles", c.get("monodromy_multipliers"))
     what = "poles" if "poles" in c else "monodromy multipliers"
     lines.append(f"  {what}: " + ", ".join(f"{complex(*p):.6g}" for p in roots))
-    exact = str(c.get("complementary_method", "exact proof")).startswith("exact proof")
-    how = "exact proof" if exact else "structural, checked numerically"  # a discretised table has no exact proof
+    how = "exact proof" if c.get("exact_proof", True) else "structural, checked numerically"  # (discretised)
     lines.append(f"  complementary ({how}): {c['complementary']}; stable: {c['stable']}")
     solver = table.provenance["solver"]
     if "crossover_hz" in solver:

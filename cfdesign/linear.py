@@ -2,10 +2,10 @@
 
 numpy only on the runtime's path (the frequency responses of :func:`band_responses`, which
 the runtime never calls, use scipy's balancing and Schur form): this is the module the runtime,
-the designer, ``verify``, the analysis and the C generator share, so that a gain form means one thing everywhere.  The symbolic engine
-(:mod:`cfdesign.symbolic.observer`) derives the same objects exactly; the tests hold the two
-against each other.  Derivations: ``docs/derivations.md``, sections "One observer" and
-"Gain forms".
+the designer, ``verify``, the analysis and the C generator share, so that a gain form means
+one thing everywhere.  The symbolic engine (:mod:`cfdesign.symbolic.observer`) derives the
+same objects exactly; the tests hold the two against each other.  Derivations:
+``docs/derivations.md``, sections "One observer" and "Gain forms".
 
 Gain forms
 ----------
