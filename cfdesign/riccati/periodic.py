@@ -111,7 +111,22 @@ def _periodic_checks(Phi, Wo, Wc):
 
 
 def _propagate(As, Cs, Qs, Rs, P0):
-    """One period of the recursion from P[0]: P[0..N], K_filter, P_filtered and Phi."""
+    r"""One period of the recursion from P[0]: P[0..N], K_filter, P_filtered and Phi.
+
+    At a phase that measures, ``K_k = P_k C_k' S_k^{-1}`` with ``S_k = C_k P_k C_k' + R_k`` and
+    the update in Joseph form (Bucy and Joseph, *Filtering for Stochastic Processes*, 1968;
+    Simon, *Optimal State Estimation*, eq. 5.19):
+
+    .. math::
+
+        P^+_k = (I - K_k C_k) P_k (I - K_k C_k)' + K_k R_k K_k',
+        \qquad P_{k+1} = A_k P^+_k A_k' + Q_k .
+
+    Equal to ``P_k - K_k S_k K_k'`` in exact arithmetic, but that difference cancels to the
+    rounding of ``P_k`` when ``R_k`` is far below ``C_k P_k C_k'`` (a slow, precise sensor after
+    a long prediction: a 1e-12 m GPS 37 steps after its last fix gave P+ = 1.3e-23 m^2 for
+    1e-24); the Joseph form keeps the small posterior variance to its own relative accuracy.
+    """
     n = P0.shape[0]
     P, Kf, Pf, Phi = [P0], [], [], np.eye(n)
     empty = np.zeros((n, 0))
@@ -120,7 +135,8 @@ def _propagate(As, Cs, Qs, Rs, P0):
         if C.shape[0]:
             Sk = C @ Pk @ C.conj().T + R
             K = np.linalg.solve(Sk, C @ Pk).conj().T
-            Pk = Pk - K @ Sk @ K.conj().T
+            IKC = np.eye(n) - K @ C  # Joseph form: P - K S K' cancels to rounding of P when R << C P C'
+            Pk = IKC @ Pk @ IKC.conj().T + K @ R @ K.conj().T
             Pk = 0.5 * (Pk + Pk.conj().T)
             Phi = (A - (A @ K) @ C) @ Phi
         else:
