@@ -180,8 +180,15 @@ _UNDECIDED_FACTOR = 10.0
 
 
 def _complementarity(table) -> list:
-    worst, worst_phase = 0.0, 0
+    """The identity check of every phase; a phase's bands depend on ``F, B, H`` and its own
+    ``K[k]`` only, so phases with the same gain matrix (a long period's many phases without a
+    reading, all ``K = 0``) are checked once, at their first phase."""
+    worst, worst_phase, seen = 0.0, 0, set()
     for k in range(len(table.K)):
+        key = np.ascontiguousarray(table.K[k], dtype=float).tobytes()
+        if key in seen:
+            continue
+        seen.add(key)
         with np.errstate(over="ignore", invalid="ignore"):
             residual = linear.identity_residual(band_polynomials(table, k)[0])
         if not residual <= worst:
