@@ -87,7 +87,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     ------
     SpecError
         Naming the sensor: an input slower than the base rate, a rate faster than the base
-        rate, or rates whose period exceeds :data:`~cfdesign.gains.MAX_PERIOD` steps.
+        rate, a rate slower than ``base / MAX_PERIOD`` (one reading a period at most), or rates
+        whose period exceeds :data:`~cfdesign.gains.MAX_PERIOD` steps.
 
     Examples
     --------
@@ -121,6 +122,9 @@ def _ratio(name, ratio, base, rate) -> Fraction:
     """``base/rate`` as the fraction ``p/q`` it is (to 1e-9), with a period ``p`` within the cap."""
     if ratio < 1 - _RATE_RTOL:
         raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz")
+    if ratio > MAX_PERIOD * (1 + _RATE_RTOL):
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is slower than the period of at most {MAX_PERIOD} "
+                        f"base steps allows: at least {base / MAX_PERIOD:g} Hz beside the base rate {base:g} Hz")
     frac = Fraction(ratio).limit_denominator(MAX_PERIOD)
     if abs(frac - ratio) > _RATE_RTOL * ratio or frac.numerator > MAX_PERIOD:
         raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not a fraction of the base rate {base:g} Hz "

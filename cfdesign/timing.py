@@ -270,15 +270,26 @@ def _offset_runs(ticks, phases, step, period):
         change = np.flatnonzero(np.diff(off)) + 1
         starts = np.concatenate([[0], change])
         return [(int(ticks[i]), int(off[i])) for i in starts]
+    # a general pattern (e.g. 0, 33, 67 of 100): the offsets o in [0, step) consistent with every
+    # arrival t of a run, those with (t - o) mod step among the phases; kept by testing only the
+    # run's surviving candidates against a membership table (O(candidates) a tick, not
+    # O(phases): 1 kHz beside 333.3 Hz, 3333 phases of 10000, took 0.18 ms a row)
+    member = np.zeros(step, dtype=bool)
+    member[phases % step] = True
+    offsets = np.flatnonzero(member)  # the phases within the sensor's own period
     runs, current = [], None
-    for t in ticks.tolist():  # a general pattern (e.g. 0, 33, 67 of 100): intersect candidates
-        cand = {int((t - p) % step) for p in phases}
-        if current is not None and current & cand:
-            current &= cand
-            continue
-        current = cand
+    for t in ticks.tolist():
+        if current is not None:
+            kept = current[member[(t - current) % step]]
+            if kept.size:
+                current = kept
+                continue
+            runs[-1][1] = current
+        current = np.sort((t - offsets) % step)
         runs.append([t, current])
-    return [(t, min(c)) for t, c in runs]
+    if runs:
+        runs[-1][1] = current
+    return [(t, int(c[0])) for t, c in runs]
 
 
 def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True) -> Lock:

@@ -180,8 +180,15 @@ _UNDECIDED_FACTOR = 10.0
 
 
 def _complementarity(table) -> list:
-    worst, worst_phase = 0.0, 0
+    """The identity check of every phase; a phase's bands depend on ``F, B, H`` and its own
+    ``K[k]`` only, so phases with the same gain matrix (a long period's many phases without a
+    reading, all ``K = 0``) are checked once, at their first phase."""
+    worst, worst_phase, seen = 0.0, 0, set()
     for k in range(len(table.K)):
+        key = np.ascontiguousarray(table.K[k], dtype=float).tobytes()
+        if key in seen:
+            continue
+        seen.add(key)
         with np.errstate(over="ignore", invalid="ignore"):
             residual = linear.identity_residual(band_polynomials(table, k)[0])
         if not residual <= worst:
@@ -261,7 +268,8 @@ def _same_design(table, spec, rtol) -> list:
     model = max(((_relative(getattr(fresh, m), getattr(table, m)), m) for m in _MODEL), key=lambda w: w[0])
     cov = max(((_relative(getattr(fresh, m)[k], getattr(table, m)[k]), f"{m}[{k}]") for m in _COVARIANCES
                for k in range(table.period)), key=lambda w: w[0])
-    worst = max((_worst_gain(fresh, table, k) for k in range(table.period)), key=lambda w: w[0])
+    scale = max((np.abs(K).max(initial=0.0) for K in fresh.K), default=0.0)  # once: O(period), not per phase
+    worst = max((_worst_gain(fresh, table, k, scale) for k in range(table.period)), key=lambda w: w[0])
     ok = max(model[0], cov[0], worst[0]) <= rtol
     detail = (f"max relative difference: gains {worst[0]:.2e}{worst[1]}; model {model[0]:.2e}"
               f"{_at(model)}; covariances {cov[0]:.2e}{_at(cov)}; tolerance {rtol:g}")
@@ -290,11 +298,14 @@ def _relative(a, b) -> float:
     return float(np.abs(a - b).max(initial=0.0) / scale)
 
 
-def _worst_gain(fresh, table, k) -> tuple:
-    """``(relative difference, ' at ...')`` of the gain entry of phase ``k`` that differs most."""
+def _worst_gain(fresh, table, k, scale) -> tuple:
+    """``(relative difference, ' at ...')`` of the gain entry of phase ``k`` that differs most.
+
+    ``scale`` is the largest gain entry of the spec's table over all phases (computed once by
+    the caller, so comparing a period of N phases costs O(N), not O(N^2)).
+    """
     A, B = fresh.K[k], table.K[k]
-    scale = max(*(np.abs(K).max(initial=0.0) for K in fresh.K), 1e-300)
-    tiny = 1e-15 * scale  # relative to the spec's own entry (to the table's where the spec has 0)
+    tiny = 1e-15 * max(scale, 1e-300)  # relative to the spec's own entry (to the table's where the spec has 0)
     diff = np.abs(A - B) / np.where(np.abs(A) > tiny, np.abs(A), np.maximum(np.abs(B), tiny))
     if not diff.size or diff.max() == 0:
         return 0.0, ""

@@ -128,6 +128,13 @@ def test_multirate_schedule_lcm_and_errors():
         multirate_schedule({"imu": 50.0, "gps": 50.0 / 3.14159265358979}, inputs=["imu"])
     with pytest.raises(SpecError, match=r"input sensor imu must run at the base rate"):
         multirate_schedule({"imu": 10.0, "gps": 20.0}, inputs=["imu"])
+    # the slowest rate the cap allows runs; slower ones are named as too slow (they were called "not a
+    # fraction of the base rate", 0.05 Hz beside 1 kHz being exactly 1/20000 of it)
+    assert multirate_schedule({"imu": 1000.0, "gps": 0.1}, inputs=["imu"])[1].period == 10_000
+    for slow in (0.05, 0.09, 1e-300):
+        with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz: .* Hz is slower than the period of at most "
+                                            r"10000 base steps allows: at least 0\.1 Hz"):
+            multirate_schedule({"imu": 1000.0, "gps": slow}, inputs=["imu"])
 
 
 def test_gain_table_round_trip_is_exact(tmp_path):

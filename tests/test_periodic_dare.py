@@ -194,3 +194,19 @@ def test_unexcited_unit_circle_mode_raises():
 def test_invalid_periodic_data_is_named(args, message):
     with pytest.raises(RiccatiError, match=message):
         periodic_dare(*args)
+
+
+def test_precise_slow_sensor_keeps_its_small_posterior_variance():
+    """A 1e-12 m GPS once a period: P+ = P - K S K' cancelled to the rounding of the prior
+    (1.3e-23 m^2 for R = 1e-24 in a 100 Hz / 2.7 Hz design; here an indefinite P+); the
+    Joseph-form update gives R C P C' / (C P C' + R) and a positive definite P+."""
+    F, Q = position_model()
+    R_tiny = np.array([[1e-24]])
+    C, R = gps_schedule()
+    R = [R_tiny, *R[1:]]
+    sol = periodic_dare(F, C, Q, R)
+    prior = sol.P[0][0, 0]
+    assert prior > 1e-12  # the prior after a period of prediction is far above R
+    expected = R_tiny[0, 0] * prior / (prior + R_tiny[0, 0])
+    assert sol.P_filtered[0][0, 0] == pytest.approx(expected, rel=1e-6)
+    assert np.all(np.linalg.eigvalsh(sol.P_filtered[0]) > 0)
