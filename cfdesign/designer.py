@@ -912,9 +912,11 @@ def _error_covariance(F, H, K, Q, R, form):
     """
     A = linear.closed_loop(F, H, K, form)
     Kp, _ = linear.gain_pair(F, K, form)
-    if form == "continuous":
-        return linalg.solve_continuous_lyapunov(A, -(Q + K @ R @ K.T))
-    return linalg.solve_discrete_lyapunov(A, Q + Kp @ R @ Kp.T)
+    with warnings.catch_warnings():  # a near-singular equation (poles near the axis): the callers check P
+        warnings.simplefilter("ignore", RuntimeWarning)
+        if form == "continuous":
+            return linalg.solve_continuous_lyapunov(A, -(Q + K @ R @ K.T))
+        return linalg.solve_discrete_lyapunov(A, Q + Kp @ R @ Kp.T)
 
 
 def _stable(eigs, form) -> bool:
