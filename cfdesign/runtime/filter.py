@@ -462,12 +462,23 @@ class Runtime:
         if not states:  # the compiled step
             step = self._step_values
             return np.array([step(*row) for row in np.hstack([u, y]).tolist()], dtype=float).reshape(N)
-        est, xs = np.empty(N), np.empty((N, self.n))
-        for k in range(N):
-            xs[k] = self._advance(u[k], y[k])
-            est[k] = xs[k, 0]
-            self.u_last = u[k]
-        return est, xs
+        # the compiled step advances the state; the output states are formed from the priors it
+        # went through afterwards, all at once (:meth:`_advance` a step: 90 us, this: 3 us)
+        phases = (self.phase + np.arange(N)) % self.period
+        prior, S, n, step = np.empty((N, self.n)), self._S, self.n, self._step_values
+        for k, row in enumerate(np.hstack([u, y]).tolist()):
+            prior[k] = S[:n]
+            step(*row)
+        xs = prior
+        if self.posterior:
+            seen = self._active[phases] & np.isfinite(y)
+            e = np.where(seen, y - prior @ self.H.T, 0.0)
+            if self._wrap_rows.any():
+                e[:, self._wrap_rows] = wrap(e[:, self._wrap_rows])
+            xs = prior + np.einsum("kij,kj->ki", np.asarray(self.L)[phases], e)
+            if self.table.wrap_angle:
+                xs[:, 0] = wrap(xs[:, 0])
+        return xs[:, 0].copy(), xs
 
     def _run_vectorised(self, u, y, states, read=None):
         """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
