@@ -429,7 +429,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="estimates file (.csv or .parquet); a directory (created "
                                                          "if missing) for several logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
-                                                    "or 't' if present; without one, each row is one base tick)")
+                                                    "or 't' in any case; without one, each row is one base tick)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error (repeatable)")

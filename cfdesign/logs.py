@@ -137,8 +137,9 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
     if missing:
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {', '.join(header)}); "
                         "name them as the table's sensors or map them with --map SENSOR=COLUMN")
-    if time is None:
-        time = next((c for c in TIME_COLUMNS if c in header), None)
+    if time is None:  # 'time' or 't', else in another case ('Time', 'T')
+        time = next((c for c in TIME_COLUMNS if c in header), None) or next(
+            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
     refs = _references(table, reference, header, source)
@@ -359,7 +360,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         no DataFrame (bounded memory for big logs).
     time : str, optional
         The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time`` or
-        ``t`` when present, else every row is one base tick.
+        ``t`` (in any case) when present, or a DataFrame's index when it is a DatetimeIndex or is
+        named so; else every row is one base tick (said in a note).
     mapping : dict, optional
         ``{sensor: column}`` where the log names a sensor differently.
     reference : str or list of str, optional
@@ -398,7 +400,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if table.domain != "z":
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
     block_rows = block_rows or BLOCK_ROWS
-    frame, source = _source(data, source)
+    frame, source = _source(data, source, time)
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
@@ -442,7 +444,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if pending is not None:
             run_rows(*pending)
     est = writer.frame()
-    result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, lock.notes,
+    result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
+                       _time_note(cols) + lock.notes,
                        Path(output) if output else None, source)
     if plot is not None:
         from .plot import figure_bytes
@@ -472,11 +475,28 @@ def _check_plot_target(plot):
                                                       f"no folder {path.parent}"))
 
 
-def _source(data, source):
+def _source(data, source, time=None):
+    """``(frame or None, name)``; a DataFrame whose time is its index (a DatetimeIndex, or an
+    index named ``time`` or ``t``) and not a column has it made its first column."""
     pd = _pandas()
     if isinstance(data, pd.DataFrame):
+        index = data.index
+        named = str(index.name).lower() in TIME_COLUMNS if index.name is not None else False
+        columns = [str(c).strip().lower() for c in data.columns]
+        if time is None and not any(c in columns for c in TIME_COLUMNS) and (
+                named or isinstance(index, pd.DatetimeIndex)):
+            data = data.reset_index(names=str(index.name) if index.name is not None else "time")
         return data, source or "log"
     return None, source or str(data)
+
+
+def _time_note(cols) -> list:
+    """A note when the log has no time column: its rows are taken one a tick."""
+    if cols.time is not None:
+        return []
+    like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec"))]
+    return ["the log has no time column ('time' or 't'): every row is taken as one base tick"
+            + (f" (column {like[0]!r} looks like a time: --time {like[0]})" if like else " (--time COLUMN)")]
 
 
 def _blocks(data, frame, cols, rows):

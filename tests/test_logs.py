@@ -624,3 +624,23 @@ def test_missed_readings_run_at_batch_speed_with_the_recursion_s_states(heading)
         assert np.max(np.abs(wrap(xs - expected))) < 1e-12 and np.array_equal(est, xs[:, 0])
         assert np.allclose(rt.x, ref.x, rtol=0, atol=1e-12) and rt.phase == ref.phase
         assert min(elapsed) < 0.2, elapsed  # 0.56 s stepping the recursion
+
+
+def test_a_time_column_by_another_case_or_in_the_index_is_the_time(heading):
+    """A tenth of the gyro rows missing: a log whose time column is 'Time', or a DataFrame with
+    its time as the index (a DatetimeIndex, or an index named time), ran one row a tick without
+    a word (heading RMS 0.23 rad for 1.8e-3, every slow reading called off-rate); a log with no
+    time column at all is said to run one row a tick, naming a column that looks like a time."""
+    log, psi = heading_log(3, 37, n=12_000)
+    keep = np.random.default_rng(1).random(12_000) > 0.1
+    keep |= log["compass"].notna().to_numpy() | log["odometry"].notna().to_numpy()
+    log, psi = log[keep].reset_index(drop=True), psi[keep]
+    timed = run_log(heading, log, reference="truth")
+    dates = log.drop(columns="time").set_index(pd.to_datetime(log["time"], unit="s"))
+    for variant in (log.rename(columns={"time": "Time"}), log.set_index("time"), dates):
+        result = run_log(heading, variant, reference="truth")
+        assert result.unused == {} and result.rms["heading"] == pytest.approx(timed.rms["heading"], rel=1e-9)
+        assert result.rms["heading"] < 3 * heading.predicted_std
+        assert result.estimates.columns[0] in ("Time", "time")
+    result = run_log(heading, log.rename(columns={"time": "stamp_s"}))
+    assert any("no time column" in n and "'stamp_s'" in n and "--time" in n for n in result.notes)
