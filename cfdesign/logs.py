@@ -223,12 +223,17 @@ def _epoch_seconds(s):
 def read_log(path, columns=None, *, chunksize=None):
     """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
 
+    A CSV's separator is a comma, or the semicolon or tab of its header line when that has no
+    comma (a semicolon-separated file may write decimal commas: ``0,01``); column names are
+    stripped of spaces, and a row with more cells than the header is an error naming its line
+    (it was read without its extra cells).
+
     Parameters
     ----------
     path : str or Path
         ``.parquet`` / ``.pq`` is read as Parquet, anything else as CSV.
     columns : list of str, optional
-        Read only these.
+        Keep only these.
     chunksize : int, optional
         Yield blocks of this many rows instead of one DataFrame.
 
@@ -239,7 +244,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Raises
     ------
     DataError
-        The file cannot be read, is empty, or has no rows.
+        The file cannot be read, is empty, or is not a table (also while blocks are read).
     """
     pd = _pandas()
     path = Path(path)
@@ -247,16 +252,57 @@ def read_log(path, columns=None, *, chunksize=None):
     try:
         if parquet:
             return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
-        return pd.read_csv(path, usecols=columns, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                           low_memory=False)
-    except FileNotFoundError:
-        raise DataError(f"cannot read {path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    except pd.errors.EmptyDataError:
-        raise DataError(f"{path}: empty file (expected a header row naming the columns)") from None
-    except (pd.errors.ParserError, ValueError) as exc:
-        raise DataError(f"{path}: not a readable log: {_first_line(exc)}") from None
+        reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
+                             low_memory=False, **_csv_format(path))
+        if chunksize:
+            return _csv_blocks(path, reader, columns)
+        return _stripped(reader, columns)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError) as exc:
+        raise _read_error(path, exc) from None
+
+
+def _read_error(path, exc) -> DataError:
+    """The one-line DataError of a log pandas cannot read."""
+    pd = _pandas()
+    if isinstance(exc, FileNotFoundError):
+        return DataError(f"cannot read {path}: no such file")
+    if isinstance(exc, (OSError, UnicodeDecodeError)):
+        return DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}")
+    if isinstance(exc, pd.errors.EmptyDataError):
+        return DataError(f"{path}: empty file (expected a header row naming the columns)")
+    return DataError(f"{path}: not a readable log: {_first_line(exc)}")
+
+
+def _csv_format(path) -> dict:
+    """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
+    has none and has semicolons (then decimal commas too) or tabs."""
+    with open(path, "rb") as fh:
+        line = fh.readline(1 << 16)
+    if b"," in line:
+        return {}
+    if b";" in line:
+        return {"sep": ";", "decimal": ","}
+    return {"sep": "\t"} if b"\t" in line else {}
+
+
+def _stripped(frame, columns=None):
+    """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return frame if columns is None else frame[list(columns)]
+
+
+def _csv_blocks(path, reader, columns):
+    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too."""
+    pd = _pandas()
+    with reader:
+        while True:
+            try:
+                block = next(reader)
+            except StopIteration:
+                return
+            except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+                raise _read_error(path, exc) from None
+            yield _stripped(block, columns)
 
 
 def _first_line(exc) -> str:
@@ -282,13 +328,9 @@ def _header(path) -> list:
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
     try:
-        return [str(c).strip() for c in pd.read_csv(path, nrows=0, encoding="utf-8-sig").columns]
-    except FileNotFoundError:
-        raise DataError(f"cannot read {path}: no such file") from None
-    except pd.errors.EmptyDataError:
-        raise DataError(f"{path}: empty file (expected a header row naming the columns)") from None
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, ValueError) as exc:
-        raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+        return list(_stripped(pd.read_csv(path, nrows=0, encoding="utf-8-sig", **_csv_format(path))).columns)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError) as exc:
+        raise _read_error(path, exc) from None
 
 
 # ---------------------------------------------------------------------------- the run

@@ -194,6 +194,39 @@ def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     assert list(a.columns) == list(b.columns) and np.allclose(a["heading"], b["heading"], atol=0)
 
 
+def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading, tmp_path):
+    """A header 'time ,gyro ' was refused (the columns were read by their stripped names); a
+    semicolon- (with decimal commas) or tab-separated export was one column named 'time;gyro;...'."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    files = {"spaced.csv": log.rename(columns={"time": "time ", "gyro": " gyro "}).to_csv(index=False),
+             "semicolons.csv": log.to_csv(index=False, sep=";", decimal=","),
+             "tabs.tsv": log.to_csv(index=False, sep="\t")}
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+        for rows in (None, 250):  # in one piece and in blocks
+            got = run_log(heading, tmp_path / name, block_rows=rows).estimates
+            assert list(got.columns) == ["time", "heading", "gyro_correction", "truth", "lap"], name
+            assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12), name
+
+
+def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp_path, cli, monkeypatch):
+    """A big log is read in blocks: a broken row (an unclosed quote, a row of extra cells) far
+    into it stopped cfdesign run as an internal error (exit 3), and extra cells were dropped."""
+    import cfdesign.logs
+
+    monkeypatch.setattr(cfdesign.logs, "ONE_PASS_BYTES", 0)
+    monkeypatch.setattr(cfdesign.logs, "BLOCK_ROWS", 300)
+    table = heading.save(tmp_path / "g.json")
+    lines = heading_log(3, 37, n=1000)[0].to_csv(index=False).splitlines()
+    for name, row, message in (("quote.csv", '"0.5,1,2', "EOF inside string"),
+                               ("cells.csv", lines[700] + ",1,2", "Expected 6 fields in line 701, saw 8")):
+        (tmp_path / name).write_text("\n".join([*lines[:700], row, *lines[701:]]) + "\n")
+        code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "out.csv")
+        assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
+        assert not (tmp_path / "out.csv").exists()
+
+
 def test_map_and_the_python_api_take_dataframes(heading):
     log, _ = heading_log(0, 0, n=2000)
     renamed = log.rename(columns={"gyro": "gz", "compass": "mag_heading"})
@@ -251,6 +284,7 @@ BAD_LOGS = {
     "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
     "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
     "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
+    "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
 }
 
 
