@@ -143,7 +143,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
     refs = _references(table, reference, header, source)
-    used = {time, *sensors.values(), *refs.values()}
+    used = {time, *sensors.values()}  # a reference column is passed through as well
     return _Columns(sensors, time, refs, [h for h in header if h not in used])
 
 

@@ -106,6 +106,7 @@ def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
     assert code == 0, err
     est = pd.read_parquet(tmp_path / "est.parquet")
     assert {"position_std", "velocity_std", "accelerometer_bias_std"} <= set(est.columns)
+    assert np.array_equal(est["true_position"], x[:, 0])  # the reference columns are passed through too
     err_p = est["position"].to_numpy()[5000:] - x[5000:, 0]
     predicted = np.sqrt(np.mean([table.P_filtered[k][0, 0] for k in np.arange(5000, 60_000) % 100]))
     assert np.sqrt(np.mean(err_p ** 2)) <= 1.3 * predicted
