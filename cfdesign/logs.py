@@ -275,13 +275,15 @@ def _read_error(path, exc) -> DataError:
 
 def _csv_format(path) -> dict:
     """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
-    has none and has semicolons (then decimal commas too) or tabs."""
+    has none and has semicolons or tabs; a semicolon file whose first data row has a comma
+    writes decimal commas."""
     with open(path, "rb") as fh:
         line = fh.readline(1 << 16)
+        row = fh.readline(1 << 16)
     if b"," in line:
         return {}
     if b";" in line:
-        return {"sep": ";", "decimal": ","}
+        return {"sep": ";", "decimal": ","} if b"," in row else {"sep": ";"}
     return {"sep": "\t"} if b"\t" in line else {}
 
 

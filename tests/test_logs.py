@@ -202,6 +202,7 @@ def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading,
     expected = run_log(heading, log).estimates["heading"].to_numpy()
     files = {"spaced.csv": log.rename(columns={"time": "time ", "gyro": " gyro "}).to_csv(index=False),
              "semicolons.csv": log.to_csv(index=False, sep=";", decimal=","),
+             "semicolons_dots.csv": log.to_csv(index=False, sep=";"),
              "tabs.tsv": log.to_csv(index=False, sep="\t")}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
@@ -209,6 +210,7 @@ def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading,
             got = run_log(heading, tmp_path / name, block_rows=rows).estimates
             assert list(got.columns) == ["time", "heading", "gyro_correction", "truth", "lap"], name
             assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12), name
+            assert got["truth"].dtype.kind == "f", name  # passed-through columns stay numbers
 
 
 def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp_path, cli, monkeypatch):
