@@ -271,7 +271,7 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
         s = np.roots([1.0, 2 * zeta * wn, wn**2])
         target = np.real(np.poly(np.exp(s * dt)))
         Kp = _ackermann(F, H, target)
-        K = Kp if form == "predictor" else np.linalg.solve(F, Kp)
+        K = linear.gain_in_form(F, Kp, form)
         return dict(zip(names, (float(v) for v in K[:, 0]), strict=True))
 
     def f(logwn):

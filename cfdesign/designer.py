@@ -729,7 +729,7 @@ def _output(spec, structure, model) -> str:
         if spec.output == "posterior":
             raise SpecError(f"output: {structure.name} is continuous; it has no posterior estimate")
         return "prior"
-    if np.linalg.cond(model["F"]) > 1e12 and spec.gain_form == "predictor":
+    if not linear.has_posterior(model["F"], spec.gain_form):
         if spec.output == "posterior":
             raise SpecError(f"output: {structure.name} has a singular F, so its predictor gains give no "
                             "posterior estimate; use gain_form = 'filter' or output = 'prior'")
