@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .linear import response
+
 __all__ = ["transfer_functions", "named_transfer_functions", "FrequencyResponse", "frequency_response",
            "default_frequencies"]
 
@@ -216,10 +218,8 @@ class FrequencyResponse:
         return found
 
     def _log_ratio(self, a, b, w):
-        x = np.exp(1j * w * self.dt) if self.dt else 1j * w
-        (na, da), (nb, db) = self.coefficients[a], self.coefficients[b]
-        return (np.log(np.abs(np.polyval(na, x) / np.polyval(da, x)))
-                - np.log(np.abs(np.polyval(nb, x) / np.polyval(db, x))))
+        return (np.log(np.abs(response(*self.coefficients[a], w, self.dt)))
+                - np.log(np.abs(response(*self.coefficients[b], w, self.dt))))
 
     def _equal_magnitude(self, a, b):
         from scipy.optimize import brentq
@@ -260,9 +260,7 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
     if omega is None:
         omega = default_frequencies(coefficients, dt, points)
     omega = np.asarray(omega, dtype=float)
-    x = np.exp(1j * omega * dt) if dt else 1j * omega
-    with np.errstate(all="ignore"):
-        bands = {name: np.polyval(num, x) / np.polyval(den, x) for name, (num, den) in coefficients.items()}
+    bands = {name: response(num, den, omega, dt) for name, (num, den) in coefficients.items()}
     if not all(np.all(np.isfinite(b)) for b in bands.values()):
         from .errors import GainError
 

@@ -40,6 +40,7 @@ import numpy as np
 
 from . import linear
 from .errors import SpecError
+from .gains import column_order
 
 __all__ = ["crossover_gains", "crossover_check", "continuous_crossover_gains", "DEFAULT_DAMPING", "CROSSOVER_RTOL"]
 
@@ -47,10 +48,6 @@ __all__ = ["crossover_gains", "crossover_check", "continuous_crossover_gains", "
 DEFAULT_DAMPING = 1 / math.sqrt(2)
 #: the solved bands must have equal magnitude at each crossover to this relative tolerance
 CROSSOVER_RTOL = 1e-6
-
-
-def _ports(structure):
-    return sorted(structure.sensors, key=lambda s: (s.role != "input", s.index))
 
 
 def _bands_by_order(structure):
@@ -162,7 +159,7 @@ def crossover_check(structure, model, K, form, output, dt, hz) -> list:
     bands = _bands_by_order(structure)
     real = linear.realisation(model["F"], model["B"], model["H"], K, form, output)
     omega = 2 * np.pi * np.asarray(hz, dtype=float)
-    resp = linear.band_responses(real, _ports(structure), "z" if dt else "s", dt, omega)
+    resp = linear.band_responses(real, column_order(structure.sensors), "z" if dt else "s", dt, omega)
     return [(bands[i], bands[i + 1], float(hz[i]), float(abs(resp[bands[i]][i]) / abs(resp[bands[i + 1]][i])))
             for i in range(len(hz))]
 
@@ -271,7 +268,7 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
         s = np.roots([1.0, 2 * zeta * wn, wn**2])
         target = np.real(np.poly(np.exp(s * dt)))
         Kp = _ackermann(F, H, target)
-        K = Kp if form == "predictor" else np.linalg.solve(F, Kp)
+        K = linear.gain_in_form(F, Kp, form)
         return dict(zip(names, (float(v) for v in K[:, 0]), strict=True))
 
     def f(logwn):

@@ -36,7 +36,7 @@ from scipy import linalg, optimize
 
 from . import __version__, linear
 from .errors import CfdesignError, SpecError
-from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort
+from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import QUANTITY_ORDERS, FilterSpec
@@ -696,8 +696,7 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     _check_wrap(spec, structure)
     structure, fixed = _split_gains(structure, spec.gains)
     inputs = [s.name for s in structure.sensors if s.role == "input"]
-    by_row = [s.name for s in sorted((s for s in structure.sensors if s.role == "measurement"),
-                                     key=lambda s: s.index)]
+    by_row = [s.name for s in column_order(structure.sensors) if s.role == "measurement"]
     rates = {name: spec.sensor(name).rate_hz for name in inputs + by_row}
     if structure.discrete:
         offsets = {name: spec.sensor(name).offset_s for name in by_row}
@@ -729,7 +728,7 @@ def _output(spec, structure, model) -> str:
         if spec.output == "posterior":
             raise SpecError(f"output: {structure.name} is continuous; it has no posterior estimate")
         return "prior"
-    if np.linalg.cond(model["F"]) > 1e12 and spec.gain_form == "predictor":
+    if not linear.has_posterior(model["F"], spec.gain_form):
         if spec.output == "posterior":
             raise SpecError(f"output: {structure.name} has a singular F, so its predictor gains give no "
                             "posterior estimate; use gain_form = 'filter' or output = 'prior'")

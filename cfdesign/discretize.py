@@ -103,7 +103,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     if not all(np.isfinite(M).all() for M in (F, B, Kp)):
         raise GainTableError(f"{table.name}: at {rate_hz:g} Hz the discretised model overflows (expm(F T) is not "
                              "finite): the continuous model is far faster than the step")
-    K = Kp if gain_form == "predictor" else np.linalg.solve(F, Kp)
+    K = linear.gain_in_form(F, Kp, gain_form)
     eig = np.linalg.eigvals(linear.closed_loop(F, table.H, K, gain_form))
     if not linear.is_stable(eig, "z"):
         raise GainTableError(f"{table.name}: at {rate_hz:g} Hz the discretised gains do not stabilise the filter "

@@ -30,8 +30,8 @@ from .errors import GainTableError
 from .linear import GAIN_FORMS
 from .spec import QUANTITY_ORDERS
 
-__all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION",
-           "DERIVATIVE_NAMES"]
+__all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "column_order",
+           "FORMAT_VERSION", "DERIVATIVE_NAMES"]
 
 _ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
 #: the names the designer gives a chain's states, by family and derivative order
@@ -592,7 +592,7 @@ class GainTable:
 
     def __post_init__(self):
         ports = tuple(SensorPort.from_dict(s) if isinstance(s, dict) else s for s in self.sensors)
-        ports = tuple(sorted(ports, key=lambda s: (s.role != "input", s.index)))
+        ports = column_order(ports)
         object.__setattr__(self, "sensors", ports)
         _check_table(self, self.name)
         if not self.output:  # tables written before the output was declared: the posterior where it exists
@@ -962,11 +962,27 @@ class GainTable:
                 kw[key] = [_array(M, shape, f"{source}: {key}[{k}]") for k, M in enumerate(d[key])]
             kw["sensors"] = tuple(SensorPort.from_dict(s) for s in d["sensors"])
             _check_ports(kw["sensors"], p, m, source)
-            names = [s.name for s in sorted(kw["sensors"], key=lambda s: s.index) if s.role == "measurement"]
+            names = [s.name for s in column_order(kw["sensors"]) if s.role == "measurement"]
             kw["schedule"] = Schedule.from_names(names, d["measured"])
         except ValueError as exc:
             raise GainTableError(f"{source}: {exc}") from None
         return cls(**kw)
+
+
+def column_order(ports) -> tuple:
+    """Sensors in the column order of a table's ``G``/``D``: inputs by index, then measurements by index.
+
+    Parameters
+    ----------
+    ports : iterable
+        Sensors with ``role`` and ``index`` (:class:`SensorPort`, or a structure's sensors).
+
+    Returns
+    -------
+    tuple
+        The same sensors, in column order.
+    """
+    return tuple(sorted(ports, key=lambda s: (s.role != "input", s.index)))
 
 
 def _exact(M):

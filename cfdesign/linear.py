@@ -53,6 +53,8 @@ __all__ = [
     "wrap_scalar",
     "default_output",
     "gain_pair",
+    "gain_in_form",
+    "has_posterior",
     "closed_loop",
     "Realisation",
     "realisation",
@@ -217,9 +219,73 @@ def gain_pair(F, K, form: str):
         return F @ K, K
     if form == "continuous" or K.shape[1] == 0:
         return K, (None if form == "continuous" else K)
-    if np.linalg.cond(F) > 1e12:
+    if not has_posterior(F, form):
         return K, None
     return K, np.linalg.solve(F, K)
+
+
+def has_posterior(F, form: str) -> bool:
+    """Whether gains in ``form`` give the estimate after a step's readings (an update gain).
+
+    The filter form always does; the predictor form when ``F`` is invertible (condition
+    number at most 1e12: ``L = F^-1 K``); continuous tables never.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        State transition matrix.
+    form : {'predictor', 'filter', 'continuous'}
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> has_posterior([[1.0, 0.2], [0.0, 0.0]], "predictor"), has_posterior([[1.0]], "filter")
+    (False, True)
+    """
+    _check_form(form)
+    if form != "predictor":
+        return form == "filter"
+    return bool(np.linalg.cond(np.asarray(F, dtype=float)) <= 1e12)
+
+
+def gain_in_form(F, Kp, form: str) -> np.ndarray:
+    """The gain in ``form`` whose predictor gain is ``Kp``: the inverse of :func:`gain_pair`.
+
+    ``predictor`` and ``continuous``: ``Kp`` itself; ``filter``: ``F^-1 Kp``.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        State transition matrix.
+    Kp : array_like, shape (n, m)
+        Predictor gain (``x[k+1] = F x + B u + Kp (y - H x)``).
+    form : {'predictor', 'filter', 'continuous'}
+
+    Returns
+    -------
+    ndarray, shape (n, m)
+
+    Raises
+    ------
+    ValueError
+        The filter form of a singular ``F`` (no filter gain gives that predictor gain).
+
+    Examples
+    --------
+    >>> gain_in_form([[2.0]], [[1.0]], "filter").tolist(), gain_in_form([[2.0]], [[1.0]], "predictor").tolist()
+    ([[0.5]], [[1.0]])
+    """
+    _check_form(form)
+    F, Kp = np.asarray(F, dtype=float), np.asarray(Kp, dtype=float)
+    if form != "filter":
+        return Kp
+    try:
+        return np.linalg.solve(F, Kp)
+    except np.linalg.LinAlgError:
+        raise ValueError("a singular F has no filter-form gain for this predictor gain") from None
 
 
 def closed_loop(F, H, K, form: str) -> np.ndarray:

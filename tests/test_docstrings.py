@@ -3,7 +3,8 @@
 The public names are those of ``cfdesign.__all__``, of every subpackage's ``__all__``
 (``cfdesign.riccati``, ``cfdesign.nav``, ...) and of the ``__all__`` of every other module
 (``cfdesign.gains``, ``cfdesign.riccati.refinement``, ...), with the public methods and
-properties of every public class.  For each:
+properties (cached ones too) of every public class, including those it inherits from a private
+base; cached functions (``functools.cache``) are checked as the functions they wrap.  For each:
 
 * a docstring with a one-line summary;
 * a ``Parameters`` section naming every argument of the signature (``self``/``cls`` aside;
@@ -20,6 +21,7 @@ or renamed, or when a new ``raise SomeError`` is not listed.
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import inspect
 import pkgutil
@@ -68,22 +70,45 @@ def public_objects():
             obj = getattr(module, name)
             if inspect.ismodule(obj) or id(obj) in seen:
                 continue
+            seen.add(id(obj))
+            obj = inspect.unwrap(obj) if callable(obj) and not inspect.isclass(obj) else obj  # lru_cache
             if not (inspect.isclass(obj) or inspect.isfunction(obj)):
                 continue  # constants: documented by #: comments in the reference
-            seen.add(id(obj))
             qual = f"{module_name}.{name}"
             out.append((qual, obj, "class" if inspect.isclass(obj) else "function"))
             if inspect.isclass(obj) and not issubclass(obj, BaseException):
-                for attr, value in vars(obj).items():
-                    if attr.startswith("_"):
-                        continue
-                    if isinstance(value, property):
-                        out.append((f"{qual}.{attr}", value.fget, "property"))
-                    elif isinstance(value, (staticmethod, classmethod)):
-                        out.append((f"{qual}.{attr}", value.__func__, "method"))
-                    elif inspect.isfunction(value):
-                        out.append((f"{qual}.{attr}", value, "method"))
+                out.extend(_members(qual, obj))
     return out
+
+
+def _members(qual, cls):
+    """The public methods and properties of ``cls``, its own and those it inherits from
+    cfdesign's private bases (a public base's are checked under that base's name)."""
+    public_bases = {c for c in cls.__mro__[1:] if not c.__name__.startswith("_")}
+    out, done = [], set()
+    for klass in cls.__mro__:
+        if not klass.__module__.startswith("cfdesign") or (klass is not cls and klass in public_bases
+                                                               and _exported(klass)):
+            continue
+        for attr, value in vars(klass).items():
+            if attr.startswith("_") or attr in done:
+                continue
+            done.add(attr)
+            if isinstance(value, property):
+                out.append((f"{qual}.{attr}", value.fget, "property"))
+            elif isinstance(value, functools.cached_property):
+                out.append((f"{qual}.{attr}", value.func, "property"))
+            elif isinstance(value, (staticmethod, classmethod)):
+                out.append((f"{qual}.{attr}", inspect.unwrap(value.__func__), "method"))
+            elif inspect.isfunction(inspect.unwrap(value)) if callable(value) else False:
+                out.append((f"{qual}.{attr}", inspect.unwrap(value), "method"))
+    return out
+
+
+def _exported(cls) -> bool:
+    """``cls`` is in the ``__all__`` of its module (so its members are checked under its name)."""
+    module = importlib.import_module(cls.__module__)
+    return cls.__name__ in getattr(module, "__all__", ())
 
 
 def sections(doc: str) -> dict[str, str]:
@@ -211,6 +236,9 @@ def test_public_names_are_covered():
     names = {q for q, _, _ in PUBLIC}
     assert "cfdesign.design" in names and "cfdesign.Runtime.step" in names and "cfdesign.riccati.care" in names
     assert len(PUBLIC) > 400
+    # cached functions, cached properties, methods inherited from a private base
+    assert {"cfdesign.reproduce.carreira.design_row", "cfdesign.Observer.bands", "cfdesign.sim.RateSensor.every",
+            "cfdesign.nav.stored_design.stored_structure"} <= names
 
 
 @pytest.mark.parametrize("qual,obj,kind", [

@@ -109,6 +109,27 @@ def test_a_users_table_drives_the_filter(pf, flight):
     assert np.array_equal(PositionFilter(RATE, 1, table=spec).run(*args).position, pf.run(*args).position)
 
 
+def test_the_schedule_says_when_fixes_come_and_the_runtime_gives_the_posterior(pf, flight):
+    """fix_phases asks the table's schedule (a scheduled fix whose gain happens to be zero is
+    still a fix), and the velocity and bias are the runtime's posterior states: those the
+    streaming recursion gives, ``x+[k] = F^-1 (x[k+1] - B u[k])``."""
+    from cfdesign.runtime import Runtime
+
+    zero = replace(pf.table, K=[np.zeros_like(K) for K in pf.table.K])
+    assert PositionFilter(table=zero).fix_phases == pf.fix_phases == list(pf.table.schedule.phases("gps"))
+    truth, readings = flight
+    n = 5 * RATE
+    acc, q, gps = readings.accel_m_s2[:n], truth.quaternion[:n], readings.gps_enu_m[:n]
+    est = pf.run(acc, q, gps)
+    u = earth_acceleration(acc, q)[:, 0]
+    rt = Runtime(pf.table, x0=[gps[0, 0], 0.0, 0.0], output="posterior")
+    after = np.array([(rt.step(accelerometer=a, gps=g), rt.x)[1] for a, g in zip(u, gps[:, 0], strict=True)])
+    F, B = pf.table.F, pf.table.B[:, 0]
+    post = np.linalg.solve(F, (after - u[:, None] * B).T).T
+    assert np.allclose(post, np.column_stack([est.position[:, 0], est.velocity[:, 0], est.accel_bias[:, 0]]),
+                       rtol=0, atol=1e-9)
+
+
 def test_tables_that_do_not_fit_are_rejected():
     table = design_position(RATE, 1, accel_noise_std=0.01, accel_bias_density=1e-3, gps_noise_std=1.0)
     with pytest.raises(TableMismatchError, match="period of 50 step"):

@@ -48,7 +48,7 @@ def load_trial(path) -> dict:
     --------
     >>> from cfdesign.nav import AttitudeFilter
     >>> from cfdesign.nav.broad import broad_rmse, load_trial
-    >>> d = load_trial("shared/data/broad/01_undisturbed_slow_rotation_A.mat")  # doctest: +SKIP
+    >>> d = load_trial("BROAD/data_mat/01_undisturbed_slow_rotation_A.mat")  # doctest: +SKIP
     >>> q = AttitudeFilter(d["rate"]).run(d["gyr"], d["acc"], d["mag"])  # doctest: +SKIP
     >>> broad_rmse(q, d["ref"], d["movement"])  # doctest: +SKIP
     (0.86..., 0.60..., 0.61...)

@@ -246,7 +246,7 @@ class PositionFilter:
     @property
     def fix_phases(self) -> list:
         """Phases (steps modulo the period) at which the table expects a GPS fix."""
-        return [j for j, K in enumerate(self.table.K) if np.any(np.asarray(K) != 0)]
+        return list(self.table.schedule.phases(self._fix))
 
     def run(self, acc_body, quat_nb, gps_enu, *, initial_position=None, initial_velocity=None,
             initial_bias=None) -> PositionEstimate:
@@ -273,9 +273,10 @@ class PositionFilter:
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
         u = earth_acceleration(acc, q)
         runtimes = self._runtimes(gps, initial_position, initial_velocity, initial_bias)
-        position, after = self._loop(runtimes, u, gps, self._input, self._fix)
-        post = self._posterior(after, u)
-        return PositionEstimate(position=position, velocity=post[:, :, 1].copy(), accel_bias=post[:, :, 2].copy())
+        post = np.stack([rt.run({self._input: u[:, i], self._fix: gps[:, i]}, states=True)[1]
+                         for i, rt in enumerate(runtimes)], axis=1)  # (N, axis, state): x+ of every step
+        return PositionEstimate(position=post[:, :, 0].copy(), velocity=post[:, :, 1].copy(),
+                                accel_bias=post[:, :, 2].copy())
 
     def _checked(self, acc_body, quat_nb, gps_enu):
         acc, q, gps = (np.asarray(a, dtype=float) for a in (acc_body, quat_nb, gps_enu))
@@ -286,10 +287,10 @@ class PositionFilter:
         if N == 0 or not np.all(np.isfinite(acc)) or not np.all(np.isfinite(q)):
             raise InputError("acc_body and quat_nb must be non-empty and finite")
         fixes = np.flatnonzero(np.isfinite(gps).any(axis=1))
-        stray = fixes[~np.isin(fixes % len(self.table.K), self.fix_phases)]
+        stray = fixes[~np.isin(fixes % self.table.period, self.fix_phases)]
         if stray.size:
             raise InputError(f"gps_enu: fix at sample {stray[0]}, off the GPS schedule (phases "
-                            f"{self.fix_phases} of {len(self.table.K)}); resample the fixes onto the schedule")
+                            f"{self.fix_phases} of {self.table.period}); resample the fixes onto the schedule")
         return acc, q, gps
 
     def _runtimes(self, gps, p0, v0, b0) -> list:
@@ -303,22 +304,6 @@ class PositionFilter:
         b0 = np.zeros(3) if b0 is None else np.asarray(b0, dtype=float)
         x0 = np.column_stack([np.asarray(p0, dtype=float), v0, b0])
         return [Runtime(self.table, x0=x0[i], output="posterior") for i in range(3)]
-
-    @staticmethod
-    def _loop(runtimes, u, gps, acc_name, gps_name):
-        """Step the three axes; returns the filtered positions and the states after each step."""
-        N = len(u)
-        position, after = np.empty((N, 3)), np.empty((N, 3, 3))
-        for k in range(N):
-            for i, rt in enumerate(runtimes):
-                position[k, i] = rt.step(**{acc_name: u[k, i], gps_name: gps[k, i]})
-                after[k, i] = rt.x
-        return position, after
-
-    def _posterior(self, after, u):
-        """Filtered states ``x^+[k] = F^-1 (x[k+1] - B u[k])`` from the states after each step, (N, 3, 3)."""
-        F, B = np.asarray(self.table.F, dtype=float), np.asarray(self.table.B, dtype=float)[:, 0]
-        return np.einsum("ij,kaj->kai", np.linalg.inv(F), after - u[:, :, None] * B)
 
 
 _MODEL = ("the position chain: states [p, v, accelerometer bias], an acceleration input, a position "

@@ -13,14 +13,14 @@ manoeuvre flown with the Euler-angle attitude filter and the multirate position 
 (:mod:`cfdesign.reproduce.compare`).
 
 Each paper's module provides ``add_arguments(parser)`` (its options) and ``run(args)``.
-Older names (:data:`ALIASES`) still work; they are left out of the help list.
+Former names of the commands still work; they are left out of the help and of this reference.
 """
 
 from __future__ import annotations
 
 from importlib import import_module
 
-__all__ = ["add_parser", "PAPERS", "ALIASES"]
+__all__ = ["add_parser", "PAPERS"]
 
 #: papers that can be reproduced, with a one-line description
 PAPERS = {
@@ -29,7 +29,7 @@ PAPERS = {
     "compare": "CF against the EKF baselines and the adaptive CF: errors and cost per step, same scenarios",
 }
 
-#: former names, still accepted: ``{alias: name in PAPERS}``
+# former names, still accepted (not in __all__: internal names, kept out of the help and the reference)
 ALIASES = {"seed001": "carreira", "seed004": "helicopter"}
 
 

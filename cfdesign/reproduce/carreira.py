@@ -218,7 +218,21 @@ def dckf3_spec(sc=None):
 
 @cache
 def design_row(row: Row, reading: Reading = READING):
-    """The row's gain table, designed for ``reading`` (cached: designs are deterministic)."""
+    """The row's gain table, designed for ``reading`` (cached: designs are deterministic).
+
+    Parameters
+    ----------
+    row : Row
+        The table row: which sensor is in which band.
+    reading : Reading
+        How the paper's ``N(0, x)`` is read (x a standard deviation or a variance:
+        :data:`cfdesign.sim.robot_heading.READINGS`).
+
+    Returns
+    -------
+    GainTable
+        The row's designed table (the same object on every call with the same arguments).
+    """
     return design_observer(row.spec(scenario(reading)), row.observer())
 
 

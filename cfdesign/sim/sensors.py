@@ -89,7 +89,24 @@ class _Sensor:
     dropout: float = 0.0
 
     def every(self, dt_s: float) -> int:
-        """Trajectory samples per reading; the sensor rate must divide the trajectory rate."""
+        """Trajectory samples per reading; the sensor rate must divide the trajectory rate.
+
+        Parameters
+        ----------
+        dt_s : float
+            The trajectory's sample time (s).
+
+        Returns
+        -------
+        int
+            Samples between two readings (1 when the sensor has no ``rate_hz``: it reads at
+            every sample).
+
+        Raises
+        ------
+        InputError
+            ``rate_hz`` is not the trajectory rate divided by a positive integer.
+        """
         if self.rate_hz is None:
             return 1
         ratio = 1.0 / (dt_s * self.rate_hz) if self.rate_hz > 0 else 0.0
@@ -99,6 +116,23 @@ class _Sensor:
         return round(ratio)
 
     def sensor_rate_hz(self, dt_s: float) -> float:
+        """The rate the sensor reads at on a trajectory sampled every ``dt_s``.
+
+        Parameters
+        ----------
+        dt_s : float
+            The trajectory's sample time (s).
+
+        Returns
+        -------
+        float
+            Readings per second (Hz): ``rate_hz``, or the trajectory rate when it has none.
+
+        Raises
+        ------
+        InputError
+            As :meth:`every`.
+        """
         return 1.0 / (dt_s * self.every(dt_s))
 
     def _keep(self, values, every, rng):
