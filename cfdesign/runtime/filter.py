@@ -310,16 +310,20 @@ class Runtime:
     def _advance(self, u, y) -> np.ndarray:
         """One step of the recursion in the module docstring; returns the output state."""
         x, k = self.x, self.phase
-        seen = self._active[k] & np.isfinite(y)
-        e = np.where(seen, y - self.H @ x, 0.0)
-        if self._wrap_rows.any():
-            e = np.where(self._wrap_rows, wrap(e), e)
+        e = self._innovations(x, y, k)
         out = x + self.L[k] @ e if self.posterior else x.copy()
         x = self.F @ x + self.B @ u + self.Kp[k] @ e
         if self.table.wrap_angle:
             x[0], out[0] = wrap_scalar(x[0]), wrap_scalar(out[0])
         self.x, self.phase = x, (k + 1) % self.period
         return out
+
+    def _innovations(self, x, y, phases):
+        """``e = y - H x`` for the readings taken at ``phases`` (scheduled and finite), zero for
+        the rest, angle rows wrapped; ``x`` and ``y`` are one step's or a stack of steps'."""
+        seen = self._active[phases] & np.isfinite(y)
+        e = np.where(seen, y - x @ self.H.T, 0.0)
+        return np.where(self._wrap_rows, wrap(e), e) if self._wrap_rows.any() else e
 
     # ------------------------------------------------------------------ batch
     def run(self, readings: dict, *, states: bool = False):
@@ -471,10 +475,7 @@ class Runtime:
             step(*row)
         xs = prior
         if self.posterior:
-            seen = self._active[phases] & np.isfinite(y)
-            e = np.where(seen, y - prior @ self.H.T, 0.0)
-            if self._wrap_rows.any():
-                e[:, self._wrap_rows] = wrap(e[:, self._wrap_rows])
+            e = self._innovations(prior, y, phases)
             xs = prior + np.einsum("kij,kj->ki", np.asarray(self.L)[phases], e)
             if self.table.wrap_angle:
                 xs[:, 0] = wrap(xs[:, 0])
