@@ -35,6 +35,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from . import __version__, linear
+from .blas import single_thread
 from .errors import CfdesignError, SpecError
 from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
@@ -692,6 +693,11 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     RiccatiError
         No stabilising optimal gain exists.
     """
+    with single_thread(len(structure.Fc)):  # small dense solves: one BLAS thread (cfdesign.blas)
+        return _design_from_structure(structure, spec)
+
+
+def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     _check_sensors(spec, structure)
     _check_wrap(spec, structure)
     structure, fixed = _split_gains(structure, spec.gains)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ..blas import small_problem
 from ..errors import AccuracyError, NoStabilisingSolutionError
 from .fallbacks import estimates, pencil_boundary
 from .problem import TINY, Problem, complexify, herm, realify
@@ -32,6 +33,7 @@ from .validation import check_modes, covariance_data, fmt_mode, min_eig, problem
 __all__ = ["care", "dare", "kalman_continuous", "kalman_discrete"]
 
 
+@small_problem
 def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     r"""Solve the continuous-time algebraic Riccati equation for its stabilising solution.
 
@@ -98,6 +100,7 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     return _solve("care", A, B, Q, R, S, E, refine, rtol)
 
 
+@small_problem
 def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     r"""Solve the discrete-time algebraic Riccati equation for its stabilising solution.
 
@@ -159,6 +162,7 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     return _solve("dare", A, B, Q, R, S, E, refine, rtol)
 
 
+@small_problem
 def kalman_continuous(F, H, Q, R):
     """Steady-state Kalman-Bucy gain (Carreira et al. eqs. (23)-(24)).
 
@@ -204,6 +208,7 @@ def kalman_continuous(F, H, Q, R):
     return ContinuousKalmanGains(*frozen(P, K, np.linalg.eigvals(F - K @ H)), sol)
 
 
+@small_problem
 def kalman_discrete(F, H, Q, R):
     """Steady-state discrete Kalman gains in filter and predictor form (Carreira et al. eq. (28)).
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..blas import small_problem
 from ..errors import AccuracyError, NoStabilisingSolutionError, NotDetectableError, NotStabilisableError, RiccatiError
 from .fallbacks import compose, sda
 from .lyapunov import stein
@@ -169,6 +170,7 @@ def _joseph(P, Kf, Pf, Cs, Rs):
     return Pf
 
 
+@small_problem
 def periodic_dare(A, C, Q, R, *, tol=1e-13):
     r"""Stabilising periodic solution of the filter-form periodic DARE (Vasconcelos et al., sec. 3).
 

@@ -1,0 +1,75 @@
+"""One BLAS thread for the small dense problems of a design.
+
+OpenBLAS (the BLAS of numpy's and scipy's wheels) hands even a 2 x 2 LU back-substitution to
+its worker threads.  On a machine whose cores are busy - a robot computer running other nodes,
+a CI runner, ``pytest -n auto`` - every such call waits for a core: measured here with both
+cores loaded, ``scipy.linalg.lapack.dgetrs`` on a 2 x 2 took 20 ms instead of 1 us, and the
+first :func:`cfdesign.nav.estimate_attitude` call (ten 2-state channel designs) 1.2 s instead
+of 0.12 s.  Designs and Riccati solves of up to :data:`SMALL` states therefore run with one
+BLAS thread (threadpoolctl, scoped to the call); larger ones keep the library's threads.
+Without threadpoolctl the calls run unchanged.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+
+import numpy as np
+
+SMALL = 64
+"""Largest state dimension whose solves run with one BLAS thread."""
+
+
+@functools.cache
+def _controller():
+    """threadpoolctl's view of the loaded BLAS libraries (scipy's loaded first), or None."""
+    try:
+        import scipy.linalg  # noqa: F401  (loads scipy's BLAS so that it is controlled too)
+        from threadpoolctl import ThreadpoolController
+    except ImportError:
+        return None
+    return ThreadpoolController()
+
+
+def single_thread(n: int):
+    """A context in which BLAS runs one thread when ``n <= SMALL`` (else nothing changes).
+
+    Parameters
+    ----------
+    n : int
+        The state dimension of the problem about to be solved.
+
+    Returns
+    -------
+    contextlib.AbstractContextManager
+
+    Examples
+    --------
+    >>> from cfdesign.blas import single_thread
+    >>> with single_thread(2):
+    ...     pass
+    """
+    controller = _controller() if n <= SMALL else None
+    return controller.limit(limits=1, user_api="blas") if controller else contextlib.nullcontext()
+
+
+def _states(A) -> int:
+    """The state dimension of ``A`` (a matrix or a list of them; 0 when it has no shape)."""
+    try:
+        shape = np.shape(A)
+    except (ValueError, TypeError):
+        return 0
+    return int(shape[-1]) if shape else 0
+
+
+def small_problem(fn):
+    """Decorate a solver whose first argument is the state matrix (or a list of them): it runs
+    under :func:`single_thread` of that matrix's size."""
+
+    @functools.wraps(fn)
+    def wrapper(A, *args, **kwargs):
+        with single_thread(_states(A)):
+            return fn(A, *args, **kwargs)
+
+    return wrapper
