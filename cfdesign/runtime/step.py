@@ -29,9 +29,10 @@ from ..linear import gain_pair, wrap_scalar
 #: states up to this size are read and written element by element
 _UNROLLED = 16
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
-#: the real scalar types (not float, not int) that readings have come as: numpy's floats and ints,
-#: Fraction, ...; a reading of one of these is converted by ``float()`` without the full check
-_REALS = set()
+#: the real scalar types other than float that readings have come as (int, bool, numpy's floats
+#: and ints, Fraction, ...): a reading of one of these is converted by ``float()`` without the
+#: full check (:func:`_as_float`)
+_REALS = {int, bool}
 
 __all__ = ["compile_step"]
 
@@ -148,13 +149,15 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         taken.add(name)
         return name
 
-    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
+    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
                                      "AC", "K", "A", "L", "ph", "est", "unknown", "make", "AS_FLOAT", "REALS",
-                                     "type", "float", "int")}
+                                     "type", "float")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
     es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
     nx = [fresh(f"n{r}") for r in range(n)]
-    S_, U_, REJ_, UNS_, LIM, PI, WRAP = (N[k] for k in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP"))
+    S_, U_, REJ_, UNS_, WRAP = (N[k] for k in ("S", "U", "REJ", "UNS", "WRAP"))
+    # the limit and pi as literals (constants of the code object: no name look-up, no negation per step)
+    LIM, PI = _num(limit), _num(math.pi)
     K_, A_, L_, ph, est = (N[k] for k in ("K", "A", "L", "ph", "est"))
     lines = []
     add = lines.append
@@ -169,13 +172,19 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     # the float of its value); one that is not a real number (text, None, complex, a Decimal,
     # an array) raises there, and then nothing has changed
     oks = [fresh(f"ok{j}") for j in range(p + m)]
-    # (an int computes with floats as a float; one too large for a float is beyond the limit:
-    # kept as it is; a real number type seen before, a numpy float: its float; else the check)
+    # (a real number type seen before - int, bool, a numpy float - converted by float(), else
+    # checked; an int too large for a float raises OverflowError there: then the check for all)
+    if us + ys:
+        add("    try:")
     for j, v in enumerate(us + ys):
-        add(f"    if {N['type']}({v}) is not {N['float']} and {N['type']}({v}) is not {N['int']}:")
-        add(f"        {v} = {N['float']}({v}) if {N['type']}({v}) in {N['REALS']} else {N['AS_FLOAT']}({v}, {j})")
+        add(f"        if {N['type']}({v}) is not {N['float']}:")
+        add(f"            {v} = {N['float']}({v}) if {N['type']}({v}) in {N['REALS']} else {N['AS_FLOAT']}({v}, {j})")
+    if us + ys:
+        add("    except OverflowError:")
+        for j, v in enumerate(us + ys):
+            add(f"        {v} = {N['AS_FLOAT']}({v}, {j})")
     for ok, v in zip(oks, us + ys, strict=True):
-        add(f"    {ok} = -{LIM} <= {v} <= {LIM}")
+        add(f"    {ok} = -{LIM} <= {v} <= {LIM}")  # (-literal: folded into one constant)
     for j, u in enumerate(us):  # an input outside the limit (inf) or missing (NaN) holds the last one
         add(f"    if {oks[j]}:")
         add(f"        {U_}[{j}] = {u}")
@@ -250,12 +259,12 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         out = _as_float(value)
         if out is None:
             raise CfdesignError(f"{names[j]}: reading {value!r} is not a number")
-        if isinstance(value, numbers.Real) and not isinstance(value, int):  # a scalar type: float() it next time
+        if isinstance(value, numbers.Real):  # a scalar type: float() it next time
             _REALS.add(type(value))
         return out
 
-    namespace = {LIM: float(limit), PI: math.pi, WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
-                 N["AS_FLOAT"]: as_float, N["REALS"]: _REALS, N["type"]: type, N["float"]: float, N["int"]: int,
+    namespace = {WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
+                 N["AS_FLOAT"]: as_float, N["REALS"]: _REALS, N["type"]: type, N["float"]: float,
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}
