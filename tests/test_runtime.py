@@ -161,6 +161,31 @@ def test_a_reading_that_is_no_number_is_named_and_changes_nothing(heading, senso
     assert rt.state() == before and rt.counts == {}
 
 
+@pytest.mark.parametrize("kind", [np.float64, np.float32, np.int64, np.array, int])
+def test_numpy_scalar_readings_keep_the_state_in_python_floats(heading, kind):
+    """Readings taken from numpy arrays (np.float64, np.float32, a 0-d array) are used by their value:
+    the state, held inputs and estimates stay Python floats.  A numpy scalar used to enter the state,
+    so every later step computed in numpy scalars (2.5x slower) and, for float32, in single precision."""
+    values = [(0.31, 0.2, 0.21), (-0.5, 1.0, 2.0), (3.0, -2.0, 1.0)]
+    if kind in (np.int64, int):
+        values = [tuple(round(v) for v in row) for row in values]
+    rt, ref = Runtime(heading), Runtime(heading)
+    for row in values * 3:
+        got = rt.step(**dict(zip(("gyro", "compass", "odometry"), map(kind, row), strict=True)))
+        want = ref.step(**dict(zip(("gyro", "compass", "odometry"), (float(kind(v)) for v in row), strict=True)))
+        assert type(got) is float and got == want
+    assert all(type(v) is float for v in rt._S[:2]) and rt.state() == ref.state()
+
+
+def test_arrays_and_huge_integers_as_readings(heading):
+    rt = Runtime(heading)
+    with pytest.raises(CfdesignError, match=r"^compass: reading array"):
+        rt.step(gyro=0.1, compass=np.array([0.2]), odometry=0.2)  # one value in an array: not a reading
+    assert rt.state()["x"] == [0.0, 0.0]
+    rt.step(gyro=10**400, compass=-(10**400), odometry=0.2)  # beyond the limit: rejected, counted
+    assert rt.counts == {"rejected": {"gyro": 1, "compass": 1}} and all(type(v) is float for v in rt._S[:2])
+
+
 def test_bad_inputs(heading):
     rt = Runtime(heading)
     with pytest.raises(CfdesignError, match="unknown sensor"):

@@ -166,6 +166,7 @@ class Runtime:
         self._uns = [0] * len(self.measurements)              # readings at unscheduled phases
         self.step, self._step_values, self.step_source = compile_step(
             table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown)
+        self.step_values = self._step_values  # the compiled function itself: no call through the method
         self.reset()
 
     def _unknown(self, readings):

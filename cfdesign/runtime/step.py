@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import keyword
 import math
+import numbers
 import re
+from decimal import Decimal
 
 from ..errors import CfdesignError
 from ..linear import gain_pair, wrap_scalar
@@ -27,17 +29,33 @@ from ..linear import gain_pair, wrap_scalar
 #: states up to this size are read and written element by element
 _UNROLLED = 16
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+#: the real scalar types other than float that readings have come as (int, bool, numpy's floats
+#: and ints, Fraction, ...): a reading of one of these is converted by ``float()`` without the
+#: full check (:func:`_as_float`)
+_REALS = {int, bool}
 
 __all__ = ["compile_step"]
 
 
-def _is_number(v) -> bool:
-    """A reading the step can compare with the limit (a real number; NaN and inf included)."""
-    try:
-        -1.0 <= v + 0.0 <= 1.0  # noqa: B015 - the operations are the test
-    except (TypeError, ValueError):  # text, None, complex, a Decimal; an array of several values
-        return False
-    return True
+def _as_float(v):
+    """A reading that is not a Python float as one (the step's slow path), or None if it is not a
+    real number.
+
+    Python and numpy reals (``int``, ``bool``, ``Fraction``, ``numpy.float32``, ``numpy.int64``,
+    ``numpy.float64``, a 0-d array) become the float of their value, so that the state stays in
+    Python floats: a numpy scalar kept in it would make every later step compute in numpy
+    scalars (2.5x slower) and a ``float32`` one in single precision.  An int too large for a
+    float becomes +-inf (beyond the reading limit: rejected and counted).  Text, None, complex,
+    a ``Decimal`` and arrays of one value or more are not real numbers here.
+    """
+    if getattr(v, "shape", None) == () and hasattr(v, "item"):  # a numpy scalar or 0-d array
+        v = v.item()
+    if isinstance(v, bool) or (isinstance(v, numbers.Real) and not isinstance(v, Decimal)):
+        try:
+            return float(v)
+        except OverflowError:
+            return math.inf if v > 0 else -math.inf
+    return None
 
 
 def _num(v: float) -> str:
@@ -101,10 +119,11 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
 
     Notes
     -----
-    The steps add every reading to a float and compare it with ``limit`` before they store
-    anything, so a reading that is not a real number they can compute with (text, None, a
-    complex, a ``Decimal``) raises :class:`~cfdesign.errors.CfdesignError` naming its sensor
-    and leaves the state, the held inputs and the counts as they were.
+    The steps make every reading a Python float (:func:`_as_float`: numpy scalars and ints by
+    their value) and compare it with ``limit`` before they store anything, so the state holds
+    Python floats whatever the caller passes, and a reading that is not a real number (text,
+    None, a complex, a ``Decimal``, an array) raises :class:`~cfdesign.errors.CfdesignError`
+    naming its sensor and leaves the state, the held inputs and the counts as they were.
     """
     F, B, H = table.F, table.B, table.H
     n, p, m, P = F.shape[0], B.shape[1], H.shape[0], table.period
@@ -130,12 +149,15 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         taken.add(name)
         return name
 
-    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
-                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make", "NOT_A_NUMBER")}
+    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
+                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make", "AS_FLOAT", "REALS",
+                                     "type", "float")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
     es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
     nx = [fresh(f"n{r}") for r in range(n)]
-    S_, U_, REJ_, UNS_, LIM, PI, WRAP = (N[k] for k in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP"))
+    S_, U_, REJ_, UNS_, WRAP = (N[k] for k in ("S", "U", "REJ", "UNS", "WRAP"))
+    # the limit and pi as literals (constants of the code object: no name look-up, no negation per step)
+    LIM, PI = _num(limit), _num(math.pi)
     K_, A_, L_, ph, est = (N[k] for k in ("K", "A", "L", "ph", "est"))
     lines = []
     add = lines.append
@@ -146,17 +168,23 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
             add(f"    {xs[i]} = {S_}[{i}]")
     if P > 1:
         add(f"    {ph} = {S_}[{n}]")
-    # every reading is added to a float and compared before anything is stored: a reading that
-    # is not a real number the step can compute with (text, None, complex, a Decimal) raises
-    # there, and then nothing has changed
+    # every reading is made a Python float before anything is stored (a numpy scalar, an int:
+    # the float of its value); one that is not a real number (text, None, complex, a Decimal,
+    # an array) raises there, and then nothing has changed
     oks = [fresh(f"ok{j}") for j in range(p + m)]
-    add("    try:")
+    # (a real number type seen before - int, bool, a numpy float - converted by float(), else
+    # checked; an int too large for a float raises OverflowError there: then the check for all)
+    if us + ys:
+        add("    try:")
+    for j, v in enumerate(us + ys):
+        add(f"        if {N['type']}({v}) is not {N['float']}:")
+        add(f"            {v} = {N['float']}({v}) if {N['type']}({v}) in {N['REALS']} else {N['AS_FLOAT']}({v}, {j})")
+    if us + ys:
+        add("    except OverflowError:")
+        for j, v in enumerate(us + ys):
+            add(f"        {v} = {N['AS_FLOAT']}({v}, {j})")
     for ok, v in zip(oks, us + ys, strict=True):
-        add(f"        {ok} = -{LIM} <= {v} + 0.0 <= {LIM}")
-    if not oks:
-        add("        pass")
-    add("    except (TypeError, ValueError):")
-    add(f"        {N['NOT_A_NUMBER']}(({', '.join(us + ys)}{',' if len(us + ys) == 1 else ''}))")
+        add(f"    {ok} = -{LIM} <= {v} <= {LIM}")  # (-literal: folded into one constant)
     for j, u in enumerate(us):  # an input outside the limit (inf) or missing (NaN) holds the last one
         add(f"    if {oks[j]}:")
         add(f"        {U_}[{j}] = {u}")
@@ -227,12 +255,16 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
               f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
               f"    def step_values({', '.join(us + ys)}):\n{body}\n"
               f"    return step, step_values\n")
-    def not_a_number(values):
-        bad = next(name for name, v in zip(names, values, strict=True) if not _is_number(v))
-        raise CfdesignError(f"{bad}: reading {values[names.index(bad)]!r} is not a number")
+    def as_float(value, j):
+        out = _as_float(value)
+        if out is None:
+            raise CfdesignError(f"{names[j]}: reading {value!r} is not a number")
+        if isinstance(value, numbers.Real):  # a scalar type: float() it next time
+            _REALS.add(type(value))
+        return out
 
-    namespace = {LIM: float(limit), PI: math.pi, WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
-                 N["NOT_A_NUMBER"]: not_a_number,
+    namespace = {WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
+                 N["AS_FLOAT"]: as_float, N["REALS"]: _REALS, N["type"]: type, N["float"]: float,
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}
