@@ -44,7 +44,8 @@ other two; a newly accepted field clears the heading's correlation with the bias
 Modes and their tables (one design each): the velocity channel runs a rest design at rest
 (zero velocity is then exact: noise the accelerometer's over one sample), the motion design
 otherwise, and designs with a larger velocity noise (factors 4, 16, ... 1024: the tilt bandwidth
-halved at each level) when the speed the channel has integrated exceeds ``max_speed_mps``
+halved at each level) when the speed the channel has integrated has exceeded ``max_speed_mps``
+for longer than a hand's stroke, ``max_reach_m / max_speed_mps``
 (level ``1 + floor(log2(v² / max_speed²))``) (a sustained acceleration: the specific force
 is not gravity plus a bounded velocity change, so the tilt corrections are weighted down), for at
 most ``max_accel_time_s`` at a time (longer, it is a tilt error: the velocity restarts from zero
@@ -177,6 +178,13 @@ class AttitudeParams:
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4).
+    max_reach_m : float
+        How far a hand-held device moves in one stroke (m, default 1: an arm's reach; chosen, not
+        tuned).  A speed beyond ``max_speed_mps`` engages the acceleration-disturbance designs only
+        once it has lasted ``max_reach_m / max_speed_mps`` (0.25 s): a hand moving that fast for
+        longer would leave its reach, so it is a sustained acceleration; a shorter excursion is a
+        fast stroke of a bounded motion, whose velocity averages out (weighting its fast parts down
+        would turn the zero-mean motion into a tilt error).
     max_accel_time_s : float
         Longest a sustained acceleration is taken to last (s, default 30; chosen, not tuned: no
         dev trial reaches ``max_speed_mps``).  A speed beyond ``max_speed_mps`` for longer is a
@@ -213,6 +221,7 @@ class AttitudeParams:
     mag_new_field_rotation_rad: float = math.pi / 2
     max_speed_mps: float = 4.0
     max_accel_time_s: float = 30.0
+    max_reach_m: float = 1.0
     gyro_range_rps: float = 100.0
     accel_range_mps2: float = 1000.0
     rest_detection: bool = True
@@ -452,6 +461,7 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
         "mag_ref_alpha": -math.expm1(-T / p.mag_reference_s),
         "north": math.atan2(math.cos(p.declination_rad), math.sin(p.declination_rad)),
         "speed2": p.max_speed_mps ** 2,
+        "accel_hold_s": p.max_reach_m / p.max_speed_mps,
         "gyro_range2": p.gyro_range_rps ** 2,
         "accel_range2": p.accel_range_mps2 ** 2,
     }
@@ -858,7 +868,8 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             c["mag_alpha"], c["mag_ref_alpha"], c["north"], c["speed2"], c["gyro_range2"], c["accel_range2"],
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
-            p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s)
+            p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
+            c["accel_hold_s"])
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -868,7 +879,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial, max_acc_s) = coef
+     use_motion_bias, inertial, max_acc_s, hold_s) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
      ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, lgx, lgy, lgz, started,
@@ -975,7 +986,9 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             elif use_levels and vv > speed2:
                 acc_time += T
                 if acc_time < max_acc_s:
-                    level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
+                    if acc_time >= hold_s:
+                        # longer than a hand's stroke: a sustained acceleration
+                        level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
                 else:
                     # longer than an acceleration lasts: a tilt error, which only the motion design corrects
                     vx = vy = 0.0
