@@ -774,7 +774,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     try:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
-        fh = open(path, newline="", encoding="utf-8")
+        fh = open(path, newline="", encoding="utf-8-sig")  # a BOM (a spreadsheet export), as cfdesign run reads it
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
     with fh:

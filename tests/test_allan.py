@@ -189,6 +189,17 @@ def test_cli_bad_cells_and_times_name_the_line(cli, tmp_path):
     assert code == 2 and "line 5" in err and "evenly sampled" in err
 
 
+def test_cli_reads_a_csv_with_a_byte_order_mark(cli, tmp_path):
+    """A spreadsheet's UTF-8 export starts with a BOM; cfdesign run reads such logs, and noise
+    said there was no column 'time' (header '?time')."""
+    log = _log(tmp_path / "g.csv", {"gyro": gyro(60)})
+    plain = cli("noise", log, "--column", "gyro", "--time", "time")
+    log.write_bytes(b"\xef\xbb\xbf" + log.read_bytes())
+    code, out, err = cli("noise", log, "--column", "gyro", "--time", "time")
+    assert code == 0, err
+    assert out == plain[1]
+
+
 def test_cli_time_column_of_dates(cli, tmp_path):
     """ISO 8601 times give the rate as seconds do (as ``cfdesign run`` reads them); a time cell
     that is neither is named."""
