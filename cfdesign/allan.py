@@ -859,6 +859,18 @@ def _rate_from_time(path, name, t) -> float:
 def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:
     """The shortest decimal within ``rtol`` (relative) of a measured rate.
 
+    Parameters
+    ----------
+    rate_hz : float
+        The rate measured from a time column (Hz).
+    rtol : float
+        Relative tolerance (default :data:`RATE_RTOL`).
+
+    Returns
+    -------
+    float
+        The nominal rate, written with the fewest significant digits.
+
     Examples
     --------
     >>> from cfdesign.allan import nominal_rate
