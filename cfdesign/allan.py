@@ -70,7 +70,7 @@ import numpy as np
 from .errors import DataError, InputError
 
 __all__ = ["oadev", "octave_taus", "edf_simple", "identify_noise", "NoiseFit", "NoiseTerm", "TERMS",
-           "read_log_columns", "noise_toml", "adev_plot"]
+           "read_log_columns", "noise_toml", "adev_plot", "nominal_rate"]
 
 #: the terms of the Allan variance model: name -> (symbol, slope of the ADEV, basis of the variance, unit)
 TERMS = {
@@ -737,6 +737,9 @@ def adev_plot(fits, ax=None, unit: str = "u"):
 
 
 # ---------------------------------------------------------------------------- reading a log
+#: a rate from a time column is the shortest decimal this close to the measured one (relative):
+#: timestamp jitter and a crystal's tolerance (tens of ppm) are not the sensor's nominal rate
+RATE_RTOL = 1e-4
 #: largest CSV read for noise identification (bytes)
 MAX_LOG_BYTES = 2_000_000_000
 
@@ -745,8 +748,11 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     """Read numeric columns from a CSV log with a header row.
 
     The small reader ``cfdesign noise`` uses: every named column must exist and hold a number
-    on every row; with ``time_column`` the rate is ``1 / median(diff(time))`` and the times must
-    increase steadily (no gap longer than 1.5 steps, no step shorter than half of one).
+    on every row; with ``time_column`` the rate is the number of steps over the time they span,
+    written as the shortest decimal within :data:`RATE_RTOL` of it (jittered stamps of a 100 Hz
+    sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
+    and the times must increase steadily (no gap longer than 1.5 steps, no step shorter than
+    half of one).
 
     Parameters
     ----------
@@ -774,7 +780,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     try:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
-        fh = open(path, newline="", encoding="utf-8")
+        fh = open(path, newline="", encoding="utf-8-sig")  # a BOM (a spreadsheet export), as cfdesign run reads it
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
     with fh:
@@ -847,4 +853,32 @@ def _rate_from_time(path, name, t) -> float:
         i = int(bad[0])
         raise DataError(f"{path} line {i + 3}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
                         f"step is {step:.6g} s; the Allan deviation needs evenly sampled data (cut the log at the gap)")
-    return float((len(t) - 1) / (t[-1] - t[0]))
+    return nominal_rate(float((len(t) - 1) / (t[-1] - t[0])))
+
+
+def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:
+    """The shortest decimal within ``rtol`` (relative) of a measured rate.
+
+    Parameters
+    ----------
+    rate_hz : float
+        The rate measured from a time column (Hz).
+    rtol : float
+        Relative tolerance (default :data:`RATE_RTOL`).
+
+    Returns
+    -------
+    float
+        The nominal rate, written with the fewest significant digits.
+
+    Examples
+    --------
+    >>> from cfdesign.allan import nominal_rate
+    >>> nominal_rate(99.99998552563129), nominal_rate(99.5), nominal_rate(104.0016)
+    (100.0, 99.5, 104.0)
+    """
+    for digits in range(1, 18):
+        r = float(f"{rate_hz:.{digits}g}")
+        if abs(r - rate_hz) <= rtol * rate_hz:
+            return r
+    return rate_hz

@@ -240,7 +240,14 @@ def _log_ratios(structure, model, dt, form, output, hz, gains):
 
 
 def _discrete_square(structure, model, dt, form, output, hz, names, start):
-    """As many gains as crossovers: Newton (least squares) on log gains from the continuous start."""
+    """As many gains as crossovers: Newton (least squares) on log gains from the continuous start.
+
+    The magnitude conditions have more than one root: a cf2 of order 1 whose posterior estimate
+    crosses over at ``w`` has ``L = |z-1| / (1 + |z-1|)`` (stable) and ``|z-1| / (|z-1| - 1)``
+    (unstable for ``|z-1| > 1``, a crossover above a sixth of the sample rate).  When the
+    continuous start leads to a root that is not met or not stable, other starts (the start
+    scaled, then a fixed set of spreads in log gain) are tried and the first stabilising root
+    taken; without one the first root is returned for the caller to name."""
     from scipy.optimize import least_squares
 
     def residual(logk):
@@ -252,9 +259,28 @@ def _discrete_square(structure, model, dt, form, output, hz, names, start):
                 return np.full(len(hz), 1e3)
         return r if np.all(np.isfinite(r)) else np.full(len(hz), 1e3)
 
+    def solve(x0):
+        sol = least_squares(residual, x0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
+        return dict(zip(names, (float(v) for v in np.exp(sol.x)), strict=True)), float(np.max(np.abs(sol.fun)))
+
+    def good(gains, miss):
+        if not miss <= CROSSOVER_RTOL / 10:
+            return False
+        poles = np.linalg.eigvals(linear.closed_loop(model["F"], model["H"], _gain_matrix(structure, gains), form))
+        return bool(linear.is_stable(poles, "z"))
+
     x0 = np.log([start[n] * dt for n in names])  # a continuous gain k is about k T per step
-    sol = least_squares(residual, x0, xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
-    return dict(zip(names, (float(v) for v in np.exp(sol.x)), strict=True))
+    first = solve(x0)
+    if good(*first):
+        return first[0]
+    rng = np.random.default_rng(0)  # fixed: the same design file gives the same gains
+    shifts = [np.full(len(x0), math.log(c)) for c in (0.5, 0.25, 2.0, 0.1, 4.0, 0.03)]
+    shifts += list(rng.normal(0.0, 1.5, size=(24, len(x0))))
+    for shift in shifts:
+        found = solve(x0 + shift)
+        if good(*found):
+            return found[0]
+    return first[0]
 
 
 def _discrete_damped(structure, model, dt, form, output, hz, damping, names):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import keyword
+import math
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -843,7 +844,10 @@ class GainTable:
         Notes
         -----
         The observer is built from the table's stored doubles, taken as exact rationals, so its
-        proof is exact arithmetic on those numbers.  A ``chain`` with two or more inputs of one
+        proof is exact arithmetic on those numbers: the gains as stored, the model ``F, B, H`` as
+        the simplest rational within two ulp of each double (:func:`_model_exact`), so that a
+        sampled chain's ``T^2/2`` and ``T^3/6`` (5e-05 and 1.6666666666666668e-07 at 100 Hz) are
+        the ``1/20000`` and ``1/6000000`` the structure has.  A ``chain`` with two or more inputs of one
         order (two gyros) stores weighted ``B`` columns whose rounded sum can miss the chain's
         column by an ulp: its proof then fails by about 1e-17 although the design was proved
         (the table does not record the exact weights).  ``cfdesign verify`` checks such tables
@@ -855,11 +859,12 @@ class GainTable:
         if self.period != 1:
             raise GainTableError(f"{self.name} is multirate (period {self.period}): its bands change with the phase")
         sensors = [Sensor(s.name, s.order, s.role, s.index) for s in self.sensors]
+        F, B, H = (_model_exact(M) for M in (self.F, self.B, self.H))
         if self.domain == "s":
-            return Observer(self.F, self.B, self.H, self.K[0], sensors, name=self.name).with_gain_matrix(self.K[0])
+            return Observer(F, B, H, _exact(self.K[0]), sensors, name=self.name)
         Kp, L = linear.gain_pair(self.F, self.K[0], self.gain_form)
         form, K = ("filter", L) if self.output == "posterior" else ("predictor", Kp)
-        obs = Observer(_exact(self.F), _exact(self.B), _exact(self.H), _exact(K), sensors, domain="z",
+        obs = Observer(F, B, H, _exact(K), sensors, domain="z",
                        sample_time=self.sample_time_s, gain_form=form, name=self.name)
         return obs
 
@@ -983,6 +988,34 @@ def column_order(ports) -> tuple:
         The same sensors, in column order.
     """
     return tuple(sorted(ports, key=lambda s: (s.role != "input", s.index)))
+
+
+def _model_exact(M):
+    """Model matrices as exact rationals: the simplest rational within two ulp of each double.
+
+    A sampled model's entries are rounded values of exact ones (``T^3/6`` at ``T = 0.01`` is
+    stored as 1.6666666666666668e-07); taken by their decimal value, ``B`` no longer equals the
+    integral of ``F`` and the exact proof of a complementary table fails by 1e-17.  Entries
+    that are not rounded rationals (``exp(-T/tau)``) move by at most two ulp.
+    """
+    from fractions import Fraction
+
+    import sympy as sp
+
+    def simplest(lo, hi):  # the rational of smallest denominator in [lo, hi], 0 < lo <= hi
+        n = math.floor(lo)
+        if n == lo or n + 1 <= hi:
+            return Fraction(n if n == lo else n + 1)
+        return n + 1 / simplest(1 / (hi - n), 1 / (lo - n))
+
+    def entry(v):
+        if v == 0 or v == int(v):
+            return sp.Integer(int(v))
+        x, tol = Fraction(abs(v)), Fraction(2 * math.ulp(v))
+        q = simplest(x - tol, x + tol)
+        return sp.Rational(math.copysign(1, v) * q.numerator, q.denominator)
+
+    return [[entry(float(v)) for v in row] for row in np.asarray(M, dtype=float)]
 
 
 def _exact(M):

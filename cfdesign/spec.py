@@ -268,7 +268,7 @@ def load_spec(path) -> FilterSpec:
     except OSError as exc:
         raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
     try:
-        data = tomllib.loads(text.decode("utf-8"))
+        data = tomllib.loads(text.decode("utf-8-sig"))  # a BOM (a Windows editor) is not TOML; dropped
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise SpecError(f"{path}: malformed TOML: {exc}") from None
     except RecursionError:

@@ -189,6 +189,38 @@ def test_cli_bad_cells_and_times_name_the_line(cli, tmp_path):
     assert code == 2 and "line 5" in err and "evenly sampled" in err
 
 
+def test_cli_reads_a_csv_with_a_byte_order_mark(cli, tmp_path):
+    """A spreadsheet's UTF-8 export starts with a BOM; cfdesign run reads such logs, and noise
+    said there was no column 'time' (header '?time')."""
+    log = _log(tmp_path / "g.csv", {"gyro": gyro(60)})
+    plain = cli("noise", log, "--column", "gyro", "--time", "time")
+    log.write_bytes(b"\xef\xbb\xbf" + log.read_bytes())
+    code, out, err = cli("noise", log, "--column", "gyro", "--time", "time")
+    assert code == 0, err
+    assert out == plain[1]
+
+
+def test_cli_rate_from_jittered_times_is_the_nominal_rate(cli, tmp_path):
+    """A time column with jitter gave rate_hz = 99.99998..., and a design file with that entry
+    beside a 10 Hz sensor was refused (not a fraction of the base rate)."""
+    from cfdesign.designer import design
+    from cfdesign.spec import parse_spec
+
+    rng = np.random.default_rng(3)
+    n = 6000
+    t = np.arange(n) / RATE + 0.002 * rng.uniform(-1, 1, n)  # +-0.2 tick of jitter
+    log = tmp_path / "j.csv"
+    log.write_text("time,gyro\n" + "".join(f"{a:.6f},{float(v)!r}\n" for a, v in zip(t, gyro(n / RATE), strict=True)))
+    code, _, err = cli("noise", log, "--column", "gyro", "--time", "time", "-o", tmp_path / "n.toml")
+    assert code == 0, err
+    sensors = tomllib.loads((tmp_path / "n.toml").read_text())["sensors"]
+    assert sensors["gyro"]["rate_hz"] == 100.0
+    sensors["gyro"].update(port="rate", bias={"model": "random_walk", "density": K_TRUE})
+    table = design(parse_spec({"structure": "cf2", "order": 2, "discrete": True,
+                               "sensors": {**sensors, "angle": {"rate_hz": 10.0, "noise": {"std": 0.01}}}}))
+    assert table.period == 10
+
+
 def test_cli_time_column_of_dates(cli, tmp_path):
     """ISO 8601 times give the rate as seconds do (as ``cfdesign run`` reads them); a time cell
     that is neither is named."""

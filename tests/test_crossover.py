@@ -79,6 +79,21 @@ def test_closed_forms_are_the_sympy_solutions():
         assert {k.name: float(v) for k, v in exact.items()} == pytest.approx(numeric, rel=1e-12)
 
 
+@pytest.mark.parametrize("output", ["posterior", "prior"])
+def test_discrete_cf2_order1_high_crossover_takes_the_stable_root(output):
+    # the posterior bands k z/(z-1+k) and (1-k)(z-1)/(z-1+k) meet at k = |z-1|/(1+|z-1|) (stable)
+    # and at |z-1|/(|z-1|-1), unstable once |z-1| > 1 (above 100/6 Hz here): the solver started
+    # from the continuous k T found the unstable root and refused 20 Hz at 100 Hz
+    gyro = {k: v for k, v in GYRO.items() if k != "bias"}
+    table = design(parse_spec({"structure": "cf2", "order": 1, "discrete": True, "output": output,
+                               "crossover": {"hz": 20.0}, "sensors": {"rate": gyro, "angle": ANGLE}}))
+    d = 2 * math.sin(math.pi * 20.0 / 100.0)
+    assert table.gains["k"] == pytest.approx(d / (1 + d) if output == "posterior" else d, rel=1e-9)
+    mag = magnitudes(table, [20.0])
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-6)
+    assert table.checks["stable"]
+
+
 def test_damping_shapes_the_poles():
     table = design(parse_spec(
         {"structure": "cf2", "order": 2, "crossover": {"hz": 0.5, "damping": 1.0},

@@ -81,6 +81,27 @@ def test_subs_is_exact_and_checked():
         cfdesign.cf3().subs(k1="2")
 
 
+@pytest.mark.parametrize("entry, error, message", [
+    (float("nan"), cfdesign.GainError, r"K\[0\]\[0\] must be finite"),
+    (float("inf"), cfdesign.GainError, "must be finite"),
+    ("k1", cfdesign.StructureError, "text is never evaluated"),
+    ("__import__('os')", cfdesign.StructureError, "text is never evaluated"),
+])
+def test_observer_matrices_refuse_text_and_non_finite_entries(entry, error, message):
+    """A NaN gain gave an observer whose proof said 'not complementary'; text was sympified
+    (evaluated: ``"__import__('os')"`` became the os module), where subs refuses both."""
+    import control
+
+    c = cfdesign.cf3()
+    with pytest.raises(error, match=message):
+        Observer(c.F, c.B, c.H, [[entry, 0], [0, 1]], c.sensors)
+    sys = control.ss([[0, 1], [0, 0]], [[0], [1]], [[1, 0], [0, 1]], [[0], [0]])
+    sensors = [Sensor.input("acc", "acceleration"), Sensor.measurement("gps", "position", 0),
+               Sensor.measurement("wheel", "velocity", 1)]
+    with pytest.raises(error, match=message):
+        Observer.from_statespace(sys, np.array([[entry, 0], [0, 1]], dtype=object), sensors)
+
+
 def test_partial_substitution_keeps_proof_symbolic():
     obs = cfdesign.dckf3().subs(T=0.1)
     assert [p.name for p in obs.parameters] == ["k11", "k12", "k21", "k22"]

@@ -63,6 +63,14 @@ def test_bad_design_files_one_line_exit_2_nothing_written(text, field, tmp_path,
     assert not out.exists() and not (tmp_path / "pwned").exists()
 
 
+def test_a_design_file_with_a_byte_order_mark_loads(tmp_path):
+    """Editors on Windows save UTF-8 with a BOM: it was 'malformed TOML: Invalid statement (at line 1)'."""
+    plain, marked = tmp_path / "plain.toml", tmp_path / "bom.toml"
+    plain.write_text(GOOD)
+    marked.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    assert load_spec(marked).sensors == load_spec(plain).sensors
+
+
 def test_missing_file():
     with pytest.raises(SpecError, match="cannot read design file"):
         load_spec("/nonexistent/design.toml")

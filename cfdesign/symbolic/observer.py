@@ -333,15 +333,32 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     if hasattr(value, "dt") and hasattr(value, "ninputs"):  # a python-control system, not a matrix
         raise StructureError(f"{name} is a python-control {type(value).__name__}, not a matrix; build the observer "
                              "with Observer.from_statespace(sys, K, sensors)")
+    _no_text(name, value)
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
         raise StructureError(f"{name} is not a matrix: {exc}") from None
+    for (i, j), e in np.ndenumerate(np.array(M.tolist(), dtype=object).reshape(M.shape)):
+        if isinstance(e, sp.Basic) and e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
+            raise GainError(f"{name}[{i}][{j}] must be finite, got {e}")
     if M.shape == (0, 0) and rows:
         M = sp.zeros(rows, cols or 0)
     if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
         raise StructureError(f"{name} must be {rows}x{cols}, got {M.shape[0]}x{M.shape[1]}")
     return M
+
+
+def _no_text(name, value):
+    """Text in a matrix is refused, never evaluated (``sympy.Matrix`` would sympify
+    ``"__import__('os')"``); a symbol is ``sympy.Symbol('k1')``."""
+    if isinstance(value, (str, bytes)):
+        raise StructureError(f"{name} is text ({value[:40]!r}), not a matrix; matrices take numbers and sympy "
+                             "expressions (sympy.Symbol('k1') for a gain symbol): text is never evaluated")
+    if isinstance(value, (sp.Basic, sp.MatrixBase)) or (isinstance(value, np.ndarray) and value.dtype.kind in "biufc"):
+        return
+    if isinstance(value, Iterable):
+        for item in (value.flat if isinstance(value, np.ndarray) else value):
+            _no_text(name, item)
 
 
 def exact_number(value, name: str = "value"):
