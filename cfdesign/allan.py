@@ -55,12 +55,12 @@ Why not allantools: its ``oadev`` computes the same deviation (the tests and
 no fit of ``N, B, K`` and installs pytest and numpydoc as run-time requirements; the estimator
 itself is a few lines of numpy.  It is the optional ``noise`` extra, used by the benchmark.
 
-numpy and scipy only; matplotlib only in :meth:`NoiseFit.plot`.
+numpy and scipy; reading a log file (:func:`read_log_columns`) takes pandas, as ``cfdesign run``
+does (``pip install "cfdesign[logs]"``); matplotlib only in :meth:`NoiseFit.plot`.
 """
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -745,10 +745,10 @@ MAX_LOG_BYTES = 2_000_000_000
 
 
 def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
-    """Read numeric columns from a CSV log with a header row.
+    """Read numeric columns from a log, as ``cfdesign run`` reads logs (:func:`cfdesign.logs.read_columns`).
 
-    The small reader ``cfdesign noise`` uses: every named column must exist and hold a number
-    on every row; with ``time_column`` the rate is the number of steps over the time they span,
+    The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
+    every row; with ``time_column`` the rate is the number of steps over the time they span,
     written as the shortest decimal within :data:`RATE_RTOL` of it (jittered stamps of a 100 Hz
     sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
     and the times must increase steadily (no gap longer than 1.5 steps, no step shorter than
@@ -757,7 +757,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     Parameters
     ----------
     path : str or Path
-        CSV file.
+        CSV (a BOM, CRLF, semicolon or tab separators are fine) or Parquet file.
     columns : sequence of str
         Columns to read.
     time_column : str, optional
@@ -774,71 +774,27 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     ------
     DataError
         One line naming the file and the column or line.
+    CfdesignError
+        pandas is not installed (``pip install "cfdesign[logs]"``).
     """
+    from .logs import read_columns
+
     path = Path(path)
-    wanted = list(columns) + ([time_column] if time_column else [])
     try:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
-        fh = open(path, newline="", encoding="utf-8-sig")  # a BOM (a spreadsheet export), as cfdesign run reads it
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
-    with fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise DataError(f"{path}: empty file (expected a header naming the columns)") from None
-        except (UnicodeDecodeError, csv.Error) as exc:
-            raise DataError(f"{path}: not a readable CSV file: {exc}") from None
-        except OSError as exc:  # a read that fails after the open (EIO, a device)
-            raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
-        missing = [c for c in wanted if c not in header]
-        if missing:
-            raise DataError(f"{path}: no column {_comment(missing[0])!r} (header: "
-                            f"{_comment(', '.join(header))[:300]})")
-        dup = [c for c in wanted if header.count(c) > 1]
-        if dup:
-            raise DataError(f"{path}: column {_comment(dup[0])!r} appears twice in the header")
-        index = [header.index(c) for c in wanted]
-        values = [[] for _ in wanted]
-        line = 1
-        try:
-            for line, row in enumerate(reader, start=2):
-                if not row:
-                    continue
-                for j, col in enumerate(index):
-                    cell = row[col].strip() if col < len(row) else ""
-                    try:
-                        v = float(cell) if wanted[j] != time_column else _seconds(cell)
-                    except ValueError:
-                        what = "a number or an ISO 8601 date" if wanted[j] == time_column else "a number"
-                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is not {what}: "
-                                        f"{_comment(cell)[:40]!r}") from None
-                    if not math.isfinite(v):
-                        raise DataError(f"{path} line {line}: column {_comment(wanted[j])!r} is {cell!r}; the "
-                                        "Allan deviation needs a complete recording (cut the log at the gap)")
-                    values[j].append(v)
-        except (UnicodeDecodeError, csv.Error) as exc:
-            raise DataError(f"{path} line {line}: not readable CSV: {exc}") from None
-        except OSError as exc:
-            raise DataError(f"cannot read {path} (line {line}): {exc.strerror or exc}") from None
-    data = {c: np.array(v) for c, v in zip(wanted, values, strict=True)}
+    data = read_columns(path, columns, time_column)
+    for c, v in data.items():
+        gap = np.flatnonzero(~np.isfinite(v))
+        if gap.size:
+            raise DataError(f"{path} line {int(gap[0]) + 2}: column {_comment(c)!r} is empty or not finite; the "
+                            "Allan deviation needs a complete recording (cut the log at the gap)")
     rate = None
     if time_column:
-        rate = _rate_from_time(path, time_column, data.pop(time_column))
+        rate = _rate_from_time(path, time_column, data[time_column])
     return rate, {c: data[c] for c in columns}
-
-
-def _seconds(cell: str) -> float:
-    """A time cell as seconds: a number, or a date (:func:`cfdesign.timing.date_seconds`, as
-    :func:`cfdesign.logs.run_log` reads it); ValueError when it is neither."""
-    try:
-        return float(cell)
-    except ValueError:
-        from .timing import date_seconds
-
-        return date_seconds(cell)
 
 
 def _rate_from_time(path, name, t) -> float:

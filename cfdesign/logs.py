@@ -16,6 +16,7 @@ Reading and writing use pandas (CSV; Parquet through pyarrow), an optional depen
 
 from __future__ import annotations
 
+import csv
 import math
 import os
 from dataclasses import dataclass, field
@@ -329,10 +330,49 @@ def _header(path) -> list:
             return list(pq.read_schema(path).names)
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
-    try:
-        return list(_stripped(pd.read_csv(path, nrows=0, encoding="utf-8-sig", **_csv_format(path))).columns)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError) as exc:
+    try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
+        with open(path, encoding="utf-8-sig", newline="") as fh:
+            header = next(csv.reader(fh, delimiter=_csv_format(path).get("sep", ",")), None)
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
+    if not header:
+        raise _read_error(path, pd.errors.EmptyDataError())
+    return [h.strip() for h in header]
+
+
+def read_columns(path, columns, time=None) -> dict:
+    """Whole numeric columns of a log, read as :func:`run_log` reads them (``cfdesign noise``).
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV or Parquet log (:func:`read_log`).
+    columns : sequence of str
+        Columns to read.
+    time : str, optional
+        A column of times: seconds, or dates (ISO 8601 text, a datetime column) as seconds
+        since 1970-01-01 UTC.
+
+    Returns
+    -------
+    dict
+        ``{column: float ndarray}``; an empty cell is NaN.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, a column is missing or named twice, a cell is not a number
+        (naming its line).
+    """
+    wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
+    header = _header(path)
+    missing = [c for c in wanted if c not in header]
+    if missing:
+        raise DataError(f"{path}: no column {missing[0]!r} (columns: {', '.join(header)[:300]})")
+    dup = sorted({c for c in wanted if header.count(c) > 1})
+    if dup:
+        raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
+    return _numeric(read_log(path, wanted), wanted, path, 2, time=time)
 
 
 # ---------------------------------------------------------------------------- the run

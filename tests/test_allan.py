@@ -246,3 +246,25 @@ def test_cli_time_column_of_dates(cli, tmp_path):
     frame = pd.DataFrame({"time": ["2024-05-01T12:00:00,5", "2024-05-01 12:00:01.25+01:00", "2024-05-01T11:00:02Z"]})
     assert _numeric(frame, ["time"], "log", 2, "time")["time"].tolist() == [
         date_seconds(c) for c in frame["time"]] == [1714564800.5, 1714564801.25 - 3600, 1714561202.0]
+
+
+def test_cli_reads_logs_as_cfdesign_run_does(cli, tmp_path):
+    """noise had its own CSV reader: a semicolon or tab export was 'no column', Parquet was not
+    read; it reads logs with cfdesign.logs now, and a column named twice is refused."""
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow")
+    frame = pd.DataFrame({"time": np.arange(6000) / RATE, "gyro": gyro(60.0)})
+    frame.to_csv(tmp_path / "c.csv", index=False)
+    frame.to_csv(tmp_path / "s.csv", index=False, sep=";", decimal=",")
+    frame.to_csv(tmp_path / "t.tsv", index=False, sep="\t")
+    frame.to_parquet(tmp_path / "p.parquet")
+    outs = [cli("noise", tmp_path / f, "--column", "gyro", "--time", "time")
+            for f in ("c.csv", "s.csv", "t.tsv", "p.parquet")]
+    assert all(code == 0 for code, _, _ in outs), [err for _, _, err in outs]
+    assert len({out for _, out, _ in outs}) == 1
+    (tmp_path / "d.csv").write_text("time,gyro,gyro\n0,1,2\n0.01,1,2\n")
+    code, _, err = cli("noise", tmp_path / "d.csv", "--column", "gyro", "--rate-hz", 100)
+    assert code == 2 and "'gyro' appears twice" in err and err.count("\n") == 1
+    (tmp_path / "g.csv").write_text("time,gyro\n0,1\n0.01,\n0.02,1\n")
+    code, _, err = cli("noise", tmp_path / "g.csv", "--column", "gyro", "--rate-hz", 100)
+    assert code == 2 and "line 3" in err and "complete recording" in err

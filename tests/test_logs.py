@@ -671,3 +671,11 @@ def test_a_time_column_by_another_case_or_in_the_index_is_the_time(heading):
         assert result.estimates.columns[0] in ("Time", "time")
     result = run_log(heading, log.rename(columns={"time": "stamp_s"}))
     assert any("no time column" in n and "'stamp_s'" in n and "--time" in n for n in result.notes)
+
+
+def test_a_csv_column_named_twice_is_refused(heading, tmp_path):
+    """pandas reads a second 'compass' as 'compass.1': the log ran on the first without a word."""
+    text = heading_log(3, 37, n=200)[0].to_csv(index=False).splitlines()
+    (tmp_path / "d.csv").write_text("\n".join([text[0] + ",compass", *(r + ",0" for r in text[1:])]) + "\n")
+    with pytest.raises(DataError, match="duplicate column.*compass"):
+        run_log(heading, tmp_path / "d.csv")
