@@ -46,7 +46,7 @@ Method (:func:`identify_noise`):
 5. over the last octaves of a recording one realisation of a rate random walk can look like a
    ramp.  Where the fit keeps a ramp and no random walk, the random walk is fitted in its place,
    and kept unless it fits clearly worse (its weighted chi-square larger by
-   :data:`RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
+   :data:`~cfdesign.allan.RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
 
@@ -310,7 +310,7 @@ class NoiseFit:
         Returns
         -------
         low, high : ndarray
-            Bounds at :attr:`tau_s`, in the sensor's unit.
+            Bounds at ``tau_s``, in the sensor's unit.
         """
         from scipy.stats import chi2
 
@@ -423,7 +423,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Fewer than :data:`MIN_SAMPLES` readings, a value that is not finite, a constant
+        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite, a constant
         recording, or a rate that is not positive.
 
     Examples

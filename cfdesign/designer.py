@@ -600,7 +600,7 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
 
 
 def design(spec: FilterSpec, observer=None) -> GainTable:
-    """Design a filter: the gains of ``spec`` and everything a :class:`GainTable` holds.
+    """Design a filter: the gains of ``spec`` and everything a :class:`~cfdesign.gains.GainTable` holds.
 
     The symbolic structure gives ``F, B, H`` and the gain pattern; the sensors' noise gives
     ``Q`` (Van Loan) and ``R``; then, by what the spec asks for:
@@ -669,7 +669,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
 
 
 def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
-    """The numeric stage of :func:`design` (numpy/scipy, no sympy): noise, Riccati, table.
+    """The numeric stage of :func:`design <cfdesign.designer.design>` (numpy/scipy, no sympy): noise, Riccati, table.
 
     The table's ``checks['complementary']`` is the structure's exact proof (gains symbolic)
     confirmed by the numeric band identity of the designed gains (:mod:`cfdesign.linear`).

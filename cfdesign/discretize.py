@@ -81,7 +81,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     Raises
     ------
     GainTableError
-        The table is already discrete, its sensors run at different rates (:func:`_check_single_rate`),
+        The table is already discrete, its sensors run at different rates (``_check_single_rate``),
         the rate is not a positive number, or the gains do not stabilise the filter at that rate
         (the step is too long for the continuous gains).
     """

@@ -35,7 +35,7 @@ __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "sch
 
 _ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
 #: the names the designer gives a chain's states, by family and derivative order
-#: (:func:`cfdesign.designer.state_names`), and the unit of each family's quantity
+#: (``cfdesign.designer.state_names``), and the unit of each family's quantity
 DERIVATIVE_NAMES = {"linear": ("position", "velocity", *_ORDERS),
                     "angle": ("angle", "angle_rate", *(f"angle_{d}" for d in _ORDERS)),
                     "heading": ("heading", "heading_rate", *(f"heading_{d}" for d in _ORDERS))}
@@ -57,7 +57,7 @@ MAX_ENTRY = 1e150
 #: the ZOH relations lose every digit
 MAX_RATE_HZ = 1e9
 
-#: version of the JSON layout written by :meth:`GainTable.save`
+#: version of the JSON layout written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>`
 FORMAT_VERSION = 1
 SCHEMA_PATH = Path(__file__).resolve().parent / "schemas" / f"gaintable-{FORMAT_VERSION}.schema.json"
 
@@ -77,7 +77,7 @@ def validate(data: dict, source: str = "gain table"):
     """Check a parsed gain table and build it.
 
     The JSON schema fixes the fields and types; how the parts fit together (shapes, sensor
-    ports, schedule) is checked when the :class:`GainTable` is built from them.  Size limits
+    ports, schedule) is checked when the :class:`~cfdesign.gains.GainTable` is built from them.  Size limits
     (states, period, nesting) are checked first.
 
     Parameters
@@ -552,7 +552,7 @@ class GainTable:
 
     See Also
     --------
-    cfdesign.design : builds a table from a design file.
+    cfdesign.designer.design : builds a table from a design file.
     load_gains : reads one back.
 
     Examples
@@ -622,7 +622,7 @@ class GainTable:
         Returns
         -------
         tuple of str
-            One unit per state, in the order of :attr:`states`.
+            One unit per state, in the order of ``states``.
 
         Examples
         --------
@@ -689,7 +689,7 @@ class GainTable:
     @property
     def predicted_std(self) -> float:
         """Predicted steady-state standard deviation of the estimate the table outputs
-        (:attr:`output`; first state), worst phase."""
+        (``output``; first state), worst phase."""
         return self.predicted_std_of(self.output)
 
     def predicted_std_of(self, output: str, state: int = 0) -> float:
@@ -762,7 +762,7 @@ class GainTable:
         Parameters
         ----------
         output : {'posterior', 'prior'}, optional
-            The estimate whose bands to give (default: the table's :attr:`output`).
+            The estimate whose bands to give (default: the table's ``output``).
 
         Returns
         -------
@@ -1013,7 +1013,7 @@ def _no_constant(token):
 
 
 def load_gains(path) -> GainTable:
-    """Read a gain table written by :meth:`GainTable.save` (or ``cfdesign design -o``).
+    """Read a gain table written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>` (or ``cfdesign design -o``).
 
     Parameters
     ----------

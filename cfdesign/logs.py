@@ -56,7 +56,7 @@ class LogResult:
     ----------
     estimates : pandas.DataFrame or None
         One row per log row: the time column (if any), a column per state (the table's
-        :attr:`~cfdesign.gains.GainTable.states`), ``<state>_std`` columns when asked for,
+        ``states``), ``<state>_std`` columns when asked for,
         and the log's other columns.  None when the estimates were written to a file only.
     samples : int
         Rows run.
@@ -885,7 +885,7 @@ def plot_log(table, estimates, references=None, time=None):
     table : GainTable
         The gain table the estimates came from (it names the states and sensors).
     estimates : pandas.DataFrame
-        :attr:`LogResult.estimates` (with the ``<state>_std`` and ``<state>_reference``
+        ``LogResult.estimates`` (with the ``<state>_std`` and ``<state>_reference``
         columns that :func:`run_log` adds when references are given).
     references : dict, optional
         ``{state: column}``: these states get a panel of the error inside the +-2 sigma band.

@@ -67,7 +67,7 @@ class WhiteNoise:
     ------
     SpecError
         Both or neither given, or a figure that is negative, not finite, or outside
-        :data:`FIGURE_RANGE`.
+        :data:`~cfdesign.noise.FIGURE_RANGE`.
 
     Examples
     --------

@@ -14,13 +14,14 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
 
     The sum is computed numerically from the band responses, so a complementary filter
     shows it on 0 dB / 0 deg across the whole grid.  Each crossover between adjacent bands
-    (equal magnitude, :meth:`FrequencyResponse.crossovers`) is marked with a dotted line
-    and its frequency.  Discrete filters are drawn up to the Nyquist frequency.
+    (equal magnitude,
+    :meth:`FrequencyResponse.crossovers <cfdesign.analysis.FrequencyResponse.crossovers>`) is
+    marked with a dotted line and its frequency.  Discrete filters are drawn up to the Nyquist frequency.
 
     Parameters
     ----------
     observer : Observer
-        With numbers for every gain (:meth:`Observer.with_gains`).
+        With numbers for every gain (:meth:`Observer.with_gains <cfdesign.symbolic.Observer.with_gains>`).
     omega : array_like, optional
         Frequencies in rad/s; default: two decades around the poles.
     hz : bool

@@ -93,7 +93,7 @@ class SensorSpec:
     bias : cfdesign.noise.Bias
         Constant bias (units) or random walk (density in units/sqrt(s)).
     measures : str, optional
-        What the sensor reads (a key of :data:`QUANTITY_ORDERS`: ``angle``, ``rate``,
+        What the sensor reads (a key of :data:`~cfdesign.spec.QUANTITY_ORDERS`: ``angle``, ``rate``,
         ``position``, ``velocity``, ``acceleration``, ...); checked against the structure.
     port : str, optional
         The structure's sensor this one plays (default: its own name).
@@ -249,7 +249,7 @@ def load_spec(path) -> FilterSpec:
     Raises
     ------
     SpecError
-        The file cannot be read, is larger than :data:`MAX_SPEC_BYTES`, is not TOML, or a
+        The file cannot be read, is larger than :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not TOML, or a
         field is missing or invalid; the message names the file and the field.
 
     Examples

@@ -321,7 +321,7 @@ def design_attitude(rate_hz, params=None, tables=None) -> AttitudeDesign:
     densities of ``params`` turned into per-sample stds at ``rate_hz``: the velocity channel's
     motion, rest and acceleration-disturbance designs, the tilt, heading and zero-rotation
     channels (module docstring), with the derived thresholds.  Without ``tables`` the design is
-    cached: equal rate and parameters return the same :class:`AttitudeDesign`.
+    cached: equal rate and parameters return the same :class:`~cfdesign.nav.attitude_filter.AttitudeDesign`.
 
     Parameters
     ----------
@@ -597,9 +597,9 @@ class AttitudeFilter:
         Returns
         -------
         dict
-            ``{name: float}`` in :data:`STATE_FIELDS` order: the attitude ``qw .. qz`` (body ->
-            ENU), the gyro bias ``bx .. bz`` (rad/s, body frame), the channels' states and
-            covariances, the detectors' low-passes and counters.  Plain floats: it can be
+            ``{name: float}`` in :data:`~cfdesign.nav.attitude_filter.STATE_FIELDS` order: the
+            attitude ``qw .. qz`` (body -> ENU), the gyro bias ``bx .. bz`` (rad/s, body frame), the
+            channels' states and covariances, the detectors' low-passes and counters.  Plain floats: it can be
             written as JSON, and it maps field by field onto the generated C struct
             (:mod:`cfdesign.codegen.attitude`).  The design (rate, parameters, tables) is not
             part of it.
@@ -623,7 +623,7 @@ class AttitudeFilter:
         Parameters
         ----------
         state : dict
-            ``{name: number}`` with exactly the names of :data:`STATE_FIELDS`.
+            ``{name: number}`` with exactly the names of :data:`~cfdesign.nav.attitude_filter.STATE_FIELDS`.
 
         Raises
         ------

@@ -396,7 +396,8 @@ def structure(name: str, **options) -> Observer:
     Parameters
     ----------
     name : str
-        A key of :data:`STRUCTURES`: ``cf2``, ``cf3``, ``ckf3``, ``dckf3``, ``cfn``, ``position``.
+        A key of :data:`~cfdesign.symbolic.filters.STRUCTURES`: ``cf2``, ``cf3``, ``ckf3``, ``dckf3``,
+        ``cfn``, ``position``.
     **options
         ``order`` (cf2: 1 or 2); ``bands`` and ``full`` (cfn); ``discrete`` (cf2, cf3, cfn,
         position).  None means the default.

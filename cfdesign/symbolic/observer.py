@@ -139,7 +139,7 @@ class Sensor:
             Identifier, unique within the observer.
         measures : int or str
             Derivative order of the common quantity it reads, or its name (``'rate'``,
-            ``'acceleration'``, ...: :data:`QUANTITY_ORDERS`).
+            ``'acceleration'``, ...: :data:`~cfdesign.spec.QUANTITY_ORDERS`).
         column : int
             Column of ``B`` it drives.
         relation : sympy expression, optional
