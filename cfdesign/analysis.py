@@ -186,6 +186,7 @@ class FrequencyResponse:
         Returns
         -------
         list of str
+            The band (sensor) names, the band that peaks at the lowest frequency first.
         """
         peak = {k: self.omega[np.argmax(np.abs(v))] for k, v in self.bands.items()}
         return sorted(peak, key=lambda k: (peak[k], k))
@@ -250,6 +251,7 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
     Returns
     -------
     FrequencyResponse
+        Every band's complex response on the grid ``omega`` (rad/s).
 
     Raises
     ------

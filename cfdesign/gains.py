@@ -90,6 +90,7 @@ def validate(data: dict, source: str = "gain table"):
     Returns
     -------
     GainTable
+        The validated table.
 
     Raises
     ------
@@ -260,6 +261,7 @@ class SensorPort:
         Returns
         -------
         SensorPort
+            The port.
         """
         return cls(str(d["name"]), str(d["role"]), int(d["index"]), int(d["order"]), float(d["rate_hz"]))
 
@@ -304,6 +306,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``len(per_phase)``.
 
         Raises
         ------
@@ -342,6 +345,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``period``.
 
         Examples
         --------
@@ -370,6 +374,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``period``.
         """
         measurements = tuple(measurements)
         sets = {x: {int(t) % period for t in ticks[x]} for x in measurements}
@@ -408,6 +413,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            A new schedule of the same period.
 
         Examples
         --------
@@ -429,6 +435,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            A new schedule of the same period.
         """
         k = phase % self.period
         return Schedule(self.measurements, self.active[k:] + self.active[:k])
@@ -464,6 +471,7 @@ class Schedule:
         Returns
         -------
         list of str
+            The sensors read at ``phase``, in row order of ``H`` (empty when none is read).
         """
         return [self.measurements[i] for i in self.rows(phase)]
 
@@ -675,6 +683,7 @@ class GainTable:
         Returns
         -------
         SensorPort
+            Its role, row or column, derivative order and rate.
 
         Raises
         ------
@@ -746,6 +755,7 @@ class GainTable:
         Returns
         -------
         list of str
+            The names, inputs first, then measurements.
         """
         return [s.name for s in self.sensors if role is None or s.role == role]
 
@@ -820,6 +830,7 @@ class GainTable:
         Returns
         -------
         matplotlib.figure.Figure
+            The figure: magnitude (dB) and phase (deg) axes.
         """
         from .plot import table_bode_plot
 
@@ -834,6 +845,8 @@ class GainTable:
         Returns
         -------
         cfdesign.symbolic.Observer
+            The observer of the table's structure with the table's gains (and sample time)
+            substituted.
 
         Raises
         ------
@@ -940,6 +953,7 @@ class GainTable:
         Returns
         -------
         GainTable
+            The validated table.
 
         Raises
         ------
@@ -1023,6 +1037,7 @@ def load_gains(path) -> GainTable:
     Returns
     -------
     GainTable
+        The validated table.
 
     Raises
     ------

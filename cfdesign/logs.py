@@ -240,6 +240,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Returns
     -------
     pandas.DataFrame or iterator of DataFrame
+        The log, or an iterator of blocks of ``chunksize`` rows.
 
     Raises
     ------
@@ -430,6 +431,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     Returns
     -------
     LogResult
+        The estimates (None when written to ``output``), the RMS error of each reference, the unused
+        readings and notes.
 
     Raises
     ------
@@ -895,6 +898,7 @@ def plot_log(table, estimates, references=None, time=None):
     Returns
     -------
     matplotlib.figure.Figure
+        One panel per state (and per reference error).
     """
     import matplotlib.pyplot as plt
 

@@ -34,6 +34,7 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     Returns
     -------
     matplotlib.figure.Figure
+        The figure: magnitude (dB) and phase (deg) axes.
     """
     resp = frequency_response(observer, omega)
     return _draw_bands(resp, hz, title or _default_title(observer), fig)
@@ -118,6 +119,7 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     Returns
     -------
     matplotlib.figure.Figure
+        The figure: magnitude (dB) and phase (deg) axes.
 
     Examples
     --------
@@ -236,6 +238,7 @@ def figure_bytes(fig, target) -> bytes:
     Returns
     -------
     bytes
+        The encoded image (PNG, PDF or SVG).
 
     Raises
     ------

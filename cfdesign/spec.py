@@ -186,6 +186,7 @@ class FilterSpec:
         Returns
         -------
         SensorSpec
+            The sensor called ``name``.
 
         Raises
         ------
@@ -210,6 +211,7 @@ def example_path(name: str = "robot-heading") -> Path:
     Returns
     -------
     Path
+        Path of the TOML file shipped with cfdesign.
 
     Raises
     ------
@@ -292,6 +294,7 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     Returns
     -------
     FilterSpec
+        The validated design.
 
     Raises
     ------

@@ -309,6 +309,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     Returns
     -------
     Lock
+        The segments, offsets, measured rates and notes.
     """
     sched, P, dt = table.schedule, table.period, table.sample_time_s
     notes, rates, patterns = [], {}, {}

@@ -286,7 +286,9 @@ class AttitudeDesign:
     Attributes
     ----------
     rate_hz : float
+        Sample rate (Hz) the gains were designed for.
     params : AttitudeParams
+        Noise figures the gains were designed from.
     tables : dict
         ``{name: GainTable}``: ``velocity`` (motion), ``velocity_rest``, ``velocity_level1`` ..
         (acceleration disturbance), ``tilt``, ``heading``, ``rest`` (zero rotation); every one a

@@ -96,6 +96,7 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
     Returns
     -------
     FilterSpec
+        The design of one axis (``position`` structure, filter form).
 
     Raises
     ------
@@ -270,6 +271,8 @@ class PositionFilter:
         Returns
         -------
         PositionEstimate
+            ENU position (m), velocity (m/s) and accelerometer bias seen in ENU (m/s^2) at every IMU
+            sample.
         """
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
         u = earth_acceleration(acc, q)

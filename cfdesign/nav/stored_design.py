@@ -48,6 +48,7 @@ def stored_structure(name: str) -> Structure:
     Returns
     -------
     cfdesign.designer.Structure
+        The structure (the same object on every call).
 
     Raises
     ------
@@ -73,6 +74,7 @@ def design_stored(spec: FilterSpec, name: str) -> GainTable:
     Returns
     -------
     GainTable
+        The designed gain table.
 
     Raises
     ------
@@ -102,6 +104,7 @@ def as_table(value, name: str, what: str) -> GainTable:
     Returns
     -------
     GainTable
+        ``value`` itself, or the design of ``value`` on the stored structure ``name``.
 
     Raises
     ------

@@ -79,6 +79,7 @@ def design_observer(spec, observer):
     Returns
     -------
     GainTable
+        The designed gain table.
 
     """
     from ..designer import design

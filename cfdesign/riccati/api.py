@@ -66,6 +66,7 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     Returns
     -------
     RiccatiSolution
+        The solution ``X``, its gain, residual and stability record.
 
     Raises
     ------

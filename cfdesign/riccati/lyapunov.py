@@ -212,6 +212,7 @@ class ClosedLoop:
         Returns
         -------
         ndarray, shape (n, n)
+            The correction ``D``, Hermitian.
         """
         return from_standard(self.p, self.solve_std(W))
 

@@ -85,6 +85,7 @@ def held(u, bad, u_last) -> np.ndarray:
     Returns
     -------
     ndarray, shape (N, p)
+        ``u`` with the bad values replaced (a copy).
     """
     u = np.vstack([u_last[None, :], u])
     good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])

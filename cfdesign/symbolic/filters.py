@@ -116,6 +116,7 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     Returns
     -------
     Observer
+        The ``n``-band observer, with symbolic gains.
 
     Raises
     ------
@@ -182,6 +183,7 @@ def chain(order: int, inputs, measurements, *, weights=None, bias: bool = False,
     Returns
     -------
     Observer
+        The chain's observer, with symbolic gains.
 
     Raises
     ------
@@ -405,6 +407,7 @@ def structure(name: str, **options) -> Observer:
     Returns
     -------
     Observer
+        The observer of the structure, with symbolic gains.
 
     Raises
     ------

@@ -150,6 +150,7 @@ class Sensor:
         Returns
         -------
         Sensor
+            The input sensor (role ``input``).
 
         Examples
         --------
@@ -178,6 +179,7 @@ class Sensor:
         Returns
         -------
         Sensor
+            The measurement sensor (role ``measurement``).
         """
         return cls(name, measures, "measurement", row, relation)
 
@@ -284,6 +286,7 @@ def zoh_chain(m: int, sample_time=T):
     Returns
     -------
     F, B : sympy.Matrix
+        ``F`` (m x m) and ``B`` (m x 1), exact in ``sample_time``.
 
     Examples
     --------
@@ -491,6 +494,7 @@ class Observer:
         Returns
         -------
         Observer
+            The observer of ``sys`` with gain ``K`` and the given sensors.
 
         Raises
         ------
@@ -600,6 +604,7 @@ class Observer:
         Returns
         -------
         sympy.Symbol
+            The symbol named ``name`` in this observer's expressions.
 
         Raises
         ------
@@ -626,6 +631,7 @@ class Observer:
         Returns
         -------
         sympy expression
+            ``D(v)`` in the observer's variable (``s`` or ``z``).
 
         Raises
         ------
@@ -724,6 +730,8 @@ class Observer:
         Returns
         -------
         Proof
+            The bands, their sum and the residual in canonical form; ``holds`` tells whether they
+            sum to one.
 
         Examples
         --------
@@ -790,6 +798,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer; this one is unchanged.
 
         Raises
         ------
@@ -833,6 +842,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer with the sensors (and label) renamed.
 
         Raises
         ------
@@ -870,6 +880,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer with no free parameter.
 
         Raises
         ------
@@ -946,6 +957,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new, fully numeric observer with gain ``K`` (in ``gain_form``).
         """
         obs = self
         if sample_time is not None and self._sample_time_symbol is not None:
