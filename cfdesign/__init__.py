@@ -3,8 +3,8 @@
 The symbolic engine (:mod:`cfdesign.symbolic`) turns a linear observer of a kinematic chain
 (F, B, H, K) into the band transfer function of every sensor and proves exactly that the
 bands sum to one.  The named filters of the source papers are small constructors on it.
-:func:`design` turns a sensor specification into optimal gains (CARE, DARE, periodic DARE)
-and a :class:`GainTable`; :mod:`cfdesign.runtime` runs one.
+:func:`~cfdesign.designer.design` turns a sensor specification into optimal gains (CARE, DARE, periodic DARE)
+and a :class:`~cfdesign.gains.GainTable`; :mod:`cfdesign.runtime` runs one.
 
 The public names below are loaded on first use, so that ``import cfdesign.runtime`` (the
 part that runs on a robot) never imports sympy.

@@ -46,7 +46,7 @@ Method (:func:`identify_noise`):
 5. over the last octaves of a recording one realisation of a rate random walk can look like a
    ramp.  Where the fit keeps a ramp and no random walk, the random walk is fitted in its place,
    and kept unless it fits clearly worse (its weighted chi-square larger by
-   :data:`RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
+   :data:`~cfdesign.allan.RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
 
@@ -107,6 +107,7 @@ def octave_taus(n_samples: int, rate_hz: float) -> np.ndarray:
     Returns
     -------
     ndarray of int
+        ``1, 2, 4, ...``, ascending; empty for fewer than three samples.
 
     Examples
     --------
@@ -139,6 +140,8 @@ def oadev(y, rate_hz: float, m=None):
     Returns
     -------
     (tau_s, adev, m) : tuple of ndarray
+        Averaging times ``m / rate_hz`` (s), the Allan deviation at each (in the unit of ``y``), and
+        the averaging factors used.
     """
     y = np.asarray(y, dtype=float)
     m = octave_taus(len(y), rate_hz) if m is None else np.asarray(m, dtype=int)
@@ -248,6 +251,7 @@ class NoiseFit:
     name : str
         The column (sensor) name.
     rate_hz, duration_s : float
+        Sample rate (Hz) and length (s) of the recording.
     tau_s, adev, edf : ndarray
         The octave-spaced overlapping Allan deviation and each point's EDF.
     terms : dict
@@ -310,7 +314,7 @@ class NoiseFit:
         Returns
         -------
         low, high : ndarray
-            Bounds at :attr:`tau_s`, in the sensor's unit.
+            Bounds at ``tau_s``, in the sensor's unit.
         """
         from scipy.stats import chi2
 
@@ -365,6 +369,7 @@ class NoiseFit:
         Returns
         -------
         str
+            The lines, separated by newlines, with ``unit`` in the values' units.
         """
         unit = _comment(unit)
         lines = [f"{_comment(self.name)}: {self.duration_s:.6g} s at {self.rate_hz:.6g} Hz, Allan deviation at "
@@ -389,6 +394,7 @@ class NoiseFit:
         Returns
         -------
         matplotlib.figure.Figure
+            The figure drawn into.
         """
         return adev_plot([self], ax=ax, unit=unit)
 
@@ -423,7 +429,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Fewer than :data:`MIN_SAMPLES` readings, a value that is not finite, a constant
+        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite, a constant
         recording, or a rate that is not positive.
 
     Examples
@@ -700,6 +706,7 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     Returns
     -------
     matplotlib.figure.Figure
+        The figure drawn into.
     """
     import matplotlib.pyplot as plt
 

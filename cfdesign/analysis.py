@@ -1,7 +1,8 @@
 """Numeric side of a filter with numbers for its gains: python-control models and responses.
 
 No plotting here (see :mod:`cfdesign.plot`) and no sympy: the observer hands over its band
-polynomials as float coefficient arrays (:meth:`Observer.band_coefficients`).
+polynomials as float coefficient arrays
+(:meth:`Observer.band_coefficients <cfdesign.symbolic.Observer.band_coefficients>`).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ def transfer_functions(observer) -> dict:
     Parameters
     ----------
     observer : cfdesign.symbolic.Observer
-        With numbers for every gain (and the sample time): :meth:`Observer.with_gains`.
+        With numbers for every gain (and the sample time):
+        :meth:`Observer.with_gains <cfdesign.symbolic.Observer.with_gains>`.
 
     Returns
     -------
@@ -156,7 +158,7 @@ class FrequencyResponse:
         Returns
         -------
         ndarray
-            ``20 log10 |T(j w)|`` on :attr:`omega`.
+            ``20 log10 |T(j w)|`` on ``omega``.
         """
         resp = self.total if name == "sum" else self.bands[name]
         with np.errstate(divide="ignore"):
@@ -173,7 +175,7 @@ class FrequencyResponse:
         Returns
         -------
         ndarray
-            Phase (deg) on :attr:`omega`.
+            Phase (deg) on ``omega``.
         """
         resp = self.total if name == "sum" else self.bands[name]
         return np.degrees(np.unwrap(np.angle(resp)))
@@ -184,6 +186,7 @@ class FrequencyResponse:
         Returns
         -------
         list of str
+            The band (sensor) names, the band that peaks at the lowest frequency first.
         """
         peak = {k: self.omega[np.argmax(np.abs(v))] for k, v in self.bands.items()}
         return sorted(peak, key=lambda k: (peak[k], k))
@@ -248,6 +251,7 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
     Returns
     -------
     FrequencyResponse
+        Every band's complex response on the grid ``omega`` (rad/s).
 
     Raises
     ------

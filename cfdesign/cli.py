@@ -141,7 +141,7 @@ def cmd_design(args) -> int:
 def _bode_png(spec, table, target, hz=False) -> bytes:
     """The Bode plot of a designed filter, rendered in memory: the bands of a single-rate
     filter; for a multirate one, its gains per phase and the lifted system at the period rate
-    (:meth:`GainTable.bode`)."""
+    (:meth:`GainTable.bode <cfdesign.gains.GainTable.bode>`)."""
     from .designer import designed_observer
     from .plot import bode_plot
 

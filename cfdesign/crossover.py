@@ -145,7 +145,12 @@ def crossover_check(structure, model, K, form, output, dt, hz) -> list:
     K : array_like, shape (n, m)
         The gain, in ``form``.
     form : {'continuous', 'predictor', 'filter'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
     output : {'prior', 'posterior'}
+        The estimate meant: ``prior`` (the one-step prediction) or ``posterior`` (after the step's
+        readings).  Discrete tables only.
     dt : float or None
         Sample time (s) of a discrete design.
     hz : sequence of float
@@ -181,6 +186,9 @@ def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dic
     dt : float or None
         Sample time (s) of a discrete design.
     form : {'continuous', 'predictor', 'filter'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
     output : {'prior', 'posterior'}
         The estimate whose bands are meant (discrete tables).
     hz : sequence of float

@@ -157,14 +157,17 @@ class Structure:
     Attributes
     ----------
     name : str
+        Name of the structure (e.g. ``cf2``).
     discrete : bool
         Discrete structures are the zero-order-hold discretisation of ``(Fc, Bc)``.
     Fc, Bc : ndarray
         The continuous model (the discrete ``F, B`` at any sample time follow from it).
     H : ndarray
+        Measurement matrix, shape (m, n).
     pattern : tuple of tuple
         The gain matrix: a gain's name where an entry is free, else its (fixed) value.
     sensors : tuple of StructurePort
+        The sensors' ports, inputs then measurements.
     proved : bool
         The exact complementarity proof with the gains left symbolic (so it holds for every
         value they take).
@@ -192,6 +195,7 @@ class Structure:
         Returns
         -------
         Structure
+            The numeric structure of ``obs``.
 
         Raises
         ------
@@ -243,6 +247,7 @@ class Structure:
         Returns
         -------
         Structure
+            A new structure with fewer free gains.
         """
         pattern = tuple(tuple(float(values[e]) if isinstance(e, str) and e in values else e for e in row)
                         for row in self.pattern)
@@ -273,6 +278,7 @@ class Structure:
         Returns
         -------
         dict
+            Plain lists, strings and numbers (JSON-serialisable).
         """
         return {"name": self.name, "discrete": self.discrete, "Fc": self.Fc.tolist(), "Bc": self.Bc.tolist(),
                 "H": self.H.tolist(), "pattern": [list(r) for r in self.pattern],
@@ -290,6 +296,7 @@ class Structure:
         Returns
         -------
         Structure
+            The structure.
         """
         n = len(d["Fc"])
         return cls(d["name"], bool(d["discrete"]), np.array(d["Fc"], dtype=float).reshape(n, n),
@@ -309,6 +316,7 @@ class Structure:
         Returns
         -------
         Structure
+            The stored structure.
 
         Raises
         ------
@@ -413,6 +421,7 @@ def numeric_structure(spec: FilterSpec) -> Structure:
     Returns
     -------
     Structure
+        The structure the spec names, with its exact proof run.
 
     Raises
     ------
@@ -600,7 +609,7 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
 
 
 def design(spec: FilterSpec, observer=None) -> GainTable:
-    """Design a filter: the gains of ``spec`` and everything a :class:`GainTable` holds.
+    """Design a filter: the gains of ``spec`` and everything a :class:`~cfdesign.gains.GainTable` holds.
 
     The symbolic structure gives ``F, B, H`` and the gain pattern; the sensors' noise gives
     ``Q`` (Van Loan) and ``R``; then, by what the spec asks for:
@@ -669,7 +678,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
 
 
 def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
-    """The numeric stage of :func:`design` (numpy/scipy, no sympy): noise, Riccati, table.
+    """The numeric stage of :func:`design <cfdesign.designer.design>` (numpy/scipy, no sympy): noise, Riccati, table.
 
     The table's ``checks['complementary']`` is the structure's exact proof (gains symbolic)
     confirmed by the numeric band identity of the designed gains (:mod:`cfdesign.linear`).
@@ -684,6 +693,7 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     Returns
     -------
     GainTable
+        The designed gain table.
 
     Raises
     ------

@@ -53,6 +53,7 @@ def innovation_hold(F, T: float) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n, n)
+        ``Gamma``: the integral of ``e^{F tau}`` over one sample time.
     """
     return zoh(F, np.eye(len(F)), T)[1]
 
@@ -68,6 +69,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     rate_hz : float
         The rate every sensor is read at (Hz).
     gain_form : {'predictor', 'filter'}
+        Gain form of the discrete table: ``predictor`` or ``filter``.
     output : {'posterior', 'prior'}, optional
         Default: the posterior (the estimate after each step's readings).
 
@@ -81,7 +83,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     Raises
     ------
     GainTableError
-        The table is already discrete, its sensors run at different rates (:func:`_check_single_rate`),
+        The table is already discrete, its sensors run at different rates (``_check_single_rate``),
         the rate is not a positive number, or the gains do not stabilise the filter at that rate
         (the step is too long for the continuous gains).
     """

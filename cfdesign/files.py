@@ -181,6 +181,7 @@ def write_text(path, text: str) -> Path:
     Returns
     -------
     Path
+        The path written.
 
     Raises
     ------
@@ -203,6 +204,7 @@ def write_bytes(path, data: bytes) -> Path:
     Returns
     -------
     Path
+        The path written.
 
     Raises
     ------

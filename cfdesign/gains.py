@@ -36,7 +36,7 @@ __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "sch
 
 _ORDERS = ("acceleration", "jerk", "snap", "crackle", "pop")
 #: the names the designer gives a chain's states, by family and derivative order
-#: (:func:`cfdesign.designer.state_names`), and the unit of each family's quantity
+#: (``cfdesign.designer.state_names``), and the unit of each family's quantity
 DERIVATIVE_NAMES = {"linear": ("position", "velocity", *_ORDERS),
                     "angle": ("angle", "angle_rate", *(f"angle_{d}" for d in _ORDERS)),
                     "heading": ("heading", "heading_rate", *(f"heading_{d}" for d in _ORDERS))}
@@ -58,7 +58,7 @@ MAX_ENTRY = 1e150
 #: the ZOH relations lose every digit
 MAX_RATE_HZ = 1e9
 
-#: version of the JSON layout written by :meth:`GainTable.save`
+#: version of the JSON layout written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>`
 FORMAT_VERSION = 1
 SCHEMA_PATH = Path(__file__).resolve().parent / "schemas" / f"gaintable-{FORMAT_VERSION}.schema.json"
 
@@ -78,7 +78,7 @@ def validate(data: dict, source: str = "gain table"):
     """Check a parsed gain table and build it.
 
     The JSON schema fixes the fields and types; how the parts fit together (shapes, sensor
-    ports, schedule) is checked when the :class:`GainTable` is built from them.  Size limits
+    ports, schedule) is checked when the :class:`~cfdesign.gains.GainTable` is built from them.  Size limits
     (states, period, nesting) are checked first.
 
     Parameters
@@ -91,6 +91,7 @@ def validate(data: dict, source: str = "gain table"):
     Returns
     -------
     GainTable
+        The validated table.
 
     Raises
     ------
@@ -261,6 +262,7 @@ class SensorPort:
         Returns
         -------
         SensorPort
+            The port.
         """
         return cls(str(d["name"]), str(d["role"]), int(d["index"]), int(d["order"]), float(d["rate_hz"]))
 
@@ -305,6 +307,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``len(per_phase)``.
 
         Raises
         ------
@@ -343,6 +346,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``period``.
 
         Examples
         --------
@@ -371,6 +375,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            The schedule, period ``period``.
         """
         measurements = tuple(measurements)
         sets = {x: {int(t) % period for t in ticks[x]} for x in measurements}
@@ -409,6 +414,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            A new schedule of the same period.
 
         Examples
         --------
@@ -430,6 +436,7 @@ class Schedule:
         Returns
         -------
         Schedule
+            A new schedule of the same period.
         """
         k = phase % self.period
         return Schedule(self.measurements, self.active[k:] + self.active[:k])
@@ -465,6 +472,7 @@ class Schedule:
         Returns
         -------
         list of str
+            The sensors read at ``phase``, in row order of ``H`` (empty when none is read).
         """
         return [self.measurements[i] for i in self.rows(phase)]
 
@@ -553,7 +561,7 @@ class GainTable:
 
     See Also
     --------
-    cfdesign.design : builds a table from a design file.
+    cfdesign.designer.design : builds a table from a design file.
     load_gains : reads one back.
 
     Examples
@@ -623,7 +631,7 @@ class GainTable:
         Returns
         -------
         tuple of str
-            One unit per state, in the order of :attr:`states`.
+            One unit per state, in the order of ``states``.
 
         Examples
         --------
@@ -676,6 +684,7 @@ class GainTable:
         Returns
         -------
         SensorPort
+            Its role, row or column, derivative order and rate.
 
         Raises
         ------
@@ -690,7 +699,7 @@ class GainTable:
     @property
     def predicted_std(self) -> float:
         """Predicted steady-state standard deviation of the estimate the table outputs
-        (:attr:`output`; first state), worst phase."""
+        (``output``; first state), worst phase."""
         return self.predicted_std_of(self.output)
 
     def predicted_std_of(self, output: str, state: int = 0) -> float:
@@ -747,6 +756,7 @@ class GainTable:
         Returns
         -------
         list of str
+            The names, inputs first, then measurements.
         """
         return [s.name for s in self.sensors if role is None or s.role == role]
 
@@ -763,7 +773,7 @@ class GainTable:
         Parameters
         ----------
         output : {'posterior', 'prior'}, optional
-            The estimate whose bands to give (default: the table's :attr:`output`).
+            The estimate whose bands to give (default: the table's ``output``).
 
         Returns
         -------
@@ -821,6 +831,7 @@ class GainTable:
         Returns
         -------
         matplotlib.figure.Figure
+            The figure: magnitude (dB) and phase (deg) axes.
         """
         from .plot import table_bode_plot
 
@@ -835,6 +846,8 @@ class GainTable:
         Returns
         -------
         cfdesign.symbolic.Observer
+            The observer of the table's structure with the table's gains (and sample time)
+            substituted.
 
         Raises
         ------
@@ -945,6 +958,7 @@ class GainTable:
         Returns
         -------
         GainTable
+            The validated table.
 
         Raises
         ------
@@ -1046,7 +1060,7 @@ def _no_constant(token):
 
 
 def load_gains(path) -> GainTable:
-    """Read a gain table written by :meth:`GainTable.save` (or ``cfdesign design -o``).
+    """Read a gain table written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>` (or ``cfdesign design -o``).
 
     Parameters
     ----------
@@ -1056,6 +1070,7 @@ def load_gains(path) -> GainTable:
     Returns
     -------
     GainTable
+        The validated table.
 
     Raises
     ------

@@ -173,6 +173,9 @@ def default_output(form: str) -> str:
     Parameters
     ----------
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
 
     Returns
     -------
@@ -207,6 +210,9 @@ def gain_pair(F, K, form: str):
     K : ndarray (n, m)
         Gain in ``form``.
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
 
     Returns
     -------
@@ -235,10 +241,14 @@ def has_posterior(F, form: str) -> bool:
     F : array_like, shape (n, n)
         State transition matrix.
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
 
     Returns
     -------
     bool
+        True when an update gain ``L`` exists for ``form``.
 
     Examples
     --------
@@ -263,10 +273,14 @@ def gain_in_form(F, Kp, form: str) -> np.ndarray:
     Kp : array_like, shape (n, m)
         Predictor gain (``x[k+1] = F x + B u + Kp (y - H x)``).
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
 
     Returns
     -------
     ndarray, shape (n, m)
+        The gain in ``form``.
 
     Raises
     ------
@@ -300,10 +314,14 @@ def closed_loop(F, H, K, form: str) -> np.ndarray:
     K : array_like, shape (n, m)
         Gain in ``form``.
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
 
     Returns
     -------
     ndarray, shape (n, n)
+        The error dynamics' state matrix.
 
     Examples
     --------
@@ -325,10 +343,16 @@ class Realisation:
     Attributes
     ----------
     A : ndarray, shape (n, n)
+        State matrix.
     G : ndarray, shape (n, p + m)
+        Reading matrix: inputs ``u`` (p columns), then measurements ``y`` (m).
     C : ndarray, shape (n, n)
+        Output matrix of the output states.
     D : ndarray, shape (n, p + m)
+        Feedthrough of the readings to the output states.
     output : {'prior', 'posterior'}
+        The estimate meant: ``prior`` (the one-step prediction) or ``posterior`` (after the step's
+        readings).
     delta : ndarray, shape (n, n), optional
         ``I - A`` computed as ``(I - F) + Kp H`` (discrete), without the cancellation of
         ``1 - A_ii`` when the gains are tiny (fast sampling): what the frequency responses near
@@ -358,12 +382,16 @@ def realisation(F, B, H, K, form: str, output: str | None = None) -> Realisation
     K : array_like, shape (n, m)
         Gain in ``form``.
     form : {'predictor', 'filter', 'continuous'}
+        The gain form: ``predictor`` (``x[k+1] = F x + B u + K (y - H x)``), ``filter``
+        (``x+ = x + K (y - H x)``, then ``x[k+1] = F x+ + B u``) or ``continuous``
+        (``x' = F x + B u + K (y - H x)``).
     output : {'prior', 'posterior'}, optional
         Default :func:`default_output` of the form.
 
     Returns
     -------
     Realisation
+        The matrices ``A, G, C, D`` of the phase.
 
     Raises
     ------
@@ -407,6 +435,7 @@ def posterior_covariance(P, H, L, R) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n, n)
+        The posterior covariance, symmetric.
     """
     P, H, L, R = (np.asarray(M, dtype=float) for M in (P, H, L, R))
     IKH = np.eye(len(P)) - L @ H
@@ -421,6 +450,7 @@ def is_stable(eigenvalues, domain: str) -> bool:
     eigenvalues : array_like
         Eigenvalues (poles) to test.
     domain : {'s', 'z'}
+        ``s`` for a continuous filter, ``z`` for a discrete one.
 
     Returns
     -------
@@ -438,6 +468,7 @@ def spectral_margin(eigenvalues, domain: str) -> float:
     eigenvalues : array_like
         Eigenvalues (poles) to measure.
     domain : {'s', 'z'}
+        ``s`` for a continuous filter, ``z`` for a discrete one.
 
     Returns
     -------
@@ -469,7 +500,9 @@ def zoh_chain(m: int, dt: float):
     Returns
     -------
     F : ndarray, shape (m, m)
+        State transition matrix, ``F[i, j] = dt**(j-i) / (j-i)!``.
     B : ndarray, shape (m,)
+        Input vector, ``B[i] = dt**(m-i) / (m-i)!``.
 
     Examples
     --------
@@ -498,6 +531,7 @@ def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
     orders : iterable of int
         The sensors' derivative orders.
     domain : {'s', 'z'}
+        ``s`` for a continuous filter, ``z`` for a discrete one.
     dt : float, optional
         Sample time (s), discrete only.
 
@@ -584,6 +618,7 @@ def adjugate_coefficients(A, den=None) -> np.ndarray:
     Returns
     -------
     ndarray, shape (n, n, n)
+        ``M[k]``, ``k = 0 .. n-1``.
     """
     A = np.asarray(A, dtype=float)
     den = characteristic_polynomial(A) if den is None else den
@@ -642,6 +677,7 @@ def response(num, den, omega, dt: float | None = None) -> np.ndarray:
     Returns
     -------
     ndarray of complex
+        The response at each of ``omega``.
     """
     omega = np.asarray(omega, dtype=float)
     x = np.exp(1j * omega * dt) if dt else 1j * omega
@@ -664,6 +700,7 @@ def band_responses(real: Realisation, ports, domain: str, dt, omega, row: int = 
     ports : sequence
         Sensors with ``name`` and ``order``, in column order of ``G``/``D``.
     domain : {'s', 'z'}
+        ``s`` for a continuous filter, ``z`` for a discrete one.
     dt : float or None
         Sample time (s) of a discrete filter.
     omega : array_like

@@ -57,7 +57,7 @@ class LogResult:
     ----------
     estimates : pandas.DataFrame or None
         One row per log row: the time column (if any), a column per state (the table's
-        :attr:`~cfdesign.gains.GainTable.states`), ``<state>_std`` columns when asked for,
+        ``states``), ``<state>_std`` columns when asked for,
         and the log's other columns.  None when the estimates were written to a file only.
     samples : int
         Rows run.
@@ -241,6 +241,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Returns
     -------
     pandas.DataFrame or iterator of DataFrame
+        The log, or an iterator of blocks of ``chunksize`` rows.
 
     Raises
     ------
@@ -470,6 +471,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     Returns
     -------
     LogResult
+        The estimates (None when written to ``output``), the RMS error of each reference, the unused
+        readings and notes.
 
     Raises
     ------
@@ -925,7 +928,7 @@ def plot_log(table, estimates, references=None, time=None):
     table : GainTable
         The gain table the estimates came from (it names the states and sensors).
     estimates : pandas.DataFrame
-        :attr:`LogResult.estimates` (with the ``<state>_std`` and ``<state>_reference``
+        ``LogResult.estimates`` (with the ``<state>_std`` and ``<state>_reference``
         columns that :func:`run_log` adds when references are given).
     references : dict, optional
         ``{state: column}``: these states get a panel of the error inside the +-2 sigma band.
@@ -935,6 +938,7 @@ def plot_log(table, estimates, references=None, time=None):
     Returns
     -------
     matplotlib.figure.Figure
+        One panel per state (and per reference error).
     """
     import matplotlib.pyplot as plt
 

@@ -67,7 +67,7 @@ class WhiteNoise:
     ------
     SpecError
         Both or neither given, or a figure that is negative, not finite, or outside
-        :data:`FIGURE_RANGE`.
+        :data:`~cfdesign.noise.FIGURE_RANGE`.
 
     Examples
     --------
@@ -100,6 +100,7 @@ class WhiteNoise:
         Returns
         -------
         float
+            The PSD ``q`` (u^2/Hz, ``u`` the sensor's unit).
         """
         return self.density**2 if self.density is not None else self.std**2 / rate_hz
 
@@ -114,6 +115,7 @@ class WhiteNoise:
         Returns
         -------
         float
+            The variance of one sample (u^2, ``u`` the sensor's unit).
         """
         return self.std**2 if self.std is not None else self.density**2 * rate_hz
 
@@ -180,6 +182,7 @@ def van_loan(F, Qc, T: float):
     Returns
     -------
     Fd : ndarray, shape (n, n)
+        State transition matrix ``e^{F T}``.
     Qd : ndarray, shape (n, n)
         Per-sample process-noise covariance, symmetric.
 
@@ -219,7 +222,9 @@ def zoh(F, B, T: float):
     Returns
     -------
     Fd : ndarray, shape (n, n)
+        State transition matrix ``e^{F T}``.
     Bd : ndarray, shape (n, p)
+        Input matrix of the held input.
 
     Examples
     --------

@@ -14,13 +14,14 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
 
     The sum is computed numerically from the band responses, so a complementary filter
     shows it on 0 dB / 0 deg across the whole grid.  Each crossover between adjacent bands
-    (equal magnitude, :meth:`FrequencyResponse.crossovers`) is marked with a dotted line
-    and its frequency.  Discrete filters are drawn up to the Nyquist frequency.
+    (equal magnitude,
+    :meth:`FrequencyResponse.crossovers <cfdesign.analysis.FrequencyResponse.crossovers>`) is
+    marked with a dotted line and its frequency.  Discrete filters are drawn up to the Nyquist frequency.
 
     Parameters
     ----------
     observer : Observer
-        With numbers for every gain (:meth:`Observer.with_gains`).
+        With numbers for every gain (:meth:`Observer.with_gains <cfdesign.symbolic.Observer.with_gains>`).
     omega : array_like, optional
         Frequencies in rad/s; default: two decades around the poles.
     hz : bool
@@ -33,6 +34,7 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     Returns
     -------
     matplotlib.figure.Figure
+        The figure: magnitude (dB) and phase (deg) axes.
     """
     resp = frequency_response(observer, omega)
     return _draw_bands(resp, hz, title or _default_title(observer), fig)
@@ -117,6 +119,7 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     Returns
     -------
     matplotlib.figure.Figure
+        The figure: magnitude (dB) and phase (deg) axes.
 
     Examples
     --------
@@ -235,6 +238,7 @@ def figure_bytes(fig, target) -> bytes:
     Returns
     -------
     bytes
+        The encoded image (PNG, PDF or SVG).
 
     Raises
     ------

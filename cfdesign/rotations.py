@@ -39,6 +39,7 @@ def multiply(p, q):
     Returns
     -------
     ndarray, shape (..., 4)
+        The product ``p ⊗ q``, ``[w, x, y, z]``.
 
     Examples
     --------
@@ -66,6 +67,7 @@ def conjugate(q):
     Returns
     -------
     ndarray, shape (..., 4)
+        The conjugate ``[w, -x, -y, -z]``.
     """
     out = np.array(q, dtype=float, copy=True)
     out[..., 1:] *= -1
@@ -83,6 +85,7 @@ def normalize(q):
     Returns
     -------
     ndarray, shape (..., 4)
+        Unit quaternion(s) ``[w, x, y, z]`` with ``w >= 0``.
     """
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
@@ -105,6 +108,7 @@ def rotate(q, v):
     Returns
     -------
     ndarray, shape (..., 3)
+        The rotated vectors, in the unit of ``v``.
 
     Examples
     --------
@@ -128,6 +132,7 @@ def from_rotation_vector(r):
     Returns
     -------
     ndarray, shape (..., 4)
+        Unit quaternion(s) ``[w, x, y, z]``.
     """
     r = np.asarray(r, dtype=float)
     angle = np.linalg.norm(r, axis=-1, keepdims=True)
@@ -196,6 +201,7 @@ def to_matrix(q):
     Returns
     -------
     ndarray, shape (..., 3, 3)
+        Rotation matrices ``R``.
     """
     w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
     return np.stack([

@@ -93,7 +93,7 @@ class SensorSpec:
     bias : cfdesign.noise.Bias
         Constant bias (units) or random walk (density in units/sqrt(s)).
     measures : str, optional
-        What the sensor reads (a key of :data:`QUANTITY_ORDERS`: ``angle``, ``rate``,
+        What the sensor reads (a key of :data:`~cfdesign.spec.QUANTITY_ORDERS`: ``angle``, ``rate``,
         ``position``, ``velocity``, ``acceleration``, ...); checked against the structure.
     port : str, optional
         The structure's sensor this one plays (default: its own name).
@@ -186,6 +186,7 @@ class FilterSpec:
         Returns
         -------
         SensorSpec
+            The sensor called ``name``.
 
         Raises
         ------
@@ -210,6 +211,7 @@ def example_path(name: str = "robot-heading") -> Path:
     Returns
     -------
     Path
+        Path of the TOML file shipped with cfdesign.
 
     Raises
     ------
@@ -249,7 +251,7 @@ def load_spec(path) -> FilterSpec:
     Raises
     ------
     SpecError
-        The file cannot be read, is larger than :data:`MAX_SPEC_BYTES`, is not TOML, or a
+        The file cannot be read, is larger than :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not TOML, or a
         field is missing or invalid; the message names the file and the field.
 
     Examples
@@ -292,6 +294,7 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     Returns
     -------
     FilterSpec
+        The validated design.
 
     Raises
     ------

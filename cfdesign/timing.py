@@ -18,7 +18,7 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    schedule, the table runs as designed from the matching phase.  Where they do not (each
    sensor at its own offset), the gains are recomputed for the actual arrival pattern: the
    periodic DARE of the table's own model over the shifted schedule
-   (:func:`cfdesign.designer.gains_for_schedule`), which is what the design would have given
+   (``cfdesign.designer.gains_for_schedule``), which is what the design would have given
    had it known the offsets.  A sensor whose offset wanders (a rate that drifts, arrivals that
    slip by a tick) gets a new segment with the gains of its new offset, so no reading is left
    without a gain; only a table without a model to recompute from (fixed gains) leaves the
@@ -309,6 +309,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     Returns
     -------
     Lock
+        The segments, offsets, measured rates and notes.
     """
     sched, P, dt = table.schedule, table.period, table.sample_time_s
     notes, rates, patterns = [], {}, {}

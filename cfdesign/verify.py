@@ -81,6 +81,7 @@ def phase_realisation(table, phase: int = 0, output: str | None = None):
     Returns
     -------
     cfdesign.linear.Realisation
+        The matrices ``A, G, C, D`` of the phase.
     """
     output = table.output if output is None else output
     return linear.realisation(table.F, table.B, table.H, table.K[phase], table.gain_form, output)
@@ -343,6 +344,7 @@ def numeric_checks(table) -> list:
     Returns
     -------
     list of Check
+        One result per check, in the order run.
     """
     return [*_complementarity(table), _stability(table)]
 

@@ -68,6 +68,20 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks = set()
 
+# Every cross-reference must resolve: a link to a renamed or undocumented name fails the build
+# (-W) instead of silently rendering as plain text.  Internal names are written with their full
+# dotted path (the module that defines them, e.g. ``cfdesign.designer.design`` for
+# ``cfdesign.design``).  The build has no network, so there is no intersphinx: the names of
+# other projects and of the standard library cannot resolve and are the only ones ignored.
+nitpicky = True
+nitpick_ignore_regex = [
+    (r"py:.*", r"(numpy|scipy|sympy|pandas|matplotlib)(\..+)?"),  # third-party (no intersphinx)
+    (r"py:.*", r"(json|tempfile|datetime|os|pathlib|functools)\..+"),  # standard library
+]
+nitpick_ignore = [
+    ("py:func", "open"),  # builtin
+]
+
 
 
 def _dataclass_fields() -> set:
@@ -98,8 +112,23 @@ def _skip_fields(app, what, name, obj, skip, options):
     return None
 
 
+def _public_bases(app, name, obj, options, bases):
+    """The "Bases:" line names only documented classes: cfdesign's internal mixins
+    (``cfdesign.sim.trajectory.SampledTimes``, ``cfdesign.sim.sensors._Sensor``) are not in
+    any ``__all__``, have no page, and a link to them could not resolve."""
+    import importlib
+
+    def documented(cls):
+        if not cls.__module__.startswith("cfdesign"):
+            return True
+        return cls.__name__ in getattr(importlib.import_module(cls.__module__), "__all__", ())
+
+    bases[:] = [b for b in bases if documented(b)]
+
+
 def setup(app):
     app.connect("autodoc-skip-member", _skip_fields)
+    app.connect("autodoc-process-bases", _public_bases)
 
 
 # -- HTML ----------------------------------------------------------------------------------------

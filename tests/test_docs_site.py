@@ -77,3 +77,14 @@ def test_top_level_names_are_listed():
     for name in sorted(cfdesign._MODULES):
         assert (API / f"cfdesign.{name}.rst").is_file() or re.search(rf"automodule:: cfdesign\.{name}\n",
                                                                       "".join(p.read_text() for p in API.glob("*.rst")))
+
+
+def test_the_build_is_nitpicky():
+    """``sphinx -W`` fails on a cross-reference that does not resolve only when the build is
+    nitpicky; the names ignored are other projects' and the standard library's (no intersphinx:
+    the build has no network), never cfdesign's."""
+    conf = (DOCS / "conf.py").read_text()
+    assert re.search(r"^nitpicky = True$", conf, re.M)
+    ignored = re.search(r"^nitpick_ignore_regex = \[(.*?)^\]", conf, re.M | re.S)
+    assert ignored and "cfdesign" not in ignored.group(1)
+    assert "sphinx.ext.intersphinx" not in conf

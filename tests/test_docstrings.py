@@ -11,7 +11,8 @@ base; cached functions (``functools.cache``) are checked as the functions they w
   ``*args``/``**kwargs`` by their starred names) and no argument the signature lacks; a class
   documents its constructor's arguments under ``Parameters`` or ``Attributes``;
 * a ``Returns`` (or ``Yields``) section when the body returns (yields) a value;
-* a ``Raises`` section naming every cfdesign error class the body raises itself.
+* a ``Raises`` section naming every cfdesign error class the body raises itself;
+* a description under every parameter, return value and attribute (``undescribed``).
 
 Properties need only the summary.  The checks read the source with :mod:`ast` and take about a
 second; they fail when a parameter is added without documenting it, when a section is dropped
@@ -308,10 +309,13 @@ def test_constants_are_found():
 
 
 # numpydoc's own validator, for the checks the AST reading above does not make: every parameter
-# has a type and a description (where units and frames go), parameters in signature order,
-# sections in numpydoc's order.  (Attributes may stand for a class's Parameters, so PR01 is left
-# to problems(); the style checks - See Also, extended summary, imperative mood - are not made.)
-NUMPYDOC_CODES = {"GL07", "GL08", "PR02", "PR03", "PR04", "PR05", "PR07", "PR10", "RT01", "SS01"}
+# has a type and a description (where units and frames go), every return value a description,
+# parameters in signature order, sections in numpydoc's order.  (Attributes may stand for a
+# class's Parameters, so PR01 is left to problems(); the style checks - See Also, extended
+# summary, imperative mood - are not made.)  numpydoc skips PR07 for a parameter whose type is a
+# set of values (``form : {'predictor', 'filter'}``) and does not look at Attributes:
+# undescribed() below covers both.
+NUMPYDOC_CODES = {"GL07", "GL08", "PR02", "PR03", "PR04", "PR05", "PR07", "PR10", "RT01", "RT03", "SS01"}
 
 
 def _import_path(qual, obj, kind):
@@ -326,3 +330,53 @@ def test_numpydoc_validator(qual, obj, kind):
     errors = [f"{code} {msg}" for code, msg in validate(_import_path(qual, obj, kind))["errors"]
               if code in NUMPYDOC_CODES]
     assert not errors, f"{qual}: " + "; ".join(errors)
+
+
+DESCRIBED_SECTIONS = ("Parameters", "Other Parameters", "Returns", "Yields", "Receives", "Attributes")
+
+
+def undescribed(doc: str) -> list[str]:
+    """Entries of the parameter-like sections of ``doc`` with no description under them."""
+    from numpydoc.docscrape import NumpyDocString
+
+    parsed = NumpyDocString(doc)
+    out = []
+    for section in DESCRIBED_SECTIONS:
+        for entry in parsed[section]:
+            if not "".join(entry.desc).strip():
+                out.append(f"{section}: {entry.name or entry.type!r} has no description")
+    return out
+
+
+@pytest.mark.parametrize("qual,obj,kind", [pytest.param(q, o, k, id=q) for q, o, k in PUBLIC])
+def test_parameters_and_returns_are_described(qual, obj, kind):
+    """Every parameter, return value and attribute says what it is (units and frames go there);
+    a bare ``form : {'predictor', 'filter', 'continuous'}`` or ``ndarray, shape (n, n)`` line
+    is not enough."""
+    doc = inspect.getdoc(obj) if kind != "class" else (obj.__doc__ and inspect.cleandoc(obj.__doc__))
+    errs = undescribed(doc or "")
+    assert not errs, f"{qual}: " + "; ".join(errs)
+
+
+def test_the_description_check_catches_regressions():
+    doc = textwrap.dedent("""\
+        Summary.
+
+        Parameters
+        ----------
+        form : {'predictor', 'filter'}
+        n : int
+            Described.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+
+        Attributes
+        ----------
+        t_s : ndarray, shape (N + 1,)
+            Sample times (s).
+        kind : str
+        """)
+    errs = undescribed(doc)
+    assert len(errs) == 3 and "'form'" in errs[0] and "ndarray" in errs[1] and "'kind'" in errs[2], errs

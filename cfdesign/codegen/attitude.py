@@ -11,7 +11,7 @@ designed tables):
   floor, ceil, fabs``), no allocation, no globals beyond constant tables; every designed number
   is written as a hexadecimal floating literal, the Python float exactly.
 
-The step performs the operations of :func:`cfdesign.nav.attitude_filter._step` in the same
+The step performs the operations of ``cfdesign.nav.attitude_filter._step`` in the same
 order, so with IEEE doubles (no extended precision, no contraction into fused multiply-adds:
 the default with ``-std=c99``; not ``-ffast-math``) the two agree to the last bits of libm:
 ``tests/test_attitude_codegen.py`` compiles it with ``-std=c99 -pedantic -Wall -Wextra -Werror``

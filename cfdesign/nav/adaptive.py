@@ -63,11 +63,16 @@ class AdaptiveEstimate:
 
     Attributes
     ----------
-    quaternion : (N, 4) body -> ENU.
-    euler : (N, 3) ``[yaw, pitch, roll]`` (rad), yaw in ``(-π, π]``.
-    position : (N, 3) ENU (m); NaN before the first GPS fix unless an initial position is given.
-    cutoff_attitude : (N, 3) adapted cut-offs (rad/s) for roll, pitch, yaw (0 where a reading is missing).
-    cutoff_position : (N,) adapted position cut-off (rad/s).
+    quaternion : ndarray, shape (N, 4)
+        Attitude ``[w, x, y, z]``, body -> ENU.
+    euler : ndarray, shape (N, 3)
+        ``[yaw, pitch, roll]`` (rad), yaw in ``(-π, π]``.
+    position : ndarray, shape (N, 3)
+        ENU position (m); NaN before the first GPS fix unless an initial position is given.
+    cutoff_attitude : ndarray, shape (N, 3)
+        Adapted cut-offs (rad/s) for roll, pitch, yaw (0 where a reading is missing).
+    cutoff_position : ndarray, shape (N,)
+        Adapted position cut-off (rad/s).
     """
 
     quaternion: np.ndarray
@@ -210,6 +215,7 @@ class AdaptiveCF:
         Returns
         -------
         AdaptiveEstimate
+            Attitude, position and the adapted cut-offs at every row.
 
         Raises
         ------
@@ -304,6 +310,7 @@ def cutoff_plot(estimate: AdaptiveEstimate, t_s, ax=None):
     Returns
     -------
     matplotlib.axes.Axes
+        The axes drawn into.
 
     Raises
     ------

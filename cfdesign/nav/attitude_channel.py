@@ -97,12 +97,14 @@ def _design_cached(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
 
 
 def design_channel(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
-    """Gains of one attitude channel from noise figures: :func:`channel_spec` designed without sympy.
+    """Gains of one attitude channel from noise figures, designed without sympy.
 
-    The DARE of the model in the module docstring gives the filter-form gain ``[k1, k2]``
+    :func:`~cfdesign.nav.attitude_channel.channel_spec` designed by the numeric stage alone.  The
+    DARE of the model in the module docstring gives the filter-form gain ``[k1, k2]``
     (``table.gains``), the same as ``cfdesign.design(channel_spec(...))`` bit for bit, from the
-    numeric design stage on the stored structure :data:`STRUCTURE` (Van Loan discretisation,
-    DARE).  Cached: equal arguments return the same :class:`~cfdesign.gains.GainTable`.
+    numeric design stage on the stored structure :data:`~cfdesign.nav.attitude_channel.STRUCTURE`
+    (Van Loan discretisation, DARE).  Cached: equal arguments return the same
+    :class:`~cfdesign.gains.GainTable`.
 
     Parameters
     ----------
@@ -158,8 +160,9 @@ def channel_tables(tables, given, design_pair):
     -------
     tuple
         ``(tilt, heading)``: ``design_pair()`` without ``tables``, else the two tables as
-        :class:`~cfdesign.gains.GainTable` (a spec is designed on :data:`STRUCTURE`).  Whether
-        a table fits the filter's model and sample time is :func:`channel_gains`'s check.
+        :class:`~cfdesign.gains.GainTable` (a spec is designed on
+        :data:`~cfdesign.nav.attitude_channel.STRUCTURE`).  Whether a table fits the filter's
+        model and sample time is :func:`channel_gains`'s check.
 
     Raises
     ------

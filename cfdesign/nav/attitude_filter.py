@@ -295,7 +295,9 @@ class AttitudeDesign:
     Attributes
     ----------
     rate_hz : float
+        Sample rate (Hz) the gains were designed for.
     params : AttitudeParams
+        Noise figures the gains were designed from.
     tables : dict
         ``{name: GainTable}``: ``velocity`` (motion), ``velocity_rest``, ``velocity_level1`` ..
         (acceleration disturbance), ``tilt``, ``heading``, ``rest`` (zero rotation); every one a
@@ -330,7 +332,7 @@ def design_attitude(rate_hz, params=None, tables=None) -> AttitudeDesign:
     densities of ``params`` turned into per-sample stds at ``rate_hz``: the velocity channel's
     motion, rest and acceleration-disturbance designs, the tilt, heading and zero-rotation
     channels (module docstring), with the derived thresholds.  Without ``tables`` the design is
-    cached: equal rate and parameters return the same :class:`AttitudeDesign`.
+    cached: equal rate and parameters return the same :class:`~cfdesign.nav.attitude_filter.AttitudeDesign`.
 
     Parameters
     ----------
@@ -607,9 +609,9 @@ class AttitudeFilter:
         Returns
         -------
         dict
-            ``{name: float}`` in :data:`STATE_FIELDS` order: the attitude ``qw .. qz`` (body ->
-            ENU), the gyro bias ``bx .. bz`` (rad/s, body frame), the channels' states and
-            covariances, the detectors' low-passes and counters.  Plain floats: it can be
+            ``{name: float}`` in :data:`~cfdesign.nav.attitude_filter.STATE_FIELDS` order: the
+            attitude ``qw .. qz`` (body -> ENU), the gyro bias ``bx .. bz`` (rad/s, body frame), the
+            channels' states and covariances, the detectors' low-passes and counters.  Plain floats: it can be
             written as JSON, and it maps field by field onto the generated C struct
             (:mod:`cfdesign.codegen.attitude`).  The design (rate, parameters, tables) is not
             part of it.
@@ -633,7 +635,7 @@ class AttitudeFilter:
         Parameters
         ----------
         state : dict
-            ``{name: number}`` with exactly the names of :data:`STATE_FIELDS`.
+            ``{name: number}`` with exactly the names of :data:`~cfdesign.nav.attitude_filter.STATE_FIELDS`.
 
         Raises
         ------

@@ -82,7 +82,7 @@ class EulerAttitudeFilter:
     tables : pair, optional
         ``(tilt, heading)``: a user's own design instead of the four noise figures, each a
         :class:`~cfdesign.gains.GainTable` of the ``cf2`` order-2 channel at ``rate_hz`` (e.g.
-        from :func:`cfdesign.design`, :func:`cfdesign.gains.load_gains` or
+        from :func:`cfdesign.design <cfdesign.designer.design>`, :func:`cfdesign.gains.load_gains` or
         :func:`cfdesign.nav.design_channel`) or a :class:`~cfdesign.spec.FilterSpec` of it.
         Give either ``tables`` or all four noise figures, which are designed with
         :func:`cfdesign.nav.design_channel` (no sympy).

@@ -191,6 +191,7 @@ class PlanarEKF:
         Returns
         -------
         PlanarEstimate
+            Position (m), heading (rad), odometer scale and covariance after every sample.
         """
         rho, omega = np.asarray(distance, dtype=float), np.asarray(gyro_z, dtype=float)
         N = len(rho)

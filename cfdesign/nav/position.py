@@ -30,7 +30,7 @@ it is rotated by the attitude at the interval's midpoint, ``q[k] ⊕ q[k+1]`` no
 
 Bias frame: as in the paper, each axis estimates the bias of its own input, i.e. the
 accelerometer bias seen in ENU, ``b_n = R_nb b_body``, modelled as a slow random walk.
-While the vehicle holds its attitude ``b_n`` is constant and :attr:`PositionEstimate.accel_bias`
+While the vehicle holds its attitude ``b_n`` is constant and ``PositionEstimate.accel_bias``
 converges to it; when the vehicle turns, a horizontal body bias turns with it and the
 filter tracks its slow part only.  (Carrying the estimate with the attitude,
 ``b_n <- R[k+1] R[k]^T b_n``, looks exact but destabilises the bias loop once the turn rate
@@ -96,6 +96,7 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
     Returns
     -------
     FilterSpec
+        The design of one axis (``position`` structure, filter form).
 
     Raises
     ------
@@ -197,8 +198,9 @@ class PositionFilter:
     table : GainTable or FilterSpec, optional
         A user's own design instead of the three noise figures: a discrete table of the
         ``position`` model at the IMU rate with the GPS period (e.g. from
-        :func:`cfdesign.design` or :func:`design_position`), or a ``position`` spec.  Give
-        either ``table`` or all three noise figures (designed by :func:`design_position`,
+        :func:`cfdesign.design <cfdesign.designer.design>` or
+        :func:`~cfdesign.nav.position.design_position`), or a ``position`` spec.  Give
+        either ``table`` or all three noise figures (designed by :func:`~cfdesign.nav.position.design_position`,
         no sympy).
 
     Attributes
@@ -269,6 +271,8 @@ class PositionFilter:
         Returns
         -------
         PositionEstimate
+            ENU position (m), velocity (m/s) and accelerometer bias seen in ENU (m/s^2) at every IMU
+            sample.
         """
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
         u = earth_acceleration(acc, q)

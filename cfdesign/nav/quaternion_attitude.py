@@ -46,7 +46,8 @@ def estimate_attitude(gyr, acc, mag, rate_hz, *, gyro_noise_density=None, gyro_b
     rate_hz : float
         Sample rate (Hz), in (0, 1e6]; checked before anything is allocated.
     gyro_noise_density, gyro_bias_density, tilt_noise_density, heading_noise_density : float, optional
-        Noise figures (:class:`~cfdesign.nav.AttitudeParams`; defaults :data:`DEFAULT_NOISE`).
+        Noise figures (:class:`~cfdesign.nav.AttitudeParams`; defaults
+        :data:`~cfdesign.nav.quaternion_attitude.DEFAULT_NOISE`).
     declination_rad : float
         Magnetic declination, positive east (finite, within [-pi, pi]).
     gyro_bias_std0 : float

@@ -5,9 +5,9 @@ never run the symbolic design stack.  Their default gains come from the numeric 
 stage, :func:`cfdesign.designer.design_from_structure` (noise -> Van Loan -> Riccati,
 numpy/scipy), applied to a structure stored with cfdesign
 (:meth:`cfdesign.designer.Structure.load`): the same gains, bit for bit, as
-:func:`cfdesign.design`, without sympy.
+:func:`cfdesign.design <cfdesign.designer.design>`, without sympy.
 
-A user's own design drives a filter as a ``GainTable`` (from :func:`cfdesign.design`, a
+A user's own design drives a filter as a ``GainTable`` (from :func:`cfdesign.design <cfdesign.designer.design>`, a
 saved table, or this module) or as a :class:`~cfdesign.spec.FilterSpec` of the filter's
 structure, designed here.  :func:`check_fits` checks that a table is the model the filter
 runs, at the filter's sample time, and raises a one-line
@@ -48,6 +48,7 @@ def stored_structure(name: str) -> Structure:
     Returns
     -------
     cfdesign.designer.Structure
+        The structure (the same object on every call).
 
     Raises
     ------
@@ -61,7 +62,7 @@ def design_stored(spec: FilterSpec, name: str) -> GainTable:
     """Gains for a spec on a stored structure (the numeric design stage, no sympy).
 
     Sensors that play a structure's sensor under another name (``port``) are renamed as
-    :func:`cfdesign.design` does.
+    :func:`cfdesign.design <cfdesign.designer.design>` does.
 
     Parameters
     ----------
@@ -73,6 +74,7 @@ def design_stored(spec: FilterSpec, name: str) -> GainTable:
     Returns
     -------
     GainTable
+        The designed gain table.
 
     Raises
     ------
@@ -88,7 +90,7 @@ def design_stored(spec: FilterSpec, name: str) -> GainTable:
 
 
 def as_table(value, name: str, what: str) -> GainTable:
-    """A value as a gain table: a :class:`GainTable` itself, or the design of a FilterSpec.
+    """A value as a gain table: a :class:`~cfdesign.gains.GainTable` itself, or the design of a FilterSpec.
 
     Parameters
     ----------
@@ -102,6 +104,7 @@ def as_table(value, name: str, what: str) -> GainTable:
     Returns
     -------
     GainTable
+        ``value`` itself, or the design of ``value`` on the stored structure ``name``.
 
     Raises
     ------

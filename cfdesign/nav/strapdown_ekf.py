@@ -125,7 +125,9 @@ def strapdown_step(x, gyro, accel, dt: float, *, jacobian: bool = True):
     Returns
     -------
     x_next : ndarray (22,)
+        The predicted state ``x(k+1)``, same layout as ``x``.
     F : ndarray (22, 22), only if ``jacobian``
+        The state-transition Jacobian ``∂x(k+1)/∂x(k)``.
     """
     q, v = x[_Q], x[_V]
     omega = (gyro - x[_BG]) / x[_SG]                      # eq. (11) inverted

@@ -210,6 +210,7 @@ def dckf3_spec(sc=None):
     Returns
     -------
     FilterSpec
+        The DCKF3 design of the scenario.
     """
     sc = sc or scenario(READING)
     return _spec(sc, "robot heading (Carreira et al. DCKF3, eqs. 25-27)", {"structure": "dckf3"}, ["gyro"],
@@ -322,10 +323,12 @@ class Reproduction:
         Parameters
         ----------
         table : {'I', 'II'}
+            Table I (two sensors) or II (three).
 
         Returns
         -------
         list of cfdesign.reproduce.report.Comparison
+            One comparison per row of the table.
         """
         return [Comparison(row.cells, self.mse[row], row.paper_mse, self.notes[row])
                 for row in ROWS if row.table == table]
@@ -351,10 +354,12 @@ class Reproduction:
         Parameters
         ----------
         table : {'I', 'II'}
+            Table I (two sensors) or II (three).
 
         Returns
         -------
         Row
+            The row with the lowest mean MSE over the runs.
         """
         return min((r for r in ROWS if r.table == table), key=self.mean)
 
@@ -390,6 +395,7 @@ class Reproduction:
         Returns
         -------
         dict
+            Plain dicts, lists and numbers (JSON-serialisable).
         """
         names = {"I": ("low_pass", "high_pass"), "II": ("low_pass", "band_pass", "high_pass")}
         tables = {}
@@ -408,6 +414,7 @@ class Reproduction:
         Returns
         -------
         str
+            The report, lines separated by newlines.
         """
         head = [f"Carreira et al., three-band complementary filters, Sec. V-A: {_scenario_text(self.straight_s)}; "
                 f"{len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",

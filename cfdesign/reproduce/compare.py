@@ -61,6 +61,7 @@ class Result:
     Attributes
     ----------
     scenario : {'ground', 'helicopter'}
+        The simulated scenario: the ground robot or the helicopter.
     filter : str
         A key of :data:`FILTERS`.
     position_rmse_m : float

@@ -167,10 +167,12 @@ class Reproduction:
         Parameters
         ----------
         row : {'nominal', 'small_bias_gains'}
+            The row of Table 2: nominal gains or the gains for a small bias.
 
         Returns
         -------
         list of cfdesign.reproduce.report.Comparison
+            One comparison per quantity of the row.
         """
         runs = np.array(self.values[row])
         return [Comparison((q,), tuple(runs[:, i]), PAPER[row][i]) for i, q in enumerate(QUANTITIES)]
@@ -181,6 +183,7 @@ class Reproduction:
         Returns
         -------
         dict
+            Plain dicts, lists and numbers (JSON-serialisable).
         """
         rows = {}
         for row in PAPER:
@@ -200,6 +203,7 @@ class Reproduction:
         Returns
         -------
         bool
+            True when no figure exceeds the paper's.
         """
         return all(c.ratio <= 1.0 for row in PAPER for c in self.comparisons(row))
 
@@ -209,6 +213,7 @@ class Reproduction:
         Returns
         -------
         str
+            The report, lines separated by newlines.
         """
         m = self.manoeuvre
         lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + "
@@ -247,6 +252,7 @@ def reproduce(runs: int = 5, *, seed: int = 0, accel_bias: str = "z", manoeuvre:
     Returns
     -------
     Reproduction
+        The per-run errors of both rows and the settings.
 
     Raises
     ------

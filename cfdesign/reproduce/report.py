@@ -109,6 +109,7 @@ def format_table(title: str, headers, rows) -> str:
     Returns
     -------
     str
+        The table, lines separated by newlines.
     """
     conf = f"{rows[0].confidence:.0%} CI" if rows else "CI"
     head = [*headers, "MSE ours", conf, "paper", "ours/paper"]
@@ -140,6 +141,7 @@ def order_disagreements(ours, paper, tie: float = 0.05) -> list:
     Returns
     -------
     list of (int, int)
+        ``(i, j)`` pairs that the paper orders one way and ``ours`` the other.
 
     Examples
     --------
@@ -181,6 +183,7 @@ def json_text(data) -> str:
     Returns
     -------
     str
+        Indented JSON; NaN and infinities are written as ``null``.
 
     Examples
     --------

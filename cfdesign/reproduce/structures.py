@@ -62,7 +62,7 @@ def banded_observer(low: str, high: str, band: str | None = None):
 
 
 def design_observer(spec, observer):
-    """:func:`cfdesign.design` for an observer built on the engine rather than named in ``spec``.
+    """:func:`~cfdesign.designer.design` for an observer built on the engine rather than named in ``spec``.
 
     The same path as the designer - sensor checks, multirate schedule, noise covariances,
     Van Loan, DARE (Carreira et al. eq. (28), predictor form of eq. (25)) or, for a sparse gain
@@ -79,6 +79,7 @@ def design_observer(spec, observer):
     Returns
     -------
     GainTable
+        The designed gain table.
 
     """
     from ..designer import design

@@ -61,11 +61,12 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     refine : bool
         Refine scipy's estimate by Newton (Kleinman) steps with a double-double residual.
     rtol : float
-        Largest relative residual accepted; above it :class:`AccuracyError` is raised.
+        Largest relative residual accepted; above it :class:`~cfdesign.errors.AccuracyError` is raised.
 
     Returns
     -------
     RiccatiSolution
+        The solution ``X``, its gain, residual and stability record.
 
     Raises
     ------
@@ -89,7 +90,7 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     the axis).  When the weight ``[[Q, S], [S', R]]`` is positive semidefinite and ``R``
     positive definite, a mode on the axis that the reduced weight ``Q - S R^-1 S'`` cannot
     see (pair ``A - B R^-1 S'``) rules out a stabilising solution and raises
-    :class:`NotDetectableError`; an unobservable *unstable* mode does not (the stabilising
+    :class:`~cfdesign.errors.NotDetectableError`; an unobservable *unstable* mode does not (the stabilising
     solution then exists and is returned).  Indefinite weights (H-infinity type data) are
     accepted; the solver decides.
 
@@ -132,7 +133,7 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     refine : bool
         Refine scipy's estimate by Newton (Hewer) steps with a double-double residual.
     rtol : float
-        Largest relative residual accepted; above it :class:`AccuracyError` is raised.
+        Largest relative residual accepted; above it :class:`~cfdesign.errors.AccuracyError` is raised.
 
     Returns
     -------

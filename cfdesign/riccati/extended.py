@@ -31,6 +31,7 @@ def two_sum(a, b):
     Returns
     -------
     s, e : float or ndarray
+        The rounded sum and its rounding error.
 
     Examples
     --------
@@ -132,6 +133,7 @@ def dd(a):
     Returns
     -------
     (ndarray, ndarray)
+        ``(high, low)``: ``a`` and zeros, or ``a`` itself when it is a pair.
     """
     return a if isinstance(a, tuple) else (a, np.zeros_like(a))
 
@@ -155,6 +157,7 @@ def dd_add(x, y, sign=1.0):
     Returns
     -------
     (ndarray, ndarray)
+        The sum as a ``(high, low)`` pair.
     """
     if not isinstance(y, tuple):
         if not isinstance(x, tuple):
@@ -181,6 +184,7 @@ def dd_mul(x, y):
     Returns
     -------
     (ndarray, ndarray)
+        The product as a ``(high, low)`` pair.
     """
     if not isinstance(x, tuple):
         if not isinstance(y, tuple):
@@ -205,6 +209,7 @@ def dd_t(x):
     Returns
     -------
     ndarray or (ndarray, ndarray)
+        The transpose, a pair if ``x`` is one.
     """
     return (x[0].T, x[1].T) if isinstance(x, tuple) else x.T
 
@@ -220,5 +225,6 @@ def dd_val(x):
     Returns
     -------
     ndarray
+        ``high + low`` rounded to double.
     """
     return x[0] + x[1] if isinstance(x, tuple) else x

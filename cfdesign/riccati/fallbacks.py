@@ -75,6 +75,7 @@ def sda(A, G, H, tol, max_iter=64):
     P : ndarray, shape (n, n)
         The fixed point.
     iterations : int
+        Doublings made.
 
     Raises
     ------

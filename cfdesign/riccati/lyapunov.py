@@ -90,7 +90,8 @@ def _balance(M):
 class ClosedLoop:
     """The closed loop at one gain, factorised once for every linearised Riccati solve.
 
-    ``M`` (the closed loop in standard form, see :meth:`Problem.closed_loop`) is balanced by a
+    ``M`` (the closed loop in standard form, see
+    :meth:`Problem.closed_loop <cfdesign.riccati.problem.Problem.closed_loop>`) is balanced by a
     diagonal similarity of powers of two, ``Ms = S^-1 M S`` (exact), and put in real Schur
     form: ``Ms = U T U'`` (CARE) or, for the DARE, its Cayley transform
     ``Ms (2I + Ms)^-1 = U T U'``.  With ``Y = S^-1 Z S^-1`` the equations in ``Y`` become the
@@ -211,6 +212,7 @@ class ClosedLoop:
         Returns
         -------
         ndarray, shape (n, n)
+            The correction ``D``, Hermitian.
         """
         return from_standard(self.p, self.solve_std(W))
 

@@ -57,6 +57,7 @@ def herm(M):
     Returns
     -------
     ndarray, shape (n, n)
+        The Hermitian part of ``M``.
     """
     return 0.5 * (M + M.conj().T)
 
@@ -72,6 +73,7 @@ def rel(a, b):
     Returns
     -------
     float
+        ``||a||_F / ||b||_F``, the denominator at least a tiny positive floor.
     """
     return np.linalg.norm(a) / max(np.linalg.norm(b), TINY)
 
@@ -82,6 +84,7 @@ def distance(kind, lam):
     Parameters
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     lam : array_like of complex
         Eigenvalues (``'care'``: of ``s``; ``'dare'``: of ``z``).
 
@@ -101,9 +104,13 @@ class Problem:
     Attributes
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     A, Q : ndarray, shape (n, n)
+        State matrix and state weight.
     B : ndarray, shape (n, m)
+        Input matrix.
     R : ndarray, shape (m, m)
+        Input weight.
     S : ndarray, shape (n, m)
         Cross weight (zeros when not given).
     E : ndarray, shape (n, n), or None
@@ -161,6 +168,7 @@ class Problem:
         Returns
         -------
         ndarray
+            ``E^-1 M`` (``E^-T M`` with ``transpose``), the shape of ``M``.
         """
         if self.E is None:
             return M
@@ -180,6 +188,7 @@ class Problem:
         Returns
         -------
         ndarray, shape (n, n)
+            The closed-loop matrix in standard form.
         """
         Eref = np.eye(self.n) if self.E is None else self.E
         M = (self.A - Eref) - self.B @ K if self.kind == "dare" else self.A - self.B @ K
@@ -217,6 +226,7 @@ def complexify(M, rows, cols):
     Returns
     -------
     ndarray of complex, shape (rows, cols)
+        The complex matrix.
     """
     return 0.5 * (M[:rows, :cols] + M[rows:, cols:]) + 0.5j * (M[rows:, :cols] - M[:rows, cols:])
 
@@ -258,6 +268,7 @@ def from_standard(p: Problem, Y):
     Returns
     -------
     ndarray, shape (n, n)
+        The solution ``X`` in the original coordinates.
     """
     if p.E is None:
         return Y

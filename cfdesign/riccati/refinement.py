@@ -135,6 +135,7 @@ def evaluate(p: Problem, X) -> Evaluation:
     Returns
     -------
     Evaluation
+        Residual, gain and scale at ``X``.
 
     Raises
     ------
@@ -199,6 +200,7 @@ def update(p: Problem, X, ev: Evaluation, Xn) -> Evaluation:
     Returns
     -------
     Evaluation
+        Residual, gain and scale at ``Xn``.
     """
     D = Xn - X
     K = ev.K

@@ -70,6 +70,7 @@ class RiccatiSolution:
     refinement_steps : int
         Newton steps accepted.
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     marginal : bool
         True when a closed-loop eigenvalue lies on the stability boundary within its
         uncertainty; ``X`` is then the maximal (almost stabilising) solution, not a
@@ -164,6 +165,7 @@ class PeriodicSolution:
     monodromy_multipliers : ndarray
         Eigenvalues of ``Phi = prod_{k=N-1..0} A[k] (I - K_filter[k] C[k])`` (phase N-1 leftmost).
     period : int
+        Number of phases.
     residual : float
         ``max_k ||P[k+1] - RHS_k(P[k])||_F / ||P[k+1]||_F`` with ``P[N] = P[0]``; as each stored
         ``P[k+1]`` is the right-hand side evaluated at ``P[k]``, only the wrap-around term

@@ -30,6 +30,7 @@ class Stability:
     margin : float
         Their smallest distance to the stability boundary (positive inside).
     status : {'stable', 'marginal', 'unstable'}
+        ``stable`` (certified), ``marginal`` (too close to the boundary to certify) or ``unstable``.
     omega_inv_norm : float
         ``||Omega^-1(I)||_2`` of the linearised Riccati operator.
     robust : float
@@ -63,6 +64,7 @@ def closed_loop_eigenvalues(p: Problem, K):
     Returns
     -------
     ndarray of complex, shape (n,)
+        The closed-loop eigenvalues (``s`` for the CARE, ``z`` for the DARE).
     """
     M = p.A - p.B @ K
     return sla.eigvals(M) if p.E is None else sla.eigvals(M, p.E)
@@ -151,6 +153,7 @@ def stability(p: Problem, X, K, D, cl: ClosedLoop):
     Returns
     -------
     Stability
+        Eigenvalues, margin, status and the certified distance to instability.
     """
     with np.errstate(all="ignore"):
         K2 = gain(p, herm(X + D)) if np.all(np.isfinite(D)) else np.full_like(K, np.inf)

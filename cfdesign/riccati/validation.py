@@ -105,6 +105,7 @@ def is_psd(M):
     Returns
     -------
     bool
+        True when ``M`` is positive semidefinite within the tolerance.
     """
     return min_eig(M) >= -100 * M.shape[0] * EPS * max(np.linalg.norm(M, 2), TINY)
 
@@ -126,6 +127,7 @@ def covariance_data(F, H, Q, R):
     Returns
     -------
     F, H, Q, R : ndarray
+        The checked data as float arrays.
 
     Raises
     ------
@@ -151,6 +153,7 @@ def problem_data(kind, A, B, Q, R, S, E):
     Parameters
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     A : array_like, shape (n, n)
         State matrix.
     B : array_like, shape (n, m)
@@ -211,12 +214,14 @@ def fmt_mode(kind, lam):
     Parameters
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     lam : complex
         The eigenvalue.
 
     Returns
     -------
     str
+        ``s = ...`` (CARE) or ``z = ...`` (DARE).
 
     Examples
     --------
@@ -240,6 +245,7 @@ def unreachable_mode(kind, A, E, B, boundary_only=False):
     Parameters
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     A : ndarray, shape (n, n)
         State matrix.
     E : ndarray, shape (n, n), or None
@@ -286,6 +292,7 @@ def check_modes(kind, A, B, Q, R, S, E, dual):
     Parameters
     ----------
     kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
     A, B, Q, R, S : ndarray
         The validated data.
     E : ndarray or None

@@ -48,7 +48,7 @@ STATE_LIMIT = 1e150
 
 
 def usable(a) -> np.ndarray:
-    """Where a reading can be used: finite and within :data:`READING_LIMIT`.
+    """Where a reading can be used: finite and within :data:`~cfdesign.runtime.filter.READING_LIMIT`.
 
     Parameters
     ----------
@@ -85,6 +85,7 @@ def held(u, bad, u_last) -> np.ndarray:
     Returns
     -------
     ndarray, shape (N, p)
+        ``u`` with the bad values replaced (a copy).
     """
     u = np.vstack([u_last[None, :], u])
     good = np.concatenate([np.ones((1, u.shape[1]), dtype=bool), ~bad])
@@ -104,11 +105,10 @@ class Runtime:
     table : GainTable
         A discrete table (``domain = 'z'``).
     x0 : array_like, optional
-        Initial state, shape (n,), in the units of the table's :attr:`~GainTable.states`
-        (default zeros).
+        Initial state, shape (n,), in the units of the table's ``states`` (default zeros).
     output : {'prior', 'posterior'}, optional
         The estimate returned: the one-step prediction or the estimate after this step's
-        readings.  Default: the table's declared :attr:`~cfdesign.gains.GainTable.output`
+        readings.  Default: the table's declared ``output``
         (the posterior for tables designed by cfdesign).
 
     Raises
@@ -211,8 +211,8 @@ class Runtime:
     @property
     def counts(self) -> dict:
         """Readings not used, by kind and sensor: ``rejected`` (inf, or beyond
-        :data:`READING_LIMIT`: treated as missing) and ``unscheduled`` (a measurement at a phase
-        the schedule does not read: it has no gain)."""
+        :data:`~cfdesign.runtime.filter.READING_LIMIT`: treated as missing) and ``unscheduled``
+        (a measurement at a phase the schedule does not read: it has no gain)."""
         names = self.inputs + self.measurements
         out = {}
         rej = {names[i]: c for i, c in enumerate(self._rej) if c}
@@ -255,8 +255,8 @@ class Runtime:
         ------
         CfdesignError
             The snapshot does not fit this table (keys, sizes, a phase outside the period) or
-            holds a value that is not a finite number (or beyond :data:`STATE_LIMIT`); the runtime
-            is left unchanged.
+            holds a value that is not a finite number (or beyond
+            :data:`~cfdesign.runtime.filter.STATE_LIMIT`); the runtime is left unchanged.
         """
         x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name)
         self.x, self.phase, self.u_last = x, phase, u_last
@@ -270,14 +270,14 @@ class Runtime:
         **readings : float
             ``sensor=value`` in the sensor's units (rad, rad/s, m, m/s^2, ...); a sensor left
             out or given as NaN has no reading this step (a missing input holds its last
-            value), an inf or a value beyond :data:`READING_LIMIT` is treated as missing and
+            value), an inf or a value beyond :data:`~cfdesign.runtime.filter.READING_LIMIT` is treated as missing and
             counted in :attr:`counts`.
 
         Returns
         -------
         float
             The estimate of the common quantity (state 0): after this step's readings, or
-            the prediction (:attr:`output`).
+            the prediction (``output``).
 
         Raises
         ------
@@ -287,7 +287,7 @@ class Runtime:
         Notes
         -----
         Straight-line Python specialised to the table when the runtime is built
-        (:mod:`cfdesign.runtime.step`, source in :attr:`step_source`): about a microsecond a
+        (:mod:`cfdesign.runtime.step`, source in ``step_source``): about a microsecond a
         step for the three-sensor heading filter.
         """
         raise NotImplementedError  # replaced per table in __init__ (cfdesign.runtime.step)
@@ -298,7 +298,7 @@ class Runtime:
         Parameters
         ----------
         *values : float
-            Inputs then measurements, in the order :attr:`inputs` and :attr:`measurements` list
+            Inputs then measurements, in the order ``inputs`` and ``measurements`` list
             them, in the sensors' units; NaN for no reading.
 
         Returns
@@ -340,7 +340,7 @@ class Runtime:
         readings : dict
             ``{sensor: (N,) array}`` for every sensor of the table, in the sensors' units.  NaN
             marks a missing sample (a slow sensor's column is NaN between its readings); inf and
-            readings beyond :data:`READING_LIMIT` are treated as missing and counted in
+            readings beyond :data:`~cfdesign.runtime.filter.READING_LIMIT` are treated as missing and counted in
             :attr:`counts` (``rejected``); readings at phases the schedule does not read have no
             gain and are counted (``unscheduled``).  Missing inputs hold their last value.
         states : bool
@@ -350,10 +350,10 @@ class Runtime:
         -------
         estimates : ndarray, shape (N,)
             The estimate of the common quantity at every step (after the step's readings, or the
-            prediction: :attr:`output`).
+            prediction: ``output``).
         x : ndarray, shape (N, n)
             Only with ``states=True``: the output states (the posterior ``x+[k]`` or the prior
-            ``x[k]``), columns named by the table's :attr:`~cfdesign.gains.GainTable.states`.
+            ``x[k]``), columns named by the table's ``states``.
 
         Raises
         ------
@@ -698,7 +698,7 @@ def _pole_sensitivity(A, den) -> float:
 
 
 def _clean(col) -> bool:
-    """Every value a usable reading (no NaN, inf or beyond :data:`READING_LIMIT`): two passes,
+    """Every value a usable reading (no NaN, inf or beyond :data:`~cfdesign.runtime.filter.READING_LIMIT`): two passes,
     no temporaries; NaN fails both comparisons."""
     return bool(col.min() >= -READING_LIMIT and col.max() <= READING_LIMIT)
 

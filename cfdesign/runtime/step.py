@@ -90,6 +90,8 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     table : GainTable
         A discrete table.
     output : {'prior', 'posterior'}
+        The estimate meant: ``prior`` (the one-step prediction) or ``posterior`` (after the step's
+        readings).
     limit : float
         Readings beyond this magnitude (SI) are rejected like inf.
     S : list
@@ -107,7 +109,9 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     Returns
     -------
     step : callable
+        One step from keyword readings (``sensor=value``), returning the estimate.
     step_values : callable
+        One step from the readings as positional values, inputs then measurements.
     source : str
         The generated Python source.
 

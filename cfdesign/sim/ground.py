@@ -114,18 +114,30 @@ class GroundScenario(SampledTimes):
 
     Attributes
     ----------
-    t_s : (N + 1,) s.
-    position_m, velocity_m_s, acceleration_m_s2 : (N + 1, 3) ENU.
-    quaternion : (N + 1, 4) body -> ENU.
-    euler_rad : (N + 1, 3) ``[yaw, pitch, roll]``, yaw wrapped.
-    speed_m_s : (N + 1,) forward (3-D) speed.
-    body_rate_rad_s, specific_force_m_s2 : (N + 1, 3) body frame, at the sample times.
-    gyro_rad_s, accel_m_s2 : (N, 3) body readings, means over each interval.
-    mag : (N, 3) body magnetic field (gauss).
-    odometry_speed_m_s : (N,) forward speed reading.
-    gps_enu_m, gps_velocity_enu_m_s : (N, 3) ENU fixes, NaN rows between fixes and in outages.
-    n_satellites : (N,) int, satellites seen (< 4 in outages).
-    outages : tuple of (start, end) s.
+    t_s : ndarray, shape (N + 1,)
+        Sample times (s).
+    position_m, velocity_m_s, acceleration_m_s2 : ndarray, shape (N + 1, 3)
+        True position (m), velocity (m/s) and acceleration (m/s^2) in ENU.
+    quaternion : ndarray, shape (N + 1, 4)
+        True attitude ``[w, x, y, z]``, body -> ENU.
+    euler_rad : ndarray, shape (N + 1, 3)
+        ``[yaw, pitch, roll]`` (rad), yaw wrapped.
+    speed_m_s : ndarray, shape (N + 1,)
+        Forward (3-D) speed (m/s).
+    body_rate_rad_s, specific_force_m_s2 : ndarray, shape (N + 1, 3)
+        True angular rate (rad/s) and specific force (m/s^2) in the body frame, at the sample times.
+    gyro_rad_s, accel_m_s2 : ndarray, shape (N, 3)
+        Gyro (rad/s) and accelerometer (m/s^2) readings in the body frame, means over each interval.
+    mag : ndarray, shape (N, 3)
+        Magnetometer readings: the magnetic field in the body frame (gauss).
+    odometry_speed_m_s : ndarray, shape (N,)
+        Odometry reading of the forward speed (m/s).
+    gps_enu_m, gps_velocity_enu_m_s : ndarray, shape (N, 3)
+        GPS position (m) and velocity (m/s) fixes in ENU; NaN rows between fixes and in outages.
+    n_satellites : ndarray of int, shape (N,)
+        Satellites seen (fewer than 4 in outages).
+    outages : tuple of (start, end)
+        The GPS outages, ``[start, end)`` in seconds.
     """
 
     t_s: np.ndarray
@@ -258,6 +270,7 @@ def ground_robot_scenario(seed=0, *, duration_s=300.0, imu_rate_hz=50.0, gps_rat
     Returns
     -------
     GroundScenario
+        Truth, sensor readings and GPS fixes at the IMU rate.
 
     Raises
     ------

@@ -128,14 +128,20 @@ class HelicopterTrajectory(SampledTimes):
 
     Attributes
     ----------
-    t_s : (N + 1,) sample times (s).
-    position_m, velocity_m_s, acceleration_m_s2 : (N + 1, 3) in ENU.
-    euler_rad : (N + 1, 3) ``[yaw, pitch, roll]`` (rad), yaw continuous (not wrapped).
-    quaternion : (N + 1, 4) ``[w, x, y, z]``, body -> ENU.
-    body_rate_rad_s : (N + 1, 3) angular rate ``omega`` in the body frame.
-    specific_force_m_s2 : (N + 1, 3) ``f_b = R_nb^T (a_n - g_n)``.
-    mean_body_rate_rad_s, mean_specific_force_m_s2 : (N, 3) means over each sample interval,
-        what integrating sensors read.
+    t_s : ndarray, shape (N + 1,)
+        Sample times (s).
+    position_m, velocity_m_s, acceleration_m_s2 : ndarray, shape (N + 1, 3)
+        Position (m), velocity (m/s) and acceleration (m/s^2) in ENU.
+    euler_rad : ndarray, shape (N + 1, 3)
+        ``[yaw, pitch, roll]`` (rad), yaw continuous (not wrapped).
+    quaternion : ndarray, shape (N + 1, 4)
+        Attitude ``[w, x, y, z]``, body -> ENU.
+    body_rate_rad_s : ndarray, shape (N + 1, 3)
+        Angular rate ``omega`` (rad/s) in the body frame.
+    specific_force_m_s2 : ndarray, shape (N + 1, 3)
+        Specific force ``f_b = R_nb^T (a_n - g_n)`` (m/s^2) in the body frame.
+    mean_body_rate_rad_s, mean_specific_force_m_s2 : ndarray, shape (N, 3)
+        Means over each sample interval (rad/s, m/s^2; body frame): what integrating sensors read.
     """
 
     t_s: np.ndarray
@@ -216,6 +222,7 @@ def helicopter_manoeuvre(manoeuvre: Manoeuvre | None = None) -> HelicopterTrajec
     Returns
     -------
     HelicopterTrajectory
+        The sampled trajectory (ENU, body -> ENU attitude).
 
     Raises
     ------
@@ -300,9 +307,13 @@ class ImuGpsReadings:
 
     Attributes
     ----------
-    gyro_rad_s, accel_m_s2 : (N, 3) body-frame means over each IMU interval ``[t_k, t_k+1]``.
-    mag_g : (N + 1, 3) body-frame magnetic field (gauss) at the sample times.
-    gps_enu_m : (N + 1, 3) ENU position fixes (m); NaN rows between fixes.
+    gyro_rad_s, accel_m_s2 : ndarray, shape (N, 3)
+        Gyro (rad/s) and accelerometer (m/s^2) readings in the body frame: means over each IMU
+        interval ``[t_k, t_k+1]``.
+    mag_g : ndarray, shape (N + 1, 3)
+        Magnetic field in the body frame (gauss) at the sample times.
+    gps_enu_m : ndarray, shape (N + 1, 3)
+        ENU position fixes (m); NaN rows between fixes.
     """
 
     gyro_rad_s: np.ndarray

@@ -120,6 +120,7 @@ class Reading:
         Returns
         -------
         str
+            One sentence.
         """
         x_is = "a standard deviation" if self.name == "std" else "a variance"
         return (f"N(0, x): x is {x_is} in SI units per {PAPER.rate_hz:g}-Hz sample (gyro rad/s, compass and "
@@ -230,6 +231,7 @@ def scenario(reading: Reading = READING, *, straight_s: float = PAPER.straight_s
     Returns
     -------
     Scenario
+        The truth and the sensor models.
     """
     dt = 1.0 / PAPER.rate_hz
     traj = rounded_square(start_heading_rad=math.radians(start_heading_deg), straight_s=straight_s,

@@ -356,6 +356,7 @@ def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndar
     Returns
     -------
     ndarray, shape (N, 3)
+        Readings per interval and axis, in the unit of ``means``.
     """
     dt = float(t_s[1] - t_s[0])
     out = np.empty_like(means)
@@ -386,6 +387,7 @@ def noisy_samples(truth, std, every, name, seed) -> np.ndarray:
     Returns
     -------
     ndarray, shape (N, ...)
+        Noisy samples, NaN where no sample is kept.
     """
     rng = np.random.default_rng([int(seed), zlib.crc32(name.encode())])
     out = np.full(truth.shape, np.nan)

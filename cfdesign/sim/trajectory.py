@@ -156,6 +156,7 @@ def from_segments(segments, *, dt_s: float, start_heading_rad: float = 0.0, spee
     Returns
     -------
     Trajectory
+        The sampled trajectory.
 
     Raises
     ------
@@ -216,6 +217,7 @@ def rounded_square(*, start_heading_rad: float = 0.0, straight_s: float = 600.0,
     Returns
     -------
     Trajectory
+        The sampled trajectory.
 
     Raises
     ------

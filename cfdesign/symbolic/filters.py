@@ -116,6 +116,7 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     Returns
     -------
     Observer
+        The ``n``-band observer, with symbolic gains.
 
     Raises
     ------
@@ -182,6 +183,7 @@ def chain(order: int, inputs, measurements, *, weights=None, bias: bool = False,
     Returns
     -------
     Observer
+        The chain's observer, with symbolic gains.
 
     Raises
     ------
@@ -396,7 +398,8 @@ def structure(name: str, **options) -> Observer:
     Parameters
     ----------
     name : str
-        A key of :data:`STRUCTURES`: ``cf2``, ``cf3``, ``ckf3``, ``dckf3``, ``cfn``, ``position``.
+        A key of :data:`~cfdesign.symbolic.filters.STRUCTURES`: ``cf2``, ``cf3``, ``ckf3``, ``dckf3``,
+        ``cfn``, ``position``.
     **options
         ``order`` (cf2: 1 or 2); ``bands`` and ``full`` (cfn); ``discrete`` (cf2, cf3, cfn,
         position).  None means the default.
@@ -404,6 +407,7 @@ def structure(name: str, **options) -> Observer:
     Returns
     -------
     Observer
+        The observer of the structure, with symbolic gains.
 
     Raises
     ------

@@ -139,7 +139,7 @@ class Sensor:
             Identifier, unique within the observer.
         measures : int or str
             Derivative order of the common quantity it reads, or its name (``'rate'``,
-            ``'acceleration'``, ...: :data:`QUANTITY_ORDERS`).
+            ``'acceleration'``, ...: :data:`~cfdesign.spec.QUANTITY_ORDERS`).
         column : int
             Column of ``B`` it drives.
         relation : sympy expression, optional
@@ -150,6 +150,7 @@ class Sensor:
         Returns
         -------
         Sensor
+            The input sensor (role ``input``).
 
         Examples
         --------
@@ -178,6 +179,7 @@ class Sensor:
         Returns
         -------
         Sensor
+            The measurement sensor (role ``measurement``).
         """
         return cls(name, measures, "measurement", row, relation)
 
@@ -284,6 +286,7 @@ def zoh_chain(m: int, sample_time=T):
     Returns
     -------
     F, B : sympy.Matrix
+        ``F`` (m x m) and ``B`` (m x 1), exact in ``sample_time``.
 
     Examples
     --------
@@ -508,6 +511,7 @@ class Observer:
         Returns
         -------
         Observer
+            The observer of ``sys`` with gain ``K`` and the given sensors.
 
         Raises
         ------
@@ -617,6 +621,7 @@ class Observer:
         Returns
         -------
         sympy.Symbol
+            The symbol named ``name`` in this observer's expressions.
 
         Raises
         ------
@@ -643,6 +648,7 @@ class Observer:
         Returns
         -------
         sympy expression
+            ``D(v)`` in the observer's variable (``s`` or ``z``).
 
         Raises
         ------
@@ -741,6 +747,8 @@ class Observer:
         Returns
         -------
         Proof
+            The bands, their sum and the residual in canonical form; ``holds`` tells whether they
+            sum to one.
 
         Examples
         --------
@@ -807,6 +815,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer; this one is unchanged.
 
         Raises
         ------
@@ -850,6 +859,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer with the sensors (and label) renamed.
 
         Raises
         ------
@@ -887,6 +897,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new observer with no free parameter.
 
         Raises
         ------
@@ -963,6 +974,7 @@ class Observer:
         Returns
         -------
         Observer
+            A new, fully numeric observer with gain ``K`` (in ``gain_form``).
         """
         obs = self
         if sample_time is not None and self._sample_time_symbol is not None:

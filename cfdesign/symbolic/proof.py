@@ -140,6 +140,7 @@ def prove(observer) -> Proof:
     Returns
     -------
     Proof
+        The outcome; ``holds`` is True when the bands sum to exactly one.
 
     Examples
     --------
