@@ -756,7 +756,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
     every row; with ``time_column`` the rate is the number of steps over the time they span,
-    written as the shortest decimal within :data:`RATE_RTOL` of it (jittered stamps of a 100 Hz
+    written as the shortest decimal within ``RATE_RTOL`` of it (jittered stamps of a 100 Hz
     sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
     and the times must increase steadily (no gap longer than 1.5 steps, no step shorter than
     half of one).
@@ -827,7 +827,7 @@ def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:
     rate_hz : float
         The rate measured from a time column (Hz).
     rtol : float
-        Relative tolerance (default :data:`RATE_RTOL`).
+        Relative tolerance (default ``RATE_RTOL``).
 
     Returns
     -------

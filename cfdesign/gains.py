@@ -858,7 +858,7 @@ class GainTable:
         -----
         The observer is built from the table's stored doubles, taken as exact rationals, so its
         proof is exact arithmetic on those numbers: the gains as stored, the model ``F, B, H`` as
-        the simplest rational within two ulp of each double (:func:`_model_exact`), so that a
+        the simplest rational within two ulp of each double (``_model_exact``), so that a
         sampled chain's ``T^2/2`` and ``T^3/6`` (5e-05 and 1.6666666666666668e-07 at 100 Hz) are
         the ``1/20000`` and ``1/6000000`` the structure has.  A ``chain`` with two or more inputs of one
         order (two gyros) stores weighted ``B`` columns whose rounded sum can miss the chain's

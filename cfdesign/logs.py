@@ -28,7 +28,7 @@ from .errors import CfdesignError, DataError, OutputError
 from .files import check_distinct, open_atomic, write_bytes, write_text
 from .linear import wrap
 
-__all__ = ["LogResult", "run_log", "run_logs", "read_log", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
+__all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")

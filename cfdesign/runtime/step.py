@@ -31,7 +31,7 @@ _UNROLLED = 16
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 #: the real scalar types other than float that readings have come as (int, bool, numpy's floats
 #: and ints, Fraction, ...): a reading of one of these is converted by ``float()`` without the
-#: full check (:func:`_as_float`)
+#: full check (``_as_float``)
 _REALS = {int, bool}
 
 __all__ = ["compile_step"]
@@ -123,7 +123,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
 
     Notes
     -----
-    The steps make every reading a Python float (:func:`_as_float`: numpy scalars and ints by
+    The steps make every reading a Python float (``_as_float``: numpy scalars and ints by
     their value) and compare it with ``limit`` before they store anything, so the state holds
     Python floats whatever the caller passes, and a reading that is not a real number (text,
     None, a complex, a ``Decimal``, an array) raises :class:`~cfdesign.errors.CfdesignError`
