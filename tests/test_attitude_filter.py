@@ -304,3 +304,21 @@ def test_readings_in_other_units_are_warned_of():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         f.run(gyr, acc)
+
+
+def test_a_noisy_first_field_reading_does_not_latch_a_disturbance_at_rest():
+    # A still sensor with a magnetometer ten times noisier than BROAD's (3.2 µT per axis per
+    # sample on a 44 µT field of dip 69 deg, as in BROAD's lab).  The first reading once seeded the field's low-pass and its
+    # reference: one reading off by a few µT froze the reference at the start-up transient, the
+    # field was "disturbed" from then on, and at rest no new field can be accepted (it needs the
+    # sensor to turn), so the heading ran on the gyro for good.  Now the low-pass starts as the
+    # running mean of the readings and the reference is that mean until the low-pass has settled.
+    rng = np.random.default_rng(3)
+    n, rate = 500, 100.0
+    field = np.array([0.0, 16.0, -41.0])
+    mag = field + 3.2 * rng.standard_normal((n, 3))
+    mag[0] = [0.0, 16.0, -33.0]                                 # a first reading 7.5 µT short, dip 4 deg off
+    gyr = np.zeros((n, 3))
+    acc = np.tile([0.0, 0.0, GRAVITY], (n, 1))
+    out = AttitudeFilter(rate).run(gyr, acc, mag, details=True)
+    assert not out.mag_disturbed.any()

@@ -58,7 +58,8 @@ Every threshold is in physical units, derived from the noise figures where it ca
   the bias estimate;
 * magnetic disturbance: the field's norm and dip angle (low-passed over ``mag_filter_s``)
   against a reference learned online (running mean, then a ``mag_reference_s`` low-pass
-  while undisturbed): a change of the norm by ``dN`` or of the dip by ``dD`` hides a field
+  while undisturbed; until the ``mag_filter_s`` low-pass has settled it is a running mean of
+  the readings and the reference is that mean, so one noisy first reading cannot seed it): a change of the norm by ``dN`` or of the dip by ``dD`` hides a field
   change that can turn the heading by ``dN / B_h`` or ``dD B / B_h``, so the field is disturbed
   when ``|dN| / B`` or ``|dD|`` exceeds ``mag_tolerance_rad * cos(dip)``; a new field is
   accepted after ``mag_new_field_s`` in which it stayed consistent while the sensor turned by
@@ -1037,8 +1038,13 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             mey = r3 * mx + r4 * my + r5 * mz
             mez = r6 * mx + r7 * my + r8 * mz
             dip = math.asin(max(-1.0, min(1.0, -mez / nm)))
-            if ref_n == 0.0:
-                norm_lp, dip_lp, norm_ref, dip_ref, ref_n = nm, dip, nm, dip, 1.0
+            if ref_n * m_alpha < 1.0:
+                # start-up: the low-pass is the running mean of the readings so far, and the reference
+                # is that mean (a single reading is as noisy as the sensor; nothing to check it against)
+                # (ref_n counts it below, as an undisturbed reading)
+                norm_lp += (nm - norm_lp) / (ref_n + 1.0)
+                dip_lp += (dip - dip_lp) / (ref_n + 1.0)
+                norm_ref, dip_ref = norm_lp, dip_lp
             else:
                 norm_lp += m_alpha * (nm - norm_lp)
                 dip_lp += m_alpha * (dip - dip_lp)
