@@ -28,7 +28,7 @@ import numpy as np
 from . import linear
 from .errors import GainTableError
 from .linear import GAIN_FORMS
-from .spec import QUANTITY_ORDERS
+from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "FORMAT_VERSION",
            "DERIVATIVE_NAMES"]
@@ -53,9 +53,8 @@ MAX_ORDER = MAX_STATES
 #: largest magnitude of a table's matrix entries: with states within the runtime's
 #: :data:`~cfdesign.runtime.filter.STATE_LIMIT` (the same) no product of one step can overflow
 MAX_ENTRY = 1e150
-#: sample times and rates a table may have (seconds, hertz): beyond them the frequency grid and
-#: the ZOH relations lose every digit
-MAX_RATE_HZ = 1e9
+#: sample times and rates a table may have (seconds, hertz), :data:`cfdesign.spec.MAX_RATE_HZ`: beyond
+#: them the frequency grid and the ZOH relations lose every digit
 
 #: version of the JSON layout written by :meth:`GainTable.save`
 FORMAT_VERSION = 1
