@@ -7,6 +7,7 @@ exit with status 2; a proof or check that fails exits with 1; tracebacks mean a 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -504,7 +505,7 @@ def main(argv=None) -> int:
 def _main(argv, debug) -> int:
     try:
         args = build_parser(argv).parse_args(argv)
-        with _quiet_arithmetic(debug):
+        with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
             return args.run(args)
     except CfdesignError as exc:
         _error(exc)
@@ -526,13 +527,28 @@ def _main(argv, debug) -> int:
 def _quiet_arithmetic(debug):
     """numpy's overflow and invalid-value warnings off: what they would say, a check or a named error
     says on one line (``--debug`` shows them)."""
-    import contextlib
-
     if debug:
         return contextlib.nullcontext()
     import numpy as np
 
     return np.errstate(all="ignore")
+
+
+@contextlib.contextmanager
+def _warnings_on_one_line(debug):
+    """Python warnings (a marginal Riccati solution, readings in degrees) as one line each,
+    ``cfdesign: warning: ...``, after a command that succeeds; a command that fails says why in
+    its error alone.  Python's own format printed the source file, line and code (three
+    lines before the error).  ``--debug`` keeps Python's format."""
+    import warnings
+
+    if debug:
+        yield
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        yield
+    for text in dict.fromkeys(str(w.message) for w in caught):  # once each, in order
+        print(f"cfdesign: warning: {_one_line(text, 2000)}", file=sys.stderr)
 
 
 def _one_line(text: str, limit: int = 300) -> str:
