@@ -438,3 +438,68 @@ def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp
     (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
     row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
     assert row["samples"] == 0 and "missing column(s) gyro" in row["error"]
+
+
+# ---------------------------------------------------------------------- found by the audit of issue 12
+SPEC_FIELDS = {  # where a number sits in a valid design, and how to put one there
+    "sensors.rate.rate_hz": lambda d, v: d["sensors"]["rate"].__setitem__("rate_hz", v),
+    "sensors.angle.noise.std": lambda d, v: d["sensors"]["angle"].__setitem__("noise", {"std": v}),
+    "sample_time_s": lambda d, v: d.__setitem__("sample_time_s", v),
+    "crossover.hz": lambda d, v: d["crossover"].__setitem__("hz", v),
+    "crossover.damping": lambda d, v: d["crossover"].__setitem__("damping", v),
+}
+
+
+@FUZZ
+@given(field=st.sampled_from(sorted(SPEC_FIELDS)),
+       value=st.sampled_from([10 ** 400, -(10 ** 400), 1e300, 1e200, 1e12, 1e-12, 1e-300, 5e-324]))
+def test_design_numbers_beyond_their_limits_are_named(field, value):
+    """An integer beyond a double was an OverflowError (exit 3); a crossover at 1e308 Hz or a
+    damping of 1e300 overflowed inside the gain formulas (exit 3)."""
+    d = {"structure": "cf2", "order": 2, "discrete": True, "crossover": {"hz": 0.5, "damping": 0.7}, "sensors": {
+        "rate": {"rate_hz": 100.0, "noise": {"density": 1e-3}}, "angle": {"rate_hz": 100.0, "noise": {"std": 0.01}}}}
+    SPEC_FIELDS[field](d, value)
+    try:
+        table = cfdesign.design(parse_spec(d))
+    except SpecError as exc:
+        assert field in str(exc) or "gains" in str(exc) or "crossover" in str(exc), str(exc)
+        return
+    except CfdesignError as exc:
+        assert "sensors" in str(exc) or "gains" in str(exc), str(exc)
+        return
+    assert np.isfinite(table.predicted_std) and all(c.ok for c in verify_table(table)), (field, value)
+
+
+@FUZZ
+@given(gain=st.sampled_from(["k1", "k2"]), value=st.sampled_from([1e-30, 1e-20, 1e-12, 1e-300, 1e-320, 1e-6]))
+def test_one_tiny_fixed_gain_is_refused_or_predicts_a_covariance(gain, value):
+    """k1 = 1e-30 beside k2 = 15.8 gave P = [[-4e-5, 1e12], [-1e12, -6e-4]]: a negative variance let
+    through by a check relative to the garbage entries, and a NaN predicted std with exit 0."""
+    from cfdesign.designer import covariance_ok
+
+    spec = cfdesign.load_spec(cfdesign.example_path("cf3"))
+    try:
+        table = cfdesign.design(dataclasses.replace(spec, gains={**spec.gains, gain: value}))
+    except SpecError as exc:
+        assert "gains" in str(exc)
+        return
+    assert np.isfinite(table.predicted_std) and all(covariance_ok(P) for P in table.P + table.P_filtered)
+
+
+@pytest.mark.parametrize("fails", [False, True])
+def test_cli_prints_a_warning_on_one_line_and_only_when_it_succeeds(monkeypatch, cli, fails):
+    import warnings
+
+    import cfdesign.cli as cli_module
+
+    def warns(args):
+        warnings.warn("marginal solution:\nsecond line", RuntimeWarning, stacklevel=1)
+        if fails:
+            raise SpecError("the spec is bad")
+        return 0
+
+    monkeypatch.setattr(cli_module, "cmd_prove", warns)
+    code, _, err = cli("prove", "cf2")
+    assert err.strip().splitlines() == (["cfdesign: error: the spec is bad"] if fails else
+                                        ["cfdesign: warning: marginal solution: second line"])
+    assert code == (2 if fails else 0)
