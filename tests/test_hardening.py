@@ -503,3 +503,29 @@ def test_cli_prints_a_warning_on_one_line_and_only_when_it_succeeds(monkeypatch,
     assert err.strip().splitlines() == (["cfdesign: error: the spec is bad"] if fails else
                                         ["cfdesign: warning: marginal solution: second line"])
     assert code == (2 if fails else 0)
+
+
+@FUZZ
+@given(value=st.sampled_from([np.float16(0.5), np.float32(0.1), np.array(0.25), 10 ** 400, -(10 ** 400), True,
+                              np.int64(2)]) | st.fractions(max_denominator=1000),
+       api=st.sampled_from(["step", "step_values"]))
+def test_a_reading_of_any_number_type_runs_as_a_float(position, value, api):
+    """A float16 reading made the whole state float16 for good (3 digits, inf past 65504); a
+    Fraction was stored as the held input (a state() that json cannot write); an integer beyond a
+    double was an OverflowError. Each reading becomes a float, or inf (missing, counted)."""
+    from fractions import Fraction
+
+    rt, ref = Runtime(position), Runtime(position)
+    step = (lambda r, u: r.step(accelerometer=u, gps=1.0)) if api == "step" else (lambda r, u: r.step_values(u, 1.0))
+    try:
+        as_float = float(value)
+    except OverflowError:
+        as_float = np.inf
+    for r, u in ((rt, value), (ref, as_float)):
+        step(r, u)
+        for _ in range(3):
+            r.step(accelerometer=0.1, gps=1.0)
+    assert all(type(v) is float for v in rt._S[: rt.n] + rt._U), [type(v) for v in rt._S + rt._U]
+    assert rt.state() == ref.state() and rt.counts == ref.counts
+    json.dumps(rt.state())
+    assert isinstance(value, Fraction) or abs(as_float) < 1e300 or rt.counts["rejected"] == {"accelerometer": 1}

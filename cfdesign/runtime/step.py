@@ -31,15 +31,6 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 __all__ = ["compile_step"]
 
 
-def _is_number(v) -> bool:
-    """A reading the step can compare with the limit (a real number; NaN and inf included)."""
-    try:
-        -1.0 <= v + 0.0 <= 1.0  # noqa: B015 - the operations are the test
-    except (TypeError, ValueError):  # text, None, complex, a Decimal; an array of several values
-        return False
-    return True
-
-
 def _num(v: float) -> str:
     v = float(v)
     if not math.isfinite(v):  # a table is checked at load; this guards the source anyway
@@ -131,7 +122,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         return name
 
     N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "LIM", "PI", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
-                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make", "NOT_A_NUMBER")}
+                                     "AC", "K", "A", "L", "ph", "est", "unknown", "make", "FLOAT", "AS_FLOATS")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
     es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
     nx = [fresh(f"n{r}") for r in range(n)]
@@ -149,14 +140,18 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     # every reading is added to a float and compared before anything is stored: a reading that
     # is not a real number the step can compute with (text, None, complex, a Decimal) raises
     # there, and then nothing has changed
+    # and every reading becomes a Python float first: a float16, a Fraction or a 0-d array was
+    # stored as it came, and a float16 made the state float16 for good (3 digits, inf at 65504)
     oks = [fresh(f"ok{j}") for j in range(p + m)]
-    add("    try:")
-    for ok, v in zip(oks, us + ys, strict=True):
-        add(f"        {ok} = -{LIM} <= {v} + 0.0 <= {LIM}")
-    if not oks:
-        add("        pass")
-    add("    except (TypeError, ValueError):")
-    add(f"        {N['NOT_A_NUMBER']}(({', '.join(us + ys)}{',' if len(us + ys) == 1 else ''}))")
+    values = us + ys
+    if values:
+        add("    try:")
+        for v in values:
+            add(f"        {v} = {N['FLOAT']}({v} + 0.0)")
+        add("    except (TypeError, ValueError, OverflowError):")
+        add(f"        {', '.join(values)}, = {N['AS_FLOATS']}(({', '.join(values)},))")
+    for ok, v in zip(oks, values, strict=True):
+        add(f"    {ok} = -{LIM} <= {v} <= {LIM}")
     for j, u in enumerate(us):  # an input outside the limit (inf) or missing (NaN) holds the last one
         add(f"    if {oks[j]}:")
         add(f"        {U_}[{j}] = {u}")
@@ -227,12 +222,22 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
               f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
               f"    def step_values({', '.join(us + ys)}):\n{body}\n"
               f"    return step, step_values\n")
-    def not_a_number(values):
-        bad = next(name for name, v in zip(names, values, strict=True) if not _is_number(v))
-        raise CfdesignError(f"{bad}: reading {values[names.index(bad)]!r} is not a number")
+    def as_floats(values):
+        """The slow path of a reading that is not a plain number: an integer or fraction beyond a
+        double is inf (beyond the limit: missing, counted); anything else that is not a real
+        number raises, naming its sensor, before anything is stored."""
+        out = []
+        for name, v in zip(names, values, strict=True):
+            try:
+                out.append(float(v + 0.0))
+            except OverflowError:
+                out.append(math.inf if v > 0 else -math.inf)
+            except (TypeError, ValueError):
+                raise CfdesignError(f"{name}: reading {v!r} is not a number") from None
+        return out
 
     namespace = {LIM: float(limit), PI: math.pi, WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
-                 N["NOT_A_NUMBER"]: not_a_number,
+                 N["FLOAT"]: float, N["AS_FLOATS"]: as_floats,
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}
