@@ -529,3 +529,29 @@ def test_a_reading_of_any_number_type_runs_as_a_float(position, value, api):
     assert rt.state() == ref.state() and rt.counts == ref.counts
     json.dumps(rt.state())
     assert isinstance(value, Fraction) or abs(as_float) < 1e300 or rt.counts["rejected"] == {"accelerometer": 1}
+
+
+BAD_ARRAYS = [["a", "b"], "abc", [None, None], [1 + 1j, 0j], np.zeros(2, dtype=complex), [[1.0], [1.0, 2.0]],
+              [10 ** 400, 0], [{}, {}], [b"1", b"2"]]
+
+
+@FUZZ
+@given(where=st.sampled_from(["run", "x0", "restore x", "restore u_last", "step_values"]),
+       value=st.sampled_from(BAD_ARRAYS))
+def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, value):
+    """Runtime(x0=...), run, restore and step_values converted with numpy or Python and let
+    ValueError, TypeError or OverflowError out (a complex array lost its imaginary part)."""
+    rt = Runtime(position)
+    rt.step(accelerometer=0.1, gps=1.0)
+    before = rt.state()
+    with pytest.raises(CfdesignError):
+        if where == "run":
+            rt.run({"accelerometer": value, "gps": [1.0, 1.0]})
+        elif where == "x0":
+            Runtime(position, x0=value if isinstance(value, str) else [*value, 0.0])
+        elif where == "step_values":
+            rt.step_values(*([0.0] * (3 + len(value) % 2)))
+        else:
+            key = where.split()[1]
+            rt.restore({**before, key: list(value) + [0.0] * (3 - len(value) if key == "x" else 0)})
+    assert rt.state() == before

@@ -261,7 +261,7 @@ class AttitudeParams:
                 continue
             try:
                 value = float(value)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise AttitudeInputError(f"{f.name} must be a number, got {value!r}") from None
             if not math.isfinite(value):
                 raise AttitudeInputError(f"{f.name} must be finite, got {value!r}")
@@ -385,7 +385,7 @@ def _with_tables(design: AttitudeDesign, tables) -> AttitudeDesign:
     else:
         try:
             tilt, heading = tables
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise TableMismatchError("tables: a pair (tilt, heading) or a dict of GainTables or FilterSpecs is "
                                      "needed") from None
         given = {"tilt": tilt, "heading": heading}
@@ -464,7 +464,7 @@ def _rate(rate_hz) -> float:
         if isinstance(rate_hz, (bool, np.bool_)):
             raise TypeError
         value = float(rate_hz)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"rate_hz must be a number, got {rate_hz!r}") from None
     if not MIN_RATE_HZ <= value <= MAX_RATE_HZ:  # NaN too
         raise AttitudeInputError(f"rate_hz must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
@@ -653,7 +653,7 @@ class AttitudeFilter:
         for name in STATE_FIELDS:
             try:
                 value = float(state[name])
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise AttitudeInputError(f"state: {name} must be a number, got {state[name]!r}") from None
             if not math.isfinite(value):
                 raise AttitudeInputError(f"state: {name} must be finite, got {state[name]!r}")
@@ -738,7 +738,7 @@ class AttitudeFilter:
                 mx = my = mz = math.nan
             else:
                 mx, my, mz = (float(v) for v in mag)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise AttitudeInputError("gyr, acc and mag must each be three numbers") from None
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
@@ -811,7 +811,7 @@ def _unit(rows) -> np.ndarray:
 def _initial_quaternion(initial) -> list:
     try:
         q = [float(v) for v in initial]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"initial must be a quaternion [w, x, y, z], got {initial!r}") from None
     n = math.sqrt(sum(v * v for v in q)) if len(q) == 4 else 0.0
     if len(q) != 4 or not math.isfinite(n) or n == 0:
