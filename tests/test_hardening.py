@@ -555,3 +555,18 @@ def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, val
             key = where.split()[1]
             rt.restore({**before, key: list(value) + [0.0] * (3 - len(value) if key == "x" else 0)})
     assert rt.state() == before
+
+
+@pytest.mark.parametrize("call", ["step", "declination", "state"])
+def test_attitude_numbers_beyond_a_double_are_named(call):
+    from cfdesign.errors import AttitudeInputError
+    from cfdesign.nav import AttitudeFilter, estimate_attitude
+
+    f = AttitudeFilter(100.0)
+    with pytest.raises(AttitudeInputError):
+        if call == "step":
+            f.step([0.0, 0.0, 10 ** 400], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
+        elif call == "declination":
+            estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, declination_rad=10 ** 400)
+        else:
+            f.restore({**f.state(), "bx": 10 ** 400})
