@@ -321,8 +321,11 @@ def cmd_noise(args) -> int:
 
     if (args.rate_hz is None) == (args.time is None):
         raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
-    if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
-        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    from .spec import RATE_RANGE
+
+    if args.rate_hz is not None and not RATE_RANGE[0] <= args.rate_hz <= RATE_RANGE[1]:
+        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz from {RATE_RANGE[0]:g} "
+                            f"to {RATE_RANGE[1]:g}, got {args.rate_hz:g}")
     check_distinct({"the log": args.log, "-o": args.output, "--plot": args.plot})
     columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
     if not columns:

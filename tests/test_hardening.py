@@ -4,6 +4,7 @@ result - never a traceback, a silent pass, a NaN that spreads, or a lost file.""
 
 import dataclasses
 import json
+import math
 import os
 import stat
 
@@ -570,3 +571,19 @@ def test_attitude_numbers_beyond_a_double_are_named(call):
             estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, declination_rad=10 ** 400)
         else:
             f.restore({**f.state(), "bx": 10 ** 400})
+
+
+@FUZZ
+@given(rate=st.sampled_from(["100", "1e-300", "1e300", "1e12"]), cell=st.sampled_from(["0.5", "1e160", "1e308", "-1e200"]))
+def test_noise_rates_and_readings_beyond_their_limits_are_named(tmp_path_factory, rate, cell):
+    """cfdesign noise --rate-hz 1e-300 overflowed (exit 3), 1e300 left no averaging time (exit 3), a
+    reading of 1e160 made an infinite Allan variance and a NaN fit (exit 3)."""
+    from conftest import run_cli
+
+    d = tmp_path_factory.mktemp("n")
+    values = [repr(0.01 * math.sin(k)) for k in range(300)]
+    values[7] = cell
+    (d / "n.csv").write_text("x\n" + "\n".join(values) + "\n")
+    code, out, err = run_cli("noise", d / "n.csv", "--column", "x", "--rate-hz", rate, "-o", d / "n.toml")
+    assert code in (0, 2) and "internal error" not in err and len(err.strip().splitlines()) <= 1, err
+    assert code == 2 or ("nan" not in out and "inf" not in out), out
