@@ -574,7 +574,8 @@ def test_attitude_numbers_beyond_a_double_are_named(call):
 
 
 @FUZZ
-@given(rate=st.sampled_from(["100", "1e-300", "1e300", "1e12"]), cell=st.sampled_from(["0.5", "1e160", "1e308", "-1e200"]))
+@given(rate=st.sampled_from(["100", "1e-300", "1e300", "1e12"]),
+       cell=st.sampled_from(["0.5", "1e160", "1e308", "-1e200"]))
 def test_noise_rates_and_readings_beyond_their_limits_are_named(tmp_path_factory, rate, cell):
     """cfdesign noise --rate-hz 1e-300 overflowed (exit 3), 1e300 left no averaging time (exit 3), a
     reading of 1e160 made an infinite Allan variance and a NaN fit (exit 3)."""
