@@ -588,3 +588,36 @@ def test_noise_rates_and_readings_beyond_their_limits_are_named(tmp_path_factory
     code, out, err = run_cli("noise", d / "n.csv", "--column", "x", "--rate-hz", rate, "-o", d / "n.toml")
     assert code in (0, 2) and "internal error" not in err and len(err.strip().splitlines()) <= 1, err
     assert code == 2 or ("nan" not in out and "inf" not in out), out
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+@pytest.mark.parametrize("command", ["export csv", "export json", "run", "design"])
+def test_an_output_that_is_a_pipe_or_a_device_is_written_into_not_replaced(heading, tmp_path, cli, command):
+    """The atomic rename put a regular file in place of the target: -o /dev/stdout wrote nothing
+    to stdout and, as root, -o /dev/null replaced /dev/null itself for every process."""
+    import threading
+
+    table = heading.save(tmp_path / "g.json")
+    log = tmp_path / "log.csv"
+    log.write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.0,0.0\n" for k in range(40)))
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()), daemon=True)
+    reader.start()
+    argv = {"export csv": ["export", table, "--format", "csv", "-o", fifo],
+            "export json": ["export", table, "--format", "json", "-o", fifo],
+            "run": ["run", table, log, "-o", fifo], "design": ["design", "--example", "cf3", "-o", fifo]}[command]
+    code, _, err = cli(*argv)
+    reader.join(timeout=10)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode) and got and got[0], command
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "g.json", "log.csv"]  # no temporaries
+    if command == "export json":
+        assert json.loads(got[0])["name"] == heading.name
+    try:
+        os.mknod(tmp_path / "null", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    except (OSError, AttributeError):
+        return  # no device nodes here (not root, or a container without CAP_MKNOD)
+    assert cli(*argv[:-1], tmp_path / "null")[0] == 0
+    assert stat.S_ISCHR(os.lstat(tmp_path / "null").st_mode)
