@@ -995,6 +995,17 @@ def _no_constant(token):
     raise json.JSONDecodeError(f"{token} is not a JSON number (gain tables hold finite numbers only)", token, 0)
 
 
+def _no_duplicates(pairs) -> dict:
+    """A JSON object whose keys are distinct: with two ``K`` a reader (or a diff) sees the first
+    and json keeps the last, so a table could show one filter and run another."""
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen = set()
+        dup = next(k for k, _ in pairs if k in seen or seen.add(k))
+        raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
+    return out
+
+
 def load_gains(path) -> GainTable:
     """Read a gain table written by :meth:`GainTable.save` (or ``cfdesign design -o``).
 
@@ -1011,15 +1022,16 @@ def load_gains(path) -> GainTable:
     ------
     GainTableError
         The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
-        Infinity tokens included), fails the schema, or its parts do not fit together; the
-        message names the file and the field.
+        Infinity tokens and keys given twice in one object included), fails the schema, or its
+        parts do not fit together; the message names the file and the field.
     """
     path = Path(path)
     try:
         size = path.stat().st_size
         if size > MAX_TABLE_BYTES:
             raise GainTableError(f"{path}: {size} bytes is more than a gain table holds (limit {MAX_TABLE_BYTES})")
-        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
+        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant,
+                          object_pairs_hook=_no_duplicates)
     except RecursionError:
         raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except OSError as exc:

@@ -621,3 +621,16 @@ def test_an_output_that_is_a_pipe_or_a_device_is_written_into_not_replaced(headi
         return  # no device nodes here (not root, or a container without CAP_MKNOD)
     assert cli(*argv[:-1], tmp_path / "null")[0] == 0
     assert stat.S_ISCHR(os.lstat(tmp_path / "null").st_mode)
+
+
+@FUZZ
+@given(key=st.sampled_from(["K", "F", "gain_form", "wrap_angle", "sample_time_s", "name", "role", "rate_hz"]))
+def test_a_key_given_twice_in_a_table_is_refused(heading, tmp_path_factory, key):
+    """json keeps the last of two keys: a table could show one K (to a reader, a diff) and run another."""
+    text = json.dumps(heading.to_dict())
+    doubled = text.replace(f'"{key}": ', f'"{key}": null, "{key}": ', 1)  # json keeps the last: the real one
+    path = tmp_path_factory.mktemp("t") / "g.json"
+    path.write_text(doubled)
+    json.loads(doubled)  # valid JSON for json itself
+    with pytest.raises(GainTableError, match=f"key '{key}' given twice"):
+        load_gains(path)
