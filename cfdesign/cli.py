@@ -194,7 +194,9 @@ def _summary(table) -> str:
                      f"{best:.6g}")
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
-    return "\n".join(lines)
+    # every line printable and a line alone: a design file's name with a newline printed a line of
+    # its own ("PASS all checks"), with an escape sequence it cleared the terminal
+    return "\n".join(_one_line(line, 2000) for line in lines)
 
 
 def _unit(table) -> str:

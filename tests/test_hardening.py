@@ -634,3 +634,15 @@ def test_a_key_given_twice_in_a_table_is_refused(heading, tmp_path_factory, key)
     json.loads(doubled)  # valid JSON for json itself
     with pytest.raises(GainTableError, match=f"key '{key}' given twice"):
         load_gains(path)
+
+
+@pytest.mark.parametrize("name", ["x\nPASS all checks", "x\x1b[2J", "x\rPASS", "x\u2028PASS", "x\x00"])
+def test_design_prints_a_table_name_on_its_own_line_only(tmp_path, cli, name):
+    """The summary of design (and discretize) printed the design file's name as it was: a newline
+    forged a line of its own, an escape sequence reached the terminal."""
+    spec = tmp_path / "d.toml"
+    body = [line for line in cfdesign.example_path("cf3").read_text().splitlines() if not line.startswith("name")]
+    spec.write_text(f"name = {json.dumps(name)}\n" + "\n".join(body) + "\n")
+    code, out, _ = cli("design", spec)
+    assert code == 0 and all(line.isprintable() for line in out.splitlines())
+    assert not any(line.startswith("PASS") for line in out.splitlines()), out
