@@ -656,3 +656,12 @@ def test_a_design_with_too_many_sensors_is_refused_before_work():
     sensors["acc"] = {"measures": "acceleration", "rate_hz": 100.0, "noise": {"std": 0.01}}
     with pytest.raises(SpecError, match=f"1001 sensors is more than a design takes \\(limit {MAX_SENSORS}\\)"):
         parse_spec({"structure": "chain", "order": 2, "discrete": True, "sensors": sensors})
+
+
+@pytest.mark.parametrize("rtol", ["nan", "inf", "-1", "1e300", "1"])
+def test_verify_refuses_a_tolerance_that_passes_anything(heading, tmp_path, cli, rtol):
+    """--rtol inf (or nan, or 1e300) passed a table whose gains and sample time were 1.5 times the spec's."""
+    table = dataclasses.replace(heading, sample_time_s=heading.sample_time_s * 1.5, K=[heading.K[0] * 1.5])
+    code, _, err = cli("verify", table.save(tmp_path / "g.json"), "--spec", cfdesign.example_path("dckf3"),
+                       "--rtol", rtol)
+    assert code == 2 and "--rtol" in err and len(err.strip().splitlines()) == 1
