@@ -558,7 +558,7 @@ def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, val
     assert rt.state() == before
 
 
-@pytest.mark.parametrize("call", ["step", "declination", "state"])
+@pytest.mark.parametrize("call", ["step", "declination", "state", "bias prior"])
 def test_attitude_numbers_beyond_a_double_are_named(call):
     from cfdesign.errors import AttitudeInputError
     from cfdesign.nav import AttitudeFilter, estimate_attitude
@@ -569,8 +569,10 @@ def test_attitude_numbers_beyond_a_double_are_named(call):
             f.step([0.0, 0.0, 10 ** 400], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
         elif call == "declination":
             estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, declination_rad=10 ** 400)
-        else:
+        elif call == "state":
             f.restore({**f.state(), "bx": 10 ** 400})
+        else:  # its square overflowed
+            estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, gyro_bias_std0=1e308)
 
 
 @FUZZ

@@ -225,7 +225,7 @@ class AttitudeParams:
         """Check every parameter and return them converted: numbers as floats, switches as bools.
 
         Ranges: ``declination_rad`` within [-pi, pi]; ``gyro_bias_std0`` and
-        ``mag_new_field_rotation_rad`` at least 0; every other number in [1e-15, 1e15], and
+        ``mag_new_field_rotation_rad`` from 0 to 1e15; every other number in [1e-15, 1e15], and
         ``mag_tolerance_rad`` below pi/2 as well; the five switches True or False (a Python or
         numpy bool, not a number).
 
@@ -269,8 +269,8 @@ class AttitudeParams:
                 if abs(value) > math.pi:
                     raise AttitudeInputError(f"declination_rad must be within [-pi, pi], got {value!r}")
             elif f.name in ("gyro_bias_std0", "mag_new_field_rotation_rad"):
-                if value < 0:
-                    raise AttitudeInputError(f"{f.name} must be >= 0, got {value!r}")
+                if not 0 <= value <= 1e15:  # 1e308 overflowed when squared (an OverflowError)
+                    raise AttitudeInputError(f"{f.name} must be from 0 to 1e15, got {value!r}")
             elif not 1e-15 <= value <= 1e15:
                 raise AttitudeInputError(f"{f.name} must be a positive number (1e-15 .. 1e15), got {value!r}")
             values[f.name] = value
