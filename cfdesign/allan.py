@@ -68,6 +68,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DataError, InputError
+from .noise import FIGURE_RANGE
+from .spec import RATE_RANGE
+
+#: largest magnitude of a reading identify_noise takes: its square and their sums stay doubles
+MAX_READING = FIGURE_RANGE[1]
 
 __all__ = ["oadev", "octave_taus", "edf_simple", "identify_noise", "NoiseFit", "NoiseTerm", "TERMS",
            "read_log_columns", "noise_toml", "adev_plot", "nominal_rate"]
@@ -429,8 +434,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite, a constant
-        recording, or a rate that is not positive.
+        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
+        beyond ``MAX_READING``, a constant recording, or a rate outside 1e-9 to 1e9 Hz.
 
     Examples
     --------
@@ -441,14 +446,19 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     """
     y = np.asarray(x, dtype=float).ravel()
     if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
-            math.isfinite(rate_hz) and rate_hz > 0):
-        raise InputError(f"{name}: rate_hz must be a positive number of hertz, got {rate_hz!r}")
+            RATE_RANGE[0] <= rate_hz <= RATE_RANGE[1]):  # NaN too
+        raise InputError(f"{name}: rate_hz must be a positive number of hertz from {RATE_RANGE[0]:g} to "
+                         f"{RATE_RANGE[1]:g} (the rates a design file takes), got {rate_hz!r}")
     if len(y) < MIN_SAMPLES:
         raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation (at least {MIN_SAMPLES})")
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
         raise InputError(f"{name}: reading {bad[0]} is not finite ({y[bad[0]]}); the Allan deviation needs a "
                          "complete recording (cut it at the gap)")
+    bad = np.flatnonzero(np.abs(y) > MAX_READING)
+    if bad.size:  # its square overflows: the Allan variance of 1e160 was inf, then a NaN fit
+        raise InputError(f"{name}: reading {bad[0]} ({y[bad[0]]:g}) is beyond {MAX_READING:g}, whose squares the "
+                         "Allan variance needs (check the units)")
     if np.ptp(y) == 0:
         raise InputError(f"{name}: the readings are constant: no noise to identify (quantised to one level?)")
     tau, adev, m = oadev(y, float(rate_hz))

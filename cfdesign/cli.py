@@ -7,6 +7,7 @@ exit with status 2; a proof or check that fails exits with 1; tracebacks mean a 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -193,7 +194,9 @@ def _summary(table) -> str:
                      f"{best:.6g}")
     residual = f", residual {solver['residual']:.2e}" if "residual" in solver else ""
     lines.append(f"  solver: {solver['method']}{residual}")
-    return "\n".join(lines)
+    # every line printable and a line alone: a design file's name with a newline printed a line of
+    # its own ("PASS all checks"), with an escape sequence it cleared the terminal
+    return "\n".join(_one_line(line, 2000) for line in lines)
 
 
 def _unit(table) -> str:
@@ -320,8 +323,11 @@ def cmd_noise(args) -> int:
 
     if (args.rate_hz is None) == (args.time is None):
         raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
-    if args.rate_hz is not None and not (args.rate_hz > 0 and args.rate_hz < float("inf")):
-        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz, got {args.rate_hz:g}")
+    from .spec import RATE_RANGE
+
+    if args.rate_hz is not None and not RATE_RANGE[0] <= args.rate_hz <= RATE_RANGE[1]:
+        raise CfdesignError(f"cfdesign noise: --rate-hz must be a positive number of hertz from {RATE_RANGE[0]:g} "
+                            f"to {RATE_RANGE[1]:g}, got {args.rate_hz:g}")
     check_distinct({"the log": args.log, "-o": args.output, "--plot": args.plot})
     columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
     if not columns:
@@ -504,7 +510,7 @@ def main(argv=None) -> int:
 def _main(argv, debug) -> int:
     try:
         args = build_parser(argv).parse_args(argv)
-        with _quiet_arithmetic(debug):
+        with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
             return args.run(args)
     except CfdesignError as exc:
         _error(exc)
@@ -526,13 +532,28 @@ def _main(argv, debug) -> int:
 def _quiet_arithmetic(debug):
     """numpy's overflow and invalid-value warnings off: what they would say, a check or a named error
     says on one line (``--debug`` shows them)."""
-    import contextlib
-
     if debug:
         return contextlib.nullcontext()
     import numpy as np
 
     return np.errstate(all="ignore")
+
+
+@contextlib.contextmanager
+def _warnings_on_one_line(debug):
+    """Python warnings (a marginal Riccati solution, readings in degrees) as one line each,
+    ``cfdesign: warning: ...``, after a command that succeeds; a command that fails says why in
+    its error alone.  Python's own format printed the source file, line and code (three
+    lines before the error).  ``--debug`` keeps Python's format."""
+    import warnings
+
+    if debug:
+        yield
+        return
+    with warnings.catch_warnings(record=True) as caught:
+        yield
+    for text in dict.fromkeys(str(w.message) for w in caught):  # once each, in order
+        print(f"cfdesign: warning: {_one_line(text, 2000)}", file=sys.stderr)
 
 
 def _one_line(text: str, limit: int = 300) -> str:

@@ -1140,14 +1140,45 @@ def _numerically_checked(table: GainTable) -> GainTable:
 
 
 def _check_covariances(owner, result):
-    """Predicted covariances must be finite with a non-negative diagonal (tiny fixed gains or
-    near-marginal loops can make the Lyapunov solution meaningless)."""
+    """Predicted covariances must be covariances: finite, a non-negative diagonal and no entry
+    beyond what its variances allow (``|P_ij| <= sqrt(P_ii P_jj)``, which also bounds the asymmetry).
+    Tiny fixed gains or near-marginal loops make the Lyapunov solution meaningless: a gain of
+    1e-30 gave a negative variance beside entries of 1e12, and a relative test of the diagonal
+    against those entries let it through."""
     for key in ("P", "P_filtered"):
         for k, P in enumerate(result[key]):
-            if not np.all(np.isfinite(P)) or np.min(np.diag(P)) < -1e-12 * max(np.abs(P).max(), 1e-300):
+            if not covariance_ok(P):
                 raise SpecError(f"gains: the predicted error covariance {key}[{k}] cannot be computed reliably "
-                                "(not finite or negative); the gains are too small or too close to the stability "
-                                "boundary for double precision")
+                                "(not finite, a negative variance or entries beyond their variances); the gains "
+                                "are too small or too close to the stability boundary for double precision")
+
+
+def covariance_ok(P, rtol: float = 1e-6) -> bool:
+    """``P`` is a covariance within rounding: finite, square, its diagonal non-negative (to
+    ``1e-12`` of the largest variance) and every entry within ``sqrt(P_ii P_jj)`` (to ``rtol``).
+
+    Parameters
+    ----------
+    P : array_like
+        The matrix.
+    rtol : float
+        Relative slack of the bound on the entries.
+
+    Returns
+    -------
+    bool
+    """
+    P = np.asarray(P, dtype=float)
+    if P.ndim != 2 or P.shape[0] != P.shape[1] or not np.all(np.isfinite(P)):
+        return False
+    if P.size == 0:
+        return True
+    d = np.diag(P)
+    scale = max(float(np.max(np.abs(d))), 1e-300)
+    if np.min(d) < -1e-12 * scale:
+        return False
+    v = np.sqrt(np.maximum(d, 0.0))
+    return bool(np.all(np.abs(P) <= np.outer(v, v) * (1 + rtol) + 1e-12 * scale))
 
 
 def designed_observer(spec: FilterSpec, table: GainTable):

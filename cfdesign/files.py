@@ -3,7 +3,9 @@
 Every file cfdesign writes goes through :func:`write_files`: each is first written in full to
 a temporary file beside its target (same directory, so the final rename is atomic on POSIX
 and Windows), flushed and synced; only when *every* file of the set is complete are they
-renamed into place, in turn.  A failure while writing (a full disk, an unwritable
+renamed into place, in turn.  A target that exists and is neither a regular file nor a directory
+(``/dev/stdout``, ``/dev/null``, a pipe) is written into instead, after every file is staged and
+before any is replaced: a rename would replace the device itself.  A failure while writing (a full disk, an unwritable
 directory, a target that is a directory) removes the temporaries and leaves the previous
 files untouched; only a failure between two renames of complete files on the same disk,
 which does not happen in practice, could leave a set half replaced.  New
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 from pathlib import Path
 
@@ -79,11 +82,16 @@ def write_files(contents: dict) -> list:
         the disk is full) or two targets are one file; no target was changed.
     """
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
-    staged = []
+    staged, streams = [], []
     try:
         for path, data in contents.items():
-            path = Path(path)
-            staged.append((path, _stage(path, data.encode("utf-8") if isinstance(data, str) else data)))
+            path, data = Path(path), data.encode("utf-8") if isinstance(data, str) else data
+            if _special(path):
+                streams.append((path, data))
+            else:
+                staged.append((path, _stage(path, data)))
+        for path, data in streams:  # after every file is staged, before any is replaced
+            _write_through(path, data)
         for path, tmp in staged:
             try:
                 os.replace(tmp, path)
@@ -92,7 +100,28 @@ def write_files(contents: dict) -> list:
     finally:
         for _, tmp in staged:
             Path(tmp).unlink(missing_ok=True)
-    return [path for path, _ in staged]
+    return [Path(path) for path in contents]
+
+
+def _special(path: Path) -> bool:
+    """An existing target that is neither a regular file nor a directory: a device, a pipe or
+    ``/dev/stdout``.  It is written into, never replaced: the rename of a temporary file put a
+    regular file in place of ``/dev/null`` (as root), and ``-o /dev/stdout`` wrote no output."""
+    try:
+        mode = os.stat(path).st_mode  # through symlinks: /dev/stdout -> /proc/self/fd/1 -> a pipe
+    except (OSError, ValueError):
+        return False
+    return not (stat.S_ISREG(mode) or stat.S_ISDIR(mode))
+
+
+def _write_through(path: Path, data: bytes):
+    try:
+        with open(path, "wb") as fh:
+            fh.write(data)
+    except BrokenPipeError:  # its reader went away (-o /dev/stdout | head): not an error of ours
+        raise
+    except OSError as exc:
+        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def _stage(path: Path, data: bytes) -> str:
@@ -159,6 +188,15 @@ def open_atomic(path, mode: str = "w", **kwargs):
     ...     fh.write("time,heading\n")
     """
     path = Path(path)
+    if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
+        try:
+            with open(path, mode, **kwargs) as fh:
+                yield fh
+        except BrokenPipeError:  # as for stdout: the reader went away
+            raise
+        except OSError as exc:
+            raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        return
     with _temporary(path, mode, **kwargs) as (fh, tmp):
         yield fh
     try:

@@ -29,7 +29,7 @@ import numpy as np
 from . import linear
 from .errors import GainTableError
 from .linear import GAIN_FORMS
-from .spec import QUANTITY_ORDERS
+from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "column_order",
            "FORMAT_VERSION", "DERIVATIVE_NAMES"]
@@ -54,9 +54,8 @@ MAX_ORDER = MAX_STATES
 #: largest magnitude of a table's matrix entries: with states within the runtime's
 #: :data:`~cfdesign.runtime.filter.STATE_LIMIT` (the same) no product of one step can overflow
 MAX_ENTRY = 1e150
-#: sample times and rates a table may have (seconds, hertz): beyond them the frequency grid and
-#: the ZOH relations lose every digit
-MAX_RATE_HZ = 1e9
+#: sample times and rates a table may have (seconds, hertz), :data:`cfdesign.spec.MAX_RATE_HZ`: beyond
+#: them the frequency grid and the ZOH relations lose every digit
 
 #: version of the JSON layout written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>`
 FORMAT_VERSION = 1
@@ -1059,6 +1058,17 @@ def _no_constant(token):
     raise json.JSONDecodeError(f"{token} is not a JSON number (gain tables hold finite numbers only)", token, 0)
 
 
+def _no_duplicates(pairs) -> dict:
+    """A JSON object whose keys are distinct: with two ``K`` a reader (or a diff) sees the first
+    and json keeps the last, so a table could show one filter and run another."""
+    out = dict(pairs)
+    if len(out) != len(pairs):
+        seen = set()
+        dup = next(k for k, _ in pairs if k in seen or seen.add(k))
+        raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
+    return out
+
+
 def load_gains(path) -> GainTable:
     """Read a gain table written by :meth:`GainTable.save <cfdesign.gains.GainTable.save>` (or ``cfdesign design -o``).
 
@@ -1076,15 +1086,16 @@ def load_gains(path) -> GainTable:
     ------
     GainTableError
         The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
-        Infinity tokens included), fails the schema, or its parts do not fit together; the
-        message names the file and the field.
+        Infinity tokens and keys given twice in one object included), fails the schema, or its
+        parts do not fit together; the message names the file and the field.
     """
     path = Path(path)
     try:
         size = path.stat().st_size
         if size > MAX_TABLE_BYTES:
             raise GainTableError(f"{path}: {size} bytes is more than a gain table holds (limit {MAX_TABLE_BYTES})")
-        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant)
+        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant,
+                          object_pairs_hook=_no_duplicates)
     except RecursionError:
         raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except OSError as exc:

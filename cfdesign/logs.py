@@ -827,6 +827,7 @@ class _Writer:
         self.frames, self.errors = [], {}
         self._ctx = self._fh = self._parquet = None
         self._types = types  # Parquet types of the log's passed-through columns over the whole log
+        self._blocks = 0  # CSV blocks written
 
     def __enter__(self):
         if self.path is not None:
@@ -866,7 +867,9 @@ class _Writer:
                 tab = self._cast(tab, self._parquet.schema)
             self._parquet.write_table(tab)
         else:
-            shown.to_csv(self._fh, index=False, header=self._fh.tell() == 0, lineterminator="\n")
+            # the header before the first block: counted, not asked of the file (a pipe, /dev/stdout, has no tell)
+            shown.to_csv(self._fh, index=False, header=not self._blocks, lineterminator="\n")
+            self._blocks += 1
 
     @staticmethod
     def _cast(tab, schema):

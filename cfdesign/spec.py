@@ -231,6 +231,17 @@ def example_path(name: str = "robot-heading") -> Path:
 
 #: largest design file read (bytes): a design is a few hundred bytes
 MAX_SPEC_BYTES = 1_000_000
+#: rates and frequencies a design may name (Hz), and so its times (s): beyond them the ZOH
+#: relations and the frequency grid lose every digit (a gain table has the same limits)
+MAX_RATE_HZ = 1e9
+RATE_RANGE = (1 / MAX_RATE_HZ, MAX_RATE_HZ)
+#: crossover damping ratios accepted (a ratio of 1e300 overflowed the gain formulas)
+DAMPING_RANGE = (1e-6, 1e6)
+#: fixed gains accepted, by magnitude (zero aside): their products with the model stay normal doubles
+GAIN_RANGE = (1e-100, 1e100)
+#: most sensors a design may have: the exact proof grows faster than cubically with them (32: 5 s;
+#: 100: 4 min; 1000, a 60 kB file: 17 GB and no end)
+MAX_SENSORS = 32
 
 
 def load_spec(path) -> FilterSpec:
@@ -321,12 +332,14 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     sensors = data.get("sensors")
     if not isinstance(sensors, dict) or not sensors:
         raise SpecError("sensors: missing field (one [sensors.NAME] table per sensor)")
+    if len(sensors) > MAX_SENSORS:
+        raise SpecError(f"sensors: {len(sensors)} sensors is more than a design takes (limit {MAX_SENSORS})")
     return FilterSpec(
         name=_text(data, "name") or structure,
         structure=structure,
         sensors=tuple(_sensor(name, body) for name, body in sensors.items()),
         gain_form=_choice(data, "gain_form", ("predictor", "filter"), "predictor"),
-        sample_time_s=_number(data, "sample_time_s", "sample_time_s", positive=True),
+        sample_time_s=_number(data, "sample_time_s", "sample_time_s", positive=True, span=RATE_RANGE),
         discrete=_flag(data, "discrete"),
         order=_integer(data, "order"),
         bands=_integer(data, "bands"),
@@ -357,10 +370,10 @@ def _crossover(data):
     if not values:
         raise SpecError("crossover.hz: give at least one frequency")
     freqs = tuple(_number({"hz": v}, "hz", f"crossover.hz[{i}]" if isinstance(hz, list) else "crossover.hz",
-                          positive=True) for i, v in enumerate(values))
+                          positive=True, span=RATE_RANGE) for i, v in enumerate(values))
     if any(freqs[i + 1] <= freqs[i] for i in range(len(freqs) - 1)):
         raise SpecError(f"crossover.hz: the frequencies must increase, got {list(freqs)}")
-    return {"hz": freqs, "damping": _number(table, "damping", "crossover.damping", positive=True)}
+    return {"hz": freqs, "damping": _number(table, "damping", "crossover.damping", positive=True, span=DAMPING_RANGE)}
 
 
 def _gains(table):
@@ -369,7 +382,7 @@ def _gains(table):
         return None
     if not isinstance(table, dict) or not table:
         raise SpecError("gains must be a table of name = number")
-    return {name: _number(table, name, f"gains.{name}", signed=True) for name in table}
+    return {name: _number(table, name, f"gains.{name}", signed=True, span=GAIN_RANGE) for name in table}
 
 
 def _sensor(name, body) -> SensorSpec:
@@ -380,7 +393,7 @@ def _sensor(name, body) -> SensorSpec:
     if not isinstance(body, dict):
         raise SpecError(f"{field} must be a table")
     _no_unknown(body, _SENSOR_KEYS, field + ".")
-    rate = _number(body, "rate_hz", f"{field}.rate_hz", positive=True, required=True)
+    rate = _number(body, "rate_hz", f"{field}.rate_hz", positive=True, required=True, span=RATE_RANGE)
     noise = body.get("noise")
     if not isinstance(noise, dict):
         raise SpecError(f"{field}.noise: missing field (a table with 'std' or 'density')")
@@ -441,7 +454,9 @@ def _integer(table, key):
     return value
 
 
-def _number(table, key, field, positive=False, required=False, signed=False):
+def _number(table, key, field, positive=False, required=False, signed=False, span=None):
+    """A finite number (int or float, not bool); ``span=(low, high)`` bounds its magnitude (zero
+    aside), naming the field and the limit."""
     value = table.get(key)
     if value is None:
         if required:
@@ -449,11 +464,16 @@ def _number(table, key, field, positive=False, required=False, signed=False):
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SpecError(f"{field} must be a number, got {value!r}")
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer of 400 digits
+        raise SpecError(f"{field}: {str(value)[:20]}... is beyond the range of a double") from None
     if not math.isfinite(value):
         raise SpecError(f"{field} must be finite, got {value}")
     if positive and value <= 0:
         raise SpecError(f"{field} must be positive, got {value:g}")
     if not signed and value < 0:
         raise SpecError(f"{field} must not be negative, got {value:g}")
+    if span and value and not span[0] <= abs(value) <= span[1]:
+        raise SpecError(f"{field}: {value:g} is outside the limits {span[0]:g} to {span[1]:g} (check the units)")
     return value

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import linear
+from .errors import InputError
 
 __all__ = ["Check", "verify_table", "numeric_checks", "band_polynomials", "phase_realisation", "frequency_grid"]
 
@@ -378,6 +379,8 @@ def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
     ------
     SpecError
         Re-designing from ``spec`` fails (the spec does not fit a structure).
+    InputError
+        ``rtol`` is not a number from 0 up to (not including) 1.
 
     See Also
     --------
@@ -394,6 +397,9 @@ def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
     >>> print(checks[-1].line())  # doctest: +ELLIPSIS
     PASS ...
     """
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1:  # NaN too
+        raise InputError(f"rtol (--rtol) must be a relative tolerance from 0 up to (not including) 1, got {rtol!r}: "
+                         "NaN or inf passed tables that run another filter (a sample time 1.5 times the spec's)")
     checks = numeric_checks(table)
     if spec is not None:
         checks += _same_design(table, spec, rtol)

@@ -308,7 +308,8 @@ def test_readings_in_other_units_are_warned_of():
 
 def test_a_noisy_first_field_reading_does_not_latch_a_disturbance_at_rest():
     # A still sensor with a magnetometer ten times noisier than BROAD's (3.2 µT per axis per
-    # sample on a 44 µT field of dip 69 deg, as in BROAD's lab).  The first reading once seeded the field's low-pass and its
+    # sample on a 44 µT field of dip 69 deg, as in BROAD's lab).  The first reading once seeded
+    # the field's low-pass and its
     # reference: one reading off by a few µT froze the reference at the start-up transient, the
     # field was "disturbed" from then on, and at rest no new field can be accepted (it needs the
     # sensor to turn), so the heading ran on the gyro for good.  Now the low-pass starts as the

@@ -4,6 +4,7 @@ result - never a traceback, a silent pass, a NaN that spreads, or a lost file.""
 
 import dataclasses
 import json
+import math
 import os
 import stat
 
@@ -438,3 +439,231 @@ def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp
     (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
     row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
     assert row["samples"] == 0 and "missing column(s) gyro" in row["error"]
+
+
+# ---------------------------------------------------------------------- found by the audit of issue 12
+SPEC_FIELDS = {  # where a number sits in a valid design, and how to put one there
+    "sensors.rate.rate_hz": lambda d, v: d["sensors"]["rate"].__setitem__("rate_hz", v),
+    "sensors.angle.noise.std": lambda d, v: d["sensors"]["angle"].__setitem__("noise", {"std": v}),
+    "sample_time_s": lambda d, v: d.__setitem__("sample_time_s", v),
+    "crossover.hz": lambda d, v: d["crossover"].__setitem__("hz", v),
+    "crossover.damping": lambda d, v: d["crossover"].__setitem__("damping", v),
+}
+
+
+@FUZZ
+@given(field=st.sampled_from(sorted(SPEC_FIELDS)),
+       value=st.sampled_from([10 ** 400, -(10 ** 400), 1e300, 1e200, 1e12, 1e-12, 1e-300, 5e-324]))
+def test_design_numbers_beyond_their_limits_are_named(field, value):
+    """An integer beyond a double was an OverflowError (exit 3); a crossover at 1e308 Hz or a
+    damping of 1e300 overflowed inside the gain formulas (exit 3)."""
+    d = {"structure": "cf2", "order": 2, "discrete": True, "crossover": {"hz": 0.5, "damping": 0.7}, "sensors": {
+        "rate": {"rate_hz": 100.0, "noise": {"density": 1e-3}}, "angle": {"rate_hz": 100.0, "noise": {"std": 0.01}}}}
+    SPEC_FIELDS[field](d, value)
+    try:
+        table = cfdesign.design(parse_spec(d))
+    except SpecError as exc:
+        assert field in str(exc) or "gains" in str(exc) or "crossover" in str(exc), str(exc)
+        return
+    except CfdesignError as exc:
+        assert "sensors" in str(exc) or "gains" in str(exc), str(exc)
+        return
+    assert np.isfinite(table.predicted_std) and all(c.ok for c in verify_table(table)), (field, value)
+
+
+@FUZZ
+@given(gain=st.sampled_from(["k1", "k2"]), value=st.sampled_from([1e-30, 1e-20, 1e-12, 1e-300, 1e-320, 1e-6]))
+def test_one_tiny_fixed_gain_is_refused_or_predicts_a_covariance(gain, value):
+    """k1 = 1e-30 beside k2 = 15.8 gave P = [[-4e-5, 1e12], [-1e12, -6e-4]]: a negative variance let
+    through by a check relative to the garbage entries, and a NaN predicted std with exit 0."""
+    from cfdesign.designer import covariance_ok
+
+    spec = cfdesign.load_spec(cfdesign.example_path("cf3"))
+    try:
+        table = cfdesign.design(dataclasses.replace(spec, gains={**spec.gains, gain: value}))
+    except SpecError as exc:
+        assert "gains" in str(exc)
+        return
+    assert np.isfinite(table.predicted_std) and all(covariance_ok(P) for P in table.P + table.P_filtered)
+
+
+@pytest.mark.parametrize("fails", [False, True])
+def test_cli_prints_a_warning_on_one_line_and_only_when_it_succeeds(monkeypatch, cli, fails):
+    import warnings
+
+    import cfdesign.cli as cli_module
+
+    def warns(args):
+        warnings.warn("marginal solution:\nsecond line", RuntimeWarning, stacklevel=1)
+        if fails:
+            raise SpecError("the spec is bad")
+        return 0
+
+    monkeypatch.setattr(cli_module, "cmd_prove", warns)
+    code, _, err = cli("prove", "cf2")
+    assert err.strip().splitlines() == (["cfdesign: error: the spec is bad"] if fails else
+                                        ["cfdesign: warning: marginal solution: second line"])
+    assert code == (2 if fails else 0)
+
+
+@FUZZ
+@given(value=st.sampled_from([np.float16(0.5), np.float32(0.1), np.array(0.25), 10 ** 400, -(10 ** 400), True,
+                              np.int64(2)]) | st.fractions(max_denominator=1000),
+       api=st.sampled_from(["step", "step_values"]))
+def test_a_reading_of_any_number_type_runs_as_a_float(position, value, api):
+    """A float16 reading made the whole state float16 for good (3 digits, inf past 65504); a
+    Fraction was stored as the held input (a state() that json cannot write); an integer beyond a
+    double was an OverflowError. Each reading becomes a float, or inf (missing, counted)."""
+    from fractions import Fraction
+
+    rt, ref = Runtime(position), Runtime(position)
+    step = (lambda r, u: r.step(accelerometer=u, gps=1.0)) if api == "step" else (lambda r, u: r.step_values(u, 1.0))
+    try:
+        as_float = float(value)
+    except OverflowError:
+        as_float = np.inf
+    for r, u in ((rt, value), (ref, as_float)):
+        step(r, u)
+        for _ in range(3):
+            r.step(accelerometer=0.1, gps=1.0)
+    assert all(type(v) is float for v in rt._S[: rt.n] + rt._U), [type(v) for v in rt._S + rt._U]
+    assert rt.state() == ref.state() and rt.counts == ref.counts
+    json.dumps(rt.state())
+    assert isinstance(value, Fraction) or abs(as_float) < 1e300 or rt.counts["rejected"] == {"accelerometer": 1}
+
+
+BAD_ARRAYS = [["a", "b"], "abc", [None, None], [1 + 1j, 0j], np.zeros(2, dtype=complex), [[1.0], [1.0, 2.0]],
+              [10 ** 400, 0], [{}, {}], [b"1", b"2"]]
+
+
+@FUZZ
+@given(where=st.sampled_from(["run", "x0", "restore x", "restore u_last", "step_values"]),
+       value=st.sampled_from(BAD_ARRAYS))
+def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, value):
+    """Runtime(x0=...), run, restore and step_values converted with numpy or Python and let
+    ValueError, TypeError or OverflowError out (a complex array lost its imaginary part)."""
+    rt = Runtime(position)
+    rt.step(accelerometer=0.1, gps=1.0)
+    before = rt.state()
+    with pytest.raises(CfdesignError):
+        if where == "run":
+            rt.run({"accelerometer": value, "gps": [1.0, 1.0]})
+        elif where == "x0":
+            Runtime(position, x0=value if isinstance(value, str) else [*value, 0.0])
+        elif where == "step_values":
+            rt.step_values(*([0.0] * (3 + len(value) % 2)))
+        else:
+            key = where.split()[1]
+            rt.restore({**before, key: list(value) + [0.0] * (3 - len(value) if key == "x" else 0)})
+    assert rt.state() == before
+
+
+@pytest.mark.parametrize("call", ["step", "declination", "state", "bias prior"])
+def test_attitude_numbers_beyond_a_double_are_named(call):
+    from cfdesign.errors import AttitudeInputError
+    from cfdesign.nav import AttitudeFilter, estimate_attitude
+
+    f = AttitudeFilter(100.0)
+    with pytest.raises(AttitudeInputError):
+        if call == "step":
+            f.step([0.0, 0.0, 10 ** 400], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
+        elif call == "declination":
+            estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, declination_rad=10 ** 400)
+        elif call == "state":
+            f.restore({**f.state(), "bx": 10 ** 400})
+        else:  # its square overflowed
+            estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, gyro_bias_std0=1e308)
+
+
+@FUZZ
+@given(rate=st.sampled_from(["100", "1e-300", "1e300", "1e12"]),
+       cell=st.sampled_from(["0.5", "1e160", "1e308", "-1e200"]))
+def test_noise_rates_and_readings_beyond_their_limits_are_named(tmp_path_factory, rate, cell):
+    """cfdesign noise --rate-hz 1e-300 overflowed (exit 3), 1e300 left no averaging time (exit 3), a
+    reading of 1e160 made an infinite Allan variance and a NaN fit (exit 3)."""
+    from conftest import run_cli
+
+    d = tmp_path_factory.mktemp("n")
+    values = [repr(0.01 * math.sin(k)) for k in range(300)]
+    values[7] = cell
+    (d / "n.csv").write_text("x\n" + "\n".join(values) + "\n")
+    code, out, err = run_cli("noise", d / "n.csv", "--column", "x", "--rate-hz", rate, "-o", d / "n.toml")
+    assert code in (0, 2) and "internal error" not in err and len(err.strip().splitlines()) <= 1, err
+    assert code == 2 or ("nan" not in out and "inf" not in out), out
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+@pytest.mark.parametrize("command", ["export csv", "export json", "run", "design"])
+def test_an_output_that_is_a_pipe_or_a_device_is_written_into_not_replaced(heading, tmp_path, cli, command):
+    """The atomic rename put a regular file in place of the target: -o /dev/stdout wrote nothing
+    to stdout and, as root, -o /dev/null replaced /dev/null itself for every process."""
+    import threading
+
+    table = heading.save(tmp_path / "g.json")
+    log = tmp_path / "log.csv"
+    log.write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.0,0.0\n" for k in range(40)))
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(fifo.read_bytes()), daemon=True)
+    reader.start()
+    argv = {"export csv": ["export", table, "--format", "csv", "-o", fifo],
+            "export json": ["export", table, "--format", "json", "-o", fifo],
+            "run": ["run", table, log, "-o", fifo], "design": ["design", "--example", "cf3", "-o", fifo]}[command]
+    code, _, err = cli(*argv)
+    reader.join(timeout=10)
+    assert code == 0, err
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode) and got and got[0], command
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo", "g.json", "log.csv"]  # no temporaries
+    if command == "export json":
+        assert json.loads(got[0])["name"] == heading.name
+    try:
+        os.mknod(tmp_path / "null", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+    except (OSError, AttributeError):
+        return  # no device nodes here (not root, or a container without CAP_MKNOD)
+    assert cli(*argv[:-1], tmp_path / "null")[0] == 0
+    assert stat.S_ISCHR(os.lstat(tmp_path / "null").st_mode)
+
+
+@FUZZ
+@given(key=st.sampled_from(["K", "F", "gain_form", "wrap_angle", "sample_time_s", "name", "role", "rate_hz"]))
+def test_a_key_given_twice_in_a_table_is_refused(heading, tmp_path_factory, key):
+    """json keeps the last of two keys: a table could show one K (to a reader, a diff) and run another."""
+    text = json.dumps(heading.to_dict())
+    doubled = text.replace(f'"{key}": ', f'"{key}": null, "{key}": ', 1)  # json keeps the last: the real one
+    path = tmp_path_factory.mktemp("t") / "g.json"
+    path.write_text(doubled)
+    json.loads(doubled)  # valid JSON for json itself
+    with pytest.raises(GainTableError, match=f"key '{key}' given twice"):
+        load_gains(path)
+
+
+@pytest.mark.parametrize("name", ["x\nPASS all checks", "x\x1b[2J", "x\rPASS", "x\u2028PASS", "x\x00"])
+def test_design_prints_a_table_name_on_its_own_line_only(tmp_path, cli, name):
+    """The summary of design (and discretize) printed the design file's name as it was: a newline
+    forged a line of its own, an escape sequence reached the terminal."""
+    spec = tmp_path / "d.toml"
+    body = [line for line in cfdesign.example_path("cf3").read_text().splitlines() if not line.startswith("name")]
+    spec.write_text(f"name = {json.dumps(name)}\n" + "\n".join(body) + "\n")
+    code, out, _ = cli("design", spec)
+    assert code == 0 and all(line.isprintable() for line in out.splitlines())
+    assert not any(line.startswith("PASS") for line in out.splitlines()), out
+
+
+def test_a_design_with_too_many_sensors_is_refused_before_work():
+    """1000 position sensors on a chain (a 60 kB file) took 17 GB and did not finish; 100 took 4 min."""
+    from cfdesign.spec import MAX_SENSORS
+
+    sensors = {f"gps{i}": {"measures": "position", "rate_hz": 100.0, "noise": {"std": 1.0}} for i in range(1000)}
+    sensors["acc"] = {"measures": "acceleration", "rate_hz": 100.0, "noise": {"std": 0.01}}
+    with pytest.raises(SpecError, match=f"1001 sensors is more than a design takes \\(limit {MAX_SENSORS}\\)"):
+        parse_spec({"structure": "chain", "order": 2, "discrete": True, "sensors": sensors})
+
+
+@pytest.mark.parametrize("rtol", ["nan", "inf", "-1", "1e300", "1"])
+def test_verify_refuses_a_tolerance_that_passes_anything(heading, tmp_path, cli, rtol):
+    """--rtol inf (or nan, or 1e300) passed a table whose gains and sample time were 1.5 times the spec's."""
+    table = dataclasses.replace(heading, sample_time_s=heading.sample_time_s * 1.5, K=[heading.K[0] * 1.5])
+    code, _, err = cli("verify", table.save(tmp_path / "g.json"), "--spec", cfdesign.example_path("dckf3"),
+                       "--rtol", rtol)
+    assert code == 2 and "--rtol" in err and len(err.strip().splitlines()) == 1

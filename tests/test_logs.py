@@ -677,5 +677,5 @@ def test_a_csv_column_named_twice_is_refused(heading, tmp_path):
     """pandas reads a second 'compass' as 'compass.1': the log ran on the first without a word."""
     text = heading_log(3, 37, n=200)[0].to_csv(index=False).splitlines()
     (tmp_path / "d.csv").write_text("\n".join([text[0] + ",compass", *(r + ",0" for r in text[1:])]) + "\n")
-    with pytest.raises(DataError, match="duplicate column.*compass"):
+    with pytest.raises(DataError, match=r"duplicate column.*compass"):
         run_log(heading, tmp_path / "d.csv")

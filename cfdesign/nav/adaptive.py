@@ -339,7 +339,7 @@ def _number(name, value, *, positive=False, signed=False):
     """A finite float, non-negative (or positive, or any sign); InputError naming ``name`` otherwise."""
     try:
         value = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name}: a number is needed, got {value!r}") from None
     if not math.isfinite(value) or (not signed and (value <= 0 if positive else value < 0)):
         kind = "finite" if signed else "positive" if positive else "non-negative"
@@ -351,7 +351,7 @@ def _rows(name, value, width=None):
     """``value`` as a float array of shape (N,) or (N, width); InputError naming ``name`` otherwise."""
     try:
         a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name}: a numeric array is needed") from None
     expected = 1 if width is None else 2
     if a.ndim != expected or (width is not None and a.shape[1] != width):

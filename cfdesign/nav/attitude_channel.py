@@ -190,7 +190,7 @@ def channel_tables(tables, given, design_pair):
         raise AttitudeInputError(f"give either tables or the noise figures ({', '.join(given)}), not both")
     try:
         tilt, heading = tables
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise TableMismatchError("tables: a pair (tilt, heading) of GainTables or FilterSpecs is needed") from None
     return as_table(tilt, STRUCTURE, "tables[0] (tilt)"), as_table(heading, STRUCTURE, "tables[1] (heading)")
 

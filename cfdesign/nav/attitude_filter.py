@@ -59,7 +59,8 @@ Every threshold is in physical units, derived from the noise figures where it ca
 * magnetic disturbance: the field's norm and dip angle (low-passed over ``mag_filter_s``)
   against a reference learned online (running mean, then a ``mag_reference_s`` low-pass
   while undisturbed; until the ``mag_filter_s`` low-pass has settled it is a running mean of
-  the readings and the reference is that mean, so one noisy first reading cannot seed it): a change of the norm by ``dN`` or of the dip by ``dD`` hides a field
+  the readings and the reference is that mean, so one noisy first reading cannot seed it): a
+  change of the norm by ``dN`` or of the dip by ``dD`` hides a field
   change that can turn the heading by ``dN / B_h`` or ``dD B / B_h``, so the field is disturbed
   when ``|dN| / B`` or ``|dD|`` exceeds ``mag_tolerance_rad * cos(dip)``; a new field is
   accepted after ``mag_new_field_s`` in which it stayed consistent while the sensor turned by
@@ -235,7 +236,7 @@ class AttitudeParams:
         """Check every parameter and return them converted: numbers as floats, switches as bools.
 
         Ranges: ``declination_rad`` within [-pi, pi]; ``gyro_bias_std0`` and
-        ``mag_new_field_rotation_rad`` at least 0; every other number in [1e-15, 1e15], and
+        ``mag_new_field_rotation_rad`` from 0 to 1e15; every other number in [1e-15, 1e15], and
         ``mag_tolerance_rad`` below pi/2 as well; the five switches True or False (a Python or
         numpy bool, not a number).
 
@@ -271,7 +272,7 @@ class AttitudeParams:
                 continue
             try:
                 value = float(value)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise AttitudeInputError(f"{f.name} must be a number, got {value!r}") from None
             if not math.isfinite(value):
                 raise AttitudeInputError(f"{f.name} must be finite, got {value!r}")
@@ -279,8 +280,8 @@ class AttitudeParams:
                 if abs(value) > math.pi:
                     raise AttitudeInputError(f"declination_rad must be within [-pi, pi], got {value!r}")
             elif f.name in ("gyro_bias_std0", "mag_new_field_rotation_rad"):
-                if value < 0:
-                    raise AttitudeInputError(f"{f.name} must be >= 0, got {value!r}")
+                if not 0 <= value <= 1e15:  # 1e308 overflowed when squared (an OverflowError)
+                    raise AttitudeInputError(f"{f.name} must be from 0 to 1e15, got {value!r}")
             elif not 1e-15 <= value <= 1e15:
                 raise AttitudeInputError(f"{f.name} must be a positive number (1e-15 .. 1e15), got {value!r}")
             values[f.name] = value
@@ -397,7 +398,7 @@ def _with_tables(design: AttitudeDesign, tables) -> AttitudeDesign:
     else:
         try:
             tilt, heading = tables
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise TableMismatchError("tables: a pair (tilt, heading) or a dict of GainTables or FilterSpecs is "
                                      "needed") from None
         given = {"tilt": tilt, "heading": heading}
@@ -477,7 +478,7 @@ def _rate(rate_hz) -> float:
         if isinstance(rate_hz, (bool, np.bool_)):
             raise TypeError
         value = float(rate_hz)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"rate_hz must be a number, got {rate_hz!r}") from None
     if not MIN_RATE_HZ <= value <= MAX_RATE_HZ:  # NaN too
         raise AttitudeInputError(f"rate_hz must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
@@ -666,7 +667,7 @@ class AttitudeFilter:
         for name in STATE_FIELDS:
             try:
                 value = float(state[name])
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 raise AttitudeInputError(f"state: {name} must be a number, got {state[name]!r}") from None
             if not math.isfinite(value):
                 raise AttitudeInputError(f"state: {name} must be finite, got {state[name]!r}")
@@ -751,7 +752,7 @@ class AttitudeFilter:
                 mx = my = mz = math.nan
             else:
                 mx, my, mz = (float(v) for v in mag)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise AttitudeInputError("gyr, acc and mag must each be three numbers") from None
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
@@ -824,7 +825,7 @@ def _unit(rows) -> np.ndarray:
 def _initial_quaternion(initial) -> list:
     try:
         q = [float(v) for v in initial]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"initial must be a quaternion [w, x, y, z], got {initial!r}") from None
     n = math.sqrt(sum(v * v for v in q)) if len(q) == 4 else 0.0
     if len(q) != 4 or not math.isfinite(n) or n == 0:

@@ -54,7 +54,7 @@ def positive(name, value, allow_zero=False) -> float:
     """
     try:
         value = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         raise AttitudeInputError(f"{name} must be a finite {'non-negative' if allow_zero else 'positive'} "
@@ -104,7 +104,7 @@ def vectors(name, value, n=None, allow_none=False):
         return None
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise AttitudeInputError(f"{name} must be a numeric array of shape (N, 3)") from None
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise AttitudeInputError(f"{name} must have shape (N, 3), got {arr.shape}")

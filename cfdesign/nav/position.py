@@ -320,7 +320,7 @@ def _rates(imu_rate_hz, gps_rate_hz) -> tuple:
     for name, value in (("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
         try:
             value = float(value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise InputError(f"{name} must be a number, got {value!r}") from None
         if not (math.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a positive finite number, got {value!r}")

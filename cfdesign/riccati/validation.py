@@ -54,7 +54,7 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
     """
     try:
         M = np.array(value, dtype=complex if np.iscomplexobj(value) else float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise RiccatiError(f"{name} must be a numeric matrix ({exc})") from None
     want_r, want_c = (None, None) if shape == "square" else shape
     if M.ndim < 2:  # a scalar is 1x1; a vector is a row where a row fits, else a column

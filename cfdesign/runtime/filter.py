@@ -23,6 +23,8 @@ innovation of an angle sensor and the estimate to (-pi, pi] with
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 
 from .. import linear
@@ -45,6 +47,26 @@ READING_LIMIT = 1e12
 #: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
 #: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
 STATE_LIMIT = 1e150
+
+
+def real_array(value, name) -> np.ndarray:
+    """``value`` as a float array, or :class:`~cfdesign.errors.CfdesignError` naming ``name``.
+
+    Real numbers only (bool, integer and float arrays, and lists of Python numbers): text, None,
+    complex values (``astype(float)`` dropped the imaginary part with a warning), ragged lists
+    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.
+    """
+    try:
+        a = np.asarray(value)
+        if a.dtype.kind == "O":  # Python objects: real numbers of mixed types, or anything (None: refused,
+            # as step refuses it, not NaN as astype makes it)
+            a = a.astype(float) if all(isinstance(v, numbers.Real) for v in a.flat) else None
+    except (TypeError, ValueError, OverflowError):
+        a = None
+    if a is None or a.dtype.kind not in "biuf":
+        shown = repr(value)
+        raise CfdesignError(f"{name}: real numbers are needed, got {shown[:80]}{'...' if len(shown) > 80 else ''}")
+    return a.astype(float, copy=False)
 
 
 def usable(a) -> np.ndarray:
@@ -155,9 +177,9 @@ class Runtime:
         self._active = table.schedule.mask()
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
-        self._x0 = np.zeros(self.n) if x0 is None else np.array(x0, dtype=float).reshape(-1)
+        self._x0 = np.zeros(self.n) if x0 is None else real_array(x0, "x0").reshape(-1)
         if self._x0.shape != (self.n,) or not np.all(np.isfinite(self._x0)):
-            raise CfdesignError(f"x0 must be {self.n} finite numbers for {table.name}, got {np.asarray(x0).tolist()}")
+            raise CfdesignError(f"x0 must be {self.n} finite numbers for {table.name}, got {self._x0.tolist()}")
         from .step import compile_step
 
         self._S = [0.0] * self.n + [0]                        # the state floats, then the phase
@@ -166,7 +188,6 @@ class Runtime:
         self._uns = [0] * len(self.measurements)              # readings at unscheduled phases
         self.step, self._step_values, self.step_source = compile_step(
             table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown)
-        self.step_values = self._step_values  # the compiled function itself: no call through the method
         self.reset()
 
     def _unknown(self, readings):
@@ -305,8 +326,21 @@ class Runtime:
         -------
         float
             The estimate of the common quantity (state 0).
+
+        Raises
+        ------
+        CfdesignError
+            A reading that is not a real number, or a count of readings other than the table's
+            sensors; nothing has changed.
         """
-        return self._step_values(*values)
+        try:
+            return self._step_values(*values)
+        except TypeError:  # Python's message for a wrong count names no sensor
+            names = self.inputs + self.measurements
+            if len(values) != len(names):
+                raise CfdesignError(f"step_values takes {len(names)} readings ({', '.join(names)}), got "
+                                    f"{len(values)}") from None
+            raise
 
     def _advance(self, u, y) -> np.ndarray:
         """One step of the recursion in the module docstring; returns the output state."""
@@ -449,7 +483,7 @@ class Runtime:
         missing = [n for n in names if n not in readings]
         if missing:
             raise CfdesignError(f"no readings for {', '.join(missing)} (use NaN for missing samples)")
-        cols = [np.ascontiguousarray(readings[n], dtype=float).reshape(-1) for n in names]
+        cols = [np.ascontiguousarray(real_array(readings[n], n)).reshape(-1) for n in names]
         if len({len(c) for c in cols}) > 1:
             lengths = ", ".join(f"{n}: {len(c)}" for n, c in zip(names, cols, strict=True))
             raise CfdesignError(f"readings differ in length ({lengths})")
@@ -563,10 +597,9 @@ def _snapshot(state, n, period, p, name):
     if not isinstance(state, dict) or not {"x", "phase", "u_last"} <= set(state):
         fail("a snapshot is a dict with x, phase and u_last (from Runtime.state())")
     try:
-        x = np.array(state["x"], dtype=float)
-        u_last = np.array(state["u_last"], dtype=float)
-    except (TypeError, ValueError):
-        fail("x and u_last must be lists of numbers")
+        x, u_last = real_array(state["x"], "x"), real_array(state["u_last"], "u_last")
+    except CfdesignError as exc:
+        fail(str(exc))
     phase = state["phase"]
     if x.shape != (n,) or u_last.shape != (p,):
         fail(f"x must have {n} entries and u_last {p}")

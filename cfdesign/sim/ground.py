@@ -241,7 +241,7 @@ def _validate(duration_s, imu_rate_hz, gps_rate_hz, outages):
         raise InputError(f"gps_rate_hz: {gps_rate_hz:g} Hz must divide imu_rate_hz {imu_rate_hz:g} Hz")
     try:
         outages = tuple((float(a), float(b)) for a, b in outages)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"outages: (start_s, end_s) pairs are needed, got {outages!r}") from None
     if any(not a < b for a, b in outages):
         raise InputError(f"outages: each (start_s, end_s) needs start < end, got {outages!r}")
