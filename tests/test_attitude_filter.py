@@ -196,7 +196,8 @@ def test_a_tilt_error_does_not_lock_the_acceleration_levels():
 
 def test_the_velocity_channel_rides_out_translation():
     """Back-and-forth translation (bounded velocity) while turning: the inertial-frame velocity
-    channel keeps the tilt; the classic filter on the instantaneous accelerometer does not."""
+    channel keeps the tilt (and so does the classic filter on the instantaneous accelerometer,
+    with these gains and this fast translation)."""
     q = motion(6000, still_s=3.0)
     t = np.arange(len(q)) / RATE
     accel = np.column_stack([2.0 * np.sin(3.0 * t), 2.0 * np.cos(2.3 * t), 1.5 * np.sin(2.0 * t)]) * (t > 5)[:, None]
@@ -204,7 +205,10 @@ def test_the_velocity_channel_rides_out_translation():
     _, incl = errors(AttitudeFilter(RATE).run(gyr, acc, mag), q)
     _, classic = errors(AttitudeFilter(RATE, inertial_tilt=False).run(gyr, acc, mag), q)
     assert np.sqrt(np.mean(incl[1000:] ** 2)) < 0.75                        # measured 0.45°
-    assert np.sqrt(np.mean(classic[1000:] ** 2)) > 2 * np.sqrt(np.mean(incl[1000:] ** 2))   # 1.07°
+    # the classic filter measured 1.07° here, but with or without the translation: an offset from its
+    # start on one specific force, gone since the tilt starts as a running mean (now 0.45°, 0.45° without
+    # translation); this track does not separate the two, so only a bound is kept
+    assert np.sqrt(np.mean(classic[1000:] ** 2)) < 0.75
 
 
 # ---------------------------------------------------------------------- bad input
@@ -323,3 +327,23 @@ def test_a_noisy_first_field_reading_does_not_latch_a_disturbance_at_rest():
     acc = np.tile([0.0, 0.0, GRAVITY], (n, 1))
     out = AttitudeFilter(rate).run(gyr, acc, mag, details=True)
     assert not out.mag_disturbed.any()
+
+
+def test_a_noisy_first_specific_force_is_not_read_as_gyro_bias():
+    # A still sensor with an accelerometer ten times noisier than BROAD's (0.54 m/s² per axis per
+    # sample), default noise figures (so no rest is detected) and a field of dip 69 deg.  The first
+    # specific force once set the tilt alone: one 5 deg off, the channels read its settling (and the
+    # heading it dragged along) as gyro bias from the 1 deg/s prior, the dip drifted, the field was
+    # flagged disturbed at rest for good and the heading ran on that bias.  Now the tilt starts as
+    # the running mean of the tilts of the specific forces (for the tilt low-pass's time constant).
+    rng = np.random.default_rng(6)
+    n, rate = 3000, 100.0
+    gyr = 0.003 * rng.standard_normal((n, 3))
+    acc = np.array([0.0, 0.0, GRAVITY]) + 0.54 * rng.standard_normal((n, 3))
+    acc[0] = GRAVITY * np.array([np.sin(np.radians(5.0)), 0.0, np.cos(np.radians(5.0))])   # 5 deg off
+    mag = np.array([0.0, 16.0, -41.0]) + 0.32 * rng.standard_normal((n, 3))
+    out = AttitudeFilter(rate).run(gyr, acc, mag, details=True)
+    heading, incl = errors(out.quaternion, np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)))
+    assert np.degrees(np.abs(out.bias[n // 2:]).max()) < 0.3             # measured 0.05 deg/s (was 1.3 about z)
+    assert not out.mag_disturbed[n // 2:].any()
+    assert np.abs(heading[n // 2:]).max() < 3.0 and incl[n // 2:].max() < 1.5   # 0.4 and 0.3 deg (were 11.5, 1.9)

@@ -23,6 +23,10 @@ gyro propagates the attitude and four designed complementary channels correct it
   2023).  For an accelerometer far less noisy than the motion the DARE gives the damping
   ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_tilt / sigma_v)``: a second-order
   Butterworth low-pass of the inertial specific force, derived rather than chosen.
+  It starts after a start-up of one time constant of that low-pass (``1 / omega``): from the
+  tilt of the first specific force, the tilt is turned by the gyro and moved to the running mean
+  of the tilts of the specific forces so far, and the tilt channel (below) waits, so the settling
+  of a first reading's noise is not read as gyro bias (not with a given initial attitude).
 * **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
   frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
   noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
@@ -119,6 +123,7 @@ STATE_FIELDS = (
     "new_time", "new_turn",              # time the candidate held (s) and the rotation meanwhile (rad)
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
+    "tilt_n",                            # start-up: specific forces the initial tilt averages
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
 )
@@ -466,6 +471,7 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
         "north": math.atan2(math.cos(p.declination_rad), math.sin(p.declination_rad)),
         "speed2": p.max_speed_mps ** 2,
         "accel_hold_s": p.max_reach_m / p.max_speed_mps,
+        "tilt_alpha": T * math.sqrt(GRAVITY * p.tilt_drift_density / p.velocity_noise_density),
         "gyro_range2": p.gyro_range_rps ** 2,
         "accel_range2": p.accel_range_mps2 ** 2,
     }
@@ -623,7 +629,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (53, 1.0, 0.0)
+        (54, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -742,7 +748,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> f = AttitudeFilter(100.0, magnetometer=False)
         >>> q = f.step([0.0, 0.0, 0.0], [0.0, 9.81 * math.sin(0.2), 9.81 * math.cos(0.2)])
-        >>> [round(v, 6) for v in q]
+        >>> [round(v, 6) + 0.0 for v in q]
         [0.995004, 0.099833, 0.0, 0.0]
         """
         try:
@@ -873,7 +879,7 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
-            c["accel_hold_s"])
+            c["accel_hold_s"], c["tilt_alpha"])
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -883,11 +889,11 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial, max_acc_s, hold_s) = coef
+     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, lgx, lgy, lgz, started,
-     miss_g, miss_a, miss_m) = s
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
+     started, miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     if gx * gx + gy * gy + gz * gz <= g_range2:
@@ -921,6 +927,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 qw, qx, qy, qz = 0.0, 1.0, 0.0, 0.0                   # upside down
             n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
+            tilt_n = 1.0
         glx, gly, glz = gx, gy, gz
         if acc_ok:
             flx, fly, flz = ax, ay, az
@@ -974,7 +981,22 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
 
     # velocity channel (tilt): v += T f_E; e = -v; v += k1 e; tilt turned by k2 e / g
     cx = cy = cz = 0.0
-    if acc_ok:
+    if acc_ok and 0.0 < tilt_n * tilt_alpha < 1.0:
+        # start-up (from the first specific force, not a given attitude): the tilt is the running mean
+        # of the tilts of the specific forces so far, turned by the gyro (one reading is as noisy as
+        # the accelerometer); the velocity channel starts from zero velocity after it
+        if not first:
+            tilt_n += 1.0
+            fex = r0 * ax + r1 * ay + r2 * az
+            fey = r3 * ax + r4 * ay + r5 * az
+            fez = r6 * ax + r7 * ay + r8 * az
+            fh = math.sqrt(fex * fex + fey * fey)
+            if fh > 0.0:
+                w = math.atan2(fh, fez) / (tilt_n * fh)
+                cx, cy = w * fey, -w * fex
+        vx = vy = 0.0
+        jv = 1 if rest else 0
+    elif acc_ok:
         if not inertial:
             vx = vy = 0.0
         vx += T * (r0 * ax + r1 * ay + r2 * az)
@@ -1143,6 +1165,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, lgx, lgy, lgz, started,
-            miss_g, miss_a, miss_m)
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
+            started, miss_g, miss_a, miss_m)
     return jv
