@@ -66,7 +66,7 @@ EXAMPLES_DIR = Path(__file__).resolve().parent / "examples"
 #: built-in example design files, by short name
 EXAMPLES = {
     "robot-heading": "robot_heading_dckf3.toml",
-    "dckf3": "dckf3_fig6.toml",
+    "dckf3": "dckf3_fig5.toml",
     "cf3": "cf3_continuous.toml",
     "ckf3": "ckf3_continuous.toml",
     "position": "position_imu_gps.toml",

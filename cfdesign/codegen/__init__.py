@@ -22,7 +22,7 @@ is, where the runtime's wrap formula re-rounds it by up to a few ulps; angles ou
 the runtime's formula.
 
 Agreement with the Python runtime, as ``tests/test_codegen.py`` checks it (100,000 samples of
-a slow sinusoid plus noise with 2 % missing readings; the seed-001 Fig. 6 DCKF3 example ("dckf3") with the
+a slow sinusoid plus noise with 2 % missing readings; the DCKF3 example of Carreira et al. ("dckf3") with the
 heading crossing +-pi, compared modulo 2 pi; the multirate position table, period 50):
 
 * ``precision='double'``: ``max |C - Python| <= 1e-12`` required; measured 2.7e-15 rad
