@@ -216,6 +216,10 @@ class NoiseTerm:
         Equivalent degrees of freedom of the estimate.
     unit : str
         The term's unit in terms of the sensor's unit ``u`` (``u/sqrt(Hz)``).
+    model_slope : float
+        The fitted model's slope over that range, all terms together: the slope check compares
+        ``slope`` with it (a random walk read where white noise still counts has a model slope
+        well below +1/2).  NaN when not recorded.
     """
 
     name: str
@@ -227,6 +231,7 @@ class NoiseTerm:
     nominal_slope: float
     edf: float
     unit: str
+    model_slope: float = math.nan
 
     def line(self, unit: str = "u") -> str:
         """The term as one line of a summary.
@@ -239,11 +244,13 @@ class NoiseTerm:
         Returns
         -------
         str
-            ``N = 0.01 rad/s/sqrt(Hz) (95% CI ...; slope ..., over tau ... s)``.
+            ``N = 0.01 rad/s/sqrt(Hz) (95% CI ...; slope ... (fitted model ..., the term
+            alone ...) over tau ... s)``.
         """
         unit_text = self.unit.replace("u", unit, 1)
+        model = "" if math.isnan(self.model_slope) else f"fitted model {self.model_slope:+.2f}, "
         return (f"{self.symbol} = {self.value:.4g} {unit_text} (95% CI {self.ci[0]:.4g} to {self.ci[1]:.4g}; "
-                f"slope {self.slope:+.2f}, expected {self.nominal_slope:+.1f}, over tau "
+                f"slope {self.slope:+.2f} ({model}the term alone {self.nominal_slope:+.1f}) over tau "
                 f"{self.tau_range_s[0]:.3g} to {self.tau_range_s[1]:.3g} s)")
 
 
@@ -600,7 +607,8 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
         lo_var = coef[i] * nu / chi2.ppf(0.5 + CONFIDENCE / 2, nu)
         hi_var = coef[i] * nu / chi2.ppf(0.5 - CONFIDENCE / 2, nu)
         terms[key] = NoiseTerm(key, symbol, math.sqrt(coef[i]), (math.sqrt(lo_var), math.sqrt(hi_var)),
-                               (float(tau[lo]), float(tau[hi])), float(measured), slope, float(nu), unit)
+                               (float(tau[lo]), float(tau[hi])), float(measured), slope, float(nu), unit,
+                               float(expected))
     return terms, missing
 
 

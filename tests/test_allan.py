@@ -268,3 +268,12 @@ def test_cli_reads_logs_as_cfdesign_run_does(cli, tmp_path):
     (tmp_path / "g.csv").write_text("time,gyro\n0,1\n0.01,\n0.02,1\n")
     code, _, err = cli("noise", tmp_path / "g.csv", "--column", "gyro", "--rate-hz", 100)
     assert code == 2 and "line 3" in err and "complete recording" in err
+
+
+def test_a_term_s_line_shows_the_slope_it_was_checked_against():
+    """A random walk read where white noise still counts: the line said 'slope +0.13, expected
+    +0.5' although the check compares with the fitted model's slope; it names both now."""
+    fit = identify_noise(gyro(1800.0, seed=1), RATE)
+    rw = fit.terms["random_walk"]
+    assert -0.5 < rw.model_slope < 0.5 and f"fitted model {rw.model_slope:+.2f}" in rw.line()
+    assert "the term alone +0.5" in rw.line()
