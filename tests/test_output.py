@@ -23,8 +23,8 @@ def _table(example, form, rates=None):
 @pytest.mark.parametrize("form", ["predictor", "filter"])
 def test_default_output_variance_is_the_posterior_prediction(rates, form):
     """The dckf3 example (the paper's Fig. 5 arrangement) at 5 Hz, and with the compass at 1 Hz
-    (period 5): the default output's error variance within 3 % of the table's a-posteriori prediction, the prediction's within 3 %
-    of P (measured: within 0.5 % over four seeds)."""
+    (period 5): the default output's error variance within 3 % of the table's a-posteriori
+    prediction, the prediction's within 3 % of P (measured: within 0.5 % over four seeds)."""
     table = _table("dckf3", form, rates)
     assert table.period == (1 if rates is None else 5)
     assert table.output == "posterior"
