@@ -33,12 +33,15 @@ loops.
 
 Run::
 
-    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--only ours9d,vqf]
+    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--only ours9d,vqf]
 
 ``--ablation``: ours9d with each mechanism off (parameters of AttitudeParams), mean and per
 trial.  ``--loo``: leave-one-out over the constants tuned on these trials: for each held-out
 trial and each constant, the value of a small grid that is best on the other nine, then
-scored on the held-out trial (the other constants at their defaults).
+scored on the held-out trial (the other constants at their defaults).  ``--reversed``: every
+trial played backwards, a motion none of the filters was tuned on (time reversal keeps the
+specific force and the field, negates the body rate; the reference moves by one sample so
+that each estimate is scored against the attitude after its gyro sample, as forwards).
 
 Optional dependencies (bench only, never needed by cfdesign or its tests):
 ``pip install vqf ahrs imufusion``.
@@ -160,6 +163,21 @@ def available(names):
     return out
 
 
+def reversed_trial(d):
+    """The trial played backwards: readings in reverse order, body rates negated, the reference
+    and the movement flags shifted by one sample (sample ``k`` of the reversed trial integrates
+    the rate between original samples ``N-1-k`` and ``N-2-k``)."""
+    out = dict(d)
+    out["gyr"] = np.ascontiguousarray(-d["gyr"][::-1])
+    out["acc"], out["mag"] = np.ascontiguousarray(d["acc"][::-1]), np.ascontiguousarray(d["mag"][::-1])
+    ref = np.full_like(d["ref"], np.nan)
+    ref[:-1] = d["ref"][::-1][1:]
+    movement = np.zeros_like(d["movement"])
+    movement[:-1] = d["movement"][::-1][1:]
+    out["ref"], out["movement"] = ref, movement
+    return out
+
+
 def _score(args):
     path, params = args
     d = load_trial(path)
@@ -174,13 +192,14 @@ def _scores(files, params_list, jobs):
     return np.array(flat).reshape(len(params_list), len(files), 3)
 
 
-def main_table(files, names):
+def main_table(files, names, reverse=False):
     table = {n: [] for n in names}
     times = {n: [] for n in names}
-    print("RMSE deg (total / heading / inclination), then the time per trial in ms")
+    print("RMSE deg (total / heading / inclination), then the time per trial in ms"
+          + (" - every trial played backwards" if reverse else ""))
     print("trial".ljust(22) + "".join(f"{n:>25}" for n in names))
     for path in files:
-        d = load_trial(path)
+        d = reversed_trial(load_trial(path)) if reverse else load_trial(path)
         AttitudeFilter(d["rate"])                        # design the tables before timing
         row = path.stem[:21].ljust(22)
         for n in names:
@@ -240,6 +259,7 @@ def main(argv=None):
     parser.add_argument("--ablation", action="store_true", help="also the ablation table of ours9d")
     parser.add_argument("--loo", action="store_true", help="also the leave-one-out check of the tuned constants")
     parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation and --loo")
+    parser.add_argument("--reversed", action="store_true", help="also the table of every trial played backwards")
     args = parser.parse_args(argv)
     files = sorted(args.data.glob("*.mat"))
     if not files:
@@ -251,6 +271,9 @@ def main(argv=None):
         print(f"unknown filter(s): {', '.join(unknown)}")
         return 1
     main_table(files, names)
+    if args.reversed:
+        print()
+        main_table(files, names, reverse=True)
     if args.ablation:
         ablation(files, args.jobs)
     if args.loo:
