@@ -383,7 +383,7 @@ class _Pass:
     def __init__(self, table, cols, source):
         self.table, self.cols, self.source = table, cols, source
         self.t0 = None
-        self.last_time = None
+        self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
         self._sampled = 0
@@ -397,21 +397,27 @@ class _Pass:
             from .timing import nearest_tick, place
 
             t = values[self.cols.time]
-            both = t if self.last_time is None else np.concatenate([[self.last_time], t])
-            base = np.ones(len(both), dtype=bool)
+            read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
+            base = np.ones(n, dtype=bool)
             for s in self.table.inputs:
-                col = values[self.cols.sensors[s.name]]
-                base[len(both) - n:] &= ~np.isnan(col)
+                base &= read[s.name]
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock)
-                first = np.flatnonzero(base[len(both) - n:])
+                first = np.flatnonzero(base)
                 self.t0 = t[first[0]] if first.size else t[0]
-            place(both, self.table.sample_time_s, base_rows=base, source=self.source,
-                  first_line=2 + self.rows - (0 if self.last_time is None else 1), rate=False)
-            self._sample(t[base[len(both) - n:]])
+            tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
+            place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
+                  first_line=2 + self.rows - len(tail_t),
+                  readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
+            self._sample(t[base])
             # a reading logged before the first input row is used at tick 0
             ticks = np.maximum(nearest_tick((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
             if n:
-                self.last_time = t[-1]
+                last = t == t[-1]
+                if last.all() and len(tail_t) and tail_t[-1] == t[-1]:  # a block all at the tail's time
+                    self.tail = (np.concatenate([tail_t, t]), {s: np.concatenate([tail_read[s], r])
+                                                               for s, r in read.items()})
+                else:
+                    self.tail = (t[last], {s: r[last] for s, r in read.items()})
         self.rows += n
         return ticks
 

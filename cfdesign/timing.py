@@ -10,8 +10,8 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    ``t0`` the time of the log's first row where the input sensors read (the base clock; a
    reading logged before it is used at tick 0): the nearest tick, so a reading is used at most ``T/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
-   does not move it).  Times must be finite and strictly increasing, and the rate of the input
-   sensors' rows must be the table's base rate within 1 %.
+   does not move it).  Times must be finite and increasing (rows at one time read different
+   sensors), and the rate of the input sensors' rows must be the table's base rate within 1 %.
 2. **Locking.**  Each slow sensor's arrivals are matched to its phases in the table's
    schedule, allowing it an offset of its own (the compass arriving at tick 37 of every 100,
    the odometry at ticks 3, 13, 23, ...).  Where the offsets amount to one rotation of the
@@ -113,7 +113,8 @@ def nearest_tick(x):
     return np.floor(np.asarray(x, dtype=float) + 0.5)
 
 
-def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True):
+def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
+          readings=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -132,6 +133,11 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     rate : bool
         Check the base rate (False: the caller checks it once over the whole log, with
         :func:`check_rate`; a block of a few rows cannot tell a jittered rate from a wrong one).
+    readings : dict, optional
+        ``{sensor: bool array}``: which rows hold a reading of each sensor.  Rows at one time
+        are then allowed when no sensor reads in two of them (a log with one row per reading,
+        the compass stamped at the time of a gyro sample); without it every repeated time is
+        refused.
 
     Returns
     -------
@@ -141,8 +147,8 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     Raises
     ------
     DataError
-        A time that is not finite, not increasing or repeated (naming the line), or a base
-        rate more than :data:`RATE_RTOL` off the table's (naming both).
+        A time that is not finite, goes back, or repeats with a second reading of one sensor
+        (naming the line), or a base rate more than :data:`RATE_RTOL` off the table's (naming both).
     """
     t = np.asarray(time, dtype=float)
     if not t.size:
@@ -152,12 +158,22 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         raise DataError(f"{source} line {first_line + bad[0]}: time {float(t[bad[0]])!r} is not a finite number "
                         "of seconds")
     d = np.diff(t)
-    back = np.flatnonzero(d <= 0)
+    back = np.flatnonzero(d < 0) if readings is not None else np.flatnonzero(d <= 0)
+    if readings is not None:  # a repeated time is a duplicate when a sensor reads twice at it
+        first = np.concatenate([[True], d != 0])  # the first row at each time
+        start = np.maximum.accumulate(np.where(first, np.arange(len(t)), 0))
+        for read in readings.values():
+            read = np.asarray(read, dtype=np.int64)
+            count = np.cumsum(read)  # count - count[start] + read[start]: readings at this time so far
+            twice = np.flatnonzero((read > 0) & (count - count[start] + read[start] > 1))
+            if twice.size and (not back.size or twice[0] - 1 < back[0]):
+                back = np.array([twice[0] - 1])
     if back.size:
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
         raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
-                        "line before (times must increase)")
+                        "line before (times must increase" + (", and rows at one time must read different sensors)"
+                                                             if readings is not None else ")"))
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)

@@ -351,12 +351,12 @@ def test_python_result_fields(heading):
 
 
 # ---------------------------------------------------------------------- blocks, ticks and columns
-def _event_log(n):
+def _event_log(n, lags=(1e-4, 2e-4)):
     """The heading log as an event log: the IMU rows, and the odometry and compass in rows of their
-    own just after (the same tick)."""
+    own just after (the same tick; ``lags=(0, 0)``: stamped with the IMU row's time)."""
     log, psi = heading_log(0, 0, n=n, jitter=0.0)
     events = []
-    for lag, name in ((1e-4, "odometry"), (2e-4, "compass")):
+    for lag, name in zip(lags, ("odometry", "compass"), strict=True):
         ev = log[log[name].notna()][["time", name]].copy()
         ev["time"] += lag
         events.append(ev)
@@ -373,6 +373,23 @@ def test_a_block_boundary_between_rows_of_one_tick_loses_no_reading(heading):
     for rows in (row - 1, row, 1):  # boundary before the odometry row, before the compass row; every row
         split = run_log(heading, log, block_rows=rows)
         assert split.unused == {} and np.allclose(split.estimates["heading"], one.estimates["heading"], atol=1e-9)
+
+
+def test_rows_of_different_sensors_may_share_a_time_a_sensor_read_twice_may_not(heading):
+    """An event log whose odometry and compass rows carry the IMU row's own time stamp (one loop
+    stamps them all) runs as the log with one row per tick, whatever the blocks; a sensor read twice
+    at one time is a duplicate, refused naming its line, also across a block boundary."""
+    log, _ = _event_log(600, lags=(0.0, 0.0))
+    merged = run_log(heading, heading_log(0, 0, n=600, jitter=0.0)[0]).estimates["heading"].to_numpy()
+    imu = log["gyro"].notna().to_numpy()
+    row = int(np.flatnonzero(log["compass"].notna().to_numpy())[1])  # the compass row of tick 100
+    for rows in (None, row - 1, row, 1):
+        r = run_log(heading, log, block_rows=rows)
+        assert r.unused == {} and np.max(np.abs(r.estimates["heading"].to_numpy()[imu] - merged)) < 1e-9
+    dup = pd.concat([log.iloc[:row + 1], log.iloc[row:]], ignore_index=True)  # the compass row twice
+    for rows in (None, row + 1):
+        with pytest.raises(DataError, match=rf"line {row + 3}: time 1\.0 repeats 1\.0 .*read different sensors"):
+            run_log(heading, dup, block_rows=rows)
 
 
 def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
