@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -258,12 +259,14 @@ def cmd_run(args) -> int:
 
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
-    logs = _log_paths(args.data)
+    logs, fleet = _log_paths(args.data)
     options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
     if args.workers is not None and args.workers < 1:
         raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
-    if len(logs) > 1 or args.workers or args.scheduler or Path(args.output).is_dir():
+    # a folder (named so, or existing) or logs named as a folder or a glob run as a fleet, however many match
+    folder = Path(args.output).is_dir() or args.output.endswith(("/", os.sep))
+    if fleet or args.workers or args.scheduler or folder:
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
         suffix = ".parquet" if args.format == "parquet" else ".csv"
@@ -289,23 +292,27 @@ def cmd_run(args) -> int:
     return 0
 
 
-def _log_paths(items) -> list:
-    """Files named, globbed or in named directories (CSV and Parquet), in a stable order."""
+def _log_paths(items) -> tuple:
+    """Files named, globbed or in named directories (CSV and Parquet), in a stable order, and
+    whether they are a fleet (several files, or a directory or a glob, whatever it matched)."""
     import glob
 
     out = []
+    fleet = len(items) > 1
     for item in items:
         p = Path(item)
         if p.is_dir():
             found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
+            fleet = True
         elif any(c in item for c in "*?["):
             found = sorted(Path(q) for q in glob.glob(item))
+            fleet = True
         else:
             found = [p]
         if not found:
             raise CfdesignError(f"no log files in {item}")
         out += found
-    return out
+    return out, fleet
 
 
 def _pairs(items, option, form) -> dict:
@@ -433,7 +440,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("data", nargs="+", help="log file(s), a directory or a glob; one column per sensor (named as in "
                                            "the table, or --map), a time column, any others (passed through)")
     p.add_argument("-o", "--output", required=True, help="estimates file (.csv or .parquet); a directory (created "
-                                                         "if missing) for several logs, with summary.csv")
+                                                         "if missing; a name ending in /) for several logs, a "
+                                                         "directory or a glob of logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
                                                     "or 't' in any case; without one, each row is one base tick)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")

@@ -1,6 +1,8 @@
 """Real logs: timestamps placed on ticks, sensors locked to when they arrive, gapped columns at
 batch speed, bad logs refused on one line, nothing half-written, Parquet, blocks, many logs."""
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -322,6 +324,24 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
     assert summary["samples"].tolist() == [0, 1500, 1500, 1500] and summary["rms_heading"].notna().sum() == 3
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["robot0.csv", "robot1.csv", "robot2.csv",
                                                                     "summary.csv"]
+
+
+def test_a_folder_output_or_a_glob_is_a_fleet_however_many_logs_match(heading, tmp_path, cli, monkeypatch):
+    """``-o new/`` (a folder that does not exist yet) with one log, and a glob or a folder that
+    matches one log, run as a fleet into a folder (not a file named like the folder)."""
+    import cfdesign.logs
+
+    runs = []  # the Dask part is tested above
+    monkeypatch.setattr(cfdesign.logs, "run_logs", lambda table, paths, outdir, **kw: runs.append(
+        ([p.name for p in paths], str(outdir))) or [{"log": str(paths[0]), "samples": 1}])
+    table = heading.save(tmp_path / "g.json")
+    (tmp_path / "logs").mkdir()
+    heading_log(0, 0, n=300)[0].to_csv(tmp_path / "logs" / "robot.csv", index=False)
+    for data, out in ((tmp_path / "logs" / "robot.csv", f"{tmp_path / 'new'}/"),
+                      (f"{tmp_path}/logs/rob*.csv", tmp_path / "new2"), (tmp_path / "logs", tmp_path / "new3")):
+        code, _, err = cli("run", table, data, "-o", out)
+        assert code == 0, err
+        assert runs.pop() == (["robot.csv"], str(out)) and not Path(out).is_file()
 
 
 def test_plot_of_a_run(heading, tmp_path, cli):
