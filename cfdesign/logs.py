@@ -633,7 +633,7 @@ def _lock(table, blocks, cols, source, types=False):
 
     place = _Pass(table, cols, source)
     arrivals = {s.name: [] for s in table.measurements}
-    inputs = dict.fromkeys((s.name for s in table.inputs), 0)  # readings of each input sensor
+    inputs = {s.name: _Held() for s in table.inputs}  # the ticks without a reading of each input sensor
     last = -1
     schemas = []
     for block in blocks():
@@ -641,11 +641,12 @@ def _lock(table, blocks, cols, source, types=False):
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
                           2 + place.rows, cols.time)
+        first_line = 2 + place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
-        for name in inputs:
-            inputs[name] += int(np.sum(np.isfinite(values[cols.sensors[name]])))
+        for name, held in inputs.items():
+            held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_line)
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -657,8 +658,44 @@ def _lock(table, blocks, cols, source, types=False):
 
     lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
-                      for name, count in inputs.items() if not count]
+                      if held.last is None else held.note(name, last, table.sample_time_s)
+                      for name, held in inputs.items() if held.last is None or held.missing(last)]
     return lock, place.rows, schemas or None
+
+
+class _Held:
+    """The ticks at which an input sensor has no reading (its last reading is held there), counted
+    block by block: how many, and the longest gap with the log line it follows."""
+
+    def __init__(self):
+        self.last = self.line = None  # tick and log line of the last reading so far
+        self.gaps = 0  # ticks without a reading between readings
+        self.longest = (0, 0)  # (ticks, log line of the reading before the gap)
+
+    def add(self, ticks, read, first_line):
+        rows = np.flatnonzero(read)
+        if not rows.size:
+            return
+        at = np.unique(ticks[rows]) if self.last is None else np.unique(np.concatenate([[self.last], ticks[rows]]))
+        skip = np.diff(at) - 1
+        self.gaps += int(skip.sum())
+        if skip.size and skip.max() > self.longest[0]:
+            k = int(np.argmax(skip))
+            before = rows[ticks[rows] <= at[k]]  # the row of the reading before the gap (or the last block's)
+            self.longest = (int(skip[k]), first_line + int(before[-1]) if before.size else self.line)
+        if self.last is None:
+            self.gaps += int(at[0])  # ticks before the first reading
+        self.last, self.line = int(at[-1]), first_line + int(rows[-1])
+
+    def missing(self, last_tick) -> int:
+        """Ticks of the log (``0 .. last_tick``) without a reading."""
+        return self.gaps + (last_tick - self.last)
+
+    def note(self, name, last_tick, dt) -> str:
+        ticks, line = self.longest
+        longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
+        return (f"{name} (an input) has no reading at {self.missing(last_tick)} of {last_tick + 1} ticks{longest}: "
+                "its last reading is held there")
 
 
 class _Runner:

@@ -583,6 +583,19 @@ def test_tick_zero_is_the_first_input_row_and_outputs_are_checked(heading, tmp_p
         Runtime(heading, x0=[1.0, 2.0, 3.0])
 
 
+def test_ticks_without_an_input_reading_are_reported(heading):
+    """Dropped IMU rows (the time jumps by 2-5 ticks) and a 3 s gap in the IMU stream hold the gyro's
+    last reading: said in a note with the count and the longest gap's line, whatever the blocks."""
+    log, _ = heading_log(0, 0, n=2000, jitter=0.0)
+    drop = [101, 102, 500, 501, 502, 503, *range(1200, 1500)]  # the compass row 1200 and 1300 keep their reading
+    log.loc[drop, "gyro"] = np.nan
+    log = log.drop(index=[d for d in drop if np.isnan(log.loc[d, "compass"])]).reset_index(drop=True)
+    expected = "gyro (an input) has no reading at 306 of 2000 ticks, the longest 300 ticks (3 s) after line 1196"
+    for rows in (None, 700, 1195):
+        notes = run_log(heading, log, block_rows=rows).notes
+        assert any(n.startswith(expected) for n in notes), notes
+
+
 def test_a_sensor_without_readings_is_reported(heading):
     log, _ = heading_log(0, 0, n=2000)
     log["compass"] = np.nan
