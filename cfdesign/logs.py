@@ -641,6 +641,8 @@ def _lock(table, blocks, cols, source, types=False):
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
                           2 + place.rows, cols.time)
+        if cols.time is not None and block[cols.time].dtype == np.float32:
+            _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source)
         first_line = 2 + place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
@@ -661,6 +663,16 @@ def _lock(table, blocks, cols, source, types=False):
                       if held.last is None else held.note(name, last, table.sample_time_s)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
     return lock, place.rows, schemas or None
+
+
+def _check_float32_time(t, name, dt, source):
+    """A float32 time column must resolve a tenth of a tick (at 1.7e9 s, Unix time, its steps are 128 s)."""
+    finite = np.abs(t[np.isfinite(t)])
+    if finite.size:
+        step = float(np.spacing(np.float32(finite.max())))
+        if step > dt / 10:
+            raise DataError(f"{source}: the time column {name!r} is float32, whose steps at {finite.max():.6g} s are "
+                            f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
 
 
 class _Held:

@@ -214,8 +214,14 @@ def check_rate(t, dt, source):
     ticks = float(np.sum(np.maximum(np.rint(steps / unit), 1.0)))
     spacing = float(t[-1] - t[0]) / ticks
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
+        unit = next((f" (times in {name}? they must be seconds)" for name, scale in _TIME_UNITS
+                     if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
         raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "
-                        f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate")
+                        f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate{unit}")
+
+
+#: time units a log may have written instead of seconds, named in the message of a rate that is off by their scale
+_TIME_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
 
 
 @dataclass(frozen=True)

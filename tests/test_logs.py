@@ -285,7 +285,9 @@ BAD_LOGS = {
     "missing.csv": ("time,gyro,compass\n0,1,2\n", r"missing column\(s\) odometry"),
     "text.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,abc,3\n", "line 3: column 'compass' is not a number"),
     "rate.csv": ("time,gyro,compass,odometry\n" + "".join(f"{0.1 * k},1,2,3\n" for k in range(5)),
-                 "base rate is 10 Hz .* the table runs at 5 Hz"),
+                 "base rate is 10 Hz .* the table runs at 5 Hz; a gain table is designed for one rate$"),
+    "ms.csv": ("time,gyro,compass,odometry\n" + "".join(f"{200 * k},1,2,3\n" for k in range(5)),
+               r"base rate is 0\.005 Hz .* \(times in milliseconds\? they must be seconds\)"),
     "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
     "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
     "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
@@ -594,6 +596,17 @@ def test_ticks_without_an_input_reading_are_reported(heading):
     for rows in (None, 700, 1195):
         notes = run_log(heading, log, block_rows=rows).notes
         assert any(n.startswith(expected) for n in notes), notes
+
+
+def test_a_float32_time_column_too_coarse_for_the_tick_is_refused(heading):
+    """Unix time (1.7e9 s) in float32 steps by 128 s: refused naming the column and its resolution,
+    not as 'time repeats'; float32 seconds from the start of a 30 s log run as float64 ones."""
+    log, _ = heading_log(0, 0, n=3000, jitter=0.0)
+    exact = run_log(heading, log).estimates["heading"].to_numpy()
+    short = log.assign(time=log["time"].astype(np.float32))
+    assert np.max(np.abs(run_log(heading, short).estimates["heading"].to_numpy() - exact)) < 1e-12
+    with pytest.raises(DataError, match=r"column 'time' is float32, whose steps at 1\.7e\+09 s are 128 s, too coarse"):
+        run_log(heading, log.assign(time=(log["time"] + 1.7e9).astype(np.float32)))
 
 
 def test_a_sensor_without_readings_is_reported(heading):
