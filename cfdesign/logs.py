@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -225,7 +226,7 @@ def read_log(path, columns=None, *, chunksize=None):
     """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
 
     A CSV's separator is a comma, or the semicolon or tab of its header line when that has no
-    comma (a semicolon-separated file may write decimal commas: ``0,01``); column names are
+    comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
     stripped of spaces, and a row with more cells than the header is an error naming its line
     (it was read without its extra cells).
 
@@ -277,16 +278,18 @@ def _read_error(path, exc) -> DataError:
 
 def _csv_format(path) -> dict:
     """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
-    has none and has semicolons or tabs; a semicolon file whose first data row has a comma
-    writes decimal commas."""
+    has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
+    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers)."""
     with open(path, "rb") as fh:
         line = fh.readline(1 << 16)
-        row = fh.readline(1 << 16)
+        rows = fh.read(1 << 16)
     if b"," in line:
         return {}
-    if b";" in line:
-        return {"sep": ";", "decimal": ","} if b"," in row else {"sep": ";"}
-    return {"sep": "\t"} if b"\t" in line else {}
+    sep = ";" if b";" in line else "\t" if b"\t" in line else None
+    if sep is None:
+        return {}
+    cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % ((re.escape(sep.encode()),) * 2)
+    return {"sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {"sep": sep}
 
 
 def _stripped(frame, columns=None):

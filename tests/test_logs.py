@@ -199,13 +199,22 @@ def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
 
 def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading, tmp_path):
     """A header 'time ,gyro ' was refused (the columns were read by their stripped names); a
-    semicolon- (with decimal commas) or tab-separated export was one column named 'time;gyro;...'."""
+    semicolon- (with decimal commas) or tab-separated export was one column named 'time;gyro;...';
+    decimal commas were looked for in the first row only (all integers at time 0: refused), and
+    not at all in tab-separated exports."""
     log, _ = heading_log(3, 37, n=600)
+    log.loc[0, ["time", "gyro", "truth"]] = 0.0  # a first row of integers: no decimal comma to see in it
     expected = run_log(heading, log).estimates["heading"].to_numpy()
+
+    def integers_first(text, sep):
+        lines = text.split("\n")
+        return "\n".join([lines[0], sep.join(["0", "0", "", "", "0", "0"]), *lines[2:]])
+
     files = {"spaced.csv": log.rename(columns={"time": "time ", "gyro": " gyro "}).to_csv(index=False),
-             "semicolons.csv": log.to_csv(index=False, sep=";", decimal=","),
+             "semicolons.csv": integers_first(log.to_csv(index=False, sep=";", decimal=","), ";"),
              "semicolons_dots.csv": log.to_csv(index=False, sep=";"),
-             "tabs.tsv": log.to_csv(index=False, sep="\t")}
+             "tabs.tsv": log.to_csv(index=False, sep="\t"),
+             "tabs_commas.tsv": integers_first(log.to_csv(index=False, sep="\t", decimal=","), "\t")}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
         for rows in (None, 250):  # in one piece and in blocks
