@@ -169,7 +169,8 @@ def _numeric(df, columns, source, first_line, time=None):
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
-    without a time zone is taken as UTC; only differences matter)."""
+    without a time zone is taken as UTC; only differences matter); durations (a timedelta
+    column) become seconds."""
     pd = _pandas()
     out = {}
     for c in columns:
@@ -179,6 +180,9 @@ def _numeric(df, columns, source, first_line, time=None):
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
             out[c] = _epoch_seconds(s)
+            continue
+        if c == time and s.dtype.kind == "m":  # durations (a Parquet duration column): seconds; NaT is NaN
+            out[c] = s.dt.total_seconds().to_numpy(dtype=float)
             continue
         text = s.astype("string").str.strip()
         values = pd.to_numeric(text.where(text != ""), errors="coerce")

@@ -188,6 +188,19 @@ def test_dates_as_times_run_as_seconds(heading, tmp_path):
         run_log(heading, tmp_path / "bad.csv")
 
 
+def test_durations_as_times_run_as_seconds(heading, tmp_path):
+    """A time column of durations (timedelta; a Parquet duration column) is seconds: it was refused
+    as 'neither a number nor an ISO 8601 date'."""
+    log, _ = heading_log(3, 37, n=1000)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    durations = log.assign(time=pd.to_timedelta(log["time"], unit="s"))
+    durations.to_parquet(tmp_path / "log.parquet")
+    for data in (durations, tmp_path / "log.parquet"):
+        got = run_log(heading, data).estimates
+        assert np.allclose(got["heading"].to_numpy(), expected, rtol=0, atol=1e-9)
+        assert got["time"].dtype.kind == "m"  # written as the log had it
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
