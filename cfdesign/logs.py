@@ -498,7 +498,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         The output cannot be written; nothing is left half-written.
     """
     if table.domain != "z":
-        raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
+        from .runtime.filter import DISCRETE_HINT
+
+        raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables ({DISCRETE_HINT})")
     block_rows = block_rows or BLOCK_ROWS
     frame, source = _source(data, source, time)
     if frame is None and output is not None and _same_file(data, output):

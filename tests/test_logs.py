@@ -188,6 +188,16 @@ def test_dates_as_times_run_as_seconds(heading, tmp_path):
         run_log(heading, tmp_path / "bad.csv")
 
 
+def test_a_continuous_table_is_refused_saying_how_to_discretise_it():
+    """A continuous table (the tilt, cf3 and ckf3 examples as ``cfdesign design`` writes them) cannot
+    run a log: the error names ``cfdesign discretize`` (it named nothing to do)."""
+    tilt = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("tilt")))
+    log = pd.DataFrame({"time": [0.0, 0.005], "gyro": [0.1, 0.1], "accelerometer": [0.2, 0.2]})
+    with pytest.raises(CfdesignError, match=r"continuous-time table; logs run discrete tables \(discretise it .*"
+                                            r"cfdesign discretize TABLE --rate-hz R"):
+        run_log(tilt, log)
+
+
 def test_durations_as_times_run_as_seconds(heading, tmp_path):
     """A time column of durations (timedelta; a Parquet duration column) is seconds: it was refused
     as 'neither a number nor an ISO 8601 date'."""

@@ -160,9 +160,10 @@ def check_c_identifier(name, what: str) -> str:
 # ---------------------------------------------------------------------- checks
 def _check_runnable(table):
     if table.domain != "z" or table.gain_form not in ("predictor", "filter"):
+        from ..runtime.filter import DISCRETE_HINT
+
         raise CfdesignError(f"{table.name} is a continuous-time table ({table.gain_form} gains); C code runs "
-                            "discrete tables in predictor or filter form (design a discrete structure: dckf3, "
-                            "position, or cf2/cf3/cfn with discrete = true)")
+                            f"discrete tables in predictor or filter form ({DISCRETE_HINT})")
 
 
 def _default_prefix(table) -> str:

@@ -44,6 +44,9 @@ _NAN = float("nan")
 #: physical: they are treated as missing and counted, like inf, so that they cannot overflow
 #: the state
 READING_LIMIT = 1e12
+#: how to get a discrete table from a continuous one (the messages that refuse one)
+DISCRETE_HINT = ("discretise it at the sensors' rate: cfdesign discretize TABLE --rate-hz R; or design a "
+                 "discrete structure: dckf3, position, or cf2/cf3/cfn with discrete = true")
 #: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
 #: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
 STATE_LIMIT = 1e150
@@ -158,7 +161,7 @@ class Runtime:
     def __init__(self, table, x0=None, output=None):
         if table.domain != "z":
             raise CfdesignError(f"{table.name} is a continuous-time table; the runtime runs discrete tables "
-                                "(design a discrete structure: dckf3, position, or cf2/cf3/cfn with discrete = true)")
+                                f"({DISCRETE_HINT})")
         self.table = table
         self.F, self.B, self.H = (np.array(m, dtype=float) for m in (table.F, table.B, table.H))
         self.n, self.period = self.F.shape[0], table.period
