@@ -1111,8 +1111,11 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     except OSError as exc:
         raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
     targets = [outdir / (Path(p).stem + suffix) for p in paths]
-    if len(set(targets)) < len(targets):
-        raise DataError("two logs have the same name; their estimates would overwrite each other")
+    first = {}
+    for i, t in enumerate(targets):
+        j = first.setdefault(t, i)
+        if j != i:
+            raise DataError(f"{paths[j]} and {paths[i]} have the same name; their estimates would both be {t}")
     same = [str(p) for p, t in zip(paths, targets, strict=True) if _same_file(p, t)]
     if same:
         raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "

@@ -545,6 +545,15 @@ def test_a_rotation_that_is_no_sensor_s_own_offset_is_found():
             assert set((ticks - 60) % 100) <= set(table.schedule.phases(name))
 
 
+def test_two_logs_of_one_name_are_named(heading, tmp_path):
+    """Logs whose estimates would overwrite each other (one stem, in two folders or as CSV and
+    Parquet) are refused naming both, before any runs."""
+    pytest.importorskip("dask.distributed")
+    with pytest.raises(DataError, match=r"^a/robot\.csv and b/robot\.parquet have the same name; their estimates "
+                                        r"would both be .*robot\.csv$"):
+        run_logs(heading, ["a/robot.csv", "b/robot.parquet"], tmp_path)
+
+
 @pytest.mark.parametrize("workers", ["-1", "0"])
 def test_workers_must_be_positive(heading, tmp_path, cli, workers):
     """--workers -1 started a Dask cluster that never came up: the command hung."""
