@@ -33,7 +33,7 @@ __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
-#: rows read, run and written at a time
+#: rows read, run and written at a time (and ticks run at a time across a gap without rows)
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
 ONE_PASS_BYTES = 200_000_000
@@ -763,7 +763,18 @@ class _Runner:
             out[late], ph[late], sd[late] = self.last_out, self.last_phase, self.last_std
             out[~late], ph[~late], sd[~late] = states, phases, stds
             return out, ph, sd
-        first, last = self.next_tick, int(ticks[-1])
+        if ticks[-1] - self.next_tick >= BLOCK_ROWS:  # a gap of many ticks without rows: run it in bounded pieces
+            ends = np.arange(self.next_tick + BLOCK_ROWS - 1, ticks[-1], BLOCK_ROWS)
+            cuts = np.searchsorted(ticks, ends, side="right")
+            parts = [self._ticks(ticks[a:b], {k: v[a:b] for k, v in readings.items()}, int(end))
+                     for a, b, end in zip([0, *cuts], [*cuts, len(ticks)], [*ends, ticks[-1]], strict=True)]
+            return tuple(np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        return self._ticks(ticks, readings, int(ticks[-1]))
+
+    def _ticks(self, ticks, readings, last):
+        """Ticks ``next_tick .. last`` (those of the rows at ``ticks`` and the ones between, without
+        a row): the estimates at ``ticks``."""
+        first = self.next_tick
         dense = self._dense(ticks, readings, first, last)
         if self.x is None and self.from_reading:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))

@@ -650,6 +650,25 @@ def test_a_float32_time_column_too_coarse_for_the_tick_is_refused(heading):
         run_log(heading, log.assign(time=(log["time"] + 1.7e9).astype(np.float32)))
 
 
+def test_a_gap_of_many_ticks_runs_in_bounded_pieces(heading, monkeypatch):
+    """A log paused for a day (8.6 million ticks without a row between two rows) ran those ticks as
+    one array (2.6 GB for 6000 rows): they run in pieces of at most BLOCK_ROWS ticks, with the
+    estimates of one piece."""
+    import cfdesign.logs
+
+    log, _ = heading_log(3, 37, n=2000, jitter=0.0)
+    log.loc[1000:, "time"] += 50.0  # 5000 ticks without a row
+    whole = run_log(heading, log, block_rows=700).estimates["heading"].to_numpy()
+    spans = []
+    dense = cfdesign.logs._Runner._dense
+    monkeypatch.setattr(cfdesign.logs._Runner, "_dense", lambda self, ticks, readings, first, last: spans.append(
+        last - first + 1) or dense(self, ticks, readings, first, last))
+    monkeypatch.setattr(cfdesign.logs, "BLOCK_ROWS", 1000)
+    pieces = run_log(heading, log, block_rows=700).estimates["heading"].to_numpy()
+    assert max(spans) <= 1000 and sum(spans) == 7000
+    assert np.max(np.abs(wrap(pieces - whole))) < 1e-9
+
+
 def test_a_sensor_without_readings_is_reported(heading):
     log, _ = heading_log(0, 0, n=2000)
     log["compass"] = np.nan
