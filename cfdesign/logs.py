@@ -33,6 +33,8 @@ __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
+#: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
+MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
 #: rows read, run and written at a time (and ticks run at a time across a gap without rows)
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
@@ -185,10 +187,11 @@ def _numeric(df, columns, source, first_line, time=None):
             out[c] = s.dt.total_seconds().to_numpy(dtype=float)
             continue
         text = s.astype("string").str.strip()
-        values = pd.to_numeric(text.where(text != ""), errors="coerce")
-        bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy() & (text != "").to_numpy())
-        if bad.size and c == time and len(bad) == int((text.notna() & (text != "")).sum()):  # no number: dates?
-            dates, not_date = _dates(text.where(text != ""))
+        text = text.where(~text.str.lower().isin(MISSING))  # 'NaN ' padded by a fixed-width export: missing too
+        values = pd.to_numeric(text, errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy())
+        if bad.size and c == time and len(bad) == int(text.notna().sum()):  # no number: dates?
+            dates, not_date = _dates(text)
             if not_date is None:
                 out[c] = dates
                 continue

@@ -198,6 +198,20 @@ def test_a_continuous_table_is_refused_saying_how_to_discretise_it():
         run_log(tilt, log)
 
 
+def test_missing_cells_padded_with_spaces_are_missing(heading, tmp_path):
+    """'NaN ' or 'NULL  ' (a fixed-width export pads its cells) was 'not a number'; they are gaps as
+    'NaN' and empty cells are, and a cell that is neither a number nor a gap is still refused."""
+    log, _ = heading_log(3, 37, n=300)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    for token in ("NaN ", " nan  ", "NULL   ", "#N/A "):
+        log.to_csv(tmp_path / "log.csv", index=False, na_rep=token)
+        got = run_log(heading, tmp_path / "log.csv").estimates["heading"].to_numpy()
+        assert np.allclose(got, expected, rtol=0, atol=1e-12), token
+    log.to_csv(tmp_path / "log.csv", index=False, na_rep="-")
+    with pytest.raises(DataError, match="line 2: column 'compass' is not a number: '-'"):
+        run_log(heading, tmp_path / "log.csv")
+
+
 def test_durations_as_times_run_as_seconds(heading, tmp_path):
     """A time column of durations (timedelta; a Parquet duration column) is seconds: it was refused
     as 'neither a number nor an ISO 8601 date'."""
