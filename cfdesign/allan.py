@@ -36,7 +36,9 @@ Method (:func:`identify_noise`):
    inverse of its variance ``2 sigma^4 / edf``, re-weighted with the model until it settles;
 4. each term is reported only where the data show it: it must be significant (more than two
    standard errors above zero), it must *dominate* the fitted variance (at least half of it)
-   over a ``tau`` range holding at least two points, and over that range the measured
+   over a ``tau`` range holding at least two points, the recording must resolve the log-log
+   slope there (standard error at most :data:`~cfdesign.allan.SLOPE_RESOLUTION`, half the gap to
+   the neighbouring terms' slopes at two standard errors), and over that range the measured
    log-log slope must agree with the model's (the slope check).  Otherwise the term is
    ``None`` with the reason (for example: a recording too short for the random walk to
    dominate at any ``tau`` it can resolve).  Terms that fail are dropped one at a time - the
@@ -96,6 +98,10 @@ DOMINANCE = 0.5
 RAMP_EVIDENCE = 4.0
 #: confidence level of the intervals
 CONFIDENCE = 0.95
+#: largest standard error of the log-log slope over a term's range: two of them must stay within
+#: half a unit, the difference between the slopes of neighbouring terms (white -1/2, flat 0, +1/2),
+#: or the recording cannot tell the term from its neighbour's continuation
+SLOPE_RESOLUTION = 0.25
 
 
 # ---------------------------------------------------------------------------- the deviation
@@ -596,6 +602,14 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
         measured = _slope(tau[sel], adev[sel], edf[sel])
         expected = _slope(tau[sel], np.sqrt(model[sel]), edf[sel])
         slope_se = _slope_se(tau[sel], edf[sel])
+        if slope_se > SLOPE_RESOLUTION:
+            # the last octaves of a recording hold a few degrees of freedom each: a term that
+            # dominates only there cannot be checked (white noise read as a flat B over the last
+            # two points of ten minutes)
+            missing[key] = (f"it dominates only from {tau[lo]:.3g} to {tau[hi]:.3g} s, where the recording gives its "
+                            f"slope to +-{slope_se:.2g} (at most +-{SLOPE_RESOLUTION:g} tells it from its neighbours')"
+                            + _longer_hint(key, duration))
+            continue
         if abs(measured - expected) > 3 * slope_se + 0.1:
             missing[key] = (f"the slope check fails: the measured slope {measured:+.2f} over tau {tau[lo]:.3g} to "
                             f"{tau[hi]:.3g} s differs from the model's {expected:+.2f} (expected near {slope:+.1f})")

@@ -55,6 +55,18 @@ def test_white_only_returns_only_white():
     assert fit.random_walk_density is None and fit.design_entries() == {"noise": {"density": fit.white_density}}
 
 
+@pytest.mark.parametrize("seed", [1028, 1041, 1042])
+def test_white_only_ten_minutes_claims_no_term_on_its_last_octaves(seed):
+    """Ten minutes of white noise at 50 Hz whose last two octave points (82 and 164 s, a few
+    degrees of freedom each) happened to sit high: a bias instability B = 3e-5 was reported over
+    them, its slope (-0.4 to -0.7, white noise's) unchecked because two such points give it to
+    +-0.9.  No term may rest on a slope the recording does not resolve."""
+    rng = np.random.default_rng(seed)
+    fit = identify_noise(N_TRUE * math.sqrt(50.0) * rng.standard_normal(30_000), 50.0)
+    assert set(fit.terms) == {"white"}
+    assert "slope to +-" in fit.missing["bias_instability"]
+
+
 def test_random_walk_only_returns_only_the_random_walk():
     fit = identify_noise(gyro(600, N=0, seed=2), RATE)
     assert set(fit.terms) == {"random_walk"}
