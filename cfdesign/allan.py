@@ -39,7 +39,10 @@ Method (:func:`identify_noise`):
    over a ``tau`` range holding at least two points, the recording must resolve the log-log
    slope there (standard error at most :data:`~cfdesign.allan.SLOPE_RESOLUTION`, half the gap to
    the neighbouring terms' slopes at two standard errors), and over that range the measured
-   log-log slope must agree with the model's (the slope check).  Otherwise the term is
+   log-log slope must agree with the model's (the slope check) and no point may fall below the
+   model beyond its chi-square interval (:data:`~cfdesign.allan.DEPARTURE_LEVEL`, widened by
+   :data:`~cfdesign.allan.MODEL_TOLERANCE`; every term adds variance, so nothing left out
+   explains a point below the model): a vibrating "rest" is not read as a flat bias instability.  Otherwise the term is
    ``None`` with the reason (for example: a recording too short for the random walk to
    dominate at any ``tau`` it can resolve).  Terms that fail are dropped one at a time - the
    one with the smallest share of the fitted variance first - and the rest refitted: two terms
@@ -102,6 +105,14 @@ CONFIDENCE = 0.95
 #: half a unit, the difference between the slopes of neighbouring terms (white -1/2, flat 0, +1/2),
 #: or the recording cannot tell the term from its neighbour's continuation
 SLOPE_RESOLUTION = 0.25
+#: a term is not reported where a point of its range lies below the fitted model by more than its
+#: own chi-square interval at this level allows (widened by ``MODEL_TOLERANCE``): every term adds
+#: variance, so no term left out explains a deviation below the model - the recording is not the
+#: noise the model describes there (a vibrating "rest" read as a flat bias instability)
+DEPARTURE_LEVEL = 0.999
+#: factor on the ADEV a point may lie below the model beyond its chi-square interval (a real
+#: sensor's anti-alias filter lowers the first octaves)
+MODEL_TOLERANCE = 1.5
 
 
 # ---------------------------------------------------------------------------- the deviation
@@ -609,6 +620,16 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
             missing[key] = (f"it dominates only from {tau[lo]:.3g} to {tau[hi]:.3g} s, where the recording gives its "
                             f"slope to +-{slope_se:.2g} (at most +-{SLOPE_RESOLUTION:g} tells it from its neighbours')"
                             + _longer_hint(key, duration))
+            continue
+        ratio = adev[sel] ** 2 / model[sel]
+        # above the model a term the recording cannot resolve may start; below it nothing helps
+        low = chi2.ppf(1 - DEPARTURE_LEVEL, edf[sel]) / edf[sel] / MODEL_TOLERANCE**2
+        off = np.flatnonzero(ratio < low)
+        if off.size:
+            j = sel[off[np.argmin(ratio[off])]]
+            missing[key] = (f"the Allan deviation falls below the fitted model over its range: {adev[j]:.3g} at tau "
+                            f"{tau[j]:.3g} s against {math.sqrt(model[j]):.3g}; the recording is not the noise of the "
+                            "model there (motion, vibration or a step?)")
             continue
         if abs(measured - expected) > 3 * slope_se + 0.1:
             missing[key] = (f"the slope check fails: the measured slope {measured:+.2f} over tau {tau[lo]:.3g} to "
