@@ -165,3 +165,14 @@ def test_discrete_damped_crossover_far_below_the_sample_rate(rate, damping):
     wnT = math.sqrt(np.linalg.det(D))
     assert np.real(np.sum(np.expm1(np.roots([1.0, 2 * zeta, 1.0]) * wnT))) == pytest.approx(np.trace(D), rel=1e-6)
     assert -np.trace(D) / (2 * wnT) == pytest.approx(zeta, rel=1e-5)
+
+
+def test_continuous_three_bands_with_crossovers_far_apart_design_and_verify():
+    """0.05 and 9000 Hz: the closed-loop poles are 5 decades apart; the bands from the
+    eigenvalue-based characteristic polynomial failed the identity check ('cannot be decided in
+    double precision') and the design was refused."""
+    table = design(parse_spec({"structure": "cf3", "crossover": {"hz": [0.05, 9000.0]}, "sensors": CHAIN}))
+    assert all(check.ok for check in verify_table(table))
+    mag = magnitudes(table, [0.05, 9000.0])
+    assert mag["position"][0] == pytest.approx(mag["velocity"][0], rel=1e-6)
+    assert mag["velocity"][1] == pytest.approx(mag["acceleration"][1], rel=1e-6)
