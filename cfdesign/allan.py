@@ -52,6 +52,9 @@ Method (:func:`identify_noise`):
    ramp.  Where the fit keeps a ramp and no random walk, the random walk is fitted in its place,
    and kept unless it fits clearly worse (its weighted chi-square larger by
    :data:`~cfdesign.allan.RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
+   likewise a reported bias instability or random walk gives way to the other where the other fits
+   the same octaves clearly better (the two split the last octaves, and whichever is dropped
+   first leaves the other to claim them);
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
 
@@ -97,7 +100,8 @@ MIN_SAMPLES = 16
 #: share of the fitted variance a term must reach to dominate
 DOMINANCE = 0.5
 #: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
-#: for the ramp to be reported instead (about a 2-sigma preference for the ramp)
+#: for the ramp to be reported instead (about a 2-sigma preference for the ramp); likewise how much
+#: better a bias instability must fit than a random walk (or the other way) to take its place
 RAMP_EVIDENCE = 4.0
 #: confidence level of the intervals
 CONFIDENCE = 0.95
@@ -502,9 +506,31 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                                     f"{walk[1]['random_walk'].tau_range_s[0]:.3g} s); the recording cannot tell "
                                     "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
             fit = walk
+    fit = _swap_long_terms(tau, adev, m, len(y), float(rate_hz), fit)
     coef, terms, missing, edf = fit
     coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _swap_long_terms(tau, adev, m, n, rate_hz, fit):
+    """A bias instability and a random walk that share the last octaves split them, and the one
+    dropped first leaves the other to claim them (an hour of white noise and flicker at 50 Hz: B
+    dominated two octaves, was dropped as unresolved, and a K of slope -0.04 took the range).
+    Each reported one is refitted with the other in its place, and the other kept where it fits
+    clearly better (weighted chi-square lower by :data:`~cfdesign.allan.RAMP_EVIDENCE`)."""
+    pair = ("bias_instability", "random_walk")
+    for x in pair:
+        y = pair[1 - pair.index(x)]
+        if x not in fit[1] or y in fit[1]:
+            continue
+        active = [k for k in TERMS if (k in fit[1] and k != x) or k == y]
+        alt = _eliminate(tau, adev, m, n, rate_hz, active)
+        here, there = _misfit(tau, adev, fit, 1.0 / rate_hz), _misfit(tau, adev, alt, 1.0 / rate_hz)
+        if y in alt[1] and there < here - RAMP_EVIDENCE:
+            alt[2][x] = (f"the {_LABELS[y]} explains the same octaves better (weighted chi-square {there:.3g} against "
+                         f"{here:.3g})")
+            return alt
+    return fit
 
 
 def _misfit(tau, adev, fit, dt) -> float:
@@ -512,7 +538,8 @@ def _misfit(tau, adev, fit, dt) -> float:
     has a relative std of ``sqrt(2 / edf)``): a chi-square, to compare two models."""
     coef, _, _, edf = fit
     model = np.maximum((_basis(tau, dt) * coef).sum(axis=1), 1e-300)
-    return float(np.sum(edf / 2.0 * (adev**2 / model - 1.0) ** 2))
+    with np.errstate(over="ignore"):  # a model without the recording's term: inf, the worst fit
+        return float(np.sum(edf / 2.0 * (adev**2 / model - 1.0) ** 2))
 
 
 def _eliminate(tau, adev, m, n, rate_hz, active):

@@ -309,3 +309,24 @@ def test_a_vibrating_rest_is_not_read_as_a_bias_instability():
     fit = identify_noise(d["imu_gyr"][:rest, 0], rate)
     assert "bias_instability" not in fit.terms
     assert "falls below the fitted model" in fit.missing["bias_instability"]
+
+
+def test_a_flat_stretch_is_not_claimed_by_a_random_walk():
+    """An hour at 50 Hz of white noise and flicker (B = 3e-5; flicker drawn as a sum of
+    Gauss-Markov processes with correlation times an octave apart): B and K split the last
+    octaves, B was dropped first (resolved over two octaves only) and a random walk K = 2.9e-6
+    whose measured slope was -0.04 took its range. The flat term must be the one reported."""
+    from scipy.signal import lfilter
+
+    rate, n, B = 50.0, 180_000, 3e-5
+    rng = np.random.default_rng(2)
+    y = N_TRUE * math.sqrt(rate) * rng.standard_normal(n)
+    rng.standard_normal(n)  # (the draw of the audit's random walk, left out: the recording has none)
+    var = B**2 * math.log(2.0) / math.pi  # per process: one-sided PSD B^2 / (pi f) from the octave sum
+    for tc in (2.0 / rate) * 2.0 ** np.arange(int(math.log2(4.0 * n / 2.0)) + 1):
+        a = math.exp(-1.0 / (rate * tc))
+        w = math.sqrt(var * (1 - a * a)) * rng.standard_normal(n)
+        y += lfilter([1.0], [1.0, -a], w, zi=[a * math.sqrt(var) * rng.standard_normal()])[0]
+    fit = identify_noise(y, rate)
+    assert fit.random_walk_density is None
+    assert fit.bias_instability == pytest.approx(B, rel=0.25)
