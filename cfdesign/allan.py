@@ -36,8 +36,13 @@ Method (:func:`identify_noise`):
    inverse of its variance ``2 sigma^4 / edf``, re-weighted with the model until it settles;
 4. each term is reported only where the data show it: it must be significant (more than two
    standard errors above zero), it must *dominate* the fitted variance (at least half of it)
-   over a ``tau`` range holding at least two points, and over that range the measured
-   log-log slope must agree with the model's (the slope check).  Otherwise the term is
+   over a ``tau`` range holding at least two points, the recording must resolve the log-log
+   slope there (standard error at most :data:`~cfdesign.allan.SLOPE_RESOLUTION`, half the gap to
+   the neighbouring terms' slopes at two standard errors), and over that range the measured
+   log-log slope must agree with the model's (the slope check) and no point may fall below the
+   model beyond its chi-square interval (:data:`~cfdesign.allan.DEPARTURE_LEVEL`, widened by
+   :data:`~cfdesign.allan.MODEL_TOLERANCE`; every term adds variance, so nothing left out
+   explains a point below the model): a vibrating "rest" is not read as a flat bias instability.  Otherwise the term is
    ``None`` with the reason (for example: a recording too short for the random walk to
    dominate at any ``tau`` it can resolve).  Terms that fail are dropped one at a time - the
    one with the smallest share of the fitted variance first - and the rest refitted: two terms
@@ -47,6 +52,9 @@ Method (:func:`identify_noise`):
    ramp.  Where the fit keeps a ramp and no random walk, the random walk is fitted in its place,
    and kept unless it fits clearly worse (its weighted chi-square larger by
    :data:`~cfdesign.allan.RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
+   likewise a reported bias instability or random walk gives way to the other where the other fits
+   the same octaves clearly better (the two split the last octaves, and whichever is dropped
+   first leaves the other to claim them);
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
 
@@ -92,10 +100,23 @@ MIN_SAMPLES = 16
 #: share of the fitted variance a term must reach to dominate
 DOMINANCE = 0.5
 #: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
-#: for the ramp to be reported instead (about a 2-sigma preference for the ramp)
+#: for the ramp to be reported instead (about a 2-sigma preference for the ramp); likewise how much
+#: better a bias instability must fit than a random walk (or the other way) to take its place
 RAMP_EVIDENCE = 4.0
 #: confidence level of the intervals
 CONFIDENCE = 0.95
+#: largest standard error of the log-log slope over a term's range: two of them must stay within
+#: half a unit, the difference between the slopes of neighbouring terms (white -1/2, flat 0, +1/2),
+#: or the recording cannot tell the term from its neighbour's continuation
+SLOPE_RESOLUTION = 0.25
+#: a term is not reported where a point of its range lies below the fitted model by more than its
+#: own chi-square interval at this level allows (widened by ``MODEL_TOLERANCE``): every term adds
+#: variance, so no term left out explains a deviation below the model - the recording is not the
+#: noise the model describes there (a vibrating "rest" read as a flat bias instability)
+DEPARTURE_LEVEL = 0.999
+#: factor on the ADEV a point may lie below the model beyond its chi-square interval (a real
+#: sensor's anti-alias filter lowers the first octaves)
+MODEL_TOLERANCE = 1.5
 
 
 # ---------------------------------------------------------------------------- the deviation
@@ -485,9 +506,31 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                                     f"{walk[1]['random_walk'].tau_range_s[0]:.3g} s); the recording cannot tell "
                                     "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
             fit = walk
+    fit = _swap_long_terms(tau, adev, m, len(y), float(rate_hz), fit)
     coef, terms, missing, edf = fit
     coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _swap_long_terms(tau, adev, m, n, rate_hz, fit):
+    """A bias instability and a random walk that share the last octaves split them, and the one
+    dropped first leaves the other to claim them (an hour of white noise and flicker at 50 Hz: B
+    dominated two octaves, was dropped as unresolved, and a K of slope -0.04 took the range).
+    Each reported one is refitted with the other in its place, and the other kept where it fits
+    clearly better (weighted chi-square lower by :data:`~cfdesign.allan.RAMP_EVIDENCE`)."""
+    pair = ("bias_instability", "random_walk")
+    for x in pair:
+        y = pair[1 - pair.index(x)]
+        if x not in fit[1] or y in fit[1]:
+            continue
+        active = [k for k in TERMS if (k in fit[1] and k != x) or k == y]
+        alt = _eliminate(tau, adev, m, n, rate_hz, active)
+        here, there = _misfit(tau, adev, fit, 1.0 / rate_hz), _misfit(tau, adev, alt, 1.0 / rate_hz)
+        if y in alt[1] and there < here - RAMP_EVIDENCE:
+            alt[2][x] = (f"the {_LABELS[y]} explains the same octaves better (weighted chi-square {there:.3g} against "
+                         f"{here:.3g})")
+            return alt
+    return fit
 
 
 def _misfit(tau, adev, fit, dt) -> float:
@@ -495,7 +538,8 @@ def _misfit(tau, adev, fit, dt) -> float:
     has a relative std of ``sqrt(2 / edf)``): a chi-square, to compare two models."""
     coef, _, _, edf = fit
     model = np.maximum((_basis(tau, dt) * coef).sum(axis=1), 1e-300)
-    return float(np.sum(edf / 2.0 * (adev**2 / model - 1.0) ** 2))
+    with np.errstate(over="ignore"):  # a model without the recording's term: inf, the worst fit
+        return float(np.sum(edf / 2.0 * (adev**2 / model - 1.0) ** 2))
 
 
 def _eliminate(tau, adev, m, n, rate_hz, active):
@@ -596,6 +640,24 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
         measured = _slope(tau[sel], adev[sel], edf[sel])
         expected = _slope(tau[sel], np.sqrt(model[sel]), edf[sel])
         slope_se = _slope_se(tau[sel], edf[sel])
+        if slope_se > SLOPE_RESOLUTION:
+            # the last octaves of a recording hold a few degrees of freedom each: a term that
+            # dominates only there cannot be checked (white noise read as a flat B over the last
+            # two points of ten minutes)
+            missing[key] = (f"it dominates only from {tau[lo]:.3g} to {tau[hi]:.3g} s, where the recording gives its "
+                            f"slope to +-{slope_se:.2g} (at most +-{SLOPE_RESOLUTION:g} tells it from its neighbours')"
+                            + _longer_hint(key, duration))
+            continue
+        ratio = adev[sel] ** 2 / model[sel]
+        # above the model a term the recording cannot resolve may start; below it nothing helps
+        low = chi2.ppf(1 - DEPARTURE_LEVEL, edf[sel]) / edf[sel] / MODEL_TOLERANCE**2
+        off = np.flatnonzero(ratio < low)
+        if off.size:
+            j = sel[off[np.argmin(ratio[off])]]
+            missing[key] = (f"the Allan deviation falls below the fitted model over its range: {adev[j]:.3g} at tau "
+                            f"{tau[j]:.3g} s against {math.sqrt(model[j]):.3g}; the recording is not the noise of the "
+                            "model there (motion, vibration or a step?)")
+            continue
         if abs(measured - expected) > 3 * slope_se + 0.1:
             missing[key] = (f"the slope check fails: the measured slope {measured:+.2f} over tau {tau[lo]:.3g} to "
                             f"{tau[hi]:.3g} s differs from the model's {expected:+.2f} (expected near {slope:+.1f})")

@@ -31,6 +31,10 @@ from .errors import GainTableError
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
+#: largest difference (relative to the bands' size) between the polynomial transfer functions
+#: of :meth:`GainTable.transfer_functions` and the table's bands before a warning
+POLYNOMIAL_RTOL = 1e-6
+
 __all__ = ["GainTable", "SensorPort", "Schedule", "load_gains", "validate", "schema", "column_order",
            "FORMAT_VERSION", "DERIVATIVE_NAMES"]
 
@@ -769,6 +773,12 @@ class GainTable:
         when the bands pass the complementarity identity
         (:func:`cfdesign.linear.identity_residual`).  numpy and python-control only.
 
+        A transfer function holds polynomial coefficients, which cannot represent a filter
+        whose poles lie within rounding of ``z = 1`` (crossovers below about 1e-7 of the sample
+        rate): where its response is more than ``POLYNOMIAL_RTOL`` (1e-6) from the table's bands
+        (:func:`cfdesign.verify.polynomial_error`) a ``RuntimeWarning`` says so and by how much;
+        :meth:`bode` and ``cfdesign verify`` use the state-space responses, which stay accurate.
+
         Parameters
         ----------
         output : {'posterior', 'prior'}, optional
@@ -793,11 +803,19 @@ class GainTable:
         ['compass', 'gyro_heading', 'odometry_rate', 'sum']
         """
         from .analysis import named_transfer_functions
-        from .verify import IDENTITY_RTOL, band_polynomials
+        from .verify import IDENTITY_RTOL, band_polynomials, polynomial_error
 
         if self.period != 1:
             raise GainTableError(f"{self.name} is multirate (period {self.period}): its bands change with the phase; "
                                  "cfdesign.plot.lifted_system(table) gives the lifted system at the period rate")
+        error, omega = polynomial_error(self, output)
+        if not error <= POLYNOMIAL_RTOL:
+            import warnings
+
+            warnings.warn(f"{self.name}: its bands as polynomials differ from the filter by up to {error:.3g} "
+                          f"(relative, at {omega / (2 * math.pi):.4g} Hz): the poles are too close to z = 1 for "
+                          "polynomial coefficients at this sample rate; table.bode() and "
+                          "cfdesign.linear.band_responses give the accurate responses", RuntimeWarning, stacklevel=2)
         bands = band_polynomials(self, 0, output)[0]
         exact = linear.identity_residual(bands) <= IDENTITY_RTOL
         total = (np.ones(1), np.ones(1)) if exact else None

@@ -139,7 +139,10 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
         omega = default_frequencies(coefficients, dt) if omega is None else np.asarray(omega, dtype=float)
         from . import linear
 
-        bands = {k: linear.response(num, den, omega, dt) for k, (num, den) in coefficients.items()}
+        # the state-space responses: the polynomials lose poles that lie within rounding of z = 1
+        from .verify import phase_realisation
+
+        bands = linear.band_responses(phase_realisation(table), table.sensors, table.domain, dt, omega)
         resp = FrequencyResponse(omega, bands, dt, coefficients)
         kind = f"discrete, T = {dt:g} s, {table.output}" if dt else "continuous"
         return _draw_bands(resp, hz, title or f"Bode diagram of {table.name} ({kind})", fig)

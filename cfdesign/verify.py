@@ -30,7 +30,8 @@ import numpy as np
 from . import linear
 from .errors import InputError
 
-__all__ = ["Check", "verify_table", "numeric_checks", "band_polynomials", "phase_realisation", "frequency_grid"]
+__all__ = ["Check", "verify_table", "numeric_checks", "band_polynomials", "phase_realisation", "frequency_grid",
+           "polynomial_error"]
 
 IDENTITY_RTOL = 1e-12
 GRID_RTOL = 1e-9
@@ -147,6 +148,43 @@ def frequency_grid(table, points: int = 400) -> np.ndarray:
     lo = min(1e-4, 1e-3 * rates.min()) if rates.size else 1e-4
     hi = 0.999 * np.pi / dt if dt else max(1e4, 1e3 * rates.max(initial=0.0))
     return np.logspace(np.log10(lo), np.log10(hi), points)
+
+
+def polynomial_error(table, output: str | None = None) -> tuple:
+    """How far the bands' polynomials (:func:`band_polynomials`) are from the bands themselves.
+
+    The expanded polynomials lose the closed-loop dynamics when the poles sit within rounding
+    of ``z = 1`` (a crossover at 5e-9 of the sample rate: the constant coefficient ``1 - k1 +
+    k2 T`` keeps no digit of ``k2 T``), while the state-space responses
+    (:func:`cfdesign.linear.band_responses`) keep them.  The two are compared on
+    :func:`frequency_grid`, the difference relative to the size of the bands there.
+
+    Parameters
+    ----------
+    table : GainTable
+        A single-rate table.
+    output : {'posterior', 'prior'}, optional
+        The estimate (default: the one the table declares).
+
+    Returns
+    -------
+    error : float
+        ``max |T_poly - T| / (1 + sum_i |T_i|)`` over the grid and the bands (``inf`` where a
+        band cannot be evaluated).
+    omega : float
+        The angular frequency (rad/s) of the largest difference.
+    """
+    omega = frequency_grid(table)
+    dt = table.sample_time_s if table.domain == "z" else None
+    exact = linear.band_responses(phase_realisation(table, 0, output), table.sensors, table.domain, dt, omega)
+    size = 1.0 + sum(np.abs(r) for r in exact.values())
+    worst = np.zeros(len(omega))
+    with np.errstate(all="ignore"):
+        for name, (num, den) in band_polynomials(table, 0, output)[0].items():
+            diff = np.abs(linear.response(num, den, omega, dt) - exact[name]) / size
+            worst = np.maximum(worst, np.where(np.isfinite(diff), diff, np.inf))
+    i = int(np.argmax(worst))
+    return float(worst[i]), float(omega[i])
 
 
 def _grid_error(table, phase: int = 0) -> float:

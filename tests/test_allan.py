@@ -55,6 +55,18 @@ def test_white_only_returns_only_white():
     assert fit.random_walk_density is None and fit.design_entries() == {"noise": {"density": fit.white_density}}
 
 
+@pytest.mark.parametrize("seed", [1028, 1041, 1042])
+def test_white_only_ten_minutes_claims_no_term_on_its_last_octaves(seed):
+    """Ten minutes of white noise at 50 Hz whose last two octave points (82 and 164 s, a few
+    degrees of freedom each) happened to sit high: a bias instability B = 3e-5 was reported over
+    them, its slope (-0.4 to -0.7, white noise's) unchecked because two such points give it to
+    +-0.9.  No term may rest on a slope the recording does not resolve."""
+    rng = np.random.default_rng(seed)
+    fit = identify_noise(N_TRUE * math.sqrt(50.0) * rng.standard_normal(30_000), 50.0)
+    assert set(fit.terms) == {"white"}
+    assert "slope to +-" in fit.missing["bias_instability"]
+
+
 def test_random_walk_only_returns_only_the_random_walk():
     fit = identify_noise(gyro(600, N=0, seed=2), RATE)
     assert set(fit.terms) == {"random_walk"}
@@ -277,3 +289,44 @@ def test_a_term_s_line_shows_the_slope_it_was_checked_against():
     rw = fit.terms["random_walk"]
     assert -0.5 < rw.model_slope < 0.5 and f"fitted model {rw.model_slope:+.2f}" in rw.line()
     assert "the term alone +0.5" in rw.line()
+
+
+def test_a_vibrating_rest_is_not_read_as_a_bias_instability():
+    """The 44 s before the motion of BROAD trial 26 (phone vibration; Laidig et al.): the gyro's x
+    axis has an Allan deviation of 2-3e-3 rad/s up to 56 ms that then falls to 6e-5 at 14 s. A
+    flat B = 3.4e-3 rad/s was reported over the whole range (the edf-weighted slope of -0.09 is
+    the first octaves'), 50 times the measured deviation at 14 s: no term may sit above the data."""
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad" / "26_disturbed_phone_vibration_A.mat"
+    if not path.exists():
+        pytest.skip(f"BROAD data not found at {path} (shared/data/broad sits beside the checkout)")
+    from scipy.io import loadmat
+
+    d = loadmat(path, squeeze_me=True)
+    rate = float(d["sampling_rate"])
+    rest = int(np.argmax(d["movement"] == 1)) - int(rate)  # up to a second before the motion
+    fit = identify_noise(d["imu_gyr"][:rest, 0], rate)
+    assert "bias_instability" not in fit.terms
+    assert "falls below the fitted model" in fit.missing["bias_instability"]
+
+
+def test_a_flat_stretch_is_not_claimed_by_a_random_walk():
+    """An hour at 50 Hz of white noise and flicker (B = 3e-5; flicker drawn as a sum of
+    Gauss-Markov processes with correlation times an octave apart): B and K split the last
+    octaves, B was dropped first (resolved over two octaves only) and a random walk K = 2.9e-6
+    whose measured slope was -0.04 took its range. The flat term must be the one reported."""
+    from scipy.signal import lfilter
+
+    rate, n, B = 50.0, 180_000, 3e-5
+    rng = np.random.default_rng(2)
+    y = N_TRUE * math.sqrt(rate) * rng.standard_normal(n)
+    rng.standard_normal(n)  # (the draw of the audit's random walk, left out: the recording has none)
+    var = B**2 * math.log(2.0) / math.pi  # per process: one-sided PSD B^2 / (pi f) from the octave sum
+    for tc in (2.0 / rate) * 2.0 ** np.arange(int(math.log2(4.0 * n / 2.0)) + 1):
+        a = math.exp(-1.0 / (rate * tc))
+        w = math.sqrt(var * (1 - a * a)) * rng.standard_normal(n)
+        y += lfilter([1.0], [1.0, -a], w, zi=[a * math.sqrt(var) * rng.standard_normal()])[0]
+    fit = identify_noise(y, rate)
+    assert fit.random_walk_density is None
+    assert fit.bias_instability == pytest.approx(B, rel=0.25)

@@ -124,3 +124,28 @@ def test_bode_omega_is_rad_per_s_also_in_hz_and_titles_fit(dckf3):
     table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
     labels = table.bode().axes[0].get_legend_handles_labels()[1]
     assert labels and {label.split(",")[0].removeprefix("K[") for label in labels} <= set(table.states)
+
+
+def test_transfer_functions_warn_where_polynomials_lose_the_filter_and_bode_does_not():
+    """A cf2 crossing over at 1e-4 Hz at 20 kHz: its poles lie within 2e-16 of z = 1, so the
+    polynomial transfer functions lost the closed loop (|T_angle| / |T_rate| = 1.21 at the
+    crossover where the filter has 1, by a 50-digit evaluation) and said nothing; the Bode plot
+    drew those polynomials."""
+    gyro = {"measures": "rate", "rate_hz": 2e4, "noise": {"density": 1.7e-4},
+            "bias": {"model": "random_walk", "density": 2e-5}}
+    angle = {"measures": "angle", "rate_hz": 2e4, "noise": {"std": 0.01}}
+    table = cfdesign.design(cfdesign.spec.parse_spec({"structure": "cf2", "order": 2, "discrete": True,
+                                                      "crossover": {"hz": 1e-4},
+                                                      "sensors": {"rate": gyro, "angle": angle}}))
+    with pytest.warns(RuntimeWarning, match="too close to z = 1"):
+        table.transfer_functions()
+    w = 2 * np.pi * 1e-4
+    fig = table.bode(omega=[w / 10, w, w * 10])
+    mags = {line.get_label(): line.get_ydata() for line in fig.axes[0].get_lines()}
+    assert mags["T_angle"][1] == pytest.approx(mags["T_rate"][1], abs=1e-6)  # dB: equal at the crossover
+
+
+def test_transfer_functions_of_ordinary_tables_do_not_warn(dckf3, recwarn):
+    dckf3.transfer_functions()
+    cfdesign.design(cfdesign.load_spec(cfdesign.example_path("tilt"))).transfer_functions()
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -147,3 +147,32 @@ def test_cli_design_and_verify_a_crossover_table(cli, tmp_path):
     from cfdesign.gains import load_gains
 
     assert all(c.ok for c in verify_table(load_gains(tmp_path / "g.json")))
+
+
+@pytest.mark.parametrize(("rate", "damping"), [(1000.0, None), (1000.0, 2.0), (20000.0, 0.3), (20000.0, 2.0)])
+def test_discrete_damped_crossover_far_below_the_sample_rate(rate, damping):
+    """A crossover at 1e-7 to 5e-9 of the sample rate: Ackermann's formula from the expanded
+    characteristic polynomial cancelled to rounding (p(F) of size 1e-15 from terms of size 1), so
+    the damping was not imposed and no root was found; the poles must have the asked damping."""
+    crossover = {"hz": 1e-4, **({} if damping is None else {"damping": damping})}
+    table = design(parse_spec({"structure": "cf2", "order": 2, "discrete": True, "crossover": crossover,
+                               "sensors": {"rate": {**GYRO, "rate_hz": rate}, "angle": {**ANGLE, "rate_hz": rate}}}))
+    zeta = damping or 1 / math.sqrt(2)
+    Kp = linear.gain_pair(table.F, table.K[0], table.gain_form)[0]
+    D = (table.F - np.eye(2)) - Kp @ table.H  # A - I without cancellation (F - I is exact)
+    # its eigenvalues are expm1(s_i w_n T), s_i the roots of s^2 + 2 zeta s + 1: det gives w_n T
+    # (to first order), the trace then the damping
+    wnT = math.sqrt(np.linalg.det(D))
+    assert np.real(np.sum(np.expm1(np.roots([1.0, 2 * zeta, 1.0]) * wnT))) == pytest.approx(np.trace(D), rel=1e-6)
+    assert -np.trace(D) / (2 * wnT) == pytest.approx(zeta, rel=1e-5)
+
+
+def test_continuous_three_bands_with_crossovers_far_apart_design_and_verify():
+    """0.05 and 9000 Hz: the closed-loop poles are 5 decades apart; the bands from the
+    eigenvalue-based characteristic polynomial failed the identity check ('cannot be decided in
+    double precision') and the design was refused."""
+    table = design(parse_spec({"structure": "cf3", "crossover": {"hz": [0.05, 9000.0]}, "sensors": CHAIN}))
+    assert all(check.ok for check in verify_table(table))
+    mag = magnitudes(table, [0.05, 9000.0])
+    assert mag["position"][0] == pytest.approx(mag["velocity"][0], rel=1e-6)
+    assert mag["velocity"][1] == pytest.approx(mag["acceleration"][1], rel=1e-6)

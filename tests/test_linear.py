@@ -165,3 +165,21 @@ def test_an_observer_with_a_wrong_relation_is_not_complementary(dckf3_table):
     # and the symbolic engine agrees that it is not
     d = cfdesign.dckf3()
     assert not Observer(d.F, d.B / 2, d.H, d.K, d.sensors, domain="z").proof().holds
+
+
+def test_characteristic_polynomial_keeps_the_coefficients_of_stiff_matrices():
+    """The closed loop of a continuous CF3 crossing over at 0.05 and 9000 Hz (poles at -5.7e4 and
+    -0.31 rad/s): from the eigenvalues its constant coefficient came out 17765.28792181, off by
+    8e-12 relative (the small eigenvalue carries the large one's absolute error), and the bands
+    failed the identity check."""
+    from cfdesign.linear import characteristic_polynomial
+
+    k1, k2 = 56548.66776461628, 17765.287921960844
+    assert characteristic_polynomial([[0.0, 1.0], [-k2, -k1]]).tolist() == [1.0, k1, k2]
+    # a 3 x 3 that needs the Hessenberg reduction: its coefficients to rounding
+    np.testing.assert_allclose(characteristic_polynomial([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-3.0, -k2, -k1]]),
+                               [1.0, k1, k2, 3.0], rtol=1e-14)
+    rng = np.random.default_rng(1)
+    for n in (0, 1, 4, 12):
+        B = rng.standard_normal((n, n))
+        np.testing.assert_allclose(characteristic_polynomial(B), np.poly(B).real if n else [1.0], atol=1e-12)
