@@ -622,8 +622,10 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     * ``[gains]``: those gains fixed (all: hand-tuned; some: the rest optimised);
     * ``[crossover]``: the gains that put the band crossovers at the given frequencies.
 
-    The exact proof is re-run with the designed gains substituted (single-rate tables) and
-    the poles (or monodromy multipliers) checked.  ``docs/derivations.md``, "Optimal gains"
+    The exact proof is re-run for the bands of the estimate the table outputs: with the
+    designed gains substituted (single-rate tables), or with the gains symbolic in the gain
+    form whose state is that estimate (multirate: every phase at once); the poles (or
+    monodromy multipliers) are checked.  ``docs/derivations.md``, "Optimal gains"
     and "Multirate gains", derives each step.
 
     Parameters
