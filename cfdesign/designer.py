@@ -675,7 +675,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
         exact = _output_observer(obs, table).proof().holds  # the bands of the estimate the table outputs
         method = f"exact proof with the designed gains, {table.output} output"
     else:  # a gain per phase: the proof with the gains symbolic, of the estimate the table outputs
-        exact = _proved_for_output(obs, table.output)
+        exact = _proved_for_output(obs, table.output, structure)
         method = f"exact proof with the gains symbolic, {table.output} output, so it holds at every phase"
     return replace(table, checks={**table.checks, "complementary": exact, "complementary_method": method})
 
@@ -684,21 +684,23 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
 _SYMBOLIC_PROOFS: dict = {}
 
 
-def _proved_for_output(obs, output: str) -> bool:
+def _proved_for_output(obs, output: str, structure: Structure) -> bool:
     """The exact proof, with the gains left symbolic, of the bands of the estimate ``output``.
 
     A discrete observer outputs its state: the prediction in predictor form, the estimate after
     the step's readings in filter form (``x+ = x- + K (y - H x-)``, a direct feedthrough of the
     measurements).  The symbolic gain of either form takes every value, so the proof holds
     for the gain of every phase of a multirate table, whatever form the table's gains are in.
+    ``structure`` (built from ``obs``) holds the proof of ``obs`` in its own form.
     """
     import sympy as sp
 
     form = "filter" if output == "posterior" else "predictor"
+    if obs.gain_form == form:
+        return structure.proved
     key = (sp.srepr((obs.F, obs.B, obs.H, obs.K, obs.sample_time)), repr(obs.sensors), form)
     if key not in _SYMBOLIC_PROOFS:
-        target = obs if obs.gain_form == form else obs._replace(obs.F, obs.B, obs.H, obs.K, gain_form=form)
-        _SYMBOLIC_PROOFS[key] = bool(target.proof().holds)
+        _SYMBOLIC_PROOFS[key] = bool(obs._replace(obs.F, obs.B, obs.H, obs.K, gain_form=form).proof().holds)
     return _SYMBOLIC_PROOFS[key]
 
 
