@@ -394,7 +394,7 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import nearest_tick, place
+            from .timing import grid_origin, nearest_tick, place
 
             t = values[self.cols.time]
             both = t if self.last_time is None else np.concatenate([[self.last_time], t])
@@ -402,9 +402,10 @@ class _Pass:
             for s in self.table.inputs:
                 col = values[self.cols.sensors[s.name]]
                 base[len(both) - n:] &= ~np.isnan(col)
-            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock)
-                first = np.flatnonzero(base[len(both) - n:])
-                self.t0 = t[first[0]] if first.size else t[0]
+            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
+                # the grid of the first such rows (not its own jittered time)
+                first = t[base[len(both) - n:]]
+                self.t0 = grid_origin(first, self.table.sample_time_s) if first.size else t[0]
             place(both, self.table.sample_time_s, base_rows=base, source=self.source,
                   first_line=2 + self.rows - (0 if self.last_time is None else 1), rate=False)
             self._sample(t[base[len(both) - n:]])
