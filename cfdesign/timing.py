@@ -142,7 +142,7 @@ def grid_origin(time, dt: float) -> float:
 
     Examples
     --------
-    >>> float(grid_origin([0.3, 1.0, 1.9, 3.1, 3.9], 1.0))   # a grid at whole seconds
+    >>> round(grid_origin([0.2, 0.9, 2.1, 2.8, 4.0], 1.0), 12)   # first row 0.2 s late on a 1 s grid
     0.0
     """
     t = np.asarray(time, dtype=float)
