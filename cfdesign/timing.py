@@ -142,8 +142,8 @@ def grid_origin(time, dt: float) -> float:
 
     Examples
     --------
-    >>> round(grid_origin([0.2, 0.9, 2.1, 2.8, 4.0], 1.0), 12)   # first row 0.2 s late on a 1 s grid
-    0.0
+    >>> abs(grid_origin([0.2, 0.9, 2.1, 2.8, 4.0], 1.0)) < 1e-12   # first row 0.2 s late on a 1 s grid
+    True
     """
     t = np.asarray(time, dtype=float)
     p = (t[:PHASE_ROWS] - t[0]) / dt
