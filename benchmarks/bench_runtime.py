@@ -14,12 +14,13 @@ sinusoid plus noise:
    beside ``imufusion.Ahrs.update`` (Fusion's Python binding, a compiled 9D AHRS:
    target step <= 1.0x its time; ``pip install imufusion``), and ``Runtime.run`` on blocks of
    10,000 samples with the state carried over (target > 1e6 samples/s);
+   The streaming step is also timed on chain tables of n = 2 .. 16 states beside Fusion;
 3. compiled C (``cfdesign.codegen.write_c``, ``cc -std=c99 -O2``): ns per step over
    10,000,000 chained steps (target < 10 ns for the DCKF3), beside two baselines in the same
    program and loop: a call that only copies the inputs, and a one-pole IIR.
 
 4. a large state: ``Runtime.run`` of an n = 200 table on 500 samples (target < 1 s) and
-   ``verify_table`` on it;
+   ``verify_table`` on chains of n = 100, 200 and 500 states;
 5. start-up: ``cfdesign --version`` beside ``python -c "import numpy"`` (target <= 1.5x),
    whether ``cfdesign run`` imports matplotlib or sympy (it must not), and the first
    ``estimate_attitude`` call on 1,000 samples in a fresh process (it designs the channels'
@@ -285,27 +286,52 @@ def streaming_rows(table, data, N):
     return out, t_step / N
 
 
-def large_state_rows():
-    """``Runtime`` on an n = 200 chain table, 500 samples (target < 1 s), and verify."""
+def state_size_rows(N=100_000):
+    """``Runtime.step`` per sample on chain tables of n = 2 .. 16 states beside
+    ``imufusion.Ahrs.update``: the specialised step's cost grows with the non-zero products
+    (``n^2 / 2`` for a chain's triangular ``F``, plus the gains)."""
+    fusion = imufusion_step()
+    rows = []
+    for n in (2, 3, 4, 6, 8, 12, 16):
+        rt = Runtime(chain_table(n))
+        readings = [{"u": 0.1, "y": 0.2 + 1e-6 * k} for k in range(N)]
+        t = cpu_timed(lambda rt=rt, readings=readings: [rt.step(**r) for r in readings])[0] / N
+        ratio = f"; {t / fusion:.2f}x imufusion.Ahrs.update ({1e6 * fusion:.2f} us)" if fusion else ""
+        rows.append((f"Runtime.step, n = {n}", 1 / t, f"{1e6 * t:.2f} us/step{ratio}"))
+    return rows
+
+
+def chain_table(n, dt=0.01):
+    """An ``n``-state ZOH chain table (input of order ``n``, an angle reading), filter form."""
     from cfdesign import linear
     from cfdesign.gains import GainTable, Schedule, SensorPort
-    from cfdesign.verify import verify_table
 
-    n, dt = 200, 0.01
     F, b = linear.zoh_chain(n, dt)
     K = np.zeros((n, 1))
     K[0, 0], K[1, 0] = 0.5, 0.01
-    table = GainTable(name="chain 200", structure="custom", domain="z", sample_time_s=dt, gain_form="filter",
-                      sensors=(SensorPort("u", "input", 0, n, 100.0), SensorPort("y", "measurement", 0, 0, 100.0)),
-                      F=F, B=b[:, None], H=np.eye(n)[:1], K=[K], P=[np.eye(n)], P_filtered=[np.eye(n)],
-                      schedule=Schedule.from_names(["y"], [["y"]]), Q=np.eye(n), R=np.eye(1),
-                      states=tuple(f"d{i}" for i in range(n)))
+    return GainTable(name=f"chain {n}", structure="custom", domain="z", sample_time_s=dt, gain_form="filter",
+                     sensors=(SensorPort("u", "input", 0, n, 100.0), SensorPort("y", "measurement", 0, 0, 100.0)),
+                     F=F, B=b[:, None], H=np.eye(n)[:1], K=[K], P=[np.eye(n)], P_filtered=[np.eye(n)],
+                     schedule=Schedule.from_names(["y"], [["y"]]), Q=np.eye(n), R=np.eye(1),
+                     states=tuple(f"d{i}" for i in range(n)))
+
+
+def large_state_rows():
+    """``Runtime`` on an n = 200 chain table, 500 samples (target < 1 s), and verify at n = 100,
+    200, 500 (every check runs: the long chains' identity cannot be decided in double precision,
+    so the rounding estimate runs too)."""
+    from cfdesign.verify import verify_table
+
+    table = chain_table(200)
     rng = np.random.default_rng(0)
     data = {"u": rng.standard_normal(500), "y": rng.standard_normal(500)}
     t_run, _ = timed(lambda: Runtime(table).run(data))
-    t_verify, _ = timed(lambda: verify_table(table))
-    return [("Runtime(table).run, 500 samples", 500 / t_run, f"{t_run:.3f} s including set-up (target < 1 s)"),
-            ("verify_table", None, f"{t_verify:.3f} s")]
+    rows = [("Runtime(table).run, n = 200, 500 samples", 500 / t_run, f"{t_run:.3f} s including set-up (target < 1 s)")]
+    for n in (100, 200, 500):
+        big = chain_table(n)
+        t_verify, _ = timed(lambda big=big: verify_table(big))
+        rows.append((f"verify_table, n = {n}", None, f"{t_verify:.3f} s"))
+    return rows
 
 
 def startup_rows():
@@ -403,7 +429,8 @@ def main(argv=None):
     print_section("(i) batch", batch)
     print_section("(ii) streaming", stream)
     print_section("(iii) compiled C, chained steps (each step needs the last one's state)", compiled)
-    print_section("(iv) large states", [("chain, n = 200", large_state_rows())])
+    print_section("(ii-b) streaming by state size", [("chains", state_size_rows())])
+    print_section("(iv) large states", [("chains", large_state_rows())])
     print_section("(v) start-up", [("command line", startup_rows())])
     return 0
 

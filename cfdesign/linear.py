@@ -524,7 +524,8 @@ def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
 
     Continuous: ``s**order``.  Discrete: the ZOH chain of the highest order ``M``; the relation
     of order ``j`` is ``G_j / G_0`` with ``G_i`` the transfer from the held ``M``-th derivative
-    to the sampled ``i``-th (order 1 of a 1-chain: ``(z - 1)/dt``).
+    to the sampled ``i``-th (order 1 of a 1-chain: ``(z - 1)/dt``).  ``O(M^3)`` for each order
+    asked (one row of the adjugate each), not for every order of the chain.
 
     Parameters
     ----------
@@ -548,7 +549,9 @@ def chain_relations(orders, domain: str, dt: float | None = None) -> dict:
         return {0: (np.ones(1), np.ones(1))} if orders else {}
     Fd, Bd = zoh_chain(M, dt)
     den = characteristic_polynomial(Fd)
-    nums = [output_adjugate(Fd, row, den) @ Bd for row in np.eye(M)] + [den]
+    rows = np.eye(M)
+    # G_i's numerator for the orders asked only (each is O(M^3)): G_M's is den itself
+    nums = {d: den if d == M else output_adjugate(Fd, rows[d], den) @ Bd for d in orders | {0}}
     return {d: (np.ones(1), np.ones(1)) if d == 0 else (nums[d], nums[0]) for d in orders}
 
 
@@ -818,8 +821,10 @@ def zoh_relation_response(orders, dt: float, shift):
     eta = np.zeros((nf, M + 1), dtype=complex)
     eta[:, M] = 1.0
     scale = np.zeros(nf)  # eta (true) = eta (stored) * 2**scale
+    pascal = [1]  # the exact integers C(M - i, 0 .. M - i), one row of Pascal's triangle per step
     for i in range(M - 1, -1, -1):
-        binom = np.array([math.comb(M - i, j - i) for j in range(i + 1, M + 1)], dtype=float)
+        pascal = [a + b for a, b in zip([0, *pascal], [*pascal, 0], strict=True)]
+        binom = np.array(pascal[1:], dtype=float)  # C(M - i, j - i) for j = i+1 .. M, each correctly rounded
         eta[:, i] = (eta[:, i + 1:] @ binom) / shift  # eta_M = 1 carries the input term
         big = np.abs(eta[:, i])
         grow = np.where(big > 2.0**500, np.ceil(np.log2(np.maximum(big, 1.0))), 0.0)

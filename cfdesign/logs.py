@@ -404,16 +404,17 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import nearest_tick, place
+            from .timing import grid_origin, nearest_tick, place
 
             t = values[self.cols.time]
             read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
             base = np.ones(n, dtype=bool)
             for s in self.table.inputs:
                 base &= read[s.name]
-            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock)
-                first = np.flatnonzero(base)
-                self.t0 = t[first[0]] if first.size else t[0]
+            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
+                # the grid of the first such rows (not its own jittered time)
+                first = t[base]
+                self.t0 = grid_origin(first, self.table.sample_time_s) if first.size else t[0]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
                   first_line=2 + self.rows - len(tail_t),

@@ -24,6 +24,7 @@ chain relation ``N_order / N_0`` (discrete), all from :mod:`cfdesign.linear`.  n
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -117,9 +118,18 @@ def band_polynomials(table, phase: int = 0, output: str | None = None):
     >>> sorted(bands), den.round(4).tolist()
     (['compass', 'gyro_heading', 'odometry_rate'], [1.0, -1.346, 0.5067])
     """
-    orders = {s.order for s in table.sensors}
-    relations = linear.chain_relations(orders, table.domain, table.sample_time_s)
-    return linear.band_polynomials(phase_realisation(table, phase, output), table.sensors, relations)
+    return linear.band_polynomials(phase_realisation(table, phase, output), table.sensors, _relations(table))
+
+
+def _relations(table) -> dict:
+    """:func:`cfdesign.linear.chain_relations` of the table's sensors: the same for every phase and
+    every check, computed once (``O(n^3)`` per sensor order for an ``n``-chain)."""
+    return _chain_relations(frozenset(s.order for s in table.sensors), table.domain, table.sample_time_s)
+
+
+@lru_cache(maxsize=8)
+def _chain_relations(orders: frozenset, domain: str, dt) -> dict:
+    return linear.chain_relations(orders, domain, dt)
 
 
 def frequency_grid(table, points: int = 400) -> np.ndarray:
@@ -207,10 +217,9 @@ def _rounding_spread(table, phase: int) -> float:
     r = slice(None, None, -1)
     flipped = linear.Realisation(real.A[r][:, r], real.G[r], real.C[:, r], real.D, real.output,
                                  None if real.delta is None else real.delta[r][:, r])
-    relations = linear.chain_relations({s.order for s in table.sensors}, table.domain, table.sample_time_s)
     with np.errstate(all="ignore"):
-        t0, s0 = linear.identity_polynomial(linear.band_polynomials(real, table.sensors, relations)[0])
-        t1, s1 = linear.identity_polynomial(linear.band_polynomials(flipped, table.sensors, relations)[0])
+        t0, s0 = linear.identity_polynomial(linear.band_polynomials(real, table.sensors, _relations(table))[0])
+        t1, s1 = linear.identity_polynomial(linear.band_polynomials(flipped, table.sensors, _relations(table))[0])
         spread = np.abs(np.polysub(t0, t1)).max(initial=0.0) / max(s0, s1)
     return float(spread) if np.isfinite(spread) else np.inf
 

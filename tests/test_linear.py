@@ -142,6 +142,18 @@ def test_chain_relations_match_the_zoh_derivation(chain):
         assert np.allclose(got, ref * np.ones_like(zs), rtol=1e-10)
 
 
+def test_chain_relations_compute_only_the_orders_asked(monkeypatch):
+    """An n-chain's relations cost one adjugate row (O(n^3)) per sensor order, not one per order of
+    the chain: an input of order 500 and an angle reading took 1000 rows per verify (109 s)."""
+    rows = []
+    real = linear.output_adjugate
+    monkeypatch.setattr(linear, "output_adjugate", lambda A, c, den=None: rows.append(1) or real(A, c, den))
+    rel = linear.chain_relations({0, 2, 40}, "z", 0.01)
+    assert len(rows) == 2  # orders 0 and 2; order 40's numerator is the characteristic polynomial
+    full = {d: real(*linear.zoh_chain(40, 0.01)[:1], np.eye(40)[d]) @ linear.zoh_chain(40, 0.01)[1] for d in (0, 2)}
+    assert np.array_equal(rel[2][0], full[2]) and np.array_equal(rel[2][1], full[0])
+
+
 def test_output_adjugate_is_a_row_of_the_adjugate():
     rng = np.random.default_rng(5)
     A, c = rng.normal(size=(5, 5)), rng.normal(size=5)

@@ -325,6 +325,34 @@ def test_the_base_rate_is_measured_over_the_log_not_per_block(heading):
             run_log(heading, log, block_rows=rows)
 
 
+def test_the_base_rate_of_rows_jittered_within_half_a_tick_is_their_grid_rate():
+    """+-0.35 tick of uniform jitter: a step of 1.6 ticks counted as two (every step at least one)
+    read a 100 Hz log as 104 Hz and refused it; a log 2 % off with the same jitter is refused."""
+    from cfdesign.timing import check_rate
+
+    rng = np.random.default_rng(4)
+    jitter = 0.0035 * rng.uniform(-1, 1, 20_000)
+    check_rate(np.arange(20_000) * 0.01 + jitter, 0.01, "log")
+    with pytest.raises(DataError, match=r"base rate is 9[78]\.\d+ Hz"):
+        check_rate(np.arange(20_000) * 0.0102 + jitter, 0.01, "log")
+
+
+def test_time_stamps_jittered_within_half_a_tick_put_every_row_on_its_own_tick(heading):
+    """Rows jittered uniformly by +-0.35 tick: the base rate is the table's (counting ticks step by
+    step made the log 4 % too fast: refused), and every row lands on its own tick (measured from
+    the first row's jittered time, one row in ten fell on its neighbour's tick): the estimates
+    are those of the same readings on exact ticks."""
+    log, _ = heading_log(3, 37, n=4000, seed=2, jitter=0.0)
+    exact = run_log(heading, log)
+    rng = np.random.default_rng(3)
+    for jitter in (0.35, -0.35, 0.1):  # uniform jitter, and a first row at the edge of its range
+        times = log["time"] + 0.01 * rng.uniform(-abs(jitter), abs(jitter), len(log))
+        times[0] = log["time"][0] + 0.01 * jitter
+        result = run_log(heading, log.assign(time=times))
+        assert result.unused == {}, result.unused
+        assert np.array_equal(result.estimates["heading"], exact.estimates["heading"])
+
+
 BAD_LOGS = {
     "empty.csv": ("", "empty file"),
     "header.csv": ("time,gyro,compass,odometry\n", "header but no rows"),

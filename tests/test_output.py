@@ -13,10 +13,10 @@ from cfdesign.sim.gaussian import model_log
 N = 400_000
 
 
-def _table(example, form, rates=None):
+def _table(example, form, rates=None, output="posterior"):
     spec = cfdesign.load_spec(cfdesign.example_path(example))
     sensors = tuple(dataclasses.replace(s, rate_hz=(rates or {}).get(s.name, s.rate_hz)) for s in spec.sensors)
-    return cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False, sensors=sensors))
+    return cfdesign.design(dataclasses.replace(spec, gain_form=form, wrap_angle=False, sensors=sensors, output=output))
 
 
 @pytest.mark.parametrize("rates", [None, {"compass": 1.0}], ids=["single-rate", "multirate"])
@@ -78,3 +78,23 @@ def test_model_log_truth_follows_the_model_recursion():
     u = np.column_stack([readings[s.name] for s in table.inputs])
     w = x[1:] - x[:-1] @ table.F.T - u[:-1] @ table.B.T
     assert np.diag(np.cov(w.T)) / np.diag(table.Q) == pytest.approx(np.ones(3), rel=0.03)
+
+
+@pytest.mark.parametrize("output, form", [("posterior", "filter"), ("prior", None)])
+def test_multirate_proof_is_of_the_output_the_table_declares(monkeypatch, output, form):
+    """A multirate table's exact proof (gains symbolic, so every phase) is of the bands of the
+    estimate it outputs: the posterior's are the filter-form observer's (the readings fed
+    through).  A posterior table recorded the structure's proof of the prediction's bands."""
+    from cfdesign import designer
+    from cfdesign.symbolic.observer import Observer
+
+    proved = []
+    real = Observer.proof
+    monkeypatch.setattr(Observer, "proof", lambda self: proved.append((self.gain_form, self.is_numeric)) or real(self))
+    monkeypatch.setattr(designer, "_SYMBOLIC_PROOFS", {})
+    table = _table("dckf3", "predictor", {"compass": 1.0}, output=output)
+    assert table.period == 5 and table.output == output
+    # the posterior's bands: the filter-form observer, gains symbolic; the prior's: the structure's
+    # own (predictor-form) proof, already run
+    assert ((form, False) in proved) if form else not any(f == "filter" for f, _ in proved)
+    assert table.checks["complementary"] and f"{output} output" in table.checks["complementary_method"]
