@@ -234,10 +234,10 @@ TRIM_S, CONVERGE_S = 10.0, 10.0
 def trimmed_trial(d):
     """The trial started in the middle of its motion (``TRIM_S`` after the first movement sample, no
     rest before it); the first ``CONVERGE_S`` are not scored, for every filter alike."""
-    start = int(np.argmax(d["movement"])) + int(round(TRIM_S * d["rate"]))
+    start = int(np.argmax(d["movement"])) + round(TRIM_S * d["rate"])
     out = {key: d[key][start:] for key in ("gyr", "acc", "mag", "ref", "movement")}
     out = {key: np.ascontiguousarray(value) for key, value in out.items()}
-    out["movement"][:int(round(CONVERGE_S * d["rate"]))] = False
+    out["movement"][:round(CONVERGE_S * d["rate"])] = False
     out["rate"] = d["rate"]
     return out
 
