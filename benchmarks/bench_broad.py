@@ -252,6 +252,7 @@ PROXIES = {
     "gyro bias (1, -1.5, 0.5) deg/s": lambda d: modified_trial(d, gyr_bias=np.radians([1.0, -1.5, 0.5])),
     "gyro scale +0.5 %": lambda d: modified_trial(d, gyr_scale=1.005),
     "field in Gauss": lambda d: modified_trial(d, mag_scale=0.01),
+    "hard iron (1, -0.8, 0.5) uT": lambda d: modified_trial(d, hard_iron=(1.0, -0.8, 0.5)),
     "hard iron (4, -3, 2) uT": lambda d: modified_trial(d, hard_iron=(4.0, -3.0, 2.0)),
     "played backwards": reversed_trial,
     f"started mid-motion ({CONVERGE_S:g} s unscored)": trimmed_trial,

@@ -256,6 +256,7 @@ def test_bad_rates_are_refused_before_anything_is_allocated(rate, monkeypatch):
     ({"declination_rad": 4.0}, "declination_rad must be within"),
     ({"gyro_noise_density": -1.0}, "gyro_noise_density must be a positive"),
     ({"heading_noise_density": "x"}, "heading_noise_density must be a number"),
+    ({"heading_bias_std0": -1e-4}, "heading_bias_std0 must be from 0 to 1e15"),
     ({"mag_rejection": 1}, "mag_rejection must be True or False"),
     ({"no_such_option": 1.0}, "unknown parameter"),
 ])
