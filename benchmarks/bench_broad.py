@@ -33,7 +33,7 @@ loops.
 
 Run::
 
-    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--only ours9d,vqf]
+    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--proxies] [--only ours9d,vqf]
 
 ``--ablation``: ours9d with each mechanism off (parameters of AttitudeParams), mean and per
 trial.  ``--loo``: leave-one-out over the constants tuned on these trials: for each held-out
@@ -42,6 +42,12 @@ scored on the held-out trial (the other constants at their defaults).  ``--rever
 trial played backwards, a motion none of the filters was tuned on (time reversal keeps the
 specific force and the field, negates the body rate; the reference moves by one sample so
 that each estimate is scored against the attitude after its gyro sample, as forwards).
+
+``--proxies``: the ten trials turned into recordings none of the filters was tuned on (see
+``PROXIES``: another mounting of the sensor, other sample rates, a noisier, biased or
+mis-scaled gyro, the field in Gauss or with a hard-iron offset, time reversal, starts in the
+middle of the motion), ours9d, VQF and Madgwick on each: mean total RMSE per proxy, the
+trials where ours9d is worse than Madgwick, and ours9d's wins against VQF.
 
 Optional dependencies (bench only, never needed by cfdesign or its tests):
 ``pip install vqf ahrs imufusion``.
@@ -178,6 +184,113 @@ def reversed_trial(d):
     return out
 
 
+def rotated_trial(d):
+    """The sensor mounted otherwise: every reading turned by a fixed rotation ``R`` (the new body
+    frame is ``R`` times the old), the reference ``q ⊗ R⁻¹``."""
+    r = rot.from_rotation_vector(np.radians(120.0) * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0))
+    out = dict(d)
+    for key in ("gyr", "acc", "mag"):
+        out[key] = np.ascontiguousarray(rot.rotate(np.tile(r, (len(d[key]), 1)), d[key]))
+    out["ref"] = rot.multiply(d["ref"], rot.conjugate(r))
+    return out
+
+
+def decimated_trial(d, m):
+    """An IMU at ``rate / m``: every reading the mean of ``m`` samples (the anti-alias average an IMU
+    applies), scored against the reference at the block's last sample (the block's rates turn the
+    attitude of the previous block's end into it)."""
+    n = len(d["gyr"]) // m * m
+    out = dict(d)
+    for key in ("gyr", "acc", "mag"):
+        out[key] = np.ascontiguousarray(d[key][:n].reshape(-1, m, 3).mean(axis=1))
+    out["ref"], out["movement"] = d["ref"][m - 1:n:m], d["movement"][m - 1:n:m]
+    out["rate"] = d["rate"] / m
+    return out
+
+
+def modified_trial(d, noise=None, gyr_bias=None, gyr_scale=1.0, mag_scale=1.0, hard_iron=None, seed=0):
+    """The trial's readings altered as another sensor would give them: extra white noise (stds of
+    gyr, acc, mag per sample), a constant gyro bias (rad/s), a gyro scale factor, the field in
+    other units (``mag_scale``) or with a hard-iron offset (body frame, the field's unit)."""
+    out = dict(d)
+    rng = np.random.default_rng(seed)
+    gyr, acc, mag = d["gyr"] * gyr_scale, d["acc"].copy(), d["mag"] * mag_scale
+    if gyr_bias is not None:
+        gyr = gyr + np.asarray(gyr_bias)
+    if noise is not None:
+        gyr = gyr + noise[0] * rng.standard_normal(gyr.shape)
+        acc = acc + noise[1] * rng.standard_normal(acc.shape)
+        mag = mag + noise[2] * mag_scale * rng.standard_normal(mag.shape)
+    if hard_iron is not None:
+        mag = mag + np.asarray(hard_iron) * mag_scale
+    out["gyr"], out["acc"], out["mag"] = (np.ascontiguousarray(x) for x in (gyr, acc, mag))
+    return out
+
+
+#: start of a trimmed trial after the first movement sample, and the convergence window left unscored (s)
+TRIM_S, CONVERGE_S = 10.0, 10.0
+
+
+def trimmed_trial(d):
+    """The trial started in the middle of its motion (``TRIM_S`` after the first movement sample, no
+    rest before it); the first ``CONVERGE_S`` are not scored, for every filter alike."""
+    start = int(np.argmax(d["movement"])) + round(TRIM_S * d["rate"])
+    out = {key: d[key][start:] for key in ("gyr", "acc", "mag", "ref", "movement")}
+    out = {key: np.ascontiguousarray(value) for key, value in out.items()}
+    out["movement"][:round(CONVERGE_S * d["rate"])] = False
+    out["rate"] = d["rate"]
+    return out
+
+
+#: the proxies of ``--proxies``: recordings none of the filters was tuned on, made from the ten
+PROXIES = {
+    "as recorded": lambda d: d,
+    "sensor frame turned 120 deg": rotated_trial,
+    "decimated to 95 Hz": lambda d: decimated_trial(d, 3),
+    "decimated to 48 Hz": lambda d: decimated_trial(d, 6),
+    "noisier (0.5 deg/s, 0.05 m/s2, 1 uT)": lambda d: modified_trial(d, noise=(np.radians(0.5), 0.05, 1.0)),
+    "gyro bias (1, -1.5, 0.5) deg/s": lambda d: modified_trial(d, gyr_bias=np.radians([1.0, -1.5, 0.5])),
+    "gyro scale +0.5 %": lambda d: modified_trial(d, gyr_scale=1.005),
+    "field in Gauss": lambda d: modified_trial(d, mag_scale=0.01),
+    "hard iron (1, -0.8, 0.5) uT": lambda d: modified_trial(d, hard_iron=(1.0, -0.8, 0.5)),
+    "hard iron (4, -3, 2) uT": lambda d: modified_trial(d, hard_iron=(4.0, -3.0, 2.0)),
+    "played backwards": reversed_trial,
+    f"started mid-motion ({CONVERGE_S:g} s unscored)": trimmed_trial,
+}
+
+
+def _proxy_score(args):
+    path, proxy, name = args
+    d = PROXIES[proxy](load_trial(path))
+    return broad_rmse(FILTERS[name](d), d["ref"], d["movement"])
+
+
+def proxy_scores(files, names, jobs, proxies=None):
+    """``{proxy: {filter: (len(files), 3) array}}`` of (total, heading, inclination) RMSE, in parallel."""
+    proxies = list(PROXIES) if proxies is None else proxies
+    tasks = [(path, proxy, name) for proxy in proxies for name in names for path in files]
+    with ProcessPoolExecutor(jobs) as pool:
+        flat = np.array(list(pool.map(_proxy_score, tasks))).reshape(len(proxies), len(names), len(files), 3)
+    return {proxy: dict(zip(names, flat[i], strict=True)) for i, proxy in enumerate(proxies)}
+
+
+def proxy_table(files, jobs):
+    names = available(["ours9d", "vqf", "madgwick"])
+    scores = proxy_scores(files, names, jobs)
+    print("\nProxies of unseen recordings: mean total RMSE (deg) over the ten trials; trials where ours9d is "
+          "worse than Madgwick; trials where ours9d beats VQF")
+    print("proxy".ljust(42) + "".join(f"{n:>10}" for n in names) + "   worse than Madgwick / beats VQF")
+    for proxy, by_name in scores.items():
+        row = proxy[:41].ljust(42) + "".join(f"{by_name[n][:, 0].mean():10.2f}" for n in names)
+        if {"ours9d", "vqf", "madgwick"} <= set(names):
+            ours, vqf, madgwick = (by_name[n][:, 0] for n in ("ours9d", "vqf", "madgwick"))
+            worse = [f"{files[i].stem[:2]} ({ours[i]:.2f}>{madgwick[i]:.2f})" for i in range(len(files))
+                     if ours[i] > madgwick[i]]
+            row += f"   {', '.join(worse) or 'none'} / {int(np.sum(ours < vqf))} of {len(files)}"
+        print(row, flush=True)
+    return scores
+
+
 def _score(args):
     path, params = args
     d = load_trial(path)
@@ -258,8 +371,10 @@ def main(argv=None):
     parser.add_argument("--only", help="comma-separated filters of " + ", ".join(FILTERS))
     parser.add_argument("--ablation", action="store_true", help="also the ablation table of ours9d")
     parser.add_argument("--loo", action="store_true", help="also the leave-one-out check of the tuned constants")
-    parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation and --loo")
+    parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation, --loo and --proxies")
     parser.add_argument("--reversed", action="store_true", help="also the table of every trial played backwards")
+    parser.add_argument("--proxies", action="store_true",
+                        help="also ours9d, VQF and Madgwick on proxies of unseen recordings (PROXIES)")
     args = parser.parse_args(argv)
     files = sorted(args.data.glob("*.mat"))
     if not files:
@@ -274,6 +389,8 @@ def main(argv=None):
     if args.reversed:
         print()
         main_table(files, names, reverse=True)
+    if args.proxies:
+        proxy_table(files, args.jobs)
     if args.ablation:
         ablation(files, args.jobs)
     if args.loo:
