@@ -68,6 +68,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DataError, InputError
+from .files import not_a_device
 from .noise import FIGURE_RANGE
 from .spec import RATE_RANGE
 
@@ -808,6 +809,8 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     try:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
+        if not_a_device(path):  # /dev/zero: an endless line
+            raise DataError(f"cannot read {path}: {not_a_device(path)}")
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
     data = read_columns(path, columns, time_column)

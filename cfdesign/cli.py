@@ -14,7 +14,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import CfdesignError, GainError, InternalError, SpecError
-from .files import check_distinct, write_files
+from .files import check_distinct, is_dir, write_files
 
 __all__ = ["main", "parse_gains"]
 
@@ -263,7 +263,7 @@ def cmd_run(args) -> int:
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
     if args.workers is not None and args.workers < 1:
         raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
-    if len(logs) > 1 or args.workers or args.scheduler or Path(args.output).is_dir():
+    if len(logs) > 1 or args.workers or args.scheduler or is_dir(args.output):
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
         suffix = ".parquet" if args.format == "parquet" else ".csv"
@@ -296,7 +296,7 @@ def _log_paths(items) -> list:
     out = []
     for item in items:
         p = Path(item)
-        if p.is_dir():
+        if is_dir(p):
             found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
         elif any(c in item for c in "*?["):
             found = sorted(Path(q) for q in glob.glob(item))
@@ -509,6 +509,9 @@ def main(argv=None) -> int:
 
 def _main(argv, debug) -> int:
     try:
+        nul = next((i for i, a in enumerate(argv) if "\x00" in a), None)
+        if nul is not None:  # no file name or value holds one (a shell cannot pass one; main() can)
+            raise CfdesignError(f"argument {nul + 1} ({_one_line(argv[nul], 60)!r}) contains a NUL character")
         args = build_parser(argv).parse_args(argv)
         with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
             return args.run(args)

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CfdesignError, DataError, OutputError
-from .files import check_distinct, open_atomic, write_bytes, write_text
+from .files import check_distinct, is_dir, not_a_device, open_atomic, write_bytes, write_text
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
@@ -488,6 +488,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables")
     block_rows = block_rows or BLOCK_ROWS
     frame, source = _source(data, source, time)
+    if frame is None and not_a_device(data):  # /dev/zero: an endless line
+        raise DataError(f"cannot read {source}: {not_a_device(data)}")
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
@@ -512,6 +514,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     def run_rows(block, values, ticks):
         if len(ticks):
             states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            _check_bounded(table, states, ticks, source)
             writer.write(_estimates(table, block, cols, values, states, stds, std))
             bar.update(len(ticks))
 
@@ -530,15 +533,26 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
         if pending is not None:
             run_rows(*pending)
-    est = writer.frame()
-    result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
-                       _time_note(cols) + lock.notes,
-                       Path(output) if output else None, source)
-    if plot is not None:
-        from .plot import figure_bytes
+        est = writer.frame()
+        if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
+            from .plot import figure_bytes
 
-        write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
-    return result
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
+    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
+                     _time_note(cols) + lock.notes, Path(output) if output else None, source)
+
+
+def _check_bounded(table, states, ticks, source):
+    """An estimate that leaves :data:`~cfdesign.runtime.filter.STATE_LIMIT` (or overflows to
+    inf or NaN) is a filter that diverges, not an estimate: an unstable table (an edited gain
+    or model) wrote empty estimate columns with exit status 0."""
+    from .runtime.filter import STATE_LIMIT
+
+    bad = ~np.all(np.abs(states) <= STATE_LIMIT, axis=1)
+    if bad.any():
+        tick = int(ticks[np.argmax(bad)])
+        raise DataError(f"{source}: the estimates of {table.name!r} diverge (beyond {STATE_LIMIT:g} at tick {tick}): "
+                        "the table's filter is not stable (cfdesign verify names the check)")
 
 
 def _same_file(a, b) -> bool:
@@ -557,8 +571,8 @@ def _check_plot_target(plot):
     if fmt not in FIGURE_FORMATS:
         raise OutputError(f"cannot write {plot}: unknown image format {fmt!r} "
                           f"(use {', '.join('.' + f for f in FIGURE_FORMATS)})")
-    if path.is_dir() or not (path.parent if str(path.parent) else Path(".")).is_dir():
-        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if path.is_dir() else
+    if is_dir(path) or not is_dir(path.parent if str(path.parent) else Path(".")):
+        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if is_dir(path) else
                                                       f"no folder {path.parent}"))
 
 

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SpecError
+from .files import read_limited
 from .noise import Bias, WhiteNoise
 
 if sys.version_info >= (3, 11):
@@ -277,7 +278,9 @@ def load_spec(path) -> FilterSpec:
         size = path.stat().st_size
         if size > MAX_SPEC_BYTES:
             raise SpecError(f"{path}: {size} bytes is more than a design file holds (limit {MAX_SPEC_BYTES})")
-        text = path.read_bytes()
+        text = read_limited(path, MAX_SPEC_BYTES)
+        if len(text) > MAX_SPEC_BYTES:  # a device or a pipe: no size until it is read
+            raise SpecError(f"{path}: more than {MAX_SPEC_BYTES} bytes, more than a design file holds")
     except OSError as exc:
         raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
     try:

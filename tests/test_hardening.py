@@ -667,3 +667,75 @@ def test_verify_refuses_a_tolerance_that_passes_anything(heading, tmp_path, cli,
     code, _, err = cli("verify", table.save(tmp_path / "g.json"), "--spec", cfdesign.example_path("dckf3"),
                        "--rtol", rtol)
     assert code == 2 and "--rtol" in err and len(err.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------- found by the adversarial driver of issue 12
+BAD_PATHS = {"overlong name": lambda d: d / ("x" * 300), "NUL character": lambda d: str(d / "a\x00b.json"),
+             "full disk": lambda d: "/dev/full", "missing parent": lambda d: d / "no" / "such" / "f.json",
+             "a directory": lambda d: d, "unwritable place": lambda d: "/proc/version"}
+PATH_COMMANDS = {  # each writes its output last, after another file it must not have replaced
+    "design -o": lambda t, o: ["design", "--example", "cf3", "-o", o],
+    "design --bode": lambda t, o: ["design", "--example", "cf3", "-o", t / "keep.json", "--bode", o],
+    "export csv": lambda t, o: ["export", t / "g.json", "--format", "csv", "-o", o],
+    "run -o": lambda t, o: ["run", t / "g.json", t / "log.csv", "-o", o],
+    "run --plot": lambda t, o: ["run", t / "g.json", t / "log.csv", "-o", t / "keep.csv", "--plot", o],
+    "run log": lambda t, o: ["run", t / "g.json", o, "-o", t / "keep.csv"],
+    "noise --plot": lambda t, o: ["noise", t / "log.csv", "--column", "gyro", "--rate-hz", 5, "--plot", o],
+    "verify": lambda t, o: ["verify", o],
+}
+
+
+@settings(FUZZ, max_examples=12)
+@given(command=st.sampled_from(sorted(PATH_COMMANDS)), bad=st.sampled_from(sorted(BAD_PATHS)))
+def test_paths_the_system_refuses_are_named_and_nothing_is_replaced(heading, tmp_path_factory, command, bad):
+    """An overlong file name or a NUL character reached Path.is_dir() and came out as an internal
+    error (exit 3); ``run -o est.csv --plot /dev/full`` replaced est.csv before the plot failed."""
+    from conftest import run_cli
+
+    d = tmp_path_factory.mktemp("p")
+    heading.save(d / "g.json")
+    (d / "log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.1,0.1\n" for k in range(40)))
+    for keep in ("keep.json", "keep.csv"):
+        (d / keep).write_text("previous")
+    code, _, err = run_cli(*PATH_COMMANDS[command](d, BAD_PATHS[bad](d)))
+    assert code == 2 and "internal error" not in err and len(err.strip().splitlines()) == 1, (code, err)
+    assert (d / "keep.json").read_text() == "previous" and (d / "keep.csv").read_text() == "previous"
+    assert not [p.name for p in d.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.parametrize("entry", [("F", 0, 0, 1e6), ("K", 0, 0, 1e4)])
+def test_a_table_whose_filter_diverges_is_not_run_to_empty_estimates(position, tmp_path, cli, entry):
+    """An unstable table (an edited F or K) wrote estimate columns of NaN (empty cells) with exit 0."""
+    key, i, j, value = entry
+    d = position.to_dict()
+    (d[key][0] if key == "K" else d[key])[i][j] = value
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    (tmp_path / "log.csv").write_text("time,accelerometer,gps\n" + "".join(
+        f"{k / 50},0.01,{1.0 if k % 50 == 0 else ''}\n" for k in range(3000)))
+    (tmp_path / "e.csv").write_text("previous")
+    code, _, err = cli("run", tmp_path / "g.json", tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "diverge" in err and "not stable" in err, err
+    assert (tmp_path / "e.csv").read_text() == "previous"
+
+
+def test_a_time_gap_beyond_the_limit_is_named_before_the_work(heading, tmp_path, cli):
+    """A time jump of 2e8 s in a 5 Hz log ran the filter over 1e9 ticks (minutes, gigabytes)."""
+    from cfdesign.timing import MAX_GAP_TICKS
+
+    rows = [k * 0.2 + (MAX_GAP_TICKS * 0.2 + 1.0 if k > 20 else 0.0) for k in range(40)]
+    (tmp_path / "log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{t!r},0.01,0.1,0.1\n" for t in rows))
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "line 23" in err and f"more than {MAX_GAP_TICKS} ticks" in err, err
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+@pytest.mark.parametrize("command", [["verify", "/dev/zero"], ["design", "/dev/zero"], ["verify", "g.json", "--spec",
+                                     "/dev/zero"], ["run", "g.json", "/dev/zero", "-o", "e.csv"],
+                                     ["noise", "/dev/zero", "--column", "x", "--rate-hz", "5"]])
+def test_an_endless_input_is_refused_not_read_into_memory(heading, tmp_path, monkeypatch, cli, command):
+    """A device has size 0 for stat: /dev/zero as a table, design file or log was read until the
+    memory ran out (22 GB, then the kernel killed the process)."""
+    monkeypatch.chdir(tmp_path)
+    heading.save("g.json")
+    code, _, err = cli(*command)
+    assert code == 2 and ("more than" in err or "it is a device" in err) and len(err.strip().splitlines()) == 1, err
