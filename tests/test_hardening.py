@@ -739,3 +739,21 @@ def test_an_endless_input_is_refused_not_read_into_memory(heading, tmp_path, mon
     heading.save("g.json")
     code, _, err = cli(*command)
     assert code == 2 and ("more than" in err or "it is a device" in err) and len(err.strip().splitlines()) == 1, err
+
+
+@FUZZ
+@given(exponent=st.integers(-110, 99))
+def test_noise_fits_readings_of_any_scale_or_names_the_scale(exponent):
+    """The fit weighted by 1/variance squared them in its normal equations: readings of 1e-75 gave
+    a CI up to inf, 1e-90 a CI of nan to nan (exit 0), 1e-160 an internal error."""
+    from cfdesign.allan import identify_noise
+    from cfdesign.errors import InputError
+
+    y = 10.0 ** exponent * np.random.default_rng(0).standard_normal(3000)
+    try:
+        fit = identify_noise(y, 100.0)
+    except InputError as exc:
+        assert np.ptp(y) < 1e-100 and "check the units" in str(exc), str(exc)
+        return
+    white = fit.terms["white"]
+    assert np.all(np.isfinite(white.ci)) and abs(white.value / (10.0 ** exponent / 10) - 1) < 0.05, white
