@@ -284,6 +284,9 @@ def cmd_run(args) -> int:
         print(f"cfdesign: {result.without_gain} readings were not used ({detail})", file=sys.stderr)
     units = dict(zip(table.states, table.state_units(), strict=True))
     for state, rms in result.rms.items():
+        if rms != rms:  # NaN: every reference reading was empty, inf or beyond the reading limit
+            print(f"RMS error of {state}: none (no row has a finite reference to compare with)")
+            continue
         print(f"RMS error of {state}: {rms:.6g}" + (f" {units[state]}" if units.get(state) else ""))
     print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0

@@ -62,7 +62,8 @@ class LogResult:
     samples : int
         Rows run.
     rms : dict
-        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]).
+        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]); NaN
+        when no row has a finite reference to compare with.
     unused : dict
         Readings not used, by reason and sensor: ``rejected`` (inf, or beyond the runtime's
         :data:`~cfdesign.runtime.filter.READING_LIMIT`), ``unscheduled`` (no gain at its

@@ -771,3 +771,13 @@ def test_a_tables_recorded_checks_have_their_types(tmp_path, cli, path, value):
         load_gains(tmp_path / "c.json")
     code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 100, "-o", tmp_path / "d.json")
     assert code == 2 and "schema violation" in err
+
+
+@pytest.mark.parametrize("cell", ["inf", "", "nan", "1e300"])
+def test_a_reference_with_no_finite_reading_prints_no_nan(heading, tmp_path, cli, cell):
+    """A reference column of inf (or empty) printed 'RMS error of heading: nan rad' with exit 0."""
+    (tmp_path / "log.csv").write_text("time,gyro,compass,odometry,truth\n" + "".join(
+        f"{k / 5},0.01,0.1,0.1,{cell}\n" for k in range(40)))
+    code, out, _ = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv",
+                       "--reference", "truth")
+    assert code in (0, 2) and "nan" not in out.lower(), out
