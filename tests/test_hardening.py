@@ -781,3 +781,22 @@ def test_a_reference_with_no_finite_reading_prints_no_nan(heading, tmp_path, cli
     code, out, _ = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv",
                        "--reference", "truth")
     assert code in (0, 2) and "nan" not in out.lower(), out
+
+
+REPRODUCE_BAD = {"--runs": ["-1", "0", "20000", "99999999999999999999", "1e-300"],
+                 "--seed": ["-1", "-5", "99999999999999999999", "1e308"],
+                 "--duration": ["-1", "0", "1e-300", "5", "nan", "inf", "20000", "1e308"]}
+
+
+@FUZZ
+@given(data=st.data(), argv=st.sampled_from([["carreira", "--runs"], ["helicopter", "--runs"], ["carreira", "--seed"],
+                                             ["helicopter", "--seed"], ["compare", "--seed"],
+                                             ["compare", "--duration"]]))
+def test_reproduce_options_out_of_range_are_named_before_the_work(data, argv):
+    """A negative seed was a ValueError from numpy, --runs 10**20 an OverflowError, --duration 1e-300 an
+    IndexError and 1e20 numpy's 'Maximum allowed size exceeded': internal errors (exit 3)."""
+    from conftest import run_cli
+
+    value = data.draw(st.sampled_from(REPRODUCE_BAD[argv[1]]))
+    code, _, err = run_cli("reproduce", *argv, value, "--json")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "internal error" not in err, (argv, value, err)
