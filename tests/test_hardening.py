@@ -303,6 +303,36 @@ def test_zero_size_riccati_data_is_a_named_error(solver, capfd):
     assert "DGGES" not in capfd.readouterr().err  # no raw LAPACK message
 
 
+@FUZZ
+@given(solver=st.sampled_from(["dare", "care", "periodic"]), which=st.sampled_from("ABQR"),
+       scale=st.sampled_from([1e151, 1e200, 1e300, -1e200]),
+       tol=st.sampled_from([None, 0, -1, np.nan, np.inf, 1.0, "x"]))
+def test_riccati_data_beyond_a_double_and_bad_tolerances_are_named(solver, which, scale, tol):
+    """A = 1e200 I gave 'SVD did not converge' (LinAlgError) from the PBH test, the periodic solver
+    'array must not contain infs or NaNs' from its monodromy product; rtol='x' a UFuncTypeError."""
+    import cfdesign.riccati as ric
+    from cfdesign.errors import RiccatiError
+
+    data = {"A": np.array([[1.0, 0.2], [0.0, 1.0]]), "B": np.array([[0.02], [0.2]]), "Q": np.eye(2), "R": np.eye(1)}
+    if tol is None:
+        data[which] = data[which] * scale
+    fn = {"dare": ric.dare, "care": ric.care, "periodic": lambda A, B, Q, R, **kw: ric.periodic_dare(
+        [A] * 3, [B.T, None, None], [Q] * 3, [R, None, None], **kw)}[solver]
+    kw = {} if tol is None else {"tol" if solver == "periodic" else "rtol": tol}
+    with pytest.raises(RiccatiError):
+        fn(data["A"], data["B"], data["Q"], data["R"], **kw)
+
+
+def test_a_periodic_product_that_overflows_is_named():
+    from cfdesign.errors import RiccatiError
+    from cfdesign.riccati import periodic_dare
+
+    N = 400  # 10 ** 400
+    with pytest.raises(RiccatiError, match="monodromy matrix\\) overflows"):
+        periodic_dare([np.diag([10.0, 1.0])] * N, [np.array([[1.0, 0.0]])] + [None] * (N - 1), [np.eye(2)] * N,
+                      [np.eye(1)] + [None] * (N - 1))
+
+
 # ---------------------------------------------------------------------- found by a second pass
 @FUZZ
 @given(key=st.sampled_from(["F", "B", "H", "K", "Q", "R", "P", "rate_hz", "sample_time_s", "order"]),
