@@ -444,7 +444,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     InputError
         Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
-        noise figure (:data:`~cfdesign.noise.FIGURE_RANGE`), or a rate outside 1e-9 to 1e9 Hz.
+        noise figure (``cfdesign.noise.FIGURE_RANGE``), or a rate outside 1e-9 to 1e9 Hz.
 
     Examples
     --------

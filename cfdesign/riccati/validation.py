@@ -44,7 +44,7 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
     ------
     RiccatiError
         Not numeric, not 2-D, the wrong shape, NaN or Inf, an entry beyond
-        :data:`~cfdesign.gains.MAX_ENTRY`, or not symmetric.
+        ``cfdesign.gains.MAX_ENTRY``, or not symmetric.
 
     Examples
     --------
