@@ -1106,4 +1106,6 @@ def load_gains(path) -> GainTable:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise GainTableError(f"{path}: not valid JSON: {exc}") from None
+    except ValueError as exc:  # a NUL character in the path
+        raise GainTableError(f"cannot read gain table {str(path)!r}: {exc}") from None
     return GainTable.from_dict(data, str(path))

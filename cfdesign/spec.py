@@ -283,6 +283,8 @@ def load_spec(path) -> FilterSpec:
             raise SpecError(f"{path}: more than {MAX_SPEC_BYTES} bytes, more than a design file holds")
     except OSError as exc:
         raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:  # a NUL character in the path
+        raise SpecError(f"cannot read design file {str(path)!r}: {exc}") from None
     try:
         data = tomllib.loads(text.decode("utf-8-sig"))  # a BOM (a Windows editor) is not TOML; dropped
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

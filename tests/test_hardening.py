@@ -834,3 +834,10 @@ def test_reproduce_options_out_of_range_are_named_before_the_work(data, argv):
     value = data.draw(st.sampled_from(REPRODUCE_BAD[argv[1]]))
     code, _, err = run_cli("reproduce", *argv, value, "--json")
     assert code == 2 and len(err.strip().splitlines()) == 1 and "internal error" not in err, (argv, value, err)
+
+
+@pytest.mark.parametrize("loader", ["load_gains", "load_spec"])
+def test_a_path_with_a_nul_character_is_named_by_the_loaders(loader):
+    """open() raises ValueError for a NUL character: it left load_gains and load_spec as itself."""
+    with pytest.raises(CfdesignError, match=r"cannot read .*embedded null byte"):
+        getattr(cfdesign, loader)("a\x00b.json")
