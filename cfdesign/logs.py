@@ -339,7 +339,9 @@ def _header(path) -> list:
         raise _read_error(path, exc) from None
     if not header:
         raise _read_error(path, pd.errors.EmptyDataError())
-    return [h.strip() for h in header]
+    # a column without a name (a trailing comma) under the name pandas gives it: '' was looked up
+    # in the frame and raised KeyError
+    return [h.strip() or f"Unnamed: {i}" for i, h in enumerate(header)]
 
 
 def read_columns(path, columns, time=None) -> dict:
@@ -897,11 +899,14 @@ class _Writer:
                               f"({_first_line(exc)}); write CSV, or give the column one type") from None
 
     def _errors(self, frame):
+        from .runtime.filter import usable
+
         for state in frame.attrs.get("references", ()):
-            err = frame[state].to_numpy() - frame[f"{state}_reference"].to_numpy()
+            ref = frame[f"{state}_reference"].to_numpy(dtype=float)
+            err = frame[state].to_numpy() - ref
             if frame.attrs.get("wrap") == state:
                 err = wrap(err)
-            ok = np.isfinite(err)
+            ok = np.isfinite(err) & usable(ref)  # a reference of 1e308 squared to an RMS error of inf
             s, n = self.errors.get(state, (0.0, 0))
             self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
 
