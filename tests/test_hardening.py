@@ -794,14 +794,15 @@ def test_noise_fits_readings_of_any_scale_or_names_the_scale(exponent):
 
 
 @pytest.mark.parametrize("path, value", [(("checks", "complementary"), "NaN"), (("checks", "stable"), 1),
-                                         (("checks", "poles"), [["nan", 0.0]]), (("checks", "poles"), [[1.0]])])
+                                         (("checks", "poles"), [["nan", 0.0]]), (("checks", "poles"), [[1.0]]),
+                                         (("options", "order"), "inf"), (("options", "discrete"), "yes")])
 def test_a_tables_recorded_checks_have_their_types(tmp_path, cli, path, value):
     """A table's checks took any JSON value: discretize copied complementary = 'NaN' into its table
     and printed 'complementary: NaN' with exit 0; poles as text were written back by export."""
     d = single_rate_continuous().to_dict()
     d[path[0]][path[1]] = value
     (tmp_path / "c.json").write_text(json.dumps(d))
-    with pytest.raises(GainTableError, match="schema violation at checks/"):
+    with pytest.raises(GainTableError, match=f"schema violation at {path[0]}/"):
         load_gains(tmp_path / "c.json")
     code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 100, "-o", tmp_path / "d.json")
     assert code == 2 and "schema violation" in err
