@@ -441,7 +441,9 @@ def _text(table, key, required=False, field=None):
 def _choice(table, key, allowed, default, field=None):
     value = table.get(key, default)
     if value not in allowed:
-        raise SpecError(f"{field or key} must be one of {', '.join(allowed)}, got {value!r}")
+        # (None in allowed: the field may be left out; joining it was a TypeError, an internal error)
+        raise SpecError(f"{field or key} must be one of {', '.join(a for a in allowed if a is not None)}, got "
+                        f"{value!r}")
     return value
 
 

@@ -865,3 +865,24 @@ def test_a_log_column_without_a_name_and_a_reference_beyond_the_limit_are_taken(
     code, out, err = run_cli("run", heading.save(d / "g.json"), d / "log.csv", "-o", d / "e.csv", *reference)
     assert code == 0 and "inf" not in out and "nan" not in out, (out, err)
     assert "Unnamed:" in (d / "e.csv").read_text().splitlines()[0]
+
+
+CHOICE_FIELDS = {"output": lambda d, v: d.__setitem__("output", v),
+                 "gain_form": lambda d, v: d.__setitem__("gain_form", v),
+                 "sensors.gps.role": lambda d, v: d["sensors"]["gps"].__setitem__("role", v),
+                 "sensors.accelerometer.bias.model": lambda d, v: d["sensors"]["accelerometer"].__setitem__(
+                     "bias", {"model": v, "density": 1e-4})}
+
+
+@FUZZ
+@given(field=st.sampled_from(sorted(CHOICE_FIELDS)),
+       value=st.sampled_from([{}, [], -1, 3, "inf", "\x1b[2J", "\u202e", True, "", "Prior", 1.5]))
+def test_a_choice_field_with_another_value_is_named(field, value):
+    """output = {} (or any value not allowed) in a design file was an internal error: the message
+    joined the allowed values, None among them (TypeError)."""
+    d = {"structure": "position", "sensors": {
+        "accelerometer": {"rate_hz": 50.0, "noise": {"std": 0.006}},
+        "gps": {"rate_hz": 1.0, "noise": {"std": 3.0}}}}
+    CHOICE_FIELDS[field](d, value)
+    with pytest.raises(SpecError, match=f"{field} must be one of"):
+        parse_spec(d)
