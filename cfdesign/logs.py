@@ -290,9 +290,17 @@ def _csv_format(path) -> dict:
     return {"sep": "\t"} if b"\t" in line else {}
 
 
+def _column_name(i: int, name) -> str:
+    """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
+    name) when nothing is left.  The one rule for the header read as written and for pandas'
+    frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
+    other, and its lookup raised KeyError (an internal error)."""
+    return str(name).strip() or f"Unnamed: {i}"
+
+
 def _stripped(frame, columns=None):
     """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
-    frame.columns = [str(c).strip() for c in frame.columns]
+    frame.columns = [_column_name(i, c) for i, c in enumerate(frame.columns)]
     return frame if columns is None else frame[list(columns)]
 
 
@@ -339,9 +347,7 @@ def _header(path) -> list:
         raise _read_error(path, exc) from None
     if not header:
         raise _read_error(path, pd.errors.EmptyDataError())
-    # a column without a name (a trailing comma) under the name pandas gives it: '' was looked up
-    # in the frame and raised KeyError
-    return [h.strip() or f"Unnamed: {i}" for i, h in enumerate(header)]
+    return [_column_name(i, h) for i, h in enumerate(header)]
 
 
 def read_columns(path, columns, time=None) -> dict:

@@ -846,12 +846,13 @@ def test_a_path_with_a_nul_character_is_named_by_the_loaders(loader):
 
 @FUZZ
 @given(header=st.sampled_from(["time,gyro,compass,odometry,", "time,,gyro,compass,odometry",
-                               "time,gyro,compass,odometry, ", "time,gyro,,compass,odometry,,"]),
+                               "time,gyro,compass,odometry, ", "time,gyro,,compass,odometry,,",
+                               "time,gyro,compass,odometry,\t", "\t,time,gyro,compass,odometry"]),
        big=st.sampled_from([1e308, -1e300, 1e13]))
 def test_a_log_column_without_a_name_and_a_reference_beyond_the_limit_are_taken(heading, tmp_path_factory, header,
                                                                                 big):
-    """A trailing comma in a log's header (a column named '') was an internal error (KeyError); one
-    reference value of 1e308 made the printed RMS error inf."""
+    """A trailing comma in a log's header (a column named '') or a tab as a name was an internal error
+    (KeyError); one reference value of 1e308 made the printed RMS error inf."""
     from conftest import run_cli
 
     d = tmp_path_factory.mktemp("h")
@@ -861,7 +862,7 @@ def test_a_log_column_without_a_name_and_a_reference_beyond_the_limit_are_taken(
         cells = {"time": f"{k / 5}", "gyro": "0.01", "compass": "0.1", "odometry": "0.1"}
         rows.append(",".join(cells.get(n, repr(big) if k == 7 else "0.1") for n in names))
     (d / "log.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
-    reference = ["--reference", "Unnamed: 4"] if names[4:5] == [""] else []
+    reference = ["--reference", "Unnamed: 4"] if names[4:5] == [""] else []  # names: stripped, as the log's
     code, out, err = run_cli("run", heading.save(d / "g.json"), d / "log.csv", "-o", d / "e.csv", *reference)
     assert code == 0 and "inf" not in out and "nan" not in out, (out, err)
     assert "Unnamed:" in (d / "e.csv").read_text().splitlines()[0]
