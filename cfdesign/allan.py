@@ -76,6 +76,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import DataError, InputError
+from .files import not_a_device
 from .noise import FIGURE_RANGE
 from .spec import RATE_RANGE
 
@@ -463,7 +464,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     ------
     InputError
         Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
-        beyond ``MAX_READING``, a constant recording, or a rate outside 1e-9 to 1e9 Hz.
+        beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
+        noise figure (``cfdesign.noise.FIGURE_RANGE``), or a rate outside 1e-9 to 1e9 Hz.
 
     Examples
     --------
@@ -489,6 +491,9 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                          "Allan variance needs (check the units)")
     if np.ptp(y) == 0:
         raise InputError(f"{name}: the readings are constant: no noise to identify (quantised to one level?)")
+    if np.ptp(y) < FIGURE_RANGE[0]:  # their squares underflow: an Allan variance of zeros, then an empty fit
+        raise InputError(f"{name}: the readings vary by {np.ptp(y):g} only, below {FIGURE_RANGE[0]:g}, the smallest "
+                         "noise figure a design takes (check the units)")
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
@@ -547,8 +552,8 @@ def _eliminate(tau, adev, m, n, rate_hz, active):
     every term left is identified: ``(coef, terms, missing, edf)``."""
     active, dropped = list(active), {}
     while True:
-        coef, cov, edf, used = _fit(tau, adev**2, m, n + 1, active, 1.0 / rate_hz)
-        terms, missing = _terms(tau, adev, edf, coef, cov, used, n / rate_hz, 1.0 / rate_hz)
+        coef, cov, edf, used, vscale = _fit(tau, adev**2, m, n + 1, active, 1.0 / rate_hz)
+        terms, missing = _terms(tau, adev, edf, coef, cov, vscale, used, n / rate_hz, 1.0 / rate_hz)
         gone = [k for k in active if k not in terms]
         if not gone:
             break
@@ -582,10 +587,15 @@ def _edf(model_parts, m, n_phase):
 
 
 def _fit(tau, var, m, n_phase, active, dt):
-    """Weighted NNLS of the variance model with the ``active`` terms; ``(coef, cov, edf, used)``."""
+    """Weighted NNLS of the variance model with the ``active`` terms; ``(coef, cov, edf, used, vscale)``,
+    ``cov`` the covariance of ``coef / vscale``."""
     from scipy.optimize import nnls
 
     A = _basis(tau, dt) * np.array([k in active for k in TERMS], dtype=float)
+    # at unit scale (a power of two: exact): the weights are 1 / variance and the normal
+    # equations their squares, which overflowed or underflowed for readings of 1e-75 (a CI to inf)
+    vscale = 2.0 ** round(math.log2(float(np.median(var))))
+    var = var / vscale
     model = var.copy()
     edf = np.asarray(edf_simple(n_phase, m, 0), dtype=float).clip(1.0)
     coef = np.zeros(A.shape[1])
@@ -608,10 +618,10 @@ def _fit(tau, var, m, n_phase, active, dt):
     cov = np.zeros((A.shape[1], A.shape[1]))
     if used.any():
         cov[np.ix_(used, used)] = np.linalg.pinv(Aw.T @ Aw)
-    return coef, cov, edf, used
+    return coef * vscale, cov, edf, used, vscale  # cov: of coef / vscale (its square underflowed at 1e-100)
 
 
-def _terms(tau, adev, edf, coef, cov, used, duration, dt):
+def _terms(tau, adev, edf, coef, cov, vscale, used, duration, dt):
     from scipy.stats import chi2
 
     A = _basis(tau, dt)
@@ -623,10 +633,10 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
         if not used[i]:
             missing[key] = _absent_reason(key, tau, duration)
             continue
-        se = math.sqrt(max(cov[i, i], 0.0))
-        if coef[i] <= 2 * se:
+        se = math.sqrt(max(cov[i, i], 0.0))  # of coef[i] / vscale
+        if coef[i] / vscale <= 2 * se:
             missing[key] = (f"not significant: {symbol}^2 = {coef[i]:.3g} is within two standard errors "
-                            f"({se:.2g}) of zero")
+                            f"({se * vscale:.2g}) of zero")
             continue
         share = parts[:, i] / model
         dom = np.flatnonzero(share >= DOMINANCE)
@@ -665,7 +675,7 @@ def _terms(tau, adev, edf, coef, cov, used, duration, dt):
         # EDF: the fit treats the octave points as independent, but overlapping estimates
         # share data (strongly so for the random walk); the interval takes the term's best
         # single point instead, nu = max edf_i share_i^2 (as if its points were fully correlated)
-        nu = min(2 * coef[i] ** 2 / max(cov[i, i], 1e-300), float(np.max(edf[sel] * share[sel] ** 2)))
+        nu = min(2 * (coef[i] / vscale / se) ** 2 if se > 0 else math.inf, float(np.max(edf[sel] * share[sel] ** 2)))
         lo_var = coef[i] * nu / chi2.ppf(0.5 + CONFIDENCE / 2, nu)
         hi_var = coef[i] * nu / chi2.ppf(0.5 - CONFIDENCE / 2, nu)
         terms[key] = NoiseTerm(key, symbol, math.sqrt(coef[i]), (math.sqrt(lo_var), math.sqrt(hi_var)),
@@ -870,6 +880,8 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     try:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise DataError(f"{path}: larger than {MAX_LOG_BYTES} bytes")
+        if not_a_device(path):  # /dev/zero: an endless line
+            raise DataError(f"cannot read {path}: {not_a_device(path)}")
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
     data = read_columns(path, columns, time_column)

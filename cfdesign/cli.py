@@ -15,7 +15,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import CfdesignError, GainError, InternalError, SpecError
-from .files import check_distinct, write_files
+from .files import check_distinct, is_dir, write_files
 
 __all__ = ["main", "parse_gains"]
 
@@ -265,7 +265,7 @@ def cmd_run(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
     # a folder (named so, or existing) or logs named as a folder or a glob run as a fleet, however many match
-    folder = Path(args.output).is_dir() or args.output.endswith(("/", os.sep))
+    folder = is_dir(args.output) or args.output.endswith(("/", os.sep))
     if fleet or args.workers or args.scheduler or folder:
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
@@ -287,6 +287,9 @@ def cmd_run(args) -> int:
         print(f"cfdesign: {result.without_gain} readings were not used ({detail})", file=sys.stderr)
     units = dict(zip(table.states, table.state_units(), strict=True))
     for state, rms in result.rms.items():
+        if rms != rms:  # NaN: every reference reading was empty, inf or beyond the reading limit
+            print(f"RMS error of {state}: none (no row has a finite reference to compare with)")
+            continue
         print(f"RMS error of {state}: {rms:.6g}" + (f" {units[state]}" if units.get(state) else ""))
     print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0
@@ -301,7 +304,7 @@ def _log_paths(items) -> tuple:
     fleet = len(items) > 1
     for item in items:
         p = Path(item)
-        if p.is_dir():
+        if is_dir(p):
             found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
             fleet = True
         elif any(c in item for c in "*?["):
@@ -517,6 +520,9 @@ def main(argv=None) -> int:
 
 def _main(argv, debug) -> int:
     try:
+        nul = next((i for i, a in enumerate(argv) if "\x00" in a), None)
+        if nul is not None:  # no file name or value holds one (a shell cannot pass one; main() can)
+            raise CfdesignError(f"argument {nul + 1} ({_one_line(argv[nul], 60)!r}) contains a NUL character")
         args = build_parser(argv).parse_args(argv)
         with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
             return args.run(args)

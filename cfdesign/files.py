@@ -23,7 +23,81 @@ from pathlib import Path
 
 from .errors import OutputError
 
-__all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct"]
+__all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
+           "read_limited", "not_a_device"]
+
+
+def is_dir(path) -> bool:
+    """Whether ``path`` names an existing directory; False for a path that cannot name one.
+
+    :meth:`pathlib.Path.is_dir` raises for a name longer than the system allows (``OSError``:
+    File name too long) and for a NUL character (``ValueError``): both reached users as an
+    internal error.  Here they are "not a directory", and the open or write that follows names
+    the problem.
+
+    Parameters
+    ----------
+    path : str or Path
+        Any path.
+
+    Returns
+    -------
+    bool
+        True only for an existing directory (or a link to one).
+    """
+    try:
+        return stat.S_ISDIR(os.stat(path).st_mode)
+    except (OSError, ValueError):
+        return False
+
+
+def read_limited(path, limit: int) -> bytes:
+    """The bytes of a file, reading at most ``limit + 1`` of them.
+
+    A size from ``stat`` says nothing of a device or a pipe (``/dev/zero`` has size 0 and no
+    end): reading one whole took all the memory there was.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to read.
+    limit : int
+        The most bytes the caller takes.
+
+    Returns
+    -------
+    bytes
+        The whole file when it holds at most ``limit`` bytes; else its first ``limit + 1``
+        bytes (the caller refuses it).
+
+    Raises
+    ------
+    OSError
+        The file cannot be opened or read.
+    """
+    with open(path, "rb") as fh:
+        return fh.read(limit + 1)
+
+
+def not_a_device(path) -> str | None:
+    """Why ``path`` cannot be read as a file of data: it is a character or block device
+    (``/dev/zero``, ``/dev/urandom``: endless), else None.  Pipes pass (``<(zcat log.gz)``).
+
+    Parameters
+    ----------
+    path : str or Path
+        Any path.
+
+    Returns
+    -------
+    str or None
+        ``'it is a device, not a file'``, or None.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None  # the open that follows names the problem
+    return "it is a device, not a file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else None
 
 
 def check_distinct(named: dict):
@@ -52,7 +126,7 @@ def check_distinct(named: dict):
 def _same(a: Path, b: Path) -> bool:
     try:
         return os.path.samefile(a, b)
-    except OSError:  # one does not exist yet (or is a symlink loop, which resolve() refuses)
+    except (OSError, ValueError):  # one does not exist yet (or is a symlink loop, or has a NUL character)
         return os.path.realpath(a) == os.path.realpath(b)
 
 
@@ -135,13 +209,13 @@ def _stage(path: Path, data: bytes) -> str:
 def _temporary(path: Path, mode: str, **kwargs):
     """A temporary file beside ``path``, complete (flushed, synced, umask mode) on a clean exit
     and removed on any error."""
-    if path.is_dir():
+    if is_dir(path):
         raise OutputError(f"cannot write {path}: it is a directory")
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.",
                                    suffix=".tmp")
-    except OSError as exc:
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
+        raise OutputError(f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}") from None
     try:
         with os.fdopen(fd, mode, **kwargs) as fh:
             yield fh, tmp

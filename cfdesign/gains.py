@@ -28,6 +28,7 @@ import numpy as np
 
 from . import linear
 from .errors import GainTableError
+from .files import read_limited
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
@@ -1112,7 +1113,10 @@ def load_gains(path) -> GainTable:
         size = path.stat().st_size
         if size > MAX_TABLE_BYTES:
             raise GainTableError(f"{path}: {size} bytes is more than a gain table holds (limit {MAX_TABLE_BYTES})")
-        data = json.loads(path.read_text(encoding="utf-8"), parse_constant=_no_constant,
+        raw = read_limited(path, MAX_TABLE_BYTES)
+        if len(raw) > MAX_TABLE_BYTES:  # a device or a pipe: no size until it is read
+            raise GainTableError(f"{path}: more than {MAX_TABLE_BYTES} bytes, more than a gain table holds")
+        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constant,
                           object_pairs_hook=_no_duplicates)
     except RecursionError:
         raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
@@ -1120,4 +1124,6 @@ def load_gains(path) -> GainTable:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise GainTableError(f"{path}: not valid JSON: {exc}") from None
+    except ValueError as exc:  # a NUL character in the path
+        raise GainTableError(f"cannot read gain table {str(path)!r}: {exc}") from None
     return GainTable.from_dict(data, str(path))

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CfdesignError, DataError, OutputError
-from .files import check_distinct, open_atomic, write_bytes, write_text
+from .files import check_distinct, is_dir, not_a_device, open_atomic, write_bytes, write_text
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
@@ -65,7 +65,8 @@ class LogResult:
     samples : int
         Rows run.
     rms : dict
-        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]).
+        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]); NaN
+        when no row has a finite reference to compare with.
     unused : dict
         Readings not used, by reason and sensor: ``rejected`` (inf, or beyond the runtime's
         :data:`~cfdesign.runtime.filter.READING_LIMIT`), ``unscheduled`` (no gain at its
@@ -299,9 +300,17 @@ def _csv_format(path) -> dict:
     return {"sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {"sep": sep}
 
 
+def _column_name(i: int, name) -> str:
+    """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
+    name) when nothing is left.  The one rule for the header read as written and for pandas'
+    frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
+    other, and its lookup raised KeyError (an internal error)."""
+    return str(name).strip() or f"Unnamed: {i}"
+
+
 def _stripped(frame, columns=None):
     """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
-    frame.columns = [str(c).strip() for c in frame.columns]
+    frame.columns = [_column_name(i, c) for i, c in enumerate(frame.columns)]
     return frame if columns is None else frame[list(columns)]
 
 
@@ -348,7 +357,7 @@ def _header(path) -> list:
         raise _read_error(path, exc) from None
     if not header:
         raise _read_error(path, pd.errors.EmptyDataError())
-    return [h.strip() for h in header]
+    return [_column_name(i, h) for i, h in enumerate(header)]
 
 
 def read_columns(path, columns, time=None) -> dict:
@@ -507,6 +516,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables ({DISCRETE_HINT})")
     block_rows = block_rows or BLOCK_ROWS
     frame, source = _source(data, source, time)
+    if frame is None and not_a_device(data):  # /dev/zero: an endless line
+        raise DataError(f"cannot read {source}: {not_a_device(data)}")
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
@@ -531,6 +542,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     def run_rows(block, values, ticks):
         if len(ticks):
             states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            _check_bounded(table, states, ticks, source)
             writer.write(_estimates(table, block, cols, values, states, stds, std))
             bar.update(len(ticks))
 
@@ -549,15 +561,26 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
         if pending is not None:
             run_rows(*pending)
-    est = writer.frame()
-    result = LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
-                       _time_note(cols) + lock.notes,
-                       Path(output) if output else None, source)
-    if plot is not None:
-        from .plot import figure_bytes
+        est = writer.frame()
+        if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
+            from .plot import figure_bytes
 
-        write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
-    return result
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
+    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
+                     _time_note(cols) + lock.notes, Path(output) if output else None, source)
+
+
+def _check_bounded(table, states, ticks, source):
+    """An estimate that leaves :data:`~cfdesign.runtime.filter.STATE_LIMIT` (or overflows to
+    inf or NaN) is a filter that diverges, not an estimate: an unstable table (an edited gain
+    or model) wrote empty estimate columns with exit status 0."""
+    from .runtime.filter import STATE_LIMIT
+
+    bad = ~np.all(np.abs(states) <= STATE_LIMIT, axis=1)
+    if bad.any():
+        tick = int(ticks[np.argmax(bad)])
+        raise DataError(f"{source}: the estimates of {table.name!r} diverge (beyond {STATE_LIMIT:g} at tick {tick}): "
+                        "the table's filter is not stable (cfdesign verify names the check)")
 
 
 def _same_file(a, b) -> bool:
@@ -576,8 +599,8 @@ def _check_plot_target(plot):
     if fmt not in FIGURE_FORMATS:
         raise OutputError(f"cannot write {plot}: unknown image format {fmt!r} "
                           f"(use {', '.join('.' + f for f in FIGURE_FORMATS)})")
-    if path.is_dir() or not (path.parent if str(path.parent) else Path(".")).is_dir():
-        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if path.is_dir() else
+    if is_dir(path) or not is_dir(path.parent if str(path.parent) else Path(".")):
+        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if is_dir(path) else
                                                       f"no folder {path.parent}"))
 
 
@@ -961,11 +984,14 @@ class _Writer:
                               f"({_first_line(exc)}); write CSV, or give the column one type") from None
 
     def _errors(self, frame):
+        from .runtime.filter import usable
+
         for state in frame.attrs.get("references", ()):
-            err = frame[state].to_numpy() - frame[f"{state}_reference"].to_numpy()
+            ref = frame[f"{state}_reference"].to_numpy(dtype=float)
+            err = frame[state].to_numpy() - ref
             if frame.attrs.get("wrap") == state:
                 err = wrap(err)
-            ok = np.isfinite(err)
+            ok = np.isfinite(err) & usable(ref)  # a reference of 1e308 squared to an RMS error of inf
             s, n = self.errors.get(state, (0.0, 0))
             self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
 

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SpecError
+from .files import read_limited
 from .noise import Bias, WhiteNoise
 
 if sys.version_info >= (3, 11):
@@ -277,9 +278,13 @@ def load_spec(path) -> FilterSpec:
         size = path.stat().st_size
         if size > MAX_SPEC_BYTES:
             raise SpecError(f"{path}: {size} bytes is more than a design file holds (limit {MAX_SPEC_BYTES})")
-        text = path.read_bytes()
+        text = read_limited(path, MAX_SPEC_BYTES)
+        if len(text) > MAX_SPEC_BYTES:  # a device or a pipe: no size until it is read
+            raise SpecError(f"{path}: more than {MAX_SPEC_BYTES} bytes, more than a design file holds")
     except OSError as exc:
         raise SpecError(f"cannot read design file {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:  # a NUL character in the path
+        raise SpecError(f"cannot read design file {str(path)!r}: {exc}") from None
     try:
         data = tomllib.loads(text.decode("utf-8-sig"))  # a BOM (a Windows editor) is not TOML; dropped
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -436,7 +441,9 @@ def _text(table, key, required=False, field=None):
 def _choice(table, key, allowed, default, field=None):
     value = table.get(key, default)
     if value not in allowed:
-        raise SpecError(f"{field or key} must be one of {', '.join(allowed)}, got {value!r}")
+        # (None in allowed: the field may be left out; joining it was a TypeError, an internal error)
+        raise SpecError(f"{field or key} must be one of {', '.join(a for a in allowed if a is not None)}, got "
+                        f"{value!r}")
     return value
 
 

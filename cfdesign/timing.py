@@ -40,8 +40,8 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "date_seconds", "nearest_tick", "grid_origin",
-           "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "MAX_GAP_TICKS", "date_seconds",
+           "nearest_tick", "grid_origin", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -50,6 +50,10 @@ RATE_RTOL = 0.01
 STEADY_PERIODS = 20
 #: time-stamp jitter (in ticks) allowed at each end of the span the base rate is measured over
 JITTER_TICKS = 0.05
+#: most base ticks between two rows of a log: the filter runs every tick of a gap, one value
+#: per tick in memory (a time jump of 2e8 s at 5 Hz ran for minutes and asked for gigabytes; 9e6
+#: ticks took 16 s of CPU)
+MAX_GAP_TICKS = 1_000_000
 
 
 def date_seconds(text: str) -> float:
@@ -186,7 +190,8 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     ------
     DataError
         A time that is not finite, goes back, or repeats with a second reading of one sensor
-        (naming the line), or a base rate more than :data:`RATE_RTOL` off the table's (naming both).
+        (naming the line), a gap of more than :data:`MAX_GAP_TICKS` ticks after a row (naming the
+        line), or a base rate more than :data:`RATE_RTOL` off the table's (naming both).
     """
     t = np.asarray(time, dtype=float)
     if not t.size:
@@ -212,6 +217,12 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
                         "line before (times must increase" + (", and rows at one time must read different sensors)"
                                                              if readings is not None else ")"))
+    gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
+    if gap.size:
+        i = gap[0] + 1
+        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {float(d[gap[0]]):.6g} s after the "
+                        f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
+                        "tick): are the times in seconds? Split the log at the gap")
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)

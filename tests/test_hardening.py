@@ -303,6 +303,36 @@ def test_zero_size_riccati_data_is_a_named_error(solver, capfd):
     assert "DGGES" not in capfd.readouterr().err  # no raw LAPACK message
 
 
+@FUZZ
+@given(solver=st.sampled_from(["dare", "care", "periodic"]), which=st.sampled_from("ABQR"),
+       scale=st.sampled_from([1e151, 1e200, 1e300, -1e200]),
+       tol=st.sampled_from([None, 0, -1, np.nan, np.inf, 1.0, "x"]))
+def test_riccati_data_beyond_a_double_and_bad_tolerances_are_named(solver, which, scale, tol):
+    """A = 1e200 I gave 'SVD did not converge' (LinAlgError) from the PBH test, the periodic solver
+    'array must not contain infs or NaNs' from its monodromy product; rtol='x' a UFuncTypeError."""
+    import cfdesign.riccati as ric
+    from cfdesign.errors import RiccatiError
+
+    data = {"A": np.array([[1.0, 0.2], [0.0, 1.0]]), "B": np.array([[0.02], [0.2]]), "Q": np.eye(2), "R": np.eye(1)}
+    if tol is None:
+        data[which] = data[which] * scale
+    fn = {"dare": ric.dare, "care": ric.care, "periodic": lambda A, B, Q, R, **kw: ric.periodic_dare(
+        [A] * 3, [B.T, None, None], [Q] * 3, [R, None, None], **kw)}[solver]
+    kw = {} if tol is None else {"tol" if solver == "periodic" else "rtol": tol}
+    with pytest.raises(RiccatiError):
+        fn(data["A"], data["B"], data["Q"], data["R"], **kw)
+
+
+def test_a_periodic_product_that_overflows_is_named():
+    from cfdesign.errors import RiccatiError
+    from cfdesign.riccati import periodic_dare
+
+    N = 400  # 10 ** 400
+    with pytest.raises(RiccatiError, match="monodromy matrix\\) overflows"):
+        periodic_dare([np.diag([10.0, 1.0])] * N, [np.array([[1.0, 0.0]])] + [None] * (N - 1), [np.eye(2)] * N,
+                      [np.eye(1)] + [None] * (N - 1))
+
+
 # ---------------------------------------------------------------------- found by a second pass
 @FUZZ
 @given(key=st.sampled_from(["F", "B", "H", "K", "Q", "R", "P", "rate_hz", "sample_time_s", "order"]),
@@ -533,21 +563,25 @@ def test_a_reading_of_any_number_type_runs_as_a_float(position, value, api):
 
 
 BAD_ARRAYS = [["a", "b"], "abc", [None, None], [1 + 1j, 0j], np.zeros(2, dtype=complex), [[1.0], [1.0, 2.0]],
-              [10 ** 400, 0], [{}, {}], [b"1", b"2"]]
+              [10 ** 400, 0], [{}, {}], [b"1", b"2"], np.zeros((2, 2)), [0.1] * 60 + ["x"]]
 
 
 @FUZZ
-@given(where=st.sampled_from(["run", "x0", "restore x", "restore u_last", "step_values"]),
-       value=st.sampled_from(BAD_ARRAYS))
+@given(where=st.sampled_from(["run", "x0", "restore x", "restore u_last", "step_values", "readings"]),
+       value=st.sampled_from([*BAD_ARRAYS, None]))
 def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, value):
     """Runtime(x0=...), run, restore and step_values converted with numpy or Python and let
     ValueError, TypeError or OverflowError out (a complex array lost its imaginary part)."""
     rt = Runtime(position)
     rt.step(accelerometer=0.1, gps=1.0)
     before = rt.state()
-    with pytest.raises(CfdesignError):
+    if value is None and where != "readings":
+        return
+    with pytest.raises(CfdesignError) as raised:
         if where == "run":
-            rt.run({"accelerometer": value, "gps": [1.0, 1.0]})
+            rt.run({"accelerometer": value, "gps": np.ones(len(value)) if len(value) > 2 else [1.0, 1.0]})
+        elif where == "readings":  # run(None) was a TypeError; a (2, 2) array was read as four samples
+            rt.run(value if value is None or isinstance(value, str) else {"accelerometer": value, "gps": value})
         elif where == "x0":
             Runtime(position, x0=value if isinstance(value, str) else [*value, 0.0])
         elif where == "step_values":
@@ -555,7 +589,7 @@ def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, val
         else:
             key = where.split()[1]
             rt.restore({**before, key: list(value) + [0.0] * (3 - len(value) if key == "x" else 0)})
-    assert rt.state() == before
+    assert rt.state() == before and "\n" not in str(raised.value)  # numpy's repr of a long array took lines
 
 
 @pytest.mark.parametrize("call", ["step", "declination", "state", "bias prior"])
@@ -667,3 +701,189 @@ def test_verify_refuses_a_tolerance_that_passes_anything(heading, tmp_path, cli,
     code, _, err = cli("verify", table.save(tmp_path / "g.json"), "--spec", cfdesign.example_path("dckf3"),
                        "--rtol", rtol)
     assert code == 2 and "--rtol" in err and len(err.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------- found by the adversarial driver of issue 12
+BAD_PATHS = {"overlong name": lambda d: d / ("x" * 300), "NUL character": lambda d: str(d / "a\x00b.json"),
+             "full disk": lambda d: "/dev/full", "missing parent": lambda d: d / "no" / "such" / "f.json",
+             "a directory": lambda d: d, "unwritable place": lambda d: "/proc/version"}
+PATH_COMMANDS = {  # each writes its output last, after another file it must not have replaced
+    "design -o": lambda t, o: ["design", "--example", "cf3", "-o", o],
+    "design --bode": lambda t, o: ["design", "--example", "cf3", "-o", t / "keep.json", "--bode", o],
+    "export csv": lambda t, o: ["export", t / "g.json", "--format", "csv", "-o", o],
+    "run -o": lambda t, o: ["run", t / "g.json", t / "log.csv", "-o", o],
+    "run --plot": lambda t, o: ["run", t / "g.json", t / "log.csv", "-o", t / "keep.csv", "--plot", o],
+    "run log": lambda t, o: ["run", t / "g.json", o, "-o", t / "keep.csv"],
+    "noise --plot": lambda t, o: ["noise", t / "log.csv", "--column", "gyro", "--rate-hz", 5, "--plot", o],
+    "verify": lambda t, o: ["verify", o],
+}
+
+
+@settings(FUZZ, max_examples=12)
+@given(command=st.sampled_from(sorted(PATH_COMMANDS)), bad=st.sampled_from(sorted(BAD_PATHS)))
+def test_paths_the_system_refuses_are_named_and_nothing_is_replaced(heading, tmp_path_factory, command, bad):
+    """An overlong file name or a NUL character reached Path.is_dir() and came out as an internal
+    error (exit 3); ``run -o est.csv --plot /dev/full`` replaced est.csv before the plot failed."""
+    from conftest import run_cli
+
+    d = tmp_path_factory.mktemp("p")
+    heading.save(d / "g.json")
+    (d / "log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.1,0.1\n" for k in range(40)))
+    for keep in ("keep.json", "keep.csv"):
+        (d / keep).write_text("previous")
+    code, _, err = run_cli(*PATH_COMMANDS[command](d, BAD_PATHS[bad](d)))
+    assert code == 2 and "internal error" not in err and len(err.strip().splitlines()) == 1, (code, err)
+    assert (d / "keep.json").read_text() == "previous" and (d / "keep.csv").read_text() == "previous"
+    assert not [p.name for p in d.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.parametrize("entry", [("F", 0, 0, 1e6), ("K", 0, 0, 1e4)])
+def test_a_table_whose_filter_diverges_is_not_run_to_empty_estimates(position, tmp_path, cli, entry):
+    """An unstable table (an edited F or K) wrote estimate columns of NaN (empty cells) with exit 0."""
+    key, i, j, value = entry
+    d = position.to_dict()
+    (d[key][0] if key == "K" else d[key])[i][j] = value
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    (tmp_path / "log.csv").write_text("time,accelerometer,gps\n" + "".join(
+        f"{k / 50},0.01,{1.0 if k % 50 == 0 else ''}\n" for k in range(3000)))
+    (tmp_path / "e.csv").write_text("previous")
+    code, _, err = cli("run", tmp_path / "g.json", tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "diverge" in err and "not stable" in err, err
+    assert (tmp_path / "e.csv").read_text() == "previous"
+
+
+def test_a_time_gap_beyond_the_limit_is_named_before_the_work(heading, tmp_path, cli):
+    """A time jump of 2e8 s in a 5 Hz log ran the filter over 1e9 ticks (minutes, gigabytes)."""
+    from cfdesign.timing import MAX_GAP_TICKS
+
+    rows = [k * 0.2 + (MAX_GAP_TICKS * 0.2 + 1.0 if k > 20 else 0.0) for k in range(40)]
+    (tmp_path / "log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{t!r},0.01,0.1,0.1\n" for t in rows))
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "line 23" in err and f"more than {MAX_GAP_TICKS} ticks" in err, err
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
+@pytest.mark.parametrize("command", [["verify", "/dev/zero"], ["design", "/dev/zero"], ["verify", "g.json", "--spec",
+                                     "/dev/zero"], ["run", "g.json", "/dev/zero", "-o", "e.csv"],
+                                     ["noise", "/dev/zero", "--column", "x", "--rate-hz", "5"]])
+def test_an_endless_input_is_refused_not_read_into_memory(heading, tmp_path, monkeypatch, cli, command):
+    """A device has size 0 for stat: /dev/zero as a table, design file or log was read until the
+    memory ran out (22 GB, then the kernel killed the process)."""
+    monkeypatch.chdir(tmp_path)
+    heading.save("g.json")
+    code, _, err = cli(*command)
+    assert code == 2 and ("more than" in err or "it is a device" in err) and len(err.strip().splitlines()) == 1, err
+
+
+@FUZZ
+@given(exponent=st.integers(-110, 99))
+def test_noise_fits_readings_of_any_scale_or_names_the_scale(exponent):
+    """The fit weighted by 1/variance squared them in its normal equations: readings of 1e-75 gave
+    a CI up to inf, 1e-90 a CI of nan to nan (exit 0), 1e-160 an internal error."""
+    from cfdesign.allan import identify_noise
+    from cfdesign.errors import InputError
+
+    y = 10.0 ** exponent * np.random.default_rng(0).standard_normal(3000)
+    try:
+        fit = identify_noise(y, 100.0)
+    except InputError as exc:
+        assert np.ptp(y) < 1e-100 and "check the units" in str(exc), str(exc)
+        return
+    white = fit.terms["white"]
+    assert np.all(np.isfinite(white.ci)) and abs(white.value / (10.0 ** exponent / 10) - 1) < 0.05, white
+
+
+@pytest.mark.parametrize("path, value", [(("checks", "complementary"), "NaN"), (("checks", "stable"), 1),
+                                         (("checks", "poles"), [["nan", 0.0]]), (("checks", "poles"), [[1.0]]),
+                                         (("options", "order"), "inf"), (("options", "discrete"), "yes")])
+def test_a_tables_recorded_checks_have_their_types(tmp_path, cli, path, value):
+    """A table's checks took any JSON value: discretize copied complementary = 'NaN' into its table
+    and printed 'complementary: NaN' with exit 0; poles as text were written back by export."""
+    d = single_rate_continuous().to_dict()
+    d[path[0]][path[1]] = value
+    (tmp_path / "c.json").write_text(json.dumps(d))
+    with pytest.raises(GainTableError, match=f"schema violation at {path[0]}/"):
+        load_gains(tmp_path / "c.json")
+    code, _, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 100, "-o", tmp_path / "d.json")
+    assert code == 2 and "schema violation" in err
+
+
+@pytest.mark.parametrize("cell", ["inf", "", "nan", "1e300"])
+def test_a_reference_with_no_finite_reading_prints_no_nan(heading, tmp_path, cli, cell):
+    """A reference column of inf (or empty) printed 'RMS error of heading: nan rad' with exit 0."""
+    (tmp_path / "log.csv").write_text("time,gyro,compass,odometry,truth\n" + "".join(
+        f"{k / 5},0.01,0.1,0.1,{cell}\n" for k in range(40)))
+    code, out, _ = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv",
+                       "--reference", "truth")
+    assert code in (0, 2) and "nan" not in out.lower(), out
+
+
+REPRODUCE_BAD = {"--runs": ["-1", "0", "20000", "99999999999999999999", "1e-300"],
+                 "--seed": ["-1", "-5", "99999999999999999999", "1e308"],
+                 "--duration": ["-1", "0", "1e-300", "5", "nan", "inf", "20000", "1e308"]}
+
+
+@FUZZ
+@given(data=st.data(), argv=st.sampled_from([["carreira", "--runs"], ["helicopter", "--runs"], ["carreira", "--seed"],
+                                             ["helicopter", "--seed"], ["compare", "--seed"],
+                                             ["compare", "--duration"]]))
+def test_reproduce_options_out_of_range_are_named_before_the_work(data, argv):
+    """A negative seed was a ValueError from numpy, --runs 10**20 an OverflowError, --duration 1e-300 an
+    IndexError and 1e20 numpy's 'Maximum allowed size exceeded': internal errors (exit 3)."""
+    from conftest import run_cli
+
+    value = data.draw(st.sampled_from(REPRODUCE_BAD[argv[1]]))
+    code, _, err = run_cli("reproduce", *argv, value, "--json")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "internal error" not in err, (argv, value, err)
+
+
+@pytest.mark.parametrize("loader", ["load_gains", "load_spec"])
+def test_a_path_with_a_nul_character_is_named_by_the_loaders(loader):
+    """open() raises ValueError for a NUL character: it left load_gains and load_spec as itself."""
+    with pytest.raises(CfdesignError, match=r"cannot read .*embedded null byte"):
+        getattr(cfdesign, loader)("a\x00b.json")
+
+
+@FUZZ
+@given(header=st.sampled_from(["time,gyro,compass,odometry,", "time,,gyro,compass,odometry",
+                               "time,gyro,compass,odometry, ", "time,gyro,,compass,odometry,,",
+                               "time,gyro,compass,odometry,\t", "\t,time,gyro,compass,odometry"]),
+       big=st.sampled_from([1e308, -1e300, 1e13]))
+def test_a_log_column_without_a_name_and_a_reference_beyond_the_limit_are_taken(heading, tmp_path_factory, header,
+                                                                                big):
+    """A trailing comma in a log's header (a column named '') or a tab as a name was an internal error
+    (KeyError); one reference value of 1e308 made the printed RMS error inf."""
+    from conftest import run_cli
+
+    d = tmp_path_factory.mktemp("h")
+    names = [h.strip() for h in header.split(",")]
+    rows = []
+    for k in range(40):
+        cells = {"time": f"{k / 5}", "gyro": "0.01", "compass": "0.1", "odometry": "0.1"}
+        rows.append(",".join(cells.get(n, repr(big) if k == 7 else "0.1") for n in names))
+    (d / "log.csv").write_text(header + "\n" + "\n".join(rows) + "\n")
+    reference = ["--reference", "Unnamed: 4"] if names[4:5] == [""] else []  # names: stripped, as the log's
+    code, out, err = run_cli("run", heading.save(d / "g.json"), d / "log.csv", "-o", d / "e.csv", *reference)
+    assert code == 0 and "inf" not in out and "nan" not in out, (out, err)
+    assert "Unnamed:" in (d / "e.csv").read_text().splitlines()[0]
+
+
+CHOICE_FIELDS = {"output": lambda d, v: d.__setitem__("output", v),
+                 "gain_form": lambda d, v: d.__setitem__("gain_form", v),
+                 "sensors.gps.role": lambda d, v: d["sensors"]["gps"].__setitem__("role", v),
+                 "sensors.accelerometer.bias.model": lambda d, v: d["sensors"]["accelerometer"].__setitem__(
+                     "bias", {"model": v, "density": 1e-4})}
+
+
+@FUZZ
+@given(field=st.sampled_from(sorted(CHOICE_FIELDS)),
+       value=st.sampled_from([{}, [], -1, 3, "inf", "\x1b[2J", "\u202e", True, "", "Prior", 1.5]))
+def test_a_choice_field_with_another_value_is_named(field, value):
+    """output = {} (or any value not allowed) in a design file was an internal error: the message
+    joined the allowed values, None among them (TypeError)."""
+    d = {"structure": "position", "sensors": {
+        "accelerometer": {"rate_hz": 50.0, "noise": {"std": 0.006}},
+        "gps": {"rate_hz": 1.0, "noise": {"std": 3.0}}}}
+    CHOICE_FIELDS[field](d, value)
+    with pytest.raises(SpecError, match=f"{field} must be one of"):
+        parse_spec(d)

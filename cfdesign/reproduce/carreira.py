@@ -479,14 +479,13 @@ def reproduce(runs: int = 20, *, seed: int = 0, reading: Reading = READING, stra
     Raises
     ------
     SpecError
-        ``runs`` below 1.
+        ``runs`` not from 1 to :data:`~cfdesign.reproduce.report.MAX_RUNS`, or ``seed`` negative.
     """
     from tqdm import tqdm
 
-    from ..errors import SpecError
+    from .report import check_runs
 
-    if runs < 1:
-        raise SpecError(f"runs must be at least 1, got {runs}")
+    check_runs(runs, seed)
     sc = scenario(reading, straight_s=straight_s)
     seeds = tuple(range(seed, seed + runs))
     values = {row: [] for row in ROWS}

@@ -44,7 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Result", "compare", "add_arguments", "run", "FILTERS", "SCENARIOS"]
+__all__ = ["Result", "compare", "add_arguments", "run", "FILTERS", "SCENARIOS", "DURATION_RANGE"]
+
+#: durations (s) of the ground scenario ``compare`` takes (``--duration``)
+DURATION_RANGE = (10.0, 10_000.0)
 
 #: The filters compared, ``{name: description}`` (``--filters`` takes the names)
 FILTERS = {"cf": "complementary filter (Vasconcelos et al., designed gains)",
@@ -265,12 +268,19 @@ def compare(scenario: str = "ground", seed: int = 0, duration_s: float = 300.0, 
     Raises
     ------
     SpecError
-        An unknown scenario.
+        An unknown scenario, a negative seed, or a ground scenario's duration outside
+        :data:`DURATION_RANGE`.
     """
-    if scenario not in SCENARIOS:
-        from ..errors import SpecError
+    from ..errors import SpecError
+    from .report import check_runs
 
+    if scenario not in SCENARIOS:
         raise SpecError(f"unknown scenario {scenario!r}; choose one of {', '.join(SCENARIOS)}")
+    check_runs(None, seed, runs_needed=False)
+    if scenario == "ground" and not (isinstance(duration_s, (int, float)) and not isinstance(duration_s, bool)
+                                     and DURATION_RANGE[0] <= duration_s <= DURATION_RANGE[1]):  # NaN too
+        raise SpecError(f"duration (--duration) must be from {DURATION_RANGE[0]:g} to {DURATION_RANGE[1]:g} s, got "
+                        f"{duration_s!r} (shorter: no GPS outage to measure; longer: more memory than a run needs)")
     from ..linear import wrap
 
     ground = scenario == "ground"

@@ -257,14 +257,15 @@ def reproduce(runs: int = 5, *, seed: int = 0, accel_bias: str = "z", manoeuvre:
     Raises
     ------
     SpecError
-        ``runs`` below 1, or an unknown ``accel_bias``.
+        ``runs`` not from 1 to :data:`~cfdesign.reproduce.report.MAX_RUNS`, ``seed`` negative, or an
+        unknown ``accel_bias``.
     """
     from tqdm import tqdm
 
     from ..errors import SpecError
+    from .report import check_runs
 
-    if runs < 1:
-        raise SpecError(f"runs must be at least 1, got {runs}")
+    check_runs(runs, seed)
     if accel_bias not in heli.ACCEL_BIAS_READINGS:
         raise SpecError(f"accel_bias must be one of {sorted(heli.ACCEL_BIAS_READINGS)}, got {accel_bias!r}")
     m = manoeuvre or heli.Manoeuvre()

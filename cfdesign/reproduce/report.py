@@ -7,10 +7,45 @@ from dataclasses import dataclass
 
 from ..sim.metrics import mean_ci
 
-__all__ = ["Comparison", "RATIO_RANGE", "format_table", "order_disagreements", "json_text"]
+__all__ = ["Comparison", "RATIO_RANGE", "MAX_RUNS", "MAX_SEED", "format_table", "order_disagreements", "json_text",
+           "check_runs"]
 
 #: ratios ours/paper outside this range are explained, not hidden
 RATIO_RANGE = (1 / 3, 3.0)
+#: most Monte-Carlo runs of a reproduction (``--runs``)
+MAX_RUNS = 10_000
+#: largest seed of a run (numpy's generators take non-negative integers; 2**63 - 1 keeps every
+#: ``seed + run`` an int64)
+MAX_SEED = 2**63 - 1 - MAX_RUNS
+
+
+def check_runs(runs, seed, runs_needed: bool = True):
+    """Refuse a count of runs or a seed a reproduction cannot use, naming the option.
+
+    Parameters
+    ----------
+    runs : int
+        Monte-Carlo runs (``--runs``): from 1 to :data:`MAX_RUNS`.
+    seed : int
+        Seed of the first run (``--seed``): from 0 to :data:`MAX_SEED`.
+    runs_needed : bool
+        Check ``runs`` (False: a reproduction without runs, ``compare``).
+
+    Raises
+    ------
+    SpecError
+        Either is not an integer in its range (a negative seed was a ValueError from numpy,
+        ``--runs 10**20`` an OverflowError: internal errors).
+    """
+    from ..errors import SpecError
+
+    def whole(v):
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    if runs_needed and not (whole(runs) and 1 <= runs <= MAX_RUNS):
+        raise SpecError(f"runs (--runs) must be a whole number from 1 to {MAX_RUNS}, got {runs!r}")
+    if not (whole(seed) and 0 <= seed <= MAX_SEED):
+        raise SpecError(f"seed (--seed) must be a whole number from 0 to {MAX_SEED}, got {seed!r}")
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..blas import small_problem
-from ..errors import AccuracyError, NoStabilisingSolutionError
+from ..errors import AccuracyError, NoStabilisingSolutionError, RiccatiError
 from .fallbacks import estimates, pencil_boundary
 from .problem import TINY, Problem, complexify, herm, realify
 from .refinement import MAX_NEWTON, Evaluation, newton_refine
@@ -61,7 +61,8 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     refine : bool
         Refine scipy's estimate by Newton (Kleinman) steps with a double-double residual.
     rtol : float
-        Largest relative residual accepted; above it :class:`~cfdesign.errors.AccuracyError` is raised.
+        Largest relative residual accepted, between 0 and 1; above it
+        :class:`~cfdesign.errors.AccuracyError` is raised.
 
     Returns
     -------
@@ -71,7 +72,7 @@ def care(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     Raises
     ------
     RiccatiError
-        Invalid data (the message names the matrix).
+        Invalid data (the message names the matrix), or ``rtol`` not between 0 and 1.
     NotStabilisableError, NotDetectableError
         A mode fails the PBH test where that rules out a stabilising solution.
     NoStabilisingSolutionError
@@ -133,7 +134,8 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     refine : bool
         Refine scipy's estimate by Newton (Hewer) steps with a double-double residual.
     rtol : float
-        Largest relative residual accepted; above it :class:`~cfdesign.errors.AccuracyError` is raised.
+        Largest relative residual accepted, between 0 and 1; above it
+        :class:`~cfdesign.errors.AccuracyError` is raised.
 
     Returns
     -------
@@ -144,7 +146,7 @@ def dare(A, B, Q, R, S=None, E=None, *, refine=True, rtol=1e-10):
     Raises
     ------
     RiccatiError
-        Invalid data (the message names the matrix).
+        Invalid data (the message names the matrix), or ``rtol`` not between 0 and 1.
     NotStabilisableError, NotDetectableError
         A mode fails the PBH test where that rules out a stabilising solution.
     NoStabilisingSolutionError
@@ -323,6 +325,8 @@ def _no_solution(p: Problem, seen):
 
 
 def _solve(kind, A, B, Q, R, S, E, refine, rtol, dual=False):
+    if isinstance(rtol, bool) or not isinstance(rtol, (int, float, np.floating)) or not 0 < rtol < 1:  # NaN too
+        raise RiccatiError(f"rtol must be a relative residual tolerance between 0 and 1, got {rtol!r}")
     A, B, Q, R, S, E = problem_data(kind, A, B, Q, R, S, E)
     cplx = any(np.iscomplexobj(M) for M in (A, B, Q, R, S, E) if M is not None)
     n, m = B.shape

@@ -196,7 +196,7 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         applies to the phases that measure).  ``Q[k]`` must be positive semidefinite and
         ``R[k]`` positive definite.
     tol : float
-        Relative convergence tolerance of the doubling and of the Newton polish.
+        Relative convergence tolerance of the doubling and of the Newton polish, between 0 and 1.
 
     Returns
     -------
@@ -208,7 +208,8 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
     Raises
     ------
     RiccatiError
-        Invalid data, named by matrix and phase (``"R[3] must be 1x1 (got 2x2)"``).
+        Invalid data, named by matrix and phase (``"R[3] must be 1x1 (got 2x2)"``), or a product of
+        A over the period that overflows, or ``tol`` not between 0 and 1.
     NotDetectableError
         An unstable monodromy multiplier of A is not observable over the period.
     NotStabilisableError
@@ -219,6 +220,8 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         After the Newton polish one period still misses ``P[0]`` by more than
         ``max(1e4 tol, 1e-9)`` (relative).
     """
+    if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not 0 < tol < 1:  # NaN too
+        raise RiccatiError(f"tol must be a relative tolerance between 0 and 1, got {tol!r}")
     As, Cs, Qs, Rs = _periodic_data(A, C, Q, R)
     n, N = As[0].shape[0], len(As)
     gcache = {}
@@ -226,8 +229,13 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         if (id(C_), id(R_)) not in gcache:
             gcache[id(C_), id(R_)] = C_.conj().T @ np.linalg.solve(R_, C_) if C_.shape[0] else np.zeros((n, n))
     Gs = [gcache[id(C_), id(R_)] for C_, R_ in zip(Cs, Rs, strict=True)]
-    folded = _fold(np.array(As), np.array(Gs), np.array(Qs))
-    _periodic_checks(_chain(np.array(As)), folded[1], folded[2])
+    with np.errstate(over="ignore", invalid="ignore"):  # checked below, named
+        folded = _fold(np.array(As), np.array(Gs), np.array(Qs))
+        Phi = _chain(np.array(As))
+    if not (np.all(np.isfinite(Phi)) and all(np.all(np.isfinite(M)) for M in folded)):
+        raise RiccatiError(f"the product of A over the {N} phases (the monodromy matrix) overflows a double "
+                           f"(entries of A up to {max(np.abs(M).max() for M in As):.3g})")
+    _periodic_checks(Phi, folded[1], folded[2])
     P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, sda(*folded, tol)[0])
     steps = 0
     while rel(P[-1] - P[0], P[0]) > tol and steps < 4:

@@ -12,6 +12,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import NotDetectableError, NotStabilisableError, RiccatiError
+from ..gains import MAX_ENTRY
 from .problem import EPS, TINY, distance, herm
 
 __all__ = ["matrix", "min_eig", "is_psd", "covariance_data", "problem_data", "fmt_mode", "unreachable_mode",
@@ -42,7 +43,8 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
     Raises
     ------
     RiccatiError
-        Not numeric, not 2-D, the wrong shape, NaN or Inf, or not symmetric.
+        Not numeric, not 2-D, the wrong shape, NaN or Inf, an entry beyond
+        ``cfdesign.gains.MAX_ENTRY``, or not symmetric.
 
     Examples
     --------
@@ -69,6 +71,9 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
         raise RiccatiError(f"{name} must be {want} (got {rows}x{cols})")
     if not np.all(np.isfinite(M)):
         raise RiccatiError(f"{name} contains NaN or Inf")
+    if M.size and np.abs(M).max() > MAX_ENTRY:  # products of two overflow: an SVD that did not converge
+        raise RiccatiError(f"{name} has an entry of magnitude {np.abs(M).max():.3g}, beyond {MAX_ENTRY:g}: the "
+                           "products the solver forms would overflow (rescale the problem)")
     if hermitian and M.size:
         Mh = M.conj().T if np.iscomplexobj(M) else M.T
         gap = np.abs(M - Mh).max()

@@ -67,7 +67,7 @@ def real_array(value, name) -> np.ndarray:
     except (TypeError, ValueError, OverflowError):
         a = None
     if a is None or a.dtype.kind not in "biuf":
-        shown = repr(value)
+        shown = " ".join(repr(value).split())  # one line (numpy's repr breaks long arrays over lines)
         raise CfdesignError(f"{name}: real numbers are needed, got {shown[:80]}{'...' if len(shown) > 80 else ''}")
     return a.astype(float, copy=False)
 
@@ -395,8 +395,8 @@ class Runtime:
         Raises
         ------
         CfdesignError
-            A sensor is missing from ``readings`` or not the table's, or the arrays differ in
-            length.
+            ``readings`` is not a dict (or a DataFrame), a sensor is missing from it, an array is
+            not one real number per step, or the arrays differ in length.
         """
         cols = self._columns(readings)
         if not states and self.period == 1 and self.n <= _SMALL and len(cols[0]) and all(map(_clean, cols)):
@@ -483,10 +483,20 @@ class Runtime:
     def _columns(self, readings) -> list:
         """One contiguous float array per sensor: inputs (by column of B), then measurements."""
         names = self.inputs + self.measurements
+        if isinstance(readings, (str, bytes)) or not (hasattr(readings, "__contains__")
+                                                      and hasattr(readings, "__getitem__")):
+            # None was a TypeError ('argument of type NoneType is not iterable')
+            raise CfdesignError(f"readings must be a dict (or a DataFrame) of {', '.join(names)}, got "
+                                f"{type(readings).__name__}")
         missing = [n for n in names if n not in readings]
         if missing:
             raise CfdesignError(f"no readings for {', '.join(missing)} (use NaN for missing samples)")
-        cols = [np.ascontiguousarray(real_array(readings[n], n)).reshape(-1) for n in names]
+        cols = [real_array(readings[n], n) for n in names]
+        flat = [n for n, c in zip(names, cols, strict=True) if sum(d > 1 for d in c.shape) > 1]
+        if flat:  # a (3, 3) array was read as nine samples
+            raise CfdesignError(f"{flat[0]}: one value per step is needed, got an array of shape "
+                                f"{np.shape(readings[flat[0]])}")
+        cols = [np.ascontiguousarray(c).reshape(-1) for c in cols]
         if len({len(c) for c in cols}) > 1:
             lengths = ", ".join(f"{n}: {len(c)}" for n, c in zip(names, cols, strict=True))
             raise CfdesignError(f"readings differ in length ({lengths})")

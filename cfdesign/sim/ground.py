@@ -56,7 +56,8 @@ from .helicopter import BIAS_SIGNS, MG_M_S2
 from .sensors import cumulative_trapezoid, interval_mean_readings, noisy_samples
 from .trajectory import SampledTimes
 
-__all__ = ["MAGNETIC_FIELD_ENU_G", "GroundErrors", "GROUND_ERRORS", "GroundScenario", "ground_robot_scenario"]
+__all__ = ["MAGNETIC_FIELD_ENU_G", "GroundErrors", "GROUND_ERRORS", "GroundScenario", "ground_robot_scenario",
+           "MAX_STEPS"]
 
 #: Earth magnetic field in ENU (gauss) of the scenario: 0.5 G pointing north, horizontal
 MAGNETIC_FIELD_ENU_G = np.array([0.0, 0.5, 0.0])
@@ -232,6 +233,10 @@ def _gps_rows(t, every, outages):
     return fix, in_outage
 
 
+#: most IMU steps of a scenario (its truth is built at ``oversample`` times the rate, in memory)
+MAX_STEPS = 1_000_000
+
+
 def _validate(duration_s, imu_rate_hz, gps_rate_hz, outages):
     for name, value in (("duration_s", duration_s), ("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -245,6 +250,10 @@ def _validate(duration_s, imu_rate_hz, gps_rate_hz, outages):
         raise InputError(f"outages: (start_s, end_s) pairs are needed, got {outages!r}") from None
     if any(not a < b for a, b in outages):
         raise InputError(f"outages: each (start_s, end_s) needs start < end, got {outages!r}")
+    steps = round(duration_s * imu_rate_hz)
+    if steps < round(ratio) or steps > MAX_STEPS:  # none: an IndexError; 1e20: numpy's "maximum size exceeded"
+        raise InputError(f"duration_s: {duration_s:g} s at {imu_rate_hz:g} Hz is {steps} IMU steps; a scenario has "
+                         f"from one GPS period ({round(ratio)}) to {MAX_STEPS} steps")
     return round(ratio), outages
 
 
@@ -275,7 +284,8 @@ def ground_robot_scenario(seed=0, *, duration_s=300.0, imu_rate_hz=50.0, gps_rat
     Raises
     ------
     InputError
-        A non-positive duration or rate, a GPS rate not dividing the IMU rate, bad outages.
+        A non-positive duration or rate, a duration shorter than one GPS period or longer than
+        :data:`MAX_STEPS` IMU steps, a GPS rate not dividing the IMU rate, bad outages.
     """
     every, outages = _validate(duration_s, imu_rate_hz, gps_rate_hz, outages)
     steps, M = round(duration_s * imu_rate_hz), int(oversample)
