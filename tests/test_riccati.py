@@ -424,6 +424,24 @@ def test_nearly_unstabilisable_is_not_rejected():
     assert sol.stability_margin > 0.5
 
 
+def test_large_eigenvalue_of_a_nearly_singular_e_is_not_called_unreachable():
+    """E = diag(1, 1e-15), A = I/2: the pencil's mode at z = 5e14 is reachable from B = I, but the
+    PBH test scaled B to ||A|| and compared it with ||A - lam E|| = 5e14, so dare() raised
+    NotStabilisableError naming that mode 'not reachable from B'.  A B that misses it still must."""
+    from cfdesign.riccati.validation import unreachable_mode
+
+    A, E = 0.5 * np.eye(2), np.diag([1.0, 1e-15])
+    assert unreachable_mode("dare", A, E, np.eye(2)) is None
+    hit = unreachable_mode("dare", A, E, np.array([[1.0], [0.0]]))
+    assert hit is not None and abs(hit[0]) == pytest.approx(5e14)
+    try:
+        dare(A, np.eye(2), np.eye(2), np.eye(2), None, E)
+    except NotStabilisableError as exc:
+        pytest.fail(f"misnamed: {exc}")
+    except RiccatiError:
+        pass  # refused as too ill-conditioned: a named error, and a true one
+
+
 def test_unobservable_boundary_mode_is_named():
     with pytest.raises(NotDetectableError, match=r"mode at s = 0\.0 is on the imaginary axis and not observable"):
         care([[0.0]], [[1.0]], [[0.0]], [[1.0]])
