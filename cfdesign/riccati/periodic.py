@@ -132,7 +132,7 @@ def _propagate(As, Cs, Qs, Rs, P0):
     to second order and a small posterior keeps its relative accuracy.
     """
     n = P0.shape[0]
-    I = np.eye(n)
+    eye = np.eye(n)
     P, Kf, Pf, Phi = [P0], [], [], np.eye(n)
     empty = np.zeros((n, 0))
     for A, C, Q, R in zip(As, Cs, Qs, Rs, strict=True):
@@ -140,7 +140,7 @@ def _propagate(As, Cs, Qs, Rs, P0):
         if C.shape[0]:
             Sk = C @ Pk @ C.conj().T + R
             K = np.linalg.solve(Sk, C @ Pk).conj().T
-            IKC = I - K @ C
+            IKC = eye - K @ C
             Pk = IKC @ Pk @ IKC.conj().T + K @ R @ K.conj().T
             Pk = 0.5 * (Pk + Pk.conj().T)
             Phi = (A @ IKC) @ Phi
