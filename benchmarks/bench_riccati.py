@@ -2,7 +2,7 @@
 
 Run from the repository root (one run prints every table; about a minute):
 
-    python benchmarks/bench_riccati.py [--threads N] [--only speed,cases,fast,periodic]
+    python benchmarks/bench_riccati.py [--threads N] [--only speed,cases,fast,periodic] [--sweep]
 
 BLAS runs single-threaded unless ``--threads`` says otherwise: the thread variables are set
 before numpy is imported, and threadpoolctl (when installed) pins the pools as well; the
@@ -19,6 +19,18 @@ setting in force is printed first.
 3. the fast-sampling estimator DARE (double integrator at Ts = 1e-4) against mpmath;
 4. periodic_dare for (period 50, 3 states) and (period 1000, 9 states) beside the naive
    recursion iterated to convergence, both measured in this run.
+5. with ``--sweep`` (a few minutes more): every parametric CAREX / DAREX example over its
+   parameter range (eps from 1 down to 1e-10 or up to 1e8-1e10, n up to 200-300 states),
+   regenerated with the collection's generators (``--cases-module``, default
+   ../shared/data/riccati/are_cases.py): our and scipy's relative forward errors against an
+   independent reference (60-digit mpmath Newton for n <= 8, the collection's closed form,
+   or a long-double defect correction; else the bound condition * relative residual), the
+   long-double relative residuals, whether each closed loop stabilises, the times and their
+   ratio;
+6. with ``--sweep``: periodic_dare over periods 1 to 1000, one measurement at different
+   phases, the 3 Hz GPS on a 100 Hz base, nearly blind or unobservable sensors and unstable
+   dynamics, against the lifted (monodromy) DARE solved by scipy, the recursion iterated to
+   convergence, and the closed form of the scalar case.
 
 Prints figures only; no assertions on time.
 """
@@ -34,9 +46,14 @@ import warnings
 from pathlib import Path
 
 SECTIONS = ("speed", "cases", "fast", "periodic")
+ARE_CASES = Path(__file__).resolve().parents[2] / "shared" / "data" / "riccati" / "are_cases.py"
 _parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 _parser.add_argument("--threads", type=int, default=1, help="BLAS threads (default 1)")
 _parser.add_argument("--only", default=",".join(SECTIONS), help="comma-separated sections: " + ", ".join(SECTIONS))
+_parser.add_argument("--sweep", action="store_true",
+                     help="also sweep every parametric CAREX/DAREX example over its parameter range (a few minutes)")
+_parser.add_argument("--cases-module", type=Path, default=ARE_CASES,
+                     help="the CAREX/DAREX generators (are_cases.py) for --sweep")
 ARGS = _parser.parse_args() if __name__ == "__main__" else _parser.parse_args([])
 if __name__ == "__main__":
     for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -310,6 +327,288 @@ def naive_period(F, C, Q, R, P):
     return P
 
 
+# ---------------------------------------------------------------------------------------
+# 5. parameter sweep of the CAREX / DAREX families
+# ---------------------------------------------------------------------------------------
+_SMALL_EPS = (1.0, 1e-2, 1e-4, 1e-6, 1e-8, 1e-10)
+_LARGE_EPS = (1.0, 1e2, 1e4, 1e6, 1e8)
+#: (collection, nr1, nr2, parameter name, values): every parametric example of CAREX and DAREX
+SWEEP = (
+    ("carex", 2, 1, "eps", _SMALL_EPS),
+    ("carex", 2, 2, "eps", _SMALL_EPS),
+    ("carex", 2, 3, "eps", (1e-2, *_LARGE_EPS)),
+    ("carex", 2, 4, "eps", _SMALL_EPS),
+    ("carex", 2, 5, "eps", (1.0, 1e-2, 1e-4, 1e-6, 1e-8, 0.0)),
+    ("carex", 2, 6, "eps", (1e-2, *_LARGE_EPS)),
+    ("carex", 2, 7, "eps", _SMALL_EPS[:-1]),
+    ("carex", 2, 8, "eps", _SMALL_EPS[:-1]),
+    ("carex", 3, 1, "n", (5, 10, 20, 50, 100)),
+    ("carex", 3, 2, "n", (8, 16, 64, 128, 200)),
+    ("carex", 4, 1, "n", (2, 5, 10, 15, 21, 30)),
+    ("carex", 4, 3, "n", (5, 15, 30, 60, 100)),
+    ("darex", 2, 1, "eps", (1e-8, 1e-4, 1.0, 1e4, 1e6, 1e8)),
+    ("darex", 2, 2, "eps", _LARGE_EPS),
+    ("darex", 2, 3, "eps", (1e-2, *_LARGE_EPS)),
+    ("darex", 2, 4, "eps", (1e-8, 1e-4, 1e-2, *_LARGE_EPS)),
+    ("darex", 2, 5, "eps", (1.0, 1e2, 1e4, 1e6, 1e8, 1e10)),
+    ("darex", 4, 1, "n", (10, 30, 100, 200, 300)),
+)
+
+
+def _load_generators(path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("are_cases", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _gain(kind, A, B, R, X):
+    if kind == "care":
+        return np.linalg.solve(R, B.T @ X)
+    return np.linalg.solve(R + B.T @ X @ B, B.T @ X @ A)
+
+
+def _stabilising(kind, A, B, R, X):
+    """Whether the gain at X stabilises (A - B K), eigenvalues in plain double (independent of cfdesign)."""
+    with np.errstate(all="ignore"):
+        try:
+            lam = np.linalg.eigvals(A - B @ _gain(kind, A, B, R, X))
+        except np.linalg.LinAlgError:
+            return False
+    return bool(np.all(lam.real < 0) if kind == "care" else np.all(np.abs(lam) < 1))
+
+
+def _ld_defect_correction(kind, A, B, Q, R, X0, steps=6):
+    """Reference for n > 8: defect correction with the residual in 80-bit long double.
+
+    Returns (X, size of the last correction relative to X); the correction is scipy's
+    Lyapunov / Stein solve at the current gain (see tests/test_riccati.py::_ld_reference).
+    """
+    from test_riccati import _ld_reference
+
+    X = _ld_reference(kind, A, B, Q, R, X0, steps=steps)
+    X1 = _ld_reference(kind, A, B, Q, R, X, steps=1)
+    return X1, rel(X1, X)
+
+
+def sweep_reference(kind, A, B, Q, R, starts, X_closed):
+    """(reference X, how it was obtained) on the float data, independent of cfdesign.
+
+    n <= 8: 50-digit mpmath Newton from the first stabilising start (scipy's X first), to
+    convergence.  Larger n: the closed form where the collection gives one, else the long
+    double defect correction when it converges, else None (the table then shows the
+    forward-error bound condition * relative residual).
+    """
+    from test_riccati import butterworth_chain_solution, mp_newton
+
+    n = A.shape[0]
+    start = next((X for X in starts if X is not None and np.all(np.isfinite(X)) and _stabilising(kind, A, B, R, X)),
+                 None)
+    if n <= 8 and start is not None:
+        X = mp_newton(kind, A, B, Q, R, start, iters=10, dps=60)
+        X1 = mp_newton(kind, A, B, Q, R, X, iters=1, dps=60)
+        if rel(X1, X) <= 1e-15:  # two more steps leave the rounded X unchanged: converged
+            return X1, "mpmath"
+    if isinstance(X_closed, str):
+        return butterworth_chain_solution(n), "closed form"
+    if X_closed is not None:
+        return X_closed, "closed form"
+    if start is not None:
+        X, step = _ld_defect_correction(kind, A, B, Q, R, start)
+        if step <= 1e-15:
+            return X, "long double"
+    return None, "bound"
+
+
+def sweep_case(kind, A, B, Q, R, X_closed):
+    solver = sla.solve_continuous_are if kind == "care" else sla.solve_discrete_are
+    ours = care if kind == "care" else dare
+    row = {"n": A.shape[0]}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            X_s = solver(A, B, Q, R)
+            if not np.all(np.isfinite(X_s)):
+                X_s = None
+        except (np.linalg.LinAlgError, ValueError):
+            X_s = None
+        row["t_scipy"] = best_time(lambda: solver(A, B, Q, R), repeat=3) if X_s is not None else None
+        try:
+            sol = ours(A, B, Q, R)
+            row["outcome"] = "marginal" if sol.marginal else "solved"
+            row["t_ours"] = best_time(lambda: ours(A, B, Q, R), repeat=3)
+        except CfdesignError as exc:
+            sol, row["outcome"], row["t_ours"] = None, type(exc).__name__, None
+            row["message"] = str(exc)
+    X_o = None if sol is None else sol.X
+    ref, row["ref"] = sweep_reference(kind, A, B, Q, R, (X_s, X_o, X_closed if not isinstance(X_closed, str) else None),
+                                      X_closed)
+    for tag, X in (("ours", X_o), ("scipy", X_s)):
+        row[f"stab_{tag}"] = None if X is None else _stabilising(kind, A, B, R, X)
+        row[f"res_{tag}"] = None if X is None else relres_long_double(kind, A, B, Q, R, X)
+        row[f"err_{tag}"] = None if X is None or ref is None else rel(X, ref)
+    if sol is not None:
+        row["cond"], row["claimed"] = sol.condition, sol.forward_error
+        if ref is None:  # first-order forward-error bound from our condition estimate
+            row["err_ours"] = sol.condition * max(row["res_ours"], np.finfo(float).eps)
+    return row
+
+
+def bench_sweep(path):
+    gen = _load_generators(path)
+    print("5. Parameter sweep of the CAREX / DAREX families (ref: mpmath 60 digits for n <= 8, else the closed "
+          "form,\n   else long-double defect correction, else 'bound' = condition * relative residual); "
+          "stab: closed loop\n   stabilising (eigenvalues in double); res: relative residual in long double")
+    head = (f"{'example':10s} {'param':>9s} {'n':>3s} {'outcome':26s} {'ref':11s} {'err ours':>9s} {'err scipy':>9s} "
+            f"{'res ours':>9s} {'res scipy':>9s} {'stab':>5s} {'cond':>8s} {'ms ours':>8s} {'ms scipy':>8s} "
+            f"{'ratio':>6s}")
+    print(head)
+    print("-" * len(head))
+    rows = []
+    for coll, nr1, nr2, pname, values in SWEEP:
+        make = gen.carex if coll == "carex" else gen.darex
+        kind = "care" if coll == "carex" else "dare"
+        for v in values:
+            d = make(nr1, nr2, **{pname: v})
+            if coll == "darex" and d.get("S") is not None:
+                continue
+            X_closed = "butterworth" if (coll, nr1, nr2) == ("carex", 4, 1) else d["X_ref"]
+            row = sweep_case(kind, d["A"], d["B"], d["Q"], d["R"], X_closed)
+            row.update(example=f"{coll[0]}{nr1}.{nr2}", param=f"{pname}={v:g}")
+            rows.append(row)
+            stab = "/".join("-" if row[f"stab_{t}"] is None else ("y" if row[f"stab_{t}"] else "N")
+                            for t in ("ours", "scipy"))
+            ratio = (row["t_ours"] / row["t_scipy"]) if row["t_ours"] and row["t_scipy"] else None
+            t_o = "-" if row["t_ours"] is None else f"{1e3 * row['t_ours']:.2f}"
+            t_s = "-" if row["t_scipy"] is None else f"{1e3 * row['t_scipy']:.2f}"
+            print(f"{row['example']:10s} {row['param']:>9s} {row['n']:3d} {row['outcome'][:26]:26s} {row['ref']:11s} "
+                  f"{fmt(row['err_ours']):>9s} {fmt(row['err_scipy']):>9s} {fmt(row['res_ours']):>9s} "
+                  f"{fmt(row['res_scipy']):>9s} {stab:>5s} {fmt(row.get('cond')):>8s} {t_o:>8s} {t_s:>8s} "
+                  f"{'-' if ratio is None else f'{ratio:.2f}':>6s}", flush=True)
+    print("\n   stab = ours/scipy; outcome names our error class when we raise")
+    for r in rows:
+        if r.get("message"):
+            print(f"   {r['example']} {r['param']}: {r['message']}")
+    print()
+    return rows
+
+
+def lifted_periodic_reference(A, C, Q, R):
+    """P[0..N-1] of the periodic filter from the lifted (monodromy) DARE, solved by scipy.
+
+    Over one period ``x[N] = Phi x[0] + w`` and the period's measurements ``y = Gamma x[0] + v``,
+    where ``v`` holds the process noise that reached each measurement, so ``w`` and ``v`` are
+    correlated (cross covariance ``S``).  The a-priori covariance at phase 0 is the stabilising
+    solution of ``dare(Phi', Gamma', W, V, s=S)``; one sweep of the recursion gives the others.
+    Independent of cfdesign (no composition of Riccati maps, no doubling).
+    """
+    N, n = len(C), A[0].shape[0]
+    trans = [[None] * (N + 1) for _ in range(N + 1)]  # trans[j][i] = A[j-1] ... A[i]
+    for i in range(N + 1):
+        trans[i][i] = np.eye(n)
+        for j in range(i + 1, N + 1):
+            trans[j][i] = A[j - 1] @ trans[j - 1][i]
+    meas = [j for j in range(N) if C[j].shape[0]]
+    Gam = np.vstack([C[j] @ trans[j][0] for j in meas])
+    W = sum(trans[N][i + 1] @ Q[i] @ trans[N][i + 1].T for i in range(N))
+    off = np.cumsum([0] + [C[j].shape[0] for j in meas])
+    V, S = np.zeros((off[-1], off[-1])), np.zeros((n, off[-1]))
+    for a, j in enumerate(meas):
+        for b, h in enumerate(meas):
+            blk = np.zeros((C[j].shape[0], C[h].shape[0]))
+            for i in range(min(j, h)):
+                blk += C[j] @ trans[j][i + 1] @ Q[i] @ trans[h][i + 1].T @ C[h].T
+            V[off[a]:off[a + 1], off[b]:off[b + 1]] = blk + (R[j] if j == h else 0)
+        for i in range(j):
+            S[:, off[a]:off[a + 1]] += trans[N][i + 1] @ Q[i] @ trans[j][i + 1].T @ C[j].T
+    P = [sla.solve_discrete_are(trans[N][0].T, Gam.T, W, V, s=S)]
+    for k in range(N - 1):
+        Pk = P[-1]
+        if C[k].shape[0]:  # Joseph form
+            K = np.linalg.solve(C[k] @ Pk @ C[k].T + R[k], C[k] @ Pk).T
+            IKC = np.eye(n) - K @ C[k]
+            Pk = IKC @ Pk @ IKC.T + K @ R[k] @ K.T
+        P.append(A[k] @ Pk @ A[k].T + Q[k])
+    return P
+
+
+def _schedule(N, phases, H, R):
+    n = H.shape[1]
+    return ([H if k in phases else np.zeros((0, n)) for k in range(N)],
+            [R if k in phases else np.zeros((0, 0)) for k in range(N)])
+
+
+def periodic_sweep_cases():
+    """(name, A, C, R, Q, exact P[0] or None) of the periodic sweep."""
+    from test_periodic_dare import position_model
+
+    F, Q = position_model()  # 50 Hz IMU
+    F1, Q1 = position_model(0.01)  # 100 Hz IMU
+    H, Rg = np.array([[1.0, 0.0, 0.0]]), np.array([[10.0]])
+    out = [(f"GPS once per period, N={N}", F, *_schedule(N, {0}, H, Rg), Q, None) for N in (1, 2, 7, 50, 333, 1000)]
+    out += [(f"100 Hz, GPS at phase {ph}", F1, *_schedule(100, {ph}, H, Rg), Q1, None) for ph in (1, 25, 99)]
+    out.append(("3 Hz GPS on 100 Hz (0,33,67)", F1, *_schedule(100, {0, 33, 67}, H, Rg), Q1, None))
+    out.append(("same, GPS R = 1e-12", F1, *_schedule(100, {0, 33, 67}, H, np.array([[1e-12]])), Q1, None))
+    out.append(("same, GPS R = 1e12 (nearly blind)", F1, *_schedule(100, {0, 33, 67}, H, np.array([[1e12]])), Q1, None))
+    out.append(("same, C = [1e-8 0 0]", F1, *_schedule(100, {0, 33, 67}, 1e-8 * H, Rg), Q1, None))
+    out.append(("velocity + 1e-10 position, N=50", F, *_schedule(50, {0}, np.array([[1e-10, 1.0, 0.0]]), Rg), Q, None))
+    out.append(("no measurement at all, N=50", F, *_schedule(50, set(), H, Rg), Q, None))
+    for N in (100, 400, 1000):  # x[k+1] = 1.05 x[k] + w, measured once per period: closed form
+        import mpmath as mp
+
+        with mp.workdps(60):
+            a = mp.mpf("1.05")
+            phi2, W = a ** (2 * N), sum(a ** (2 * i) for i in range(N))
+            exact = float((-(1 - phi2 - W) + mp.sqrt((1 - phi2 - W) ** 2 + 4 * W)) / 2)
+        out.append((f"unstable scalar 1.05, N={N}", np.array([[1.05]]), *_schedule(N, {0}, np.ones((1, 1)),
+                                                                                     np.ones((1, 1))),
+                    np.eye(1), exact))
+    return out
+
+
+def bench_periodic_sweep():
+    from test_periodic_dare import naive_recursion
+
+    print("6. Periodic DARE sweep: ours against the lifted (monodromy) DARE with correlated noise solved by scipy,")
+    print("   the recursion iterated to convergence (up to 20000 periods) and, where one exists, the closed form")
+    head = (f"{'case':36s} {'N':>5s} {'outcome':22s} {'vs lifted':>9s} {'vs naive':>9s} {'vs exact':>9s} "
+            f"{'lift/naive':>10s} {'max |mu|':>9s} {'residual':>9s} {'ms ours':>8s}")
+    print(head)
+    print("-" * len(head))
+    for name, A, C, R, Q, exact in periodic_sweep_cases():
+        N = len(C)
+        try:
+            sol = periodic_dare(A, C, Q, R)
+            t = best_time(lambda A=A, C=C, Q=Q, R=R: periodic_dare(A, C, Q, R), repeat=3)
+            outcome = "solved"
+        except CfdesignError as exc:
+            sol, t, outcome = None, None, type(exc).__name__
+        errs, refs = [], {}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                refs["lifted"] = lifted_periodic_reference([A] * N, C, [Q] * N, R)
+            except (np.linalg.LinAlgError, ValueError):
+                refs["lifted"] = None
+            try:
+                refs["naive"] = naive_recursion(A, C, Q, R, tol=1e-15, max_periods=max(1, 200_000 // N))
+            except (AssertionError, np.linalg.LinAlgError):
+                refs["naive"] = None
+        for key in ("lifted", "naive"):
+            ok = sol is not None and refs[key] is not None
+            errs.append(max(rel(P, Pr) for P, Pr in zip(sol.P, refs[key], strict=True)) if ok else None)
+        errs.append(abs(sol.P[0][0, 0] - exact) / exact if sol is not None and exact is not None else None)
+        spread = (max(rel(P, Pr) for P, Pr in zip(refs["lifted"], refs["naive"], strict=True))
+                  if refs["lifted"] is not None and refs["naive"] is not None else None)
+        mu = "-" if sol is None else f"{np.max(np.abs(sol.monodromy_multipliers)):.6f}"
+        print(f"{name:36s} {N:5d} {outcome:22s} {fmt(errs[0]):>9s} {fmt(errs[1]):>9s} {fmt(errs[2]):>9s} "
+              f"{fmt(spread):>10s} {mu:>9s} {fmt(None if sol is None else sol.residual):>9s} "
+              f"{'-' if t is None else f'{1e3 * t:.2f}':>8s}", flush=True)
+    print()
+
+
 if __name__ == "__main__":
     if threadpool_limits is not None:
         threadpool_limits(ARGS.threads)
@@ -320,3 +619,6 @@ if __name__ == "__main__":
                           ("periodic", bench_periodic)):
         if name in only:
             section()
+    if ARGS.sweep:
+        bench_sweep(ARGS.cases_module)
+        bench_periodic_sweep()

@@ -210,3 +210,25 @@ def test_precise_slow_sensor_keeps_its_small_posterior_variance():
     expected = R_tiny[0, 0] * prior / (prior + R_tiny[0, 0])
     assert sol.P_filtered[0][0, 0] == pytest.approx(expected, rel=1e-6)
     assert np.all(np.linalg.eigvalsh(sol.P_filtered[0]) > 0)
+
+
+@pytest.mark.parametrize("period", [100, 400])
+def test_unstable_dynamics_with_a_slow_precise_sensor(period):
+    """x[k+1] = 1.05 x[k] + w (Q = 1), measured once per period (R = 1).  Over the period the
+    prior grows to 1e18 (period 400), so the update P - K S K' cancelled to the rounding of P and
+    the prediction multiplied that error by 1.05^(2 period): P[0] came out 9 % too small while
+    the fixed-point residual (the same recursion) read 0.  Against the closed form of the
+    scalar lifted equation P = a^(2N) P R / (P + R) + sum_i a^(2i) Q."""
+    import mpmath as mp
+
+    with mp.workdps(60):
+        a = mp.mpf("1.05")
+        phi2, W = a ** (2 * period), sum(a ** (2 * i) for i in range(period))
+        b = 1 - phi2 - W
+        exact = float((-b + mp.sqrt(b * b + 4 * W)) / 2)
+    C = [np.ones((1, 1))] + [np.zeros((0, 1))] * (period - 1)
+    R = [np.ones((1, 1))] + [np.zeros((0, 0))] * (period - 1)
+    sol = periodic_dare(np.array([[1.05]]), C, np.eye(1), R)
+    assert abs(sol.P[0][0, 0] - exact) <= 1e-12 * exact
+    # the posterior after the measurement is R P / (P + R), just below R
+    assert abs(sol.P_filtered[0][0, 0] - exact / (exact + 1)) <= 1e-14

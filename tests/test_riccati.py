@@ -424,6 +424,24 @@ def test_nearly_unstabilisable_is_not_rejected():
     assert sol.stability_margin > 0.5
 
 
+def test_large_eigenvalue_of_a_nearly_singular_e_is_not_called_unreachable():
+    """E = diag(1, 1e-15), A = I/2: the pencil's mode at z = 5e14 is reachable from B = I, but the
+    PBH test scaled B to ||A|| and compared it with ||A - lam E|| = 5e14, so dare() raised
+    NotStabilisableError naming that mode 'not reachable from B'.  A B that misses it still must."""
+    from cfdesign.riccati.validation import unreachable_mode
+
+    A, E = 0.5 * np.eye(2), np.diag([1.0, 1e-15])
+    assert unreachable_mode("dare", A, E, np.eye(2)) is None
+    hit = unreachable_mode("dare", A, E, np.array([[1.0], [0.0]]))
+    assert hit is not None and abs(hit[0]) == pytest.approx(5e14)
+    try:
+        dare(A, np.eye(2), np.eye(2), np.eye(2), None, E)
+    except NotStabilisableError as exc:
+        pytest.fail(f"misnamed: {exc}")
+    except RiccatiError:
+        pass  # refused as too ill-conditioned: a named error, and a true one
+
+
 def test_unobservable_boundary_mode_is_named():
     with pytest.raises(NotDetectableError, match=r"mode at s = 0\.0 is on the imaginary axis and not observable"):
         care([[0.0]], [[1.0]], [[0.0]], [[1.0]])
@@ -577,24 +595,52 @@ def test_near_singular_input_weight_against_long_double(kind, seed):
 
 
 def test_marginal_warning_names_the_uncertainty_that_decided():
-    """An n = 30 kinematic chain at 100 Hz: the closed-loop eigenvalue nearest the unit circle is
-    too ill-conditioned to certify (margin 5.6e-4).  The warning printed the closed-loop matrix's
-    uncertainty (1.3e-14) beside that margin, which reads as a certified stable loop; it must
-    print the eigenvalue uncertainty the verdict compared the margin with, which covers it."""
+    """The warning prints the eigenvalue uncertainty the verdict compared the margin with (not
+    the closed-loop matrix's, which reads as a certified stable loop): CAREX 2.5 at eps = 0,
+    closed-loop eigenvalues on the axis."""
     import re
 
+    A, B = np.array([[3.0, 1.0], [4.0, 2.0]]), np.ones((2, 1))
+    Q = np.array([[-11.0, -5.0], [-5.0, -2.0]])
+    with pytest.warns(RuntimeWarning, match="marginal solution") as record:
+        care(A, B, Q, 1)
+    text = next(str(w.message) for w in record if "marginal" in str(w.message))
+    margin, unc = map(float, re.search(r"eigenvalue margin (\S+), its uncertainty (\S+)\)", text).groups())
+    assert abs(margin) <= unc
+
+
+def test_stable_loop_with_an_ill_conditioned_eigenvalue_is_certified():
+    """An n = 30 kinematic chain at 100 Hz (margin 5.6e-4) and CAREX 4.1 at n = 30 (an integrator
+    chain, Butterworth closed loop, margin sin(pi/60) = 0.0523, gain entries up to 5e6).  The
+    eigenvalue uncertainty was taken from the unbalanced closed loop (0.225 for CAREX 4.1, above
+    its margin), so both were flagged marginal with a warning that X is not stabilising, while
+    the returned gains' loops are stable with exactly those margins (80-digit eigenvalues; here
+    the roots of the companion polynomial in 40 digits).  The eigensolver balances first; the
+    uncertainty must be that of the balanced loop."""
     from cfdesign.linear import zoh_chain
 
     n = 30
     F, b = zoh_chain(n, 0.01)
     H = np.eye(n)[:1]
-    with pytest.warns(RuntimeWarning, match="marginal solution") as record:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
         est = kalman_discrete(F, H, np.outer(b, b), np.array([[1e-2]]))
-    text = next(str(w.message) for w in record if "marginal" in str(w.message))
-    margin, unc = map(float, re.search(r"eigenvalue margin (\S+), its uncertainty (\S+)\)", text).groups())
-    assert abs(margin) <= unc
-    rho = np.abs(sla.eigvals(F - est.K_predictor @ H)).max()  # scipy's margin, independently
-    assert abs(margin - (1 - rho)) <= unc
+    rho = np.abs(sla.eigvals(F - est.K_predictor @ H)).max()
+    assert not est.solution.marginal
+    # (its eigenvalues are those of the gain before a last polishing Newton step: 2e-6 apart here)
+    assert abs(est.solution.stability_margin - (1 - rho)) <= 1e-5 * (1 - rho)
+
+    A, B = np.eye(n, k=1), np.eye(n)[:, -1:]
+    Q = np.zeros((n, n))
+    Q[0, 0] = 1.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        sol = care(A, B, Q, 1)
+    with mp.workdps(40):  # A - BK is the companion matrix of s^n + K[n-1] s^(n-1) + ... + K[0]
+        roots = mp.polyroots([1.0, *sol.K[0, ::-1]], maxsteps=200, extraprec=200)
+        exact_margin = float(-max(mp.re(r) for r in roots))
+    assert not sol.marginal and abs(sol.stability_margin - exact_margin) <= 1e-8 * exact_margin
+    assert _rel(sol.X, butterworth_chain_solution(n)) <= 1e-14
 
 
 @pytest.mark.parametrize("dt", [0.01, 1.0])

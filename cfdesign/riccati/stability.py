@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ..linear import balancing
 from .lyapunov import ClosedLoop
 from .problem import EPS, Problem, distance, gain, herm, norm2_bound
 
@@ -73,18 +74,26 @@ def closed_loop_eigenvalues(p: Problem, K):
 def _eigen_margin(p: Problem, K, K2):
     """Eigenvalues of (A - BK, E), their margin and its first-order uncertainty.
 
-    The uncertainty is the larger of the rounding bound ``10 eps kappa ||A - BK||`` (kappa:
-    condition number of the eigenvalue nearest the boundary) and four times the change of
-    the margin when the gain moves to ``K2`` (the gain after one more Newton step).
+    The uncertainty is the larger of the rounding bound ``10 eps kappa ||A - BK||`` and four
+    times the change of the margin when the gain moves to ``K2`` (the gain after one more
+    Newton step).  Kappa, the condition number of the eigenvalue nearest the boundary, and the
+    norm are those of the balanced closed loop ``D^-1 (A - BK) D`` when ``E`` is the identity,
+    which is what the eigensolver factorises: unbalanced, the companion-form loop of a 30-state
+    integrator chain read an uncertainty of 0.225 beside a margin of 0.0523 that its
+    eigenvalues computed in 80 digits confirm.
     """
+    M = p.A - p.B @ K
+    if p.E is None:  # balanced first, as LAPACK's eigensolver does: kappa and ||M|| of what it factorises
+        scale = balancing(M)
+        M = M / scale[:, None] * scale[None, :]
     Eref = np.eye(p.n) if p.E is None else p.E
-    lam, vl, vr = sla.eig(p.A - p.B @ K, Eref, left=True, right=True)
+    lam, vl, vr = sla.eig(M, Eref, left=True, right=True)
     d = distance(p.kind, lam)
     i = int(np.argmin(d))
     kappa = np.linalg.norm(vl[:, i]) * np.linalg.norm(vr[:, i]) / max(abs(vl[:, i].conj() @ Eref @ vr[:, i]), 1e-300)
     with np.errstate(all="ignore"):
         d2 = distance(p.kind, closed_loop_eigenvalues(p, K2)) if np.all(np.isfinite(K2)) else np.array([np.inf])
-    unc = max(10 * EPS * kappa * np.linalg.norm(p.A - p.B @ K), 4 * abs(np.min(d2) - d[i]))
+    unc = max(10 * EPS * kappa * np.linalg.norm(M), 4 * abs(np.min(d2) - d[i]))
     return lam, float(d[i]), float(unc)
 
 

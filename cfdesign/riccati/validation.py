@@ -244,8 +244,10 @@ def fmt_mode(kind, lam):
 def unreachable_mode(kind, A, E, B, boundary_only=False):
     """PBH test: an eigenvalue of ``(A, E)`` on or beyond the boundary with ``rank [A - lam E, B] < n``.
 
-    ``B`` is rescaled to the norm of ``A`` first, so only exact rank loss counts (a small but
-    nonzero ``B`` is not rejected: the solution then simply is ill-conditioned).
+    ``A - lam E`` is divided by ``max(||A||, |lam| ||E||)`` and ``B`` by its norm first, so only
+    exact rank loss counts: a small but nonzero ``B`` is not rejected (the solution then simply
+    is ill-conditioned), nor is a large eigenvalue of a nearly singular ``E`` (with ``B`` scaled
+    to ``A`` alone, ``E = diag(1, 1e-15)`` and ``B = I`` named the mode at 5e14 unreachable).
 
     Parameters
     ----------
@@ -271,14 +273,14 @@ def unreachable_mode(kind, A, E, B, boundary_only=False):
     d = distance(kind, lam)
     scale = max(1.0, np.max(np.abs(lam), initial=0.0)) if kind == "care" else 1.0
     tol_b = 100 * n * EPS * scale
-    bnorm = np.linalg.norm(B)
-    Bs = B * (max(np.linalg.norm(A), np.linalg.norm(Eref)) / bnorm) if bnorm > 0 else B
+    bnorm, anorm, enorm = np.linalg.norm(B), np.linalg.norm(A), np.linalg.norm(Eref)
+    Bs = B / bnorm if bnorm > 0 else B
     tested = []
     for lam_i, d_i in zip(lam, d, strict=True):
         if (abs(d_i) if boundary_only else d_i) > tol_b or any(abs(lam_i - t) <= tol_b for t in tested):
             continue
         tested.append(lam_i)
-        M = np.hstack([A - lam_i * Eref, Bs])
+        M = np.hstack([(A - lam_i * Eref) / max(anorm, abs(lam_i) * enorm, TINY), Bs])
         smin = np.linalg.svd(M, compute_uv=False)[-1] if n else 1.0
         if smin <= 100 * n * EPS * np.linalg.norm(M):
             return lam_i, d_i
