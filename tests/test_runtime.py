@@ -95,6 +95,28 @@ def test_split_run_with_restore_equals_one_run(position):
     assert np.max(np.abs(np.concatenate([a, b]) - whole)) < 1e-9
 
 
+def test_restore_refuses_a_state_of_another_filter_of_the_same_shape(heading):
+    """dckf3 and robot-heading both have 2 states, 1 input, period 1: the sizes cannot tell their
+    states apart; the snapshot names its filter and restore refuses it, naming both tables."""
+    import json
+
+    other = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    rt = Runtime(heading)
+    rt.step(gyro=0.1, compass=0.2, odometry=0.3)
+    saved = json.loads(json.dumps(rt.state()))                     # across JSON
+    target = Runtime(other)
+    with pytest.raises(CfdesignError, match=r"state does not fit robot heading .*taken from another filter, "
+                                            r"'robot heading \(Carreira et al. DCKF3"):
+        target.restore(saved)
+    assert target.state()["x"] == [0.0, 0.0]                       # unchanged
+    renamed = cfdesign.GainTable.from_dict({**heading.to_dict(), "name": "renamed"})
+    same = Runtime(renamed, output="prior")                         # the same filter: name and output do not matter
+    same.restore(saved)
+    assert same.state()["x"] == saved["x"] and same.step(gyro=0.1) == rt.step(gyro=0.1)
+    legacy = {k: saved[k] for k in ("x", "phase", "u_last")}        # a snapshot of an earlier cfdesign: sizes only
+    Runtime(other).restore(legacy)
+
+
 def test_missing_readings_skip_the_update_and_hold_the_input(heading):
     data = readings(heading, 400)
     data["compass"][::3] = np.nan
