@@ -175,10 +175,16 @@ def _default_prefix(table) -> str:
 
 
 def _sensors(table) -> list:
-    """Sensors by role and index, names checked; each role's indices must be 0, 1, ..."""
+    """Sensors by role and index, names checked; each role's indices must be 0, 1, ...
+
+    A sensor's name appears in the C only upper-cased after the prefix, in its index macro
+    ``<PREFIX>_U_<NAME>`` or ``<PREFIX>_Y_<NAME>`` (and in comments): any identifier makes a
+    valid, unreserved macro name there, so names that are C keywords (``int``, ``double``) or
+    that start with underscores are fine; only two names that upper-case alike clash."""
     sensors = table.sensors  # inputs by column, then measurements by row (checked by GainTable)
     for s in sensors:
-        check_c_identifier(s.name, f"{table.name}: sensor")
+        if not isinstance(s.name, str) or not _IDENTIFIER.match(s.name):
+            check_c_identifier(s.name, f"{table.name}: sensor")  # raises, naming the sensor
     macros = [s.name.upper() for s in sensors]
     if len(set(macros)) < len(macros):
         raise CfdesignError(f"{table.name}: sensor names {', '.join(s.name for s in sensors)} clash once "
