@@ -7,6 +7,10 @@ form; a continuous table is refused):
   (``<PREFIX>_U_<INPUT>``, ``<PREFIX>_Y_<MEASUREMENT>``) and the ``F, B, H, K`` arrays as
   ``static const`` with every value in full precision, under a do-not-edit comment with the
   table's provenance;
+
+  (every file's comment also states the base rate - one step call per base step -, the estimate
+  the step returns, when each sensor is read, and the table's
+  :func:`~cfdesign.runtime.filter.filter_sha256`, the one a Python state of it records)
 * ``<prefix>_filter.h``: ``typedef double|float <prefix>_real``, the plain-data state
   ``<prefix>_state {x, u_last, phase}``, ``<prefix>_init`` and ``<prefix>_step``;
 * ``<prefix>_filter.c``: the step, C99 with ``<math.h>`` only (``ceil`` or ``ceilf``, for the angle wrap), no
