@@ -233,10 +233,13 @@ def test_sparse_unwrap_equals_numpy(crossings):
     assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est")])
+@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est"),
+                                   ("OverflowError", "float", "type")])
 def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     """Sensor names are any identifiers: the compiled step's own names (S, U, PI, LIM, u0,
-    unknown, ...) move out of their way instead of being shadowed or clashing."""
+    unknown, ...) and the builtins it uses (OverflowError: a sensor of that name made an int
+    reading too large for a float raise TypeError) move out of their way instead of being
+    shadowed or clashing."""
     import dataclasses
 
     old = [s.name for s in heading.sensors]
@@ -247,8 +250,10 @@ def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     data = readings(heading, 300)
     data["compass"] = wrap(data["compass"] + 3.0)  # innovations across +-pi: the wrap is exercised
     expected, _ = stream(heading, data)
-    got, _ = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
+    got, rt = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
     assert np.array_equal(got, expected)
+    rt.step(**dict.fromkeys(names, 10**400))                      # too large for a float: rejected, counted
+    assert rt.counts == {"rejected": dict.fromkeys(names, 1)}
 
 
 @pytest.mark.parametrize("rate, N", [(1000.0, 30_000), (10_000.0, 200_000)])
