@@ -40,8 +40,8 @@ heading crossing +-pi, compared modulo 2 pi; the multirate position table, perio
   integrated at 50 Hz between 1 Hz GPS fixes).  Other tables: the float error grows with the
   filter's memory, within ``8 x 2**-24 x max |estimate| x ||h||_2`` (``||h||_2``: the 2-norm of
   the closed loop's response of the estimate to a unit error in the state; 4.7 for the
-  robot heading, 300 for a 50 Hz gyro with 10 Hz and 5 Hz compasses, measured 3.3e-6 x
-  max |estimate| there).
+  robot heading, 300 for a 50 Hz gyro with 10 Hz and 5 Hz compasses, measured
+  ``3.3e-6 x max |estimate|`` there).
 
 The step costs about 7 ns for the DCKF3 in double on a 2.6 GHz x86-64 (see
 ``benchmarks/bench_runtime.py``).

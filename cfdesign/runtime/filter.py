@@ -60,8 +60,9 @@ def filter_sha256(table) -> str:
     It covers the model ``F, B, H``, the gain of every phase and its form, the schedule, the
     sample time, the angle wrap, the sensors (names, roles, orders) and the state names; not
     the table's name, provenance, covariances or declared output (a state is the same for
-    either output).  :meth:`Runtime.state` records it so that :meth:`Runtime.restore` refuses a
-    state taken from another filter, and the generated C states it in its header.
+    either output).  :meth:`cfdesign.runtime.Runtime.state` records it so that
+    :meth:`cfdesign.runtime.Runtime.restore` refuses a state taken from another filter, and the
+    generated C states it in its header comment.
 
     Parameters
     ----------
