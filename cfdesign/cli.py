@@ -220,6 +220,10 @@ def _std_text(table, output: str) -> str:
 def cmd_export(args) -> int:
     from .gains import load_gains
 
+    c_only = [flag for flag, given in (("--precision", args.precision), ("--prefix", args.prefix),
+                                       ("--prediction", args.prediction)) if given]
+    if args.format != "c" and c_only:  # (ignored, they left a JSON or CSV table without what was asked)
+        raise CfdesignError(f"cfdesign export: {', '.join(c_only)} only apply to --format c, not {args.format}")
     check_distinct({"the gain table": args.table, "-o": args.output})
     table = load_gains(args.table)
     if args.format == "json":
@@ -231,7 +235,7 @@ def cmd_export(args) -> int:
     else:
         from .codegen import write_c
 
-        written = write_c(table, args.output, prefix=args.prefix, precision=args.precision,
+        written = write_c(table, args.output, prefix=args.prefix, precision=args.precision or "double",
                           output="prior" if args.prediction else None)
     for path in written:
         print(f"wrote {path}")
@@ -419,7 +423,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--format", choices=["json", "csv", "c"], required=True,
                    help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
     p.add_argument("-o", "--output", required=True, help="file (json, csv) or directory (c)")
-    p.add_argument("--precision", choices=["double", "float"], default="double",
+    p.add_argument("--precision", choices=["double", "float"],
                    help="C only: real type (default double)")
     p.add_argument("--prefix", help="C only: identifier prefix of the generated code (default: the table's "
                                     "structure, e.g. dckf3_step)")

@@ -236,6 +236,20 @@ def test_impossible_and_non_finite_samples_are_missing_and_counted():
     assert np.isfinite(estimate_attitude(np.full((50, 3), np.nan), np.full((50, 3), np.nan), None, RATE)).all()
 
 
+def test_huge_readings_are_counted_without_a_numpy_warning():
+    """1e200 m/s^2 or 1e300 rad/s overflows the unit check's norm: the step counts it as missing;
+    run() printed numpy's 'overflow encountered in multiply' first."""
+    import warnings
+
+    gyr, acc = np.zeros((20, 3)), np.tile([0.0, 0.0, 9.81], (20, 1))
+    gyr[5], acc[6] = [1e300, 1e300, 0.0], [1e200, 0.0, 0.0]
+    f = AttitudeFilter(RATE, magnetometer=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f.run(gyr, acc, None)
+    assert f.missing["gyr"] == 1 and f.missing["acc"] == 1
+
+
 @pytest.mark.parametrize("rate", [1e12, 0.0, -5.0, math.nan, math.inf, "fast", True, 1e-300])
 def test_bad_rates_are_refused_before_anything_is_allocated(rate, monkeypatch):
     import cfdesign.nav.attitude_filter as module

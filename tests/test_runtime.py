@@ -95,6 +95,28 @@ def test_split_run_with_restore_equals_one_run(position):
     assert np.max(np.abs(np.concatenate([a, b]) - whole)) < 1e-9
 
 
+def test_restore_refuses_a_state_of_another_filter_of_the_same_shape(heading):
+    """dckf3 and robot-heading both have 2 states, 1 input, period 1: the sizes cannot tell their
+    states apart; the snapshot names its filter and restore refuses it, naming both tables."""
+    import json
+
+    other = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    rt = Runtime(heading)
+    rt.step(gyro=0.1, compass=0.2, odometry=0.3)
+    saved = json.loads(json.dumps(rt.state()))                     # across JSON
+    target = Runtime(other)
+    with pytest.raises(CfdesignError, match=r"state does not fit robot heading .*taken from another filter, "
+                                            r"'robot heading \(Carreira et al. DCKF3"):
+        target.restore(saved)
+    assert target.state()["x"] == [0.0, 0.0]                       # unchanged
+    renamed = cfdesign.GainTable.from_dict({**heading.to_dict(), "name": "renamed"})
+    same = Runtime(renamed, output="prior")                         # the same filter: name and output do not matter
+    same.restore(saved)
+    assert same.state()["x"] == saved["x"] and same.step(gyro=0.1) == rt.step(gyro=0.1)
+    legacy = {k: saved[k] for k in ("x", "phase", "u_last")}        # a snapshot of an earlier cfdesign: sizes only
+    Runtime(other).restore(legacy)
+
+
 def test_missing_readings_skip_the_update_and_hold_the_input(heading):
     data = readings(heading, 400)
     data["compass"][::3] = np.nan
@@ -211,10 +233,13 @@ def test_sparse_unwrap_equals_numpy(crossings):
     assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est")])
+@pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est"),
+                                   ("OverflowError", "float", "type")])
 def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     """Sensor names are any identifiers: the compiled step's own names (S, U, PI, LIM, u0,
-    unknown, ...) move out of their way instead of being shadowed or clashing."""
+    unknown, ...) and the builtins it uses (OverflowError: a sensor of that name made an int
+    reading too large for a float raise TypeError) move out of their way instead of being
+    shadowed or clashing."""
     import dataclasses
 
     old = [s.name for s in heading.sensors]
@@ -225,8 +250,10 @@ def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     data = readings(heading, 300)
     data["compass"] = wrap(data["compass"] + 3.0)  # innovations across +-pi: the wrap is exercised
     expected, _ = stream(heading, data)
-    got, _ = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
+    got, rt = stream(renamed, {new: data[o] for o, new in zip(old, names, strict=True)})
     assert np.array_equal(got, expected)
+    rt.step(**dict.fromkeys(names, 10**400))                      # too large for a float: rejected, counted
+    assert rt.counts == {"rejected": dict.fromkeys(names, 1)}
 
 
 @pytest.mark.parametrize("rate, N", [(1000.0, 30_000), (10_000.0, 200_000)])

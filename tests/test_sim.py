@@ -191,3 +191,20 @@ def test_seed001_linear_gaussian_version_keeps_only_white_noise_and_the_bias_wal
     assert sc.gyro_compensation_rad_s == 0 and sc.sensors["gyro"].bias.model == "random_walk"
     assert sc.sensors["gyro"].bias.density == s001.READING.rate_bias_density
     assert sc.sensors["compass"].perturbation is None and sc.sensors["odometry"].drift_rad_s == 0
+
+
+def test_sinusoid_readings_give_every_sensor_the_derivative_of_its_order():
+    """cfn with 4 bands has a jerk input (order 3): the readings raised IndexError for it."""
+    from types import SimpleNamespace
+
+    from cfdesign.sim.signals import sinusoid_readings
+
+    # what the function reads of a table (a 4-band cfn's ports): designing one takes seconds
+    table = SimpleNamespace(wrap_angle=False, sample_time_s=0.5,
+                            sensors=[SimpleNamespace(name=name, order=order) for name, order in
+                                     (("jerk", 3), ("acceleration", 2), ("velocity", 1), ("position", 0))])
+    data = sinusoid_readings(table, 4000)
+    w = 2 * np.pi / 100.0
+    t = np.arange(4000) * 0.5
+    for name, truth in (("jerk", -50.0 * w**3 * np.cos(w * t)), ("position", 50.0 * np.sin(w * t))):
+        assert np.std(data[name] - truth) == pytest.approx(0.05, rel=0.1)

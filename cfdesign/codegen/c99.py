@@ -13,7 +13,7 @@ import numpy as np
 from .. import __version__, linear
 from ..errors import CfdesignError
 from ..files import write_into
-from ..runtime.filter import READING_LIMIT
+from ..runtime.filter import READING_LIMIT, filter_sha256
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
 
@@ -175,10 +175,16 @@ def _default_prefix(table) -> str:
 
 
 def _sensors(table) -> list:
-    """Sensors by role and index, names checked; each role's indices must be 0, 1, ..."""
+    """Sensors by role and index, names checked; each role's indices must be 0, 1, ...
+
+    A sensor's name appears in the C only upper-cased after the prefix, in its index macro
+    ``<PREFIX>_U_<NAME>`` or ``<PREFIX>_Y_<NAME>`` (and in comments): any identifier makes a
+    valid, unreserved macro name there, so names that are C keywords (``int``, ``double``) or
+    that start with underscores are fine; only two names that upper-case alike clash."""
     sensors = table.sensors  # inputs by column, then measurements by row (checked by GainTable)
     for s in sensors:
-        check_c_identifier(s.name, f"{table.name}: sensor")
+        if not isinstance(s.name, str) or not _IDENTIFIER.match(s.name):
+            check_c_identifier(s.name, f"{table.name}: sensor")  # raises, naming the sensor
     macros = [s.name.upper() for s in sensors]
     if len(set(macros)) < len(macros):
         raise CfdesignError(f"{table.name}: sensor names {', '.join(s.name for s in sensors)} clash once "
@@ -207,7 +213,8 @@ def _fields(table, prefix, precision, output) -> dict:
               for key, shape in shapes.items()}
     active = table.schedule.mask()
     return {
-        **_provenance(table), **arrays, **_step_code(table, prefix, gains), "prefix": prefix,
+        **_provenance(table), **_summary(table, output, sensors, prefix), **arrays,
+        **_step_code(table, prefix, gains), "prefix": prefix,
         "PREFIX": prefix.upper(), "real": real, "ceil": ceil, "n": n, "p": p, "m": m, "p_alloc": max(p, 1),
         "m_alloc": max(m, 1), "period": table.period,
         "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
@@ -282,6 +289,43 @@ def _provenance(table) -> dict:
               "created_utc": prov.get("created_utc", "unknown"), "generator_version": __version__,
               "solver": solver.get("method", "unknown") if isinstance(solver, dict) else solver}
     return {key: _comment_text(value) for key, value in fields.items()}
+
+
+def _summary(table, output, sensors, prefix) -> dict:
+    """The header comment's account of what the step does: its rate, its output, the schedule of
+    every sensor and the :func:`~cfdesign.runtime.filter.filter_sha256` of the table."""
+    T, period = table.sample_time_s, table.period
+    rate = f"base {1.0 / T:g} Hz (T = {T:g} s): one {prefix}_step call per base step"
+    if period > 1:
+        rate += f"; gain schedule of {period} steps ({period * T:g} s)"
+    what = ("the estimate after each step's readings (x+)" if output == "posterior"
+            else "the one-step prediction (x, before this step's readings)")
+    chosen = "the table's output" if output == table.output else f"chosen at export; the table's own is {table.output}"
+    lines = []
+    for s in sensors:
+        when = "every step" if s.role == "input" else _phases_text(table.schedule.phases(s.name), period, prefix)
+        lines.append(f"{s.name} ({s.role}, {s.rate_hz:g} Hz): {when}")
+    pad = "\n *" + " " * 16
+    return {"rate_line": _comment_text(rate), "output_line": _comment_text(f"{output}: {what} ({chosen})"),
+            "schedule_lines": pad.join(_comment_text(line) for line in lines),
+            "filter_sha256": filter_sha256(table)}
+
+
+def _phases_text(phases, period, prefix) -> str:
+    """The phases a measurement is read at, briefly: ``every step``, ``phases 2, 7 of 10``,
+    ``every 33rd step from phase 1 (300 of 10000)``."""
+    phases = list(phases)
+    if len(phases) == period:
+        return "every step"
+    if not phases:
+        return f"never (no phase of {period})"
+    gaps = set(np.diff(phases).tolist())
+    if len(phases) > 8 and len(gaps) == 1:
+        return f"every {gaps.pop()} steps from phase {phases[0]} ({len(phases)} of {period} phases)"
+    if len(phases) > 8:
+        shown = ", ".join(map(str, phases[:8]))
+        return f"phases {shown}, ... ({len(phases)} of {period}; {prefix}_ACTIVE lists them)"
+    return f"phase{'s' if len(phases) > 1 else ''} {', '.join(map(str, phases))} of {period}"
 
 
 def _comment_text(value) -> str:

@@ -876,7 +876,7 @@ def _check_units(gyr, acc):
     below 20 rad/s (a median of 20 in deg/s is an ordinary motion).  The filter runs anyway."""
     import warnings
 
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # an impossible reading (1e200: inf) is the step's to count
         a = np.linalg.norm(acc, axis=1)
         w = np.linalg.norm(gyr, axis=1)
     a, w = a[np.isfinite(a)], w[np.isfinite(w)]

@@ -23,6 +23,8 @@ innovation of an angle sensor and the estimate to (-pi, pi] with
 
 from __future__ import annotations
 
+import hashlib
+import json
 import numbers
 
 import numpy as np
@@ -31,7 +33,7 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "READING_LIMIT", "STATE_LIMIT"]
+__all__ = ["Runtime", "wrap", "usable", "held", "filter_sha256", "READING_LIMIT", "STATE_LIMIT"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -50,6 +52,45 @@ DISCRETE_HINT = ("discretise it at the sensors' rate: cfdesign discretize TABLE 
 #: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
 #: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
 STATE_LIMIT = 1e150
+
+
+def filter_sha256(table) -> str:
+    """SHA-256 of what a running filter's state means: the same for two tables that run alike.
+
+    It covers the model ``F, B, H``, the gain of every phase and its form, the schedule, the
+    sample time, the angle wrap, the sensors (names, roles, orders) and the state names; not
+    the table's name, provenance, covariances or declared output (a state is the same for
+    either output).  :meth:`cfdesign.runtime.Runtime.state` records it so that
+    :meth:`cfdesign.runtime.Runtime.restore` refuses a state taken from another filter, and the
+    generated C states it in its header comment.
+
+    Parameters
+    ----------
+    table : GainTable
+        A gain table.
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> len(filter_sha256(table)), filter_sha256(table) == filter_sha256(cfdesign.GainTable.from_dict(table.to_dict()))
+    (64, True)
+    """
+    def floats(a):
+        return [float(v).hex() for v in np.asarray(a, dtype=float).reshape(-1)]
+
+    what = {"domain": table.domain, "gain_form": table.gain_form, "wrap_angle": bool(table.wrap_angle),
+            "sample_time_s": None if table.sample_time_s is None else float(table.sample_time_s).hex(),
+            "shapes": [list(np.shape(table.F)), list(np.shape(table.B)), list(np.shape(table.H))],
+            "F": floats(table.F), "B": floats(table.B), "H": floats(table.H), "K": [floats(K) for K in table.K],
+            "schedule": [list(rows) for rows in table.schedule.active],
+            "sensors": [[s.name, s.role, s.index, s.order] for s in table.sensors], "states": list(table.states)}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()
 
 
 def real_array(value, name) -> np.ndarray:
@@ -180,6 +221,7 @@ class Runtime:
         self._active = table.schedule.mask()
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
+        self._sha256 = filter_sha256(table)
         self._x0 = np.zeros(self.n) if x0 is None else real_array(x0, "x0").reshape(-1)
         if self._x0.shape != (self.n,) or not np.all(np.isfinite(self._x0)):
             raise CfdesignError(f"x0 must be {self.n} finite numbers for {table.name}, got {self._x0.tolist()}")
@@ -260,10 +302,13 @@ class Runtime:
         Returns
         -------
         dict
-            ``{"x": list of float, "phase": int, "u_last": list of float}``: the state before the
-            next step, the phase of the next step, the inputs held.
+            ``{"x": list of float, "phase": int, "u_last": list of float, "table": str,
+            "filter_sha256": str}``: the state before the next step, the phase of the next step,
+            the inputs held, and the table it belongs to (its name, and
+            :func:`~cfdesign.runtime.filter.filter_sha256`, which :meth:`restore` checks).
         """
-        return {"x": self.x.tolist(), "phase": int(self.phase), "u_last": self.u_last.tolist()}
+        return {"x": self.x.tolist(), "phase": int(self.phase), "u_last": self.u_last.tolist(),
+                "table": self.table.name, "filter_sha256": self._sha256}
 
     def restore(self, state: dict):
         """Continue from a snapshot taken with :meth:`state`.
@@ -273,16 +318,20 @@ class Runtime:
         Parameters
         ----------
         state : dict
-            A snapshot of :meth:`state` (of a runtime of the same table).
+            A snapshot of :meth:`state` (of a runtime of a table that runs the same filter:
+            the same :func:`~cfdesign.runtime.filter.filter_sha256`, whatever its name or
+            output).  A snapshot without ``filter_sha256`` (written by an earlier cfdesign) is
+            checked by its sizes only.
 
         Raises
         ------
         CfdesignError
-            The snapshot does not fit this table (keys, sizes, a phase outside the period) or
-            holds a value that is not a finite number (or beyond
+            The snapshot was taken from another filter (its ``filter_sha256`` differs: the
+            message names both tables), does not fit this table (keys, sizes, a phase outside the
+            period) or holds a value that is not a finite number (or beyond
             :data:`~cfdesign.runtime.filter.STATE_LIMIT`); the runtime is left unchanged.
         """
-        x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name)
+        x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name, self._sha256)
         self.x, self.phase, self.u_last = x, phase, u_last
 
     # ------------------------------------------------------------------ streaming
@@ -602,13 +651,17 @@ class Runtime:
         return y
 
 
-def _snapshot(state, n, period, p, name):
+def _snapshot(state, n, period, p, name, sha256):
     """``(x, phase, u_last)`` of a snapshot, checked (see :meth:`Runtime.restore`)."""
     def fail(why):
         raise CfdesignError(f"state does not fit {name}: {why}")
 
     if not isinstance(state, dict) or not {"x", "phase", "u_last"} <= set(state):
         fail("a snapshot is a dict with x, phase and u_last (from Runtime.state())")
+    theirs = state.get("filter_sha256", sha256)
+    if theirs != sha256:
+        fail(f"it was taken from another filter, {str(state.get('table', 'a table not named'))[:200]!r} "
+             f"(filter_sha256 {str(theirs)[:16]}..., this one's {sha256[:16]}...)")
     try:
         x, u_last = real_array(state["x"], "x"), real_array(state["u_last"], "u_last")
     except CfdesignError as exc:

@@ -155,7 +155,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
 
     N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
                                      "AC", "K", "A", "L", "ph", "est", "unknown", "make", "AS_FLOAT", "REALS",
-                                     "type", "float")}
+                                     "type", "float", "OverflowError")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
     es, ys = [fresh(f"e{i}") for i in range(m)], [fresh(f"y{i}") for i in range(m)]
     nx = [fresh(f"n{r}") for r in range(n)]
@@ -184,7 +184,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         add(f"        if {N['type']}({v}) is not {N['float']}:")
         add(f"            {v} = {N['float']}({v}) if {N['type']}({v}) in {N['REALS']} else {N['AS_FLOAT']}({v}, {j})")
     if us + ys:
-        add("    except OverflowError:")
+        add(f"    except {N['OverflowError']}:")
         for j, v in enumerate(us + ys):
             add(f"        {v} = {N['AS_FLOAT']}({v}, {j})")
     for ok, v in zip(oks, us + ys, strict=True):
@@ -269,6 +269,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
 
     namespace = {WRAP: wrap_scalar, N["NAN"]: math.nan, N["UNKNOWN"]: unknown,
                  N["AS_FLOAT"]: as_float, N["REALS"]: _REALS, N["type"]: type, N["float"]: float,
+                 N["OverflowError"]: OverflowError,
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}

@@ -134,7 +134,7 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
                       missing: float = 0.0) -> dict:
     """Test readings for any gain table: a slow sinusoid through every sensor, plus noise.
 
-    Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration) plus
+    Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration, jerk) plus
     white noise of std 0.05; angle tables swing over +-4 rad (so the heading crosses +-pi,
     readings wrapped), others over +-50 m.  Used by the runtime benchmark and the
     C-against-Python tests.
@@ -162,10 +162,9 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
     amplitude = amplitude or (4.0 if table.wrap_angle else 50.0)
     w = 2 * np.pi / period_s
     t = np.arange(n) * table.sample_time_s
-    truth = [amplitude * np.sin(w * t), amplitude * w * np.cos(w * t), -amplitude * w**2 * np.sin(w * t)]
     data = {}
-    for s in table.sensors:
-        values = truth[s.order] + 0.05 * rng.normal(size=n)
+    for s in table.sensors:  # the order-th derivative of the sinusoid (jerk sensors of 4-band chains too)
+        values = amplitude * w**s.order * np.sin(w * t + s.order * np.pi / 2) + 0.05 * rng.normal(size=n)
         if table.wrap_angle and s.order == 0:
             values = wrap(values)
         if missing:
