@@ -533,7 +533,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
     if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
         _check_plot_target(plot)
-    runner = _Runner(table, lock, "prior" if prediction else None, start == "reading")
+    runner = _Runner(table, lock, "prior" if prediction else None, start == "reading",
+                     covariances=bool(std or cols.references))
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
@@ -749,10 +750,12 @@ class _Held:
 class _Runner:
     """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
 
-    def __init__(self, table, lock, output, from_reading=True):
+    def __init__(self, table, lock, output, from_reading=True, covariances=False):
         from .runtime import Runtime
 
         self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
+        self.covariances = covariances  # standard deviations that follow missed readings
+        self.P_missed = None
         self._Runtime = Runtime
         self.runtimes = {}
         self.counts = {}
@@ -849,9 +852,32 @@ class _Runner:
             out[a - first:b - first] = xs
             phases[a - first:b - first] = (rt.phase - (b - a) + np.arange(b - a)) % rt.period
             stds[a - first:b - first] = self._std(rt)[phases[a - first:b - first]]
+            if self.covariances:
+                stds[a - first:b - first] = self._missed(rt, part, phases[a - first:b - first],
+                                                         stds[a - first:b - first])
             self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
             _merge(self.counts, rt.counts)
         return out, phases, stds
+
+    def _missed(self, rt, part, phases, base):
+        """``base`` (the table's standard deviations) where every scheduled reading was present;
+        from a missed one until the error is back on the table's, the error of the gains that ran
+        over the readings present (:class:`~cfdesign.runtime.arrivals.MissedReadings`; its
+        covariance carried from segment to segment and block to block)."""
+        if rt.table.Q is None or rt.table.R is None:
+            return base
+        if not hasattr(rt, "_missed"):
+            from .runtime.arrivals import MissedReadings
+
+            rt._missed = MissedReadings(rt.table, rt.output)
+        from .runtime.filter import usable
+
+        present = np.column_stack([usable(part[s.name]) for s in rt.table.measurements])
+        missed = rt._missed
+        missed.P = self.P_missed
+        out = missed.stds(phases, present, base)
+        self.P_missed = missed.P
+        return out
 
     def _std(self, rt):
         """``(period, n)``: predicted standard deviation of every state at each phase of ``rt``'s

@@ -844,3 +844,28 @@ def test_a_csv_column_named_twice_is_refused(heading, tmp_path):
     (tmp_path / "d.csv").write_text("\n".join([text[0] + ",compass", *(r + ",0" for r in text[1:])]) + "\n")
     with pytest.raises(DataError, match=r"duplicate column.*compass"):
         run_log(heading, tmp_path / "d.csv")
+
+
+def test_std_follows_missed_readings_as_a_simulation_does(heading):
+    """A 5-s outage of odometry and compass every 30 s: the error grows on the gyro alone and
+    returns; each row's --std follows it (the table's own gains over the readings present), the
+    ensemble RMS error over 20 outages agreeing with the RMS std within sampling error (+-20 %
+    over seeds 0-5) during the outage and after it.  The table's steady-state std, which every
+    row carried before, is 2.2 times too small half-way through the outage."""
+    period, outage, count = 3000, 500, 20
+    x, readings = model_log(heading, period * (count + 1), seed=0)
+    starts = period * np.arange(1, count + 1)
+    for a in starts:
+        for name in ("odometry", "compass"):
+            readings[name][a:a + outage] = np.nan
+    est = run_log(heading, pd.DataFrame(readings), std=True, start="zero").estimates
+    err = wrap(est["heading"].to_numpy() - x[:, 0])
+    std = est["heading_std"].to_numpy()
+    for lo, hi in [(outage // 2, outage), (outage, outage + 250), (outage + 250, 3 * outage)]:
+        e = np.sqrt(np.mean([err[a + lo:a + hi] ** 2 for a in starts]))
+        s = np.sqrt(np.mean([std[a + lo:a + hi] ** 2 for a in starts]))
+        assert 0.7 < e / s < 1.4, (lo, hi, e, s)
+    during = np.sqrt(np.mean([std[a + outage // 2:a + outage] ** 2 for a in starts]))
+    assert during > 2 * np.sqrt(heading.P_filtered[0][0, 0])
+    before = range(starts[0] - 1000, starts[0])  # all readings present: the table's own
+    assert np.allclose(std[before], np.sqrt([heading.P_filtered[k % 100][0, 0] for k in before]), rtol=1e-12)

@@ -28,10 +28,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linear import posterior_covariance, wrap_inplace, wrap_scalar
+from ..linear import gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
 from .filter import held, usable
 
-__all__ = ["ArrivalKalman"]
+__all__ = ["ArrivalKalman", "MissedReadings"]
 
 
 class ArrivalKalman:
@@ -147,3 +147,116 @@ class ArrivalKalman:
             if c:
                 bucket = self.counts.setdefault("rejected", {})
                 bucket[name] = bucket.get(name, 0) + int(c)
+
+
+class MissedReadings:
+    r"""Predicted error of a table's own gains when scheduled readings are missing.
+
+    A table's covariances ``P`` (and ``P_filtered``) are those of its gains with every
+    scheduled reading present.  Where one is missing (a GPS outage, a dropped compass reading,
+    an ``inf``) the runtime skips its update and the error grows beyond them; it then returns
+    to them at the closed loop's rate.  This follows the error covariance of the *fixed* gains
+    over the readings present, for the ticks from the first missed reading until it is back on
+    the table's (to :attr:`RTOL` of its largest variance):
+
+    .. math::
+
+        P^+ = (I - L_a H_a) P (I - L_a H_a)^T + L_a R_a L_a^T,\qquad P \leftarrow F P^+ F^T + Q,
+
+    ``L_a, H_a, R_a`` the update gain (:func:`cfdesign.linear.gain_pair`), rows and noise of the
+    scheduled sensors read at that tick (Joseph form: valid for any gain).  A predictor-form
+    table without an update gain uses ``P <- (F - K_a H_a) P (F - K_a H_a)^T + K_a R_a K_a^T + Q``.
+    Held inputs are not modelled (their error depends on how the input changed).
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table whose ``Q`` and ``R`` are its model's per-tick noise covariances.
+    output : {'posterior', 'prior'}, optional
+        The estimate whose error is returned (default: the table's output).
+
+    Attributes
+    ----------
+    P : ndarray or None
+        The prior covariance of the next tick while it differs from the table's; None otherwise.
+    """
+
+    #: the covariance is back on the table's when every entry is within this fraction of its
+    #: largest variance
+    RTOL = 1e-9
+
+    def __init__(self, table, output=None):
+        self.table = table
+        self.posterior = (output or table.output) == "posterior"
+        self.mask = table.schedule.mask()
+        self.F, self.H = np.asarray(table.F, dtype=float), np.asarray(table.H, dtype=float)
+        self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
+        self.pairs = [gain_pair(self.F, K, table.gain_form) for K in table.K]
+        self._cache = {}
+        self.every = table.period * -(-16 // table.period)  # whole periods, at least 16 ticks
+        self.P = None
+
+    def stds(self, phases, present, base):
+        """Standard deviations of the output at ticks of ``phases``, given the readings present.
+
+        Parameters
+        ----------
+        phases : ndarray of int, shape (N,)
+            The table's phase at each tick, consecutive ticks.
+        present : ndarray of bool, shape (N, m)
+            Which measurement (in the table's row order) has a usable reading at each tick.
+        base : ndarray, shape (N, n)
+            The table's standard deviations at those phases (returned where nothing was missed).
+
+        Returns
+        -------
+        ndarray, shape (N, n)
+            The predicted standard deviation of every state of the output at every tick.
+        """
+        t = self.table
+        read = self.mask[phases] & present
+        missed = (self.mask[phases] & ~present).any(axis=1)
+        k = 0 if self.P is not None else (int(np.argmax(missed)) if missed.any() else len(phases))
+        if k == len(phases):
+            return base
+        out = np.square(base, dtype=float)  # variances
+        P = self.P if self.P is not None else np.asarray(t.P[phases[k]], dtype=float)
+        while k < len(phases):
+            ph = phases[k]
+            M, N, A, c = self._tick(ph, read[k])
+            out[k] = np.einsum("ij,ij->i", A @ P, A) + c
+            P = M @ P @ M.T + N
+            k += 1
+            if missed[k - 1] or k % self.every:  # compared with the table's now and then, after a reading
+                continue
+            P = 0.5 * (P + P.T)
+            ref = np.asarray(t.P[(ph + 1) % t.period], dtype=float)
+            if np.max(np.abs(P - ref)) <= self.RTOL * np.max(np.abs(np.diag(ref))):
+                ahead = missed[k:]
+                if not ahead.any():
+                    self.P = None
+                    break
+                k += int(np.argmax(ahead))
+                P = np.asarray(t.P[phases[k]], dtype=float)
+        else:
+            self.P = 0.5 * (P + P.T)
+        return np.sqrt(np.maximum(out, 0.0))
+
+    def _tick(self, phase, read):
+        """``(M, N, A, c)`` of a tick at ``phase`` reading the rows ``read``: the next prior
+        ``M P M' + N`` and the output's variances ``diag(A P A') + c``."""
+        key = (phase, read.tobytes())
+        if key not in self._cache:
+            F, Q, n = self.F, self.Q, len(self.F)
+            Kp, L = self.pairs[phase]
+            rows = np.flatnonzero(read)
+            H, R = self.H[rows], self.R[np.ix_(rows, rows)]
+            if L is None:  # predictor form without an update gain: the prior is the output
+                M = F - Kp[:, rows] @ H
+                self._cache[key] = (M, Kp[:, rows] @ R @ Kp[:, rows].T + Q, np.eye(n), np.zeros(n))
+            else:
+                A = np.eye(n) - L[:, rows] @ H
+                C = L[:, rows] @ R @ L[:, rows].T
+                out = (A, np.diag(C).copy()) if self.posterior else (np.eye(n), np.zeros(n))
+                self._cache[key] = (F @ A, F @ C @ F.T + Q, *out)
+        return self._cache[key]
