@@ -56,6 +56,7 @@ __all__ = [
     "gain_in_form",
     "has_posterior",
     "closed_loop",
+    "loop_radius",
     "Realisation",
     "realisation",
     "posterior_covariance",
@@ -331,6 +332,42 @@ def closed_loop(F, H, K, form: str) -> np.ndarray:
     """
     Kp, _ = gain_pair(F, K, form)
     return np.asarray(F, dtype=float) - Kp @ np.asarray(H, dtype=float)
+
+
+def loop_radius(F, H, gains, form: str) -> float:
+    """Spectral radius of the error dynamics over one period of a discrete table's gains.
+
+    One gain: the closed loop's (:func:`closed_loop`); several (a multirate table): its
+    monodromy matrix, the product of the phases' closed loops.  Below 1 the filter forgets
+    any error; above 1 its estimates diverge whatever the readings.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Transition matrix.
+    H : array_like, shape (m, n)
+        Measurement matrix.
+    gains : sequence of array_like, each (n, m)
+        The gain of every phase, in ``form``.
+    form : {'predictor', 'filter'}
+        The gain form.
+
+    Returns
+    -------
+    float
+        The spectral radius; ``inf`` when the product overflows.
+
+    Examples
+    --------
+    >>> from cfdesign.linear import loop_radius
+    >>> loop_radius([[1.0]], [[1.0]], [[[0.5]], [[0.0]]], "filter")
+    0.5
+    """
+    Phi = np.eye(len(np.asarray(F)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        for K in gains:
+            Phi = closed_loop(F, H, K, form) @ Phi
+    return float(np.abs(np.linalg.eigvals(Phi)).max()) if np.all(np.isfinite(Phi)) else math.inf
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 import cfdesign
 from cfdesign.errors import CfdesignError, GainTableError, SpecError
-from cfdesign.gains import Schedule, load_gains
+from cfdesign.gains import GainTable, Schedule, load_gains
 from cfdesign.runtime import Runtime
 from cfdesign.spec import parse_spec
 from cfdesign.verify import verify_table
@@ -758,8 +758,23 @@ def test_a_table_whose_filter_diverges_is_not_run_to_empty_estimates(position, t
         f"{k / 50},0.01,{1.0 if k % 50 == 0 else ''}\n" for k in range(3000)))
     (tmp_path / "e.csv").write_text("previous")
     code, _, err = cli("run", tmp_path / "g.json", tmp_path / "log.csv", "-o", tmp_path / "e.csv")
-    assert code == 2 and "diverge" in err and "not stable" in err, err
+    assert code == 2 and "diverge" in err and "unstable" in err and len(err.strip().splitlines()) == 1, err
     assert (tmp_path / "e.csv").read_text() == "previous"
+    with pytest.raises(CfdesignError, match="unstable"):  # the Python runtime refuses it as well
+        Runtime(GainTable.from_dict(d))
+
+
+def test_a_table_no_sensor_corrects_runs_and_an_unstable_one_is_named(heading):
+    """Radius 1 (dead reckoning: every gain 0) runs, the heading integrating the gyro; above 1 is
+    refused before any step, naming the growth a period (it ran the state to inf or NaN)."""
+    d = heading.to_dict()
+    d["K"] = [np.zeros_like(np.asarray(K)).tolist() for K in d["K"]]
+    rt = Runtime(GainTable.from_dict(d))
+    names = {s.name: np.full(100, 0.1 if s.role == "input" else np.nan) for s in heading.sensors}
+    assert rt.run(names)[-1] == pytest.approx(99 * 0.1 * heading.sample_time_s)
+    d["F"][0][0] = 1.05
+    with pytest.raises(CfdesignError, match=r"grow by 1\.05"):
+        Runtime(GainTable.from_dict(d))
 
 
 def test_a_time_gap_beyond_the_limit_is_named_before_the_work(heading, tmp_path, cli):

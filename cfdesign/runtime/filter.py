@@ -33,7 +33,7 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "filter_sha256", "READING_LIMIT", "STATE_LIMIT"]
+__all__ = ["Runtime", "wrap", "usable", "held", "filter_sha256", "READING_LIMIT", "STATE_LIMIT", "UNSTABLE_RTOL"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -49,6 +49,10 @@ READING_LIMIT = 1e12
 #: how to get a discrete table from a continuous one (the messages that refuse one)
 DISCRETE_HINT = ("discretise it at the sensors' rate: cfdesign discretize TABLE --rate-hz R; or design a "
                  "discrete structure: dckf3, position, or cf2/cf3/cfn with discrete = true")
+#: a table whose error dynamics grow by more than ``1 + UNSTABLE_RTOL`` a period (the spectral
+#: radius of :func:`cfdesign.linear.loop_radius`) is refused: its estimates diverge.  A radius of
+#: 1 (dead reckoning, a state no sensor corrects) runs
+UNSTABLE_RTOL = 1e-9
 #: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
 #: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
 STATE_LIMIT = 1e150
@@ -180,8 +184,9 @@ class Runtime:
     Raises
     ------
     CfdesignError
-        A continuous-time table, or a gain the requested output cannot be formed from (a
-        predictor gain with a singular ``F`` asked for the posterior).
+        A continuous-time table, an unstable one (error dynamics growing by more than
+        ``1 + UNSTABLE_RTOL`` a period), or a gain the requested output cannot be formed from
+        (a predictor gain with a singular ``F`` asked for the posterior).
 
     Examples
     --------
@@ -212,6 +217,11 @@ class Runtime:
                             for K in table.K]
         except ValueError as exc:
             raise CfdesignError(f"{table.name}: {exc}") from None
+        radius = linear.loop_radius(self.F, self.H, table.K, table.gain_form)
+        if not radius <= 1.0 + UNSTABLE_RTOL:
+            raise CfdesignError(f"{table.name}: the filter is unstable (its error dynamics grow by {radius:.6g} a "
+                                f"period, above 1): its estimates diverge whatever the readings (an edited gain or "
+                                f"model?); cfdesign verify names the check")
         pairs = [linear.gain_pair(self.F, K, table.gain_form) for K in table.K]
         self.Kp = [kp for kp, _ in pairs]
         self.L = [upd if upd is not None else np.zeros_like(kp) for kp, upd in pairs]
