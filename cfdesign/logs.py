@@ -688,7 +688,7 @@ def _lock(table, blocks, cols, source, types=False):
             held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_line)
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
-    arrivals = {k: np.unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
+    arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
     if schemas:
         import pyarrow as pa
 
@@ -712,6 +712,16 @@ def _check_float32_time(t, name, dt, source):
                             f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
 
 
+def _unique(a, return_index=False):
+    """``np.unique`` of ticks, in one pass where they ascend (a log's ticks do: times increase);
+    ``np.unique`` sorted a million ticks by hashing, a tenth of a million-row run."""
+    a = np.asarray(a)
+    if a.size and not np.all(a[1:] >= a[:-1]):
+        return np.unique(a, return_index=return_index)
+    first = np.flatnonzero(np.concatenate([[True], a[1:] != a[:-1]])) if a.size else np.zeros(0, np.int64)
+    return (a[first], first) if return_index else a[first]
+
+
 class _Held:
     """The ticks at which an input sensor has no reading (its last reading is held there), counted
     block by block: how many, and the longest gap with the log line it follows."""
@@ -725,7 +735,7 @@ class _Held:
         rows = np.flatnonzero(read)
         if not rows.size:
             return
-        at = np.unique(ticks[rows]) if self.last is None else np.unique(np.concatenate([[self.last], ticks[rows]]))
+        at = _unique(ticks[rows]) if self.last is None else _unique(np.concatenate([[self.last], ticks[rows]]))
         skip = np.diff(at) - 1
         self.gaps += int(skip.sum())
         if skip.size and skip.max() > self.longest[0]:
@@ -906,7 +916,7 @@ class _Runner:
         for name, col in readings.items():
             arr = np.full(n, np.nan)
             ok = np.flatnonzero(~np.isnan(col))
-            idx, first_row = np.unique(ticks[ok] - first, return_index=True)  # the first reading of a tick
+            idx, first_row = _unique(ticks[ok] - first, return_index=True)  # the first reading of a tick
             arr[idx] = col[ok[first_row]]
             twice = len(ok) - len(idx)
             if twice:
