@@ -223,7 +223,8 @@ def cmd_export(args) -> int:
     c_only = [flag for flag, given in (("--precision", args.precision), ("--prefix", args.prefix),
                                        ("--prediction", args.prediction)) if given]
     if args.format != "c" and c_only:  # (ignored, they left a JSON or CSV table without what was asked)
-        raise CfdesignError(f"cfdesign export: {', '.join(c_only)} only apply to --format c, not {args.format}")
+        verb = "applies" if len(c_only) == 1 else "apply"
+        raise CfdesignError(f"cfdesign export: {', '.join(c_only)} only {verb} to --format c, not {args.format}")
     check_distinct({"the gain table": args.table, "-o": args.output})
     table = load_gains(args.table)
     if args.format == "json":

@@ -199,12 +199,16 @@ def test_failed_c_export_keeps_the_previous_set(heading, tmp_path, cli):
 
 
 @pytest.mark.parametrize("fmt", ["json", "csv"])
-@pytest.mark.parametrize("flag", [["--prediction"], ["--precision", "float"], ["--prefix", "imu"]])
-def test_c_only_export_options_are_refused_for_json_and_csv(heading, tmp_path, cli, fmt, flag):
-    """`export --format json --prediction` wrote the table with its own output and said nothing."""
+@pytest.mark.parametrize("flag, named", [(["--prediction"], "--prediction only applies"),
+                                         (["--precision", "float"], "--precision only applies"),
+                                         (["--prefix", "imu"], "--prefix only applies"),
+                                         (["--prefix", "imu", "--prediction"], "--prefix, --prediction only apply")])
+def test_c_only_export_options_are_refused_for_json_and_csv(heading, tmp_path, cli, fmt, flag, named):
+    """`export --format json --prediction` wrote the table with its own output and said nothing;
+    the refusal names the options in a sentence ("--prediction only apply" for one of them)."""
     table = heading.save(tmp_path / "g.json")
     code, _, err = cli("export", table, "--format", fmt, "-o", tmp_path / f"out.{fmt}", *flag)
-    assert code == 2 and err.count("\n") == 1 and f"{flag[0]} only apply to --format c, not {fmt}" in err
+    assert code == 2 and err.count("\n") == 1 and f"{named} to --format c, not {fmt}" in err
     assert not (tmp_path / f"out.{fmt}").exists()
 
 
