@@ -88,3 +88,69 @@ def test_the_build_is_nitpicky():
     ignored = re.search(r"^nitpick_ignore_regex = \[(.*?)^\]", conf, re.M | re.S)
     assert ignored and "cfdesign" not in ignored.group(1)
     assert "sphinx.ext.intersphinx" not in conf
+
+
+def _command_options(command: str, paper: str | None = None) -> dict:
+    """``{option: set of choices or None}`` of ``cfdesign COMMAND`` (or ``reproduce PAPER``), as
+    the parser has them (``-o`` for ``-o/--output``; help left out)."""
+    from cfdesign.cli import build_parser
+
+    parser = build_parser(["reproduce"] if paper else None)
+    sub = next(a for a in parser._actions if a.dest == "command").choices[command]
+    if paper:
+        sub = next(a for a in sub._actions if a.choices and paper in a.choices).choices[paper]
+    return {(a.option_strings[0] if a.option_strings[0] == "-o" else a.option_strings[-1]):
+            (set(map(str, a.choices)) if a.choices else None)
+            for a in sub._actions if a.option_strings and a.dest != "help"}
+
+
+def _synopsis_options(synopsis: str) -> dict:
+    """``{option: set of choices shown (a|b|c) or None}`` of a usage line as the docs write it."""
+    synopsis = synopsis.replace("\\|", "|")
+    option = r"(?<![\w-])(?P<opt>-o|--[a-z][a-z-]*)(?: (?P<choices>[\w.]+(?:\|[\w.]+)+)(?=[\] ]|$))?"
+    return {m["opt"]: (set(m["choices"].split("|")) if m["choices"] else None)
+            for m in re.finditer(option, synopsis)}
+
+
+COMMANDS = ["prove", "bode", "design", "export", "verify", "run", "noise", "discretize"]
+
+
+def _readme_synopses() -> dict:
+    readme = (DOCS.parent / "README.md").read_text()
+    block = re.search(r"^## Command line\n\n```\n(.*?)^```", readme, re.M | re.S).group(1)
+    lines = {}
+    for line in block.splitlines():
+        words = line.split()
+        if len(words) > 1 and words[0] == "cfdesign":
+            lines[words[1]] = line.split("#")[0]
+    # the papers' options are given where the README describes each reproduction
+    flat = " ".join(readme.split())
+    for paper in ("carreira", "helicopter", "compare"):
+        lines[f"reproduce {paper}"] = re.search(rf"`cfdesign reproduce {paper} (\[[^`]*)`", flat).group(1)
+    return lines
+
+
+def _cli_page_synopses() -> dict:
+    rows = re.findall(r"^\| `cfdesign (\w+)([^`]*)` \|", (DOCS / "cli.md").read_text(), re.M)
+    return {command: rest for command, rest in rows}
+
+
+PAPERS = ["reproduce carreira", "reproduce helicopter", "reproduce compare"]
+
+
+@pytest.mark.parametrize("command, where", [(c, "README.md") for c in [*COMMANDS, *PAPERS]]
+                         + [(c, "docs/cli.md") for c in COMMANDS])
+def test_the_usage_lines_give_every_option_of_the_command_and_no_other(command, where):
+    """README's 'Command line' block (and its reproductions' lines) and the command table of
+    docs/cli.md (which gives the papers' options as ``[options]``) name every option
+    ``cfdesign COMMAND --help`` has, with the same choices, and no option the command does not
+    have."""
+    synopses = _readme_synopses() if where == "README.md" else _cli_page_synopses()
+    assert command in synopses, f"{where} has no usage line for cfdesign {command}"
+    documented = _synopsis_options(synopses[command])
+    actual = _command_options(*command.split())
+    assert sorted(set(actual) - set(documented)) == [], f"{where}: cfdesign {command} options not documented"
+    assert sorted(set(documented) - set(actual)) == [], f"{where}: cfdesign {command} has no such options"
+    for option, choices in actual.items():
+        if choices is not None:
+            assert documented[option] == choices, f"{where}: cfdesign {command} {option} takes {sorted(choices)}"
