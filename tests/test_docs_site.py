@@ -154,3 +154,44 @@ def test_the_usage_lines_give_every_option_of_the_command_and_no_other(command, 
     for option, choices in actual.items():
         if choices is not None:
             assert documented[option] == choices, f"{where}: cfdesign {command} {option} takes {sorted(choices)}"
+
+
+def _pyproject() -> dict:
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    return tomllib.loads((DOCS.parent / "pyproject.toml").read_text())["project"]
+
+
+def test_every_extra_the_docs_name_exists():
+    """``pip install ".[NAME]"`` / ``"cfdesign[NAME]"`` in the README, the docs, the notebooks and
+    the package's own messages name extras of pyproject.toml."""
+    extras = set(_pyproject()["optional-dependencies"])
+    root = DOCS.parent
+    files = [root / "README.md", *DOCS.rglob("*.md"), *(root / "notebooks").glob("*.ipynb"),
+             *(root / "cfdesign").rglob("*.py")]
+    named = {(f.name, name) for f in files if "_build" not in f.parts
+             for group in re.findall(r"(?:cfdesign|\.)\[([a-z][\w,-]*)\]", f.read_text()) for name in group.split(",")}
+    assert named and all(name in extras for _, name in named), sorted(x for x in named if x[1] not in extras)
+
+
+def test_the_notebooks_extra_runs_every_notebook():
+    """docs/examples.md: ``pip install ".[notebooks]"`` runs the notebooks, so every package a
+    notebook imports is the standard library's, cfdesign's or one of cfdesign's dependencies with
+    that extra (notebook 07 imports pandas, which only the logs extra gave)."""
+    import json
+    import sys
+
+    project = _pyproject()
+    requirements = [*project["dependencies"], *project["optional-dependencies"]["notebooks"]]
+    installed = {re.match(r"[\w.-]+", r).group(0).lower().replace("-", "_") for r in requirements}
+    for nb in sorted((DOCS.parent / "notebooks").glob("*.ipynb")):
+        cells = json.loads(nb.read_text())["cells"]
+        source = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "code")
+        statements = re.findall(r"^\s*(?:from\s+([\w.]+)\s+import|import\s+([\w., ]+))", source, re.M)
+        modules = {part.split(" as ")[0].strip().split(".")[0]
+                   for group in statements for item in group if item for part in item.split(",")}
+        # (the notebooks' modules have their distribution's name: numpy, sympy, matplotlib, ...)
+        missing = sorted(m for m in modules - {"cfdesign", ""} - sys.stdlib_module_names if m.lower() not in installed)
+        assert not missing, f"{nb.name} imports {missing}, which the notebooks extra does not install"
