@@ -182,3 +182,25 @@ def test_design_with_bad_bode_path_writes_nothing(tmp_path, cli):
     out = tmp_path / "g.json"
     code, _, _ = cli("design", "-o", out, "--bode", tmp_path / "missing" / "b.png")
     assert code == 2 and not out.exists()
+
+
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+@pytest.mark.parametrize("assumptions", [{}, {"real": True}, {"positive": True}])
+def test_a_users_own_symbol_T_is_the_sample_time(form, assumptions):
+    """The docstring calls the default sample time "the symbol T": a discrete observer written with
+    ``sp.Symbol("T")`` (not the engine's ``T``, which is positive) proved FAILS with a ``sum - 1``
+    that printed as ``(T*z - T - T*z + T)/...``, two different symbols of one name."""
+    k, t = sp.Symbol("k"), sp.Symbol("T", **assumptions)
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    obs = Observer([[1]], [[t]], [[1]], [[k]], sensors, domain="z", gain_form=form)
+    assert obs.proof().holds and obs.proof().residual == 0
+    assert obs.sample_time == t and obs.with_gains(k=sp.Rational(1, 2), T=sp.Rational(1, 10)).proof().holds
+
+
+def test_two_symbols_of_the_sample_times_name_are_refused():
+    k, mine = sp.Symbol("k"), sp.Symbol("T", real=True)
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    with pytest.raises(cfdesign.errors.StructureError, match="symbol T"):
+        Observer([[1]], [[mine]], [[1]], [[k]], sensors, domain="z", sample_time=sp.Symbol("T"))
+    with pytest.raises(cfdesign.errors.StructureError, match="symbol T"):
+        Observer([[1]], [[mine]], [[1]], [[k * T]], sensors, domain="z")

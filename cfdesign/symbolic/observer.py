@@ -398,6 +398,22 @@ def parse_number(text: str, name: str = "value"):
     return sp.Rational(fr.numerator, fr.denominator)
 
 
+def _sample_time_of(sample_time, *matrices):
+    """The sample time of a discrete observer: ``sample_time``, else the one symbol named ``T``
+    in the matrices, else the engine's ``T``; refused when the matrices hold another symbol of
+    the sample time's name (``Symbol("T")`` beside ``Symbol("T", positive=True)``)."""
+    free = set().union(*(M.free_symbols for M in matrices))
+    if sample_time is None:
+        named = [x for x in free if x.name == T.name]
+        sample_time = named[0] if len(named) == 1 else T
+    if isinstance(sample_time, sp.Symbol):
+        if any(x.name == sample_time.name and x != sample_time for x in free):
+            raise StructureError(
+                f"the matrices hold a symbol {sample_time.name} that is not the sample time {sample_time.name} (the "
+                "same name with other assumptions, which never cancel): write both with one symbol")
+    return sample_time
+
+
 class Observer:
     """A linear observer of a kinematic chain and its complementary bands.
 
@@ -411,7 +427,8 @@ class Observer:
     domain : {'s', 'z'}
         Continuous (Laplace variable ``s``) or discrete (``z``, sample time ``T``).
     sample_time : sympy symbol or positive number, optional
-        Discrete only; defaults to the symbol ``T``.
+        Discrete only; defaults to the symbol named ``T`` in the matrices, whatever its
+        assumptions (``sp.Symbol("T")``), else to cfdesign's ``T`` (positive).
     gain_form : {'predictor', 'filter'}
         Discrete only.  ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the
         estimate is ``C x`` (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
@@ -429,7 +446,8 @@ class Observer:
     StructureError
         Shapes that do not fit, an unknown domain or gain form, a sample time for a
         continuous observer, sensors that do not cover every column of ``B`` and row of
-        ``H`` exactly once.
+        ``H`` exactly once, two different symbols with the sample time's name (a sympy symbol
+        is its name and its assumptions: they would print alike and never cancel).
     GainError
         A sample time that is not positive.
 
@@ -465,7 +483,7 @@ class Observer:
         if domain not in ("s", "z"):
             raise StructureError(f"domain must be 's' (continuous) or 'z' (discrete), got {domain!r}")
         if domain == "z":
-            sample_time = T if sample_time is None else sample_time
+            sample_time = _sample_time_of(sample_time, F, B, H, K)
             if not isinstance(sample_time, sp.Symbol):
                 sample_time = exact_number(sample_time, "sample time T")
                 if sample_time <= 0:
