@@ -467,11 +467,12 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
-    p.add_argument("log", help="CSV log with a header row, sensor at rest")
+    p.add_argument("log", help="CSV (with a header row) or Parquet log, sensor at rest")
     p.add_argument("--column", action="append", required=True,
                    help="column to analyse (repeat, or comma-separate, for several axes)")
     p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
-    p.add_argument("--time", help="time column (s) to take the rate from, instead of --rate-hz")
+    p.add_argument("--time", metavar="COLUMN", help="time column (seconds or ISO 8601 dates) to take the rate from, "
+                   "instead of --rate-hz")
     p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
     p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
     p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")

@@ -128,3 +128,18 @@ def test_design_names_the_state_of_its_predicted_std_and_the_phase_of_a_multirat
     assert code == 0, err
     line = next(x for x in out.splitlines() if "<- the default output" in x)
     assert "std of position" in line and "at the worst phase" in line and "RMS over the period" in line
+
+
+def test_noise_reads_the_parquet_log_its_help_names(tmp_path):
+    """``cfdesign noise`` reads Parquet as ``cfdesign run`` does; its help said "CSV log"."""
+    import numpy as np
+    import pandas as pd
+
+    sub = next(a for a in build_parser()._actions if a.dest == "command").choices["noise"]
+    assert "Parquet" in next(a for a in sub._actions if a.dest == "log").help
+    rng = np.random.default_rng(0)
+    pd.DataFrame({"t": np.arange(20_000) / 100.0, "gyro": 0.01 * rng.standard_normal(20_000)}).to_parquet(
+        tmp_path / "static.parquet")
+    code, out, err = run("noise", str(tmp_path / "static.parquet"), "--column", "gyro", "--time", "t")
+    assert code == 0, err
+    assert out.startswith("gyro: 200 s at 100 Hz")
