@@ -274,6 +274,10 @@ def cmd_run(args) -> int:
     if fleet or args.workers or args.scheduler or folder:
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
+        if not folder and Path(args.output).suffix.lower() in (".csv", ".parquet", ".pq"):
+            raise CfdesignError(f"-o {args.output} names an estimates file, but several logs (a folder or a glob of "
+                                "logs, --workers or --scheduler) write a folder of them and summary.csv: name a "
+                                "folder (out/), or run one log without --workers and --scheduler")
         suffix = ".parquet" if args.format == "parquet" else ".csv"
         rows = run_logs(table, logs, args.output, workers=args.workers, scheduler=args.scheduler, suffix=suffix,
                         **options)
@@ -461,8 +465,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--prediction", action="store_true",
                    help="write the one-step prediction instead of the table's output (by default the estimate "
                         "after each step's readings)")
-    p.add_argument("--workers", type=int, help="several logs: Dask worker processes (default: the CPUs)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="several logs: an existing Dask scheduler")
+    dask = p.add_mutually_exclusive_group()
+    dask.add_argument("--workers", type=int, help="several logs: Dask worker processes (default: the CPUs)")
+    dask.add_argument("--scheduler", metavar="ADDRESS", help="several logs: an existing Dask scheduler")
     p.add_argument("--format", choices=["csv", "parquet"], default="csv", help="several logs: estimate file format")
     p.set_defaults(run=cmd_run)
 

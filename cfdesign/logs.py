@@ -1171,22 +1171,21 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     Raises
     ------
     CfdesignError
-        Dask is not installed, or ``outdir`` cannot be created.
+        Dask is not installed, ``workers`` and ``scheduler`` are both given, the scheduler
+        cannot be reached, or ``outdir`` cannot be created.
     DataError
         Two logs of the same name (their estimates would overwrite each other), or a log
         that cannot be run (as :func:`run_log`).
     """
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
+    if workers is not None and scheduler:
+        raise CfdesignError("workers and scheduler exclude each other: an existing scheduler has its own workers")
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
         raise CfdesignError('running many logs needs Dask: pip install "cfdesign[fleet]"') from None
     outdir = Path(outdir)
-    try:
-        outdir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
     targets = [outdir / (Path(p).stem + suffix) for p in paths]
     first = {}
     for i, t in enumerate(targets):
@@ -1208,6 +1207,10 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
                                dashboard_address=None)
         client = Client(cluster)
     try:
+        try:  # once connected: an unreachable scheduler leaves no empty folder
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
         futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
                    for p, t in zip(paths, targets, strict=True)]
         rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log

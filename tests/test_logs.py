@@ -620,6 +620,31 @@ def test_an_unreachable_scheduler_is_a_user_error(heading, tmp_path, cli):
         with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
             code, _, err = cli("run", table, tmp_path / "r0.csv", "-o", tmp_path / "out", "--scheduler", address)
         assert code == 2 and f"cannot connect to the Dask scheduler {address}" in err, err
+        assert not (tmp_path / "out").exists()  # (an empty folder was left behind)
+
+
+def test_workers_and_scheduler_exclude_each_other(heading, tmp_path, cli):
+    """Both given, the scheduler was used and --workers ignored in silence."""
+    table = heading.save(tmp_path / "g.json")
+    heading_log(0, 0, n=200)[0].to_csv(tmp_path / "r0.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "r0.csv", "-o", tmp_path / "out", "--workers", "2",
+                       "--scheduler", "nonsense://x")
+    assert code == 2 and err.count("\n") == 1 and "--scheduler: not allowed with argument --workers" in err, err
+    with pytest.raises(CfdesignError, match="workers and scheduler exclude each other"):
+        run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=2, scheduler="nonsense://x")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("how", [["--workers", "1"], ["--scheduler", "nonsense://x"], ["GLOB"]])
+@pytest.mark.parametrize("name", ["e.csv", "e.parquet"])
+def test_a_fleet_refuses_an_output_named_as_an_estimates_file(heading, tmp_path, cli, how, name):
+    """One log with --workers and ``-o e.csv`` wrote a folder named ``e.csv``."""
+    table = heading.save(tmp_path / "g.json")
+    heading_log(0, 0, n=200)[0].to_csv(tmp_path / "r0.csv", index=False)
+    data, extra = (f"{tmp_path}/r*.csv", []) if how == ["GLOB"] else (tmp_path / "r0.csv", how)
+    code, _, err = cli("run", table, data, "-o", tmp_path / name, *extra)
+    assert code == 2 and err.count("\n") == 1 and f"{name} names an estimates file" in err and "name a folder" in err
+    assert not (tmp_path / name).exists()
 
 
 @pytest.mark.parametrize("bad", [np.inf, -np.inf, 5e12])
