@@ -549,9 +549,26 @@ def _main(argv, debug) -> int:
     except Exception as exc:  # a bug: one line, the traceback only on request
         if debug:
             raise
+        missing = _missing_dependency(exc)
+        if missing:  # not a bug: the installation lacks a package this command imports
+            print(f"cfdesign: error: this command needs {missing}, which is not installed: pip install "
+                  f"{_EXTRA_OF.get(missing, missing)}", file=sys.stderr)
+            return CfdesignError.exit_code
         print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
               "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
         return InternalError.exit_code
+
+
+#: the extra that installs an optional dependency (the others: pip install NAME)
+_EXTRA_OF = {"pandas": '"cfdesign[logs]"', "pyarrow": '"cfdesign[logs]"', "dask": '"cfdesign[fleet]"',
+             "distributed": '"cfdesign[fleet]"'}
+
+
+def _missing_dependency(exc):
+    """The top-level name of the package another than cfdesign that ``exc`` failed to import, or None."""
+    name = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
+    top = (name or "").split(".")[0]
+    return top if top and top != "cfdesign" else None
 
 
 def _quiet_arithmetic(debug):

@@ -43,11 +43,18 @@ ONE_PASS_BYTES = 200_000_000
 RATE_SAMPLE = 1_000_000
 
 
-def _pandas():
+def _pandas(parquet=False):
+    """pandas, and with ``parquet`` pyarrow (pandas reads and writes Parquet through it); a
+    missing one is a one-line error naming the extra that installs it."""
     try:
         import pandas as pd
     except ImportError:  # pragma: no cover - depends on the installation
         raise CfdesignError('reading logs needs pandas: pip install "cfdesign[logs]"') from None
+    if parquet:
+        try:
+            import pyarrow.parquet  # noqa: F401
+        except ImportError:
+            raise CfdesignError('Parquet logs and estimates need pyarrow: pip install "cfdesign[logs]"') from None
     return pd
 
 
@@ -257,9 +264,9 @@ def read_log(path, columns=None, *, chunksize=None):
     DataError
         The file cannot be read, is empty, or is not a table (also while blocks are read).
     """
-    pd = _pandas()
     path = Path(path)
     parquet = path.suffix.lower() in (".parquet", ".pq")
+    pd = _pandas(parquet)
     try:
         if parquet:
             return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
@@ -341,8 +348,8 @@ def _parquet_blocks(path, columns, rows):
 
 
 def _header(path) -> list:
-    pd = _pandas()
     path = Path(path)
+    pd = _pandas(path.suffix.lower() in (".parquet", ".pq"))
     if path.suffix.lower() in (".parquet", ".pq"):
         import pyarrow.parquet as pq
 
@@ -521,6 +528,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
+    _pandas(output is not None and Path(output).suffix.lower() in (".parquet", ".pq"))  # before the log is read
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference)
     _check_output_names(table, cols, std, source)

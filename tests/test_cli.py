@@ -143,3 +143,39 @@ def test_noise_reads_the_parquet_log_its_help_names(tmp_path):
     code, out, err = run("noise", str(tmp_path / "static.parquet"), "--column", "gyro", "--time", "t")
     assert code == 0, err
     assert out.startswith("gyro: 200 s at 100 Hz")
+
+
+@pytest.mark.parametrize("hidden, args, hint", [
+    (["matplotlib.pyplot"], ["bode", "cf3", "--gains", "k1=2,k2=1", "-o", "x.png"], "pip install matplotlib"),
+    (["matplotlib.pyplot"], ["design", "-o", "g.json", "--bode", "x.png"], "pip install matplotlib"),
+    (["pyarrow", "pyarrow.parquet"], ["run", "GAINS", "log.csv", "-o", "x.parquet"], 'pip install "cfdesign[logs]"'),
+    (["pyarrow", "pyarrow.parquet"], ["noise", "log.parquet", "--column", "gyro", "--rate-hz", "5"],
+     'pip install "cfdesign[logs]"'),
+])
+def test_a_missing_dependency_is_named_on_one_line_with_its_install(hidden, args, hint, tmp_path, monkeypatch):
+    """Without matplotlib (or pyarrow beside pandas) a command said "internal error ... please report
+    it" (exit 3); it is the installation's: one line naming what to install, exit 2, nothing written."""
+    import numpy as np
+    import pandas as pd
+
+    from cfdesign import design
+    from cfdesign.spec import example_path, load_spec
+
+    gains = tmp_path / "gains.json"
+    design(load_spec(example_path("dckf3"))).save(gains)
+    log = pd.DataFrame({"time": np.arange(50) * 0.2, "gyro": 0.0, "compass": 0.1, "odometry": 0.1})
+    log.to_csv(tmp_path / "log.csv", index=False)
+    log.to_parquet(tmp_path / "log.parquet")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    for name in hidden:
+        monkeypatch.setitem(sys.modules, name, None)
+    code, _, err = run(*[str(gains) if a == "GAINS" else a for a in args], cwd=tmp_path)
+    assert code == 2 and err.count("\n") == 1 and "internal error" not in err, err
+    assert err.startswith("cfdesign: error:") and hint in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_missing_module_of_cfdesign_itself_stays_an_internal_error(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "cfdesign.plot", None)
+    code, _, err = run("bode", "cf3", "--gains", "k1=2,k2=1", "-o", "x.png", cwd=tmp_path)
+    assert code == 3 and "internal error" in err and not (tmp_path / "x.png").exists()
