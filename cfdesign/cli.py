@@ -389,7 +389,8 @@ def _add_structure(p):
     p.add_argument("--order", type=int, help="cf2 only: 1 (angle + rate) or 2 (with gyro-bias state)")
     p.add_argument("--bands", type=int, help="cfn only: number of bands/sensors n (2..7)")
     p.add_argument("--full", action="store_true", help="cfn only: a full gain matrix (cfn --bands 3 --full is CKF3)")
-    p.add_argument("--discrete", action="store_true", help="cf2, cf3, cfn, position: the ZOH model in z")
+    p.add_argument("--discrete", action="store_true",
+                   help="cf2, cf3, cfn: the ZOH model in z (dckf3 and position are discrete)")
 
 
 def build_parser(argv=None) -> argparse.ArgumentParser:

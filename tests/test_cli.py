@@ -179,3 +179,18 @@ def test_a_missing_module_of_cfdesign_itself_stays_an_internal_error(tmp_path, m
     monkeypatch.setitem(sys.modules, "cfdesign.plot", None)
     code, _, err = run("bode", "cf3", "--gains", "k1=2,k2=1", "-o", "x.png", cwd=tmp_path)
     assert code == 3 and "internal error" in err and not (tmp_path / "x.png").exists()
+
+
+def test_discrete_help_names_the_structures_it_changes(capsys):
+    """``--discrete`` named ``position``, which is discrete with or without it."""
+    sub = next(a for a in build_parser()._actions if a.dest == "command").choices["prove"]
+    text = next(a for a in sub._actions if a.dest == "discrete").help
+    named = text.split(":")[0].replace(",", " ").split()
+    extra = {"cfn": ["--bands", "3"]}
+    for structure in ("cf2", "cf3", "ckf3", "dckf3", "cfn", "position"):
+        variables = []
+        for flag in ([], ["--discrete"]):
+            code = main(["prove", structure, *extra.get(structure, []), *flag, "--json"])
+            out = capsys.readouterr().out
+            variables.append(json.loads(out)["variable"] if code == 0 else None)
+        assert (variables == ["s", "z"]) == (structure in named), (structure, variables, text)
