@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cfdesign import rotations as rot
 from cfdesign.errors import AttitudeInputError, CfdesignError
@@ -12,6 +14,7 @@ from cfdesign.nav import AttitudeFilter, AttitudeParams, design_attitude, estima
 from cfdesign.nav.attitude_filter import GRAVITY, STATE_FIELDS
 
 RATE = 100.0
+FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 FIELD = np.array([0.0, 20.0, -40.0])        # µT, ENU: north and down (dip 63°)
 BIAS = np.array([0.01, -0.02, 0.015])       # rad/s
 
@@ -69,6 +72,70 @@ def test_stream_and_batch_agree_and_state_restores():
         g.restore({k: v for k, v in saved.items() if k != "qw"})
     with pytest.raises(AttitudeInputError, match="bx must be finite"):
         g.restore({**saved, "bx": math.nan})
+
+
+@pytest.fixture(scope="module")
+def running_state():
+    """The state of a 9D filter 3 s into a rest (every channel's recursion has run)."""
+    f = AttitudeFilter(RATE)
+    for _ in range(300):
+        f.step([0.01, 0.0, 0.0], [0.0, 0.1, 9.8], [20.0, 0.0, -40.0])
+    return f.state()
+
+
+EXPONENTS = st.sampled_from([-320.0, -1.0, 0.0, 1.0, 99.0, 101.0, 155.0, 200.0, 308.0]) | st.floats(-320, 308)
+MAGNITUDE = st.builds(lambda sign, exp: sign * 10.0 ** exp, st.sampled_from([-1.0, 1.0]), EXPONENTS)
+
+
+@FUZZ
+@given(edits=st.dictionaries(st.sampled_from(STATE_FIELDS), MAGNITUDE | st.sampled_from([0.0, 0.5, 1.0, 2.0, 3.0]),
+                             min_size=1, max_size=8), nine=st.booleans())
+def test_an_edited_state_is_refused_by_name_or_runs_finite(running_state, edits, nine):
+    """A state no run reaches (a bias of 1e308, a covariance that is not positive semi-definite, a
+    negative counter, a level out of range) was restored as it was, and the next steps raised
+    ValueError (math domain error), ZeroDivisionError or filled the state with inf and NaN."""
+    f = AttitudeFilter(RATE, magnetometer=nine)
+    before = f.state()
+    try:
+        f.restore({**running_state, **edits})
+    except AttitudeInputError as exc:
+        assert f.state() == before
+        assert any(name in str(exc) for name in edits)
+        return
+    rng = np.random.default_rng(0)
+    still = np.array([0.01, 0.0, 0.0, 0.0, 0.1, 9.8, 20.0, 0.0, -40.0])
+    for k in range(60):                 # still on, then moving
+        row = still + (1e-4 if k < 30 else 0.3) * rng.standard_normal(9)
+        q = f.step(row[:3], row[3:6], row[6:])
+    assert all(map(math.isfinite, f.state().values())) and abs(math.hypot(*q) - 1.0) < 1e-12
+    AttitudeFilter(RATE, magnetometer=nine).restore(f.state())
+
+
+BAD_SAMPLE = st.sampled_from([math.nan, math.inf, -math.inf, 0.0, 1e308, 1e-320, 1e154, 1e-160, 99.99, 1e3])
+
+
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1), rate=st.sampled_from([1e-3, 0.1, 100.0, 1e6]),
+       params=st.fixed_dictionaries({}, optional={"gyro_range_rps": st.sampled_from([1.0, 5.0]),
+                                                  "gyro_bias_std0": st.sampled_from([0.0, 1e-6, 10.0]),
+                                                  "max_speed_mps": st.sampled_from([1e-3, 0.1]),
+                                                  "max_accel_time_s": st.sampled_from([0.01, 1.0])}),
+       bad=st.lists(st.tuples(st.integers(0, 199), st.integers(0, 8), BAD_SAMPLE), max_size=20))
+def test_every_state_a_run_leaves_restores(seed, rate, params, bad):
+    """restore's bounds hold for every state the step leaves: a bias beyond the gyro's range (a
+    tilt or heading channel learns one from readings at the range) and field norms to 1e154 are
+    states a run reaches, and are restored."""
+    rng = np.random.default_rng(seed)
+    rows = np.hstack([rng.normal(0, 3.0, (200, 3)), rng.normal(0, 30.0, (200, 3)), rng.normal(0, 40.0, (200, 3))])
+    rows[:, 5] += 9.8
+    rows[:80:2, :3], rows[:80:2, 3:6] = 1e-3, [0.0, 0.0, 9.8]          # stretches of rest
+    for k, j, value in bad:
+        rows[k, j] = value
+    f = AttitudeFilter(rate, **params)
+    for k, row in enumerate(rows):
+        f.step(row[:3], row[3:6], row[6:])
+        if k % 50 == 49:
+            AttitudeFilter(rate, **params).restore(f.state())
 
 
 def test_six_d_ignores_the_field_and_holds_heading_at_rest():
