@@ -303,6 +303,48 @@ def test_impossible_and_non_finite_samples_are_missing_and_counted():
     assert np.isfinite(estimate_attitude(np.full((50, 3), np.nan), np.full((50, 3), np.nan), None, RATE)).all()
 
 
+NOT_REAL = {"text": lambda a: a.astype(str), "complex": lambda a: a + 1j, "None": lambda a: [[None, *r[1:]] for r in a],
+            "text row": lambda a: "0.1"}
+
+
+@pytest.mark.parametrize("form", sorted(NOT_REAL))
+@pytest.mark.parametrize("which", ["gyr", "acc", "mag"])
+@pytest.mark.parametrize("api", ["step", "run", "estimate_attitude"])
+def test_readings_that_are_not_real_numbers_are_named_and_change_nothing(form, which, api):
+    """Text was parsed ('0.1' ran as 0.1; step took the string '123' as the rates 1, 2, 3), complex
+    readings lost their imaginary part (a numpy warning) and None ran as NaN in run but was refused
+    by step with a message naming none of the arguments."""
+    arrays = {"gyr": np.zeros((3, 3)), "acc": np.tile([0.0, 0.0, 9.8], (3, 1)), "mag": np.tile(FIELD, (3, 1))}
+    arrays[which] = NOT_REAL[form](arrays[which]) if form != "text row" or api == "step" else "0.1"
+    f = AttitudeFilter(RATE)
+    before = f.state()
+    with pytest.raises(AttitudeInputError, match=rf"^{which}\b"):
+        if api == "step":
+            f.step(*(arrays[k] if form == "text row" and k == which else arrays[k][0] for k in ("gyr", "acc", "mag")))
+        elif api == "run":
+            f.run(arrays["gyr"], arrays["acc"], arrays["mag"])
+        else:
+            estimate_attitude(arrays["gyr"], arrays["acc"], arrays["mag"], RATE)
+    assert f.state() == before
+
+
+def test_readings_of_any_real_type_step_as_their_floats():
+    """ints, bools, numpy floats of any width, Fractions and object arrays of numbers are their values."""
+    from fractions import Fraction
+
+    rows = [([0, 0, 1], [0, 0, 10], [20, 0, -40]), (np.array([0.0, 0.0, 1.0], dtype=np.float32), np.int64([0, 0, 10]),
+                                                   [Fraction(20), False, -40.0])]
+    results = []
+    for gyr, acc, mag in rows:
+        f = AttitudeFilter(RATE)
+        results.append(f.step(gyr, acc, mag) + f.step(gyr, acc, mag))
+        assert all(type(v) is float for v in f.state().values())
+    assert results[0] == results[1]
+    obj, acc = np.array([[0, 0, 1], [0, 0, 1]], dtype=object), np.tile([0, 0, 10], (2, 1))
+    assert np.array_equal(AttitudeFilter(RATE, magnetometer=False).run(obj, acc),
+                          AttitudeFilter(RATE, magnetometer=False).run(obj.astype(float), acc.astype(float)))
+
+
 def test_huge_readings_are_counted_without_a_numpy_warning():
     """1e200 m/s^2 or 1e300 rad/s overflows the unit check's norm: the step counts it as missing;
     run() printed numpy's 'overflow encountered in multiply' first."""

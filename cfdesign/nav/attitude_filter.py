@@ -93,6 +93,7 @@ import numpy as np
 
 from ..errors import AttitudeInputError
 from ..linear import wrap_scalar
+from ..runtime.step import real_float
 from .attitude_channel import design_channel
 
 __all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", "GRAVITY", "STATE_FIELDS",
@@ -823,7 +824,9 @@ class AttitudeFilter:
         Raises
         ------
         AttitudeInputError
-            ``gyr``, ``acc`` or (in 9D) ``mag`` is not three numbers.
+            ``gyr``, ``acc`` or (in 9D) ``mag`` is not three real numbers (text, None, complex
+            values are refused as the runtime's ``step`` refuses them); the message names the
+            argument and the state is unchanged.
 
         Examples
         --------
@@ -836,15 +839,9 @@ class AttitudeFilter:
         >>> [round(v, 6) + 0.0 for v in q]
         [0.995004, 0.099833, 0.0, 0.0]
         """
-        try:
-            gx, gy, gz = (float(v) for v in gyr)
-            ax, ay, az = (float(v) for v in acc)
-            if mag is None or not self.magnetometer:
-                mx = my = mz = math.nan
-            else:
-                mx, my, mz = (float(v) for v in mag)
-        except (TypeError, ValueError, OverflowError):
-            raise AttitudeInputError("gyr, acc and mag must each be three numbers") from None
+        gx, gy, gz = _three("gyr", gyr)
+        ax, ay, az = _three("acc", acc)
+        mx, my, mz = _NAN3 if mag is None or not self.magnetometer else _three("mag", mag)
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
 
@@ -883,7 +880,7 @@ class AttitudeFilter:
         out = [None] * n
         G, A = gyr.tolist(), acc.tolist()
         M = mag.tolist() if nine else None
-        nan3 = (math.nan, math.nan, math.nan)
+        nan3 = _NAN3
         if not details:
             for k in range(n):
                 m = M[k] if nine else nan3
@@ -905,6 +902,26 @@ class AttitudeFilter:
         flags = np.array(flags, dtype=float).reshape(n, 5)
         return AttitudeRun(_unit(out), np.array(bias, dtype=float).reshape(n, 3), flags[:, 0] > 0, flags[:, 1] > 0,
                            flags[:, 2].astype(int), flags[:, 3], flags[:, 4], self.missing)
+
+
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+def _three(name, value) -> tuple:
+    """``value`` as three Python floats (``cfdesign.runtime.step.real_float``), or
+    :class:`~cfdesign.errors.AttitudeInputError` naming ``name``."""
+    try:
+        x, y, z = value
+    except (TypeError, ValueError):
+        x = y = z = None
+    else:
+        if type(x) is float and type(y) is float and type(z) is float:
+            return x, y, z
+        x, y, z = real_float(x), real_float(y), real_float(z)
+    if x is None or y is None or z is None or isinstance(value, (str, bytes)):
+        shown = " ".join(repr(value).split())
+        raise AttitudeInputError(f"{name} must be three real numbers, got {shown[:80]}")
+    return x, y, z
 
 
 def _unit(rows) -> np.ndarray:

@@ -85,8 +85,10 @@ def vectors(name, value, n=None, allow_none=False):
     Raises
     ------
     AttitudeInputError
-        ``value`` is not numeric, is not two-dimensional with three columns (None included when
-        not allowed), or has a number of rows other than ``n``; the message names ``name``.
+        ``value`` is not an array of real numbers (text, None, complex values are refused, as
+        ``cfdesign.runtime.filter.real_array`` refuses them), is not two-dimensional with
+        three columns (None included when not allowed), or has a number of rows other than
+        ``n``; the message names ``name``.
 
     Examples
     --------
@@ -102,10 +104,13 @@ def vectors(name, value, n=None, allow_none=False):
     """
     if value is None and allow_none:
         return None
+    from ..errors import CfdesignError
+    from ..runtime.filter import real_array
+
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise AttitudeInputError(f"{name} must be a numeric array of shape (N, 3)") from None
+        arr = real_array(value, name)
+    except CfdesignError as exc:
+        raise AttitudeInputError(f"{exc}: a numeric array of shape (N, 3) is needed") from None
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise AttitudeInputError(f"{name} must have shape (N, 3), got {arr.shape}")
     if n is not None and len(arr) != n:
