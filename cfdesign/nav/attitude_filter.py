@@ -101,9 +101,6 @@ __all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", 
 
 #: standard gravity (m/s²): converts the velocity channel's correction into an angle
 GRAVITY = 9.80665
-#: fastest and slowest sample rates accepted (Hz): the filter's tables are designed per sample
-MAX_RATE_HZ = 1e6
-MIN_RATE_HZ = 1e-3
 #: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
 #: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
 DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
@@ -509,15 +506,9 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
 
 def _rate(rate_hz) -> float:
     """``rate_hz`` checked before anything is designed or allocated."""
-    try:
-        if isinstance(rate_hz, (bool, np.bool_)):
-            raise TypeError
-        value = float(rate_hz)
-    except (TypeError, ValueError, OverflowError):
-        raise AttitudeInputError(f"rate_hz must be a number, got {rate_hz!r}") from None
-    if not MIN_RATE_HZ <= value <= MAX_RATE_HZ:  # NaN too
-        raise AttitudeInputError(f"rate_hz must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
-    return value
+    from .attitude_inputs import rate
+
+    return rate(rate_hz)
 
 
 @dataclass
