@@ -10,8 +10,18 @@ from hypothesis import strategies as st
 
 from cfdesign import rotations as rot
 from cfdesign.errors import AttitudeInputError, CfdesignError
-from cfdesign.nav import AttitudeFilter, AttitudeParams, design_attitude, estimate_attitude
+from cfdesign.nav import (
+    AttitudeFilter,
+    AttitudeParams,
+    EulerAttitudeFilter,
+    design_attitude,
+    design_channel,
+    estimate_attitude,
+    mps_euler,
+    mps_quaternion,
+)
 from cfdesign.nav.attitude_filter import GRAVITY, STATE_FIELDS
+from cfdesign.nav.triad import triad_quaternion
 
 RATE = 100.0
 FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -535,3 +545,47 @@ def test_a_sensor_mounted_otherwise_gives_the_same_attitude_of_the_body():
     back = rot.multiply(est_turned, np.tile(r, (n, 1)))
     e = rot.multiply(back, rot.conjugate(est))
     assert np.degrees(2 * np.arccos(np.clip(np.abs(e[100:, 0]), 0, 1))).max() < 0.01
+
+
+EULER_FIGURES = dict(gyro_noise_std=1e-3, gyro_bias_density=1e-5, tilt_noise_std=0.01, heading_noise_std=0.02)
+
+
+@pytest.mark.parametrize(("name", "call"), [
+    ("rate_hz", lambda: EulerAttitudeFilter(1e-300, **EULER_FIGURES)),
+    ("rate_hz", lambda: design_channel(1e300, 1e-3, 1e-5, 0.01)),
+    ("declination_rad", lambda: EulerAttitudeFilter(50.0, **EULER_FIGURES, declination_rad=math.nan)),
+    ("declination_rad", lambda: EulerAttitudeFilter(50.0, **EULER_FIGURES, declination_rad="east")),
+    ("gyro_noise_std", lambda: design_channel(100.0, 1e300, 1e-5, 0.01)),
+    ("acc", lambda: mps_quaternion("abc", [0.0, 20.0, -40.0])),
+    ("mag", lambda: mps_euler([0.0, 0.0, 9.8], [0.0, 20.0])),
+    ("b1", lambda: triad_quaternion([0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])),
+])
+def test_euler_filter_mps_and_triad_name_a_bad_argument(name, call):
+    """A NaN declination ran (every yaw correction skipped), a text one raised ValueError, a rate of
+    1e-300 or a figure of 1e300 was named as the design's internal field (sensors.rate.rate_hz),
+    text or a wrong length in mps_quaternion or triad_quaternion raised numpy's ValueError."""
+    with pytest.raises(AttitudeInputError, match=rf"^{name}\b"):
+        call()
+
+
+def test_euler_filter_mps_and_triad_take_impossible_readings_as_missing_without_warnings():
+    """A first specific force or field of 1e300, or an infinite body velocity, printed numpy's
+    overflow and invalid-value warnings (the MPS of them); a rate of 1e300 ran as a rate.  Readings
+    beyond the reading limit are missing as non-finite ones are, and the MPS of an unusable vector
+    is NaN, as documented, in silence."""
+    import warnings
+
+    n = 200
+    gyr, acc, mag = np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8], (n, 1)), np.tile([0.0, 20.0, -40.0], (n, 1))
+    clean = EulerAttitudeFilter(50.0, **EULER_FIGURES).run(gyr, acc, mag).euler
+    bad_gyr, bad_acc, bad_mag, vel = gyr.copy(), acc.copy(), mag.copy(), np.zeros((n, 3))
+    bad_acc[0], bad_mag[0], bad_gyr[50], vel[60] = 1e300, -1e300, 1e300, np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = EulerAttitudeFilter(50.0, **EULER_FIGURES).run(bad_gyr, bad_acc, bad_mag, velocity_body=vel).euler
+        assert np.isfinite(est).all() and np.abs(est[-1] - clean[-1]).max() < 1e-3
+        for acc_row in ([0.0, 0.0, 0.0], [math.inf, 0.0, 1.0], [math.nan, 0.0, 1.0]):
+            assert np.isnan(mps_quaternion(acc_row, [0.0, 20.0, -40.0])).all()
+            assert np.isnan(triad_quaternion(acc_row, [0.0, 20.0, -40.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])).all()
+        mps_quaternion([1e300, 1e300, 1.0], [0.0, 20.0, -40.0])
+        triad_quaternion([1e300, 1e300, 1.0], [0.0, 20.0, -40.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])

@@ -236,7 +236,7 @@ class AdaptiveCF:
         :data:`~cfdesign.runtime.filter.READING_LIMIT` is missing and holds the last usable one
         (before the first, the first); such a fix is skipped; an unusable specific force or
         field skips its correction (cut-off 0).  Rates, speeds and fixes treated as missing are
-        counted in :attr:`AdaptiveEstimate.missing` (a NaN fix row is no fix and is not counted).
+        counted in ``AdaptiveEstimate.missing`` (a NaN fix row is no fix and is not counted).
         """
         gyr, acc, mag, gps = (_rows(n, v, 3) for n, v in (("gyr", gyr), ("acc", acc), ("mag", mag),
                                                           ("gps_enu", gps_enu)))

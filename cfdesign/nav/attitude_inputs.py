@@ -358,7 +358,8 @@ def imu_inputs(gyr, acc, mag, velocity_body=None):
 
 
 def usable_rows(vectors_):
-    """Mark the readings that cannot correct the attitude: rows not finite or all zero become NaN.
+    """Mark the readings that cannot correct the attitude: rows not finite, beyond
+    :data:`~cfdesign.runtime.filter.READING_LIMIT` or all zero become NaN.
 
     A filter skips the correction of a NaN row (a missing accelerometer or magnetometer sample).
 
@@ -387,7 +388,9 @@ def usable_rows(vectors_):
     """
     if vectors_ is None:
         return None
-    bad = ~np.isfinite(vectors_).all(axis=1) | ~(np.abs(vectors_).sum(axis=1) > 0)
+    from ..runtime.filter import usable
+
+    bad = ~usable(vectors_).all(axis=1) | ~(np.abs(vectors_).sum(axis=1) > 0)
     return np.where(bad[:, None], np.nan, vectors_)
 
 

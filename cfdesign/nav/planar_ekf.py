@@ -226,7 +226,7 @@ class PlanarEKF:
         A distance or rate that is not finite or beyond
         :data:`~cfdesign.runtime.filter.READING_LIMIT` is missing: it holds the last usable one
         (before the first, the first); a fix given but unusable (inf, beyond the limit) is
-        skipped.  Both are counted in :attr:`PlanarEstimate.missing`.
+        skipped.  Both are counted in ``PlanarEstimate.missing``.
         """
         rho = rows("distance", distance, error=InputError)
         N = len(rho)

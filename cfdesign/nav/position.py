@@ -293,7 +293,7 @@ class PositionFilter:
         :data:`~cfdesign.runtime.filter.READING_LIMIT` (a quaternion: or zero) is missing: the
         Earth-frame acceleration holds the last one, a quaternion the last usable one; a fix
         given but unusable (inf, beyond the limit) is skipped.  Each is counted in
-        :attr:`PositionEstimate.missing`.
+        ``PositionEstimate.missing``.
         """
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
         p0, v0, b0 = (None if value is None else finite_vector(name, value, error=InputError) for name, value in

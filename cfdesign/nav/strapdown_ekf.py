@@ -414,7 +414,7 @@ class StrapdownEKF:
         (a rate or specific force: with a norm beyond ``gyro_range_rps`` or ``accel_range_mps2``)
         are missing: a gyro or accelerometer row holds the last usable one (before the first,
         the first), a field or GPS row is skipped; every one is counted in
-        :attr:`EkfEstimate.missing` (for the field and the fixes, the rows given but unusable: a
+        ``EkfEstimate.missing`` (for the field and the fixes, the rows given but unusable: a
         NaN row is no reading and is not counted).
         """
         gyr = rows("gyr", gyr, 3, error=InputError)
