@@ -153,6 +153,28 @@ def test_c_agrees_from_a_restored_state_whose_variances_round_below_zero(tmp_pat
     assert all(abs(state_c[k] - v) <= 1e-9 * max(1.0, abs(v)) for k, v in f.state().items())
 
 
+EXTREMES = [np.nan, np.inf, -np.inf, 0.0, 1e308, -1e308, 1e200, 1e-320, 5e-324, 1e154, 1.5e154, 1e-160, 1e-170,
+            99.999, 100.0, 100.001, 999.99, 1000.0, 1e3 + 1e-9]
+
+
+@needs_cc
+@pytest.mark.parametrize(("rate", "magnetometer"), [(1e-3, True), (1e6, False)])
+def test_c_agrees_with_python_on_readings_at_every_extreme(tmp_path, rate, magnetometer):
+    """Readings at and around every limit (the ranges 100 rad/s and 1000 m/s^2, squares that
+    overflow or underflow, subnormals, inf, NaN) in any entry, at the slowest and fastest rates:
+    C and Python take the same readings as missing (counted alike) and agree to the last bit."""
+    rng = np.random.default_rng(int(rate))
+    gyr, acc, mag = readings(n=6000)
+    for a in (gyr, acc, mag):
+        hit = rng.random(a.shape) < 0.03
+        a[hit] = rng.choice(EXTREMES, size=hit.sum()) * rng.choice([-1.0, 1.0], size=hit.sum())
+    f = AttitudeFilter(rate, magnetometer=magnetometer)
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag if magnetometer else None)
+    q_py = np.array([f.step(g, a, m if np.isfinite(m[0]) else None) for g, a, m in zip(gyr, acc, mag, strict=True)])
+    assert np.isfinite(q_py).all() and np.array_equal(q_c, q_py)
+    assert state_c == f.state() and min(n for k, n in f.missing.items() if magnetometer or k != "mag") > 100
+
+
 def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
     files = render_attitude_c(AttitudeFilter(285.0, declination_rad=0.1), prefix="imu_att")
     assert set(files) == {"imu_att.h", "imu_att.c"}
