@@ -181,7 +181,7 @@ def check_c_prefix(prefix) -> str:
 
     Examples
     --------
-    >>> from cfdesign.codegen.c99 import check_c_prefix
+    >>> from cfdesign.codegen import check_c_prefix
     >>> check_c_prefix("heading")
     'heading'
     >>> check_c_prefix("_heading")
