@@ -20,17 +20,19 @@ DRIVER = r"""
 #include <stdio.h>
 #include <string.h>
 #include "cf_attitude.h"
-/* stdin: n, then n rows of 9 doubles (gyr, acc, mag; a NaN mag[0] passes NULL), binary;
-   stdout: n rows of the quaternion, then the final state, binary */
+/* stdin: n, a flag and (flag 1) the state to start from, then n rows of 9 doubles (gyr, acc,
+   mag; a NaN mag[0] passes NULL), binary; stdout: n rows of the quaternion, then the final state */
 int main(void)
 {
     cf_attitude_state s;
     double row[9], q[4];
-    long n, k;
+    long n, k, given;
 
     cf_attitude_init(&s);
-    if (fread(&n, sizeof n, 1, stdin) != 1)
+    if (fread(&n, sizeof n, 1, stdin) != 1 || fread(&given, sizeof given, 1, stdin) != 1)
         return 1;
+    if (given && fread(&s, sizeof s, 1, stdin) != 1)
+        return 3;
     for (k = 0; k < n; ++k) {
         if (fread(row, sizeof(double), 9, stdin) != 9)
             return 2;
@@ -69,8 +71,9 @@ def readings(n=8000, rate=100.0, seed=3):
     return gyr, acc, mag
 
 
-def run_c(tmp_path, f, gyr, acc, mag):
-    """The generated C of ``f`` compiled and run: (quaternions, final state dict)."""
+def run_c(tmp_path, f, gyr, acc, mag, state=None):
+    """The generated C of ``f`` compiled and run (from ``state``, a dict of
+    :meth:`AttitudeFilter.state`, else from its init): (quaternions, final state dict)."""
     write_attitude_c(f, tmp_path)
     (tmp_path / "driver.c").write_text(DRIVER)
     exe = tmp_path / "driver"
@@ -78,7 +81,8 @@ def run_c(tmp_path, f, gyr, acc, mag):
                             str(tmp_path / "cf_attitude.c"), "-lm"], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     rows = np.hstack([gyr, acc, np.full_like(acc, np.nan) if mag is None else mag])
-    payload = b"".join([np.array([len(rows)], dtype=np.int64).tobytes(),
+    start = b"" if state is None else np.array([state[k] for k in STATE_FIELDS], dtype=np.float64).tobytes()
+    payload = b"".join([np.array([len(rows), state is not None], dtype=np.int64).tobytes(), start,
                         np.ascontiguousarray(rows, dtype=np.float64).tobytes()])
     out = subprocess.run([str(exe)], input=payload, capture_output=True, timeout=60)
     assert out.returncode == 0, out.stderr
@@ -126,6 +130,49 @@ def test_c_agrees_through_the_acceleration_levels_and_their_time_limit(tmp_path)
     q_c, state_c = run_c(tmp_path, f, gyr, acc, None)
     assert np.abs(q_c - out.quaternion).max() <= 1e-9
     assert state_c["accel_time"] == f.state()["accel_time"]
+
+
+@needs_cc
+def test_c_agrees_from_a_restored_state_whose_variances_round_below_zero(tmp_path):
+    """A restored state at rest with a huge zero-rotation bias variance (r11 = 1e99): the prediction
+    makes the covariance singular to rounding and the Kalman update rounds r11 below zero; Python
+    raised ValueError (math domain error) in the rest's sqrt(r11 / h11), C would have made the
+    state NaN.  Both now keep the variance at zero
+    and agree, through missing and impossible samples too."""
+    f = AttitudeFilter(100.0)
+    still = (np.tile([0.01, 0.0, 0.0], (300, 1)), np.tile([0.0, 0.1, 9.8], (300, 1)), np.tile([20.0, 0.0, -40.0],
+                                                                                                (300, 1)))
+    f.run(*still)
+    state = {**f.state(), "r11": 1e99}     # valid; one prediction makes it singular (r00 ~ T^2 r11, r01 ~ T r11)
+    f.restore(state)
+    gyr, acc, mag = readings(n=6000)
+    gyr, acc, mag = (np.vstack([a, b]) for a, b in ((still[0], gyr), (still[1], acc), (still[2], mag)))
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag, state=state)
+    q_py = np.array([f.step(g, a, m if np.isfinite(m[0]) else None) for g, a, m in zip(gyr, acc, mag, strict=True)])
+    assert np.isfinite(q_py).all() and np.abs(q_c - q_py).max() <= 1e-9
+    assert all(abs(state_c[k] - v) <= 1e-9 * max(1.0, abs(v)) for k, v in f.state().items())
+
+
+EXTREMES = [np.nan, np.inf, -np.inf, 0.0, 1e308, -1e308, 1e200, 1e-320, 5e-324, 1e154, 1.5e154, 1e-160, 1e-170,
+            99.999, 100.0, 100.001, 999.99, 1000.0, 1e3 + 1e-9]
+
+
+@needs_cc
+@pytest.mark.parametrize(("rate", "magnetometer"), [(1e-3, True), (1e6, False)])
+def test_c_agrees_with_python_on_readings_at_every_extreme(tmp_path, rate, magnetometer):
+    """Readings at and around every limit (the ranges 100 rad/s and 1000 m/s^2, squares that
+    overflow or underflow, subnormals, inf, NaN) in any entry, at the slowest and fastest rates:
+    C and Python take the same readings as missing (counted alike) and agree to the last bit."""
+    rng = np.random.default_rng(int(rate))
+    gyr, acc, mag = readings(n=6000)
+    for a in (gyr, acc, mag):
+        hit = rng.random(a.shape) < 0.03
+        a[hit] = rng.choice(EXTREMES, size=hit.sum()) * rng.choice([-1.0, 1.0], size=hit.sum())
+    f = AttitudeFilter(rate, magnetometer=magnetometer)
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag if magnetometer else None)
+    q_py = np.array([f.step(g, a, m if np.isfinite(m[0]) else None) for g, a, m in zip(gyr, acc, mag, strict=True)])
+    assert np.isfinite(q_py).all() and np.array_equal(q_c, q_py)
+    assert state_c == f.state() and min(n for k, n in f.missing.items() if magnetometer or k != "mag") > 100
 
 
 def test_generated_c_names_the_filter_and_refuses_bad_prefixes():

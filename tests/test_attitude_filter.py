@@ -5,13 +5,26 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from cfdesign import rotations as rot
 from cfdesign.errors import AttitudeInputError, CfdesignError
-from cfdesign.nav import AttitudeFilter, AttitudeParams, design_attitude, estimate_attitude
+from cfdesign.nav import (
+    AttitudeFilter,
+    AttitudeParams,
+    EulerAttitudeFilter,
+    design_attitude,
+    design_channel,
+    estimate_attitude,
+    mps_euler,
+    mps_quaternion,
+)
 from cfdesign.nav.attitude_filter import GRAVITY, STATE_FIELDS
+from cfdesign.nav.triad import triad_quaternion
 
 RATE = 100.0
+FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 FIELD = np.array([0.0, 20.0, -40.0])        # µT, ENU: north and down (dip 63°)
 BIAS = np.array([0.01, -0.02, 0.015])       # rad/s
 
@@ -69,6 +82,70 @@ def test_stream_and_batch_agree_and_state_restores():
         g.restore({k: v for k, v in saved.items() if k != "qw"})
     with pytest.raises(AttitudeInputError, match="bx must be finite"):
         g.restore({**saved, "bx": math.nan})
+
+
+@pytest.fixture(scope="module")
+def running_state():
+    """The state of a 9D filter 3 s into a rest (every channel's recursion has run)."""
+    f = AttitudeFilter(RATE)
+    for _ in range(300):
+        f.step([0.01, 0.0, 0.0], [0.0, 0.1, 9.8], [20.0, 0.0, -40.0])
+    return f.state()
+
+
+EXPONENTS = st.sampled_from([-320.0, -1.0, 0.0, 1.0, 99.0, 101.0, 155.0, 200.0, 308.0]) | st.floats(-320, 308)
+MAGNITUDE = st.builds(lambda sign, exp: sign * 10.0 ** exp, st.sampled_from([-1.0, 1.0]), EXPONENTS)
+
+
+@FUZZ
+@given(edits=st.dictionaries(st.sampled_from(STATE_FIELDS), MAGNITUDE | st.sampled_from([0.0, 0.5, 1.0, 2.0, 3.0]),
+                             min_size=1, max_size=8), nine=st.booleans())
+def test_an_edited_state_is_refused_by_name_or_runs_finite(running_state, edits, nine):
+    """A state no run reaches (a bias of 1e308, a covariance that is not positive semi-definite, a
+    negative counter, a level out of range) was restored as it was, and the next steps raised
+    ValueError (math domain error), ZeroDivisionError or filled the state with inf and NaN."""
+    f = AttitudeFilter(RATE, magnetometer=nine)
+    before = f.state()
+    try:
+        f.restore({**running_state, **edits})
+    except AttitudeInputError as exc:
+        assert f.state() == before
+        assert any(name in str(exc) for name in edits)
+        return
+    rng = np.random.default_rng(0)
+    still = np.array([0.01, 0.0, 0.0, 0.0, 0.1, 9.8, 20.0, 0.0, -40.0])
+    for k in range(60):                 # still on, then moving
+        row = still + (1e-4 if k < 30 else 0.3) * rng.standard_normal(9)
+        q = f.step(row[:3], row[3:6], row[6:])
+    assert all(map(math.isfinite, f.state().values())) and abs(math.hypot(*q) - 1.0) < 1e-12
+    AttitudeFilter(RATE, magnetometer=nine).restore(f.state())
+
+
+BAD_SAMPLE = st.sampled_from([math.nan, math.inf, -math.inf, 0.0, 1e308, 1e-320, 1e154, 1e-160, 99.99, 1e3])
+
+
+@FUZZ
+@given(seed=st.integers(0, 2**32 - 1), rate=st.sampled_from([1e-3, 0.1, 100.0, 1e6]),
+       params=st.fixed_dictionaries({}, optional={"gyro_range_rps": st.sampled_from([1.0, 5.0]),
+                                                  "gyro_bias_std0": st.sampled_from([0.0, 1e-6, 10.0]),
+                                                  "max_speed_mps": st.sampled_from([1e-3, 0.1]),
+                                                  "max_accel_time_s": st.sampled_from([0.01, 1.0])}),
+       bad=st.lists(st.tuples(st.integers(0, 199), st.integers(0, 8), BAD_SAMPLE), max_size=20))
+def test_every_state_a_run_leaves_restores(seed, rate, params, bad):
+    """restore's bounds hold for every state the step leaves: a bias beyond the gyro's range (a
+    tilt or heading channel learns one from readings at the range) and field norms to 1e154 are
+    states a run reaches, and are restored."""
+    rng = np.random.default_rng(seed)
+    rows = np.hstack([rng.normal(0, 3.0, (200, 3)), rng.normal(0, 30.0, (200, 3)), rng.normal(0, 40.0, (200, 3))])
+    rows[:, 5] += 9.8
+    rows[:80:2, :3], rows[:80:2, 3:6] = 1e-3, [0.0, 0.0, 9.8]          # stretches of rest
+    for k, j, value in bad:
+        rows[k, j] = value
+    f = AttitudeFilter(rate, **params)
+    for k, row in enumerate(rows):
+        f.step(row[:3], row[3:6], row[6:])
+        if k % 50 == 49:
+            AttitudeFilter(rate, **params).restore(f.state())
 
 
 def test_six_d_ignores_the_field_and_holds_heading_at_rest():
@@ -234,6 +311,48 @@ def test_impossible_and_non_finite_samples_are_missing_and_counted():
     assert f.missing == {"gyr": 2, "acc": 1, "mag": 0}
     assert np.degrees(2 * np.arccos(np.clip(np.abs(np.sum(est * clean, axis=1)), 0, 1))).max() < 0.3
     assert np.isfinite(estimate_attitude(np.full((50, 3), np.nan), np.full((50, 3), np.nan), None, RATE)).all()
+
+
+NOT_REAL = {"text": lambda a: a.astype(str), "complex": lambda a: a + 1j, "None": lambda a: [[None, *r[1:]] for r in a],
+            "text row": lambda a: "0.1"}
+
+
+@pytest.mark.parametrize("form", sorted(NOT_REAL))
+@pytest.mark.parametrize("which", ["gyr", "acc", "mag"])
+@pytest.mark.parametrize("api", ["step", "run", "estimate_attitude"])
+def test_readings_that_are_not_real_numbers_are_named_and_change_nothing(form, which, api):
+    """Text was parsed ('0.1' ran as 0.1; step took the string '123' as the rates 1, 2, 3), complex
+    readings lost their imaginary part (a numpy warning) and None ran as NaN in run but was refused
+    by step with a message naming none of the arguments."""
+    arrays = {"gyr": np.zeros((3, 3)), "acc": np.tile([0.0, 0.0, 9.8], (3, 1)), "mag": np.tile(FIELD, (3, 1))}
+    arrays[which] = NOT_REAL[form](arrays[which]) if form != "text row" or api == "step" else "0.1"
+    f = AttitudeFilter(RATE)
+    before = f.state()
+    with pytest.raises(AttitudeInputError, match=rf"^{which}\b"):
+        if api == "step":
+            f.step(*(arrays[k] if form == "text row" and k == which else arrays[k][0] for k in ("gyr", "acc", "mag")))
+        elif api == "run":
+            f.run(arrays["gyr"], arrays["acc"], arrays["mag"])
+        else:
+            estimate_attitude(arrays["gyr"], arrays["acc"], arrays["mag"], RATE)
+    assert f.state() == before
+
+
+def test_readings_of_any_real_type_step_as_their_floats():
+    """ints, bools, numpy floats of any width, Fractions and object arrays of numbers are their values."""
+    from fractions import Fraction
+
+    rows = [([0, 0, 1], [0, 0, 10], [20, 0, -40]), (np.array([0.0, 0.0, 1.0], dtype=np.float32), np.int64([0, 0, 10]),
+                                                   [Fraction(20), False, -40.0])]
+    results = []
+    for gyr, acc, mag in rows:
+        f = AttitudeFilter(RATE)
+        results.append(f.step(gyr, acc, mag) + f.step(gyr, acc, mag))
+        assert all(type(v) is float for v in f.state().values())
+    assert results[0] == results[1]
+    obj, acc = np.array([[0, 0, 1], [0, 0, 1]], dtype=object), np.tile([0, 0, 10], (2, 1))
+    assert np.array_equal(AttitudeFilter(RATE, magnetometer=False).run(obj, acc),
+                          AttitudeFilter(RATE, magnetometer=False).run(obj.astype(float), acc.astype(float)))
 
 
 def test_huge_readings_are_counted_without_a_numpy_warning():
@@ -426,3 +545,47 @@ def test_a_sensor_mounted_otherwise_gives_the_same_attitude_of_the_body():
     back = rot.multiply(est_turned, np.tile(r, (n, 1)))
     e = rot.multiply(back, rot.conjugate(est))
     assert np.degrees(2 * np.arccos(np.clip(np.abs(e[100:, 0]), 0, 1))).max() < 0.01
+
+
+EULER_FIGURES = dict(gyro_noise_std=1e-3, gyro_bias_density=1e-5, tilt_noise_std=0.01, heading_noise_std=0.02)
+
+
+@pytest.mark.parametrize(("name", "call"), [
+    ("rate_hz", lambda: EulerAttitudeFilter(1e-300, **EULER_FIGURES)),
+    ("rate_hz", lambda: design_channel(1e300, 1e-3, 1e-5, 0.01)),
+    ("declination_rad", lambda: EulerAttitudeFilter(50.0, **EULER_FIGURES, declination_rad=math.nan)),
+    ("declination_rad", lambda: EulerAttitudeFilter(50.0, **EULER_FIGURES, declination_rad="east")),
+    ("gyro_noise_std", lambda: design_channel(100.0, 1e300, 1e-5, 0.01)),
+    ("acc", lambda: mps_quaternion("abc", [0.0, 20.0, -40.0])),
+    ("mag", lambda: mps_euler([0.0, 0.0, 9.8], [0.0, 20.0])),
+    ("b1", lambda: triad_quaternion([0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])),
+])
+def test_euler_filter_mps_and_triad_name_a_bad_argument(name, call):
+    """A NaN declination ran (every yaw correction skipped), a text one raised ValueError, a rate of
+    1e-300 or a figure of 1e300 was named as the design's internal field (sensors.rate.rate_hz),
+    text or a wrong length in mps_quaternion or triad_quaternion raised numpy's ValueError."""
+    with pytest.raises(AttitudeInputError, match=rf"^{name}\b"):
+        call()
+
+
+def test_euler_filter_mps_and_triad_take_impossible_readings_as_missing_without_warnings():
+    """A first specific force or field of 1e300, or an infinite body velocity, printed numpy's
+    overflow and invalid-value warnings (the MPS of them); a rate of 1e300 ran as a rate.  Readings
+    beyond the reading limit are missing as non-finite ones are, and the MPS of an unusable vector
+    is NaN, as documented, in silence."""
+    import warnings
+
+    n = 200
+    gyr, acc, mag = np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8], (n, 1)), np.tile([0.0, 20.0, -40.0], (n, 1))
+    clean = EulerAttitudeFilter(50.0, **EULER_FIGURES).run(gyr, acc, mag).euler
+    bad_gyr, bad_acc, bad_mag, vel = gyr.copy(), acc.copy(), mag.copy(), np.zeros((n, 3))
+    bad_acc[0], bad_mag[0], bad_gyr[50], vel[60] = 1e300, -1e300, 1e300, np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = EulerAttitudeFilter(50.0, **EULER_FIGURES).run(bad_gyr, bad_acc, bad_mag, velocity_body=vel).euler
+        assert np.isfinite(est).all() and np.abs(est[-1] - clean[-1]).max() < 1e-3
+        for acc_row in ([0.0, 0.0, 0.0], [math.inf, 0.0, 1.0], [math.nan, 0.0, 1.0]):
+            assert np.isnan(mps_quaternion(acc_row, [0.0, 20.0, -40.0])).all()
+            assert np.isnan(triad_quaternion(acc_row, [0.0, 20.0, -40.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])).all()
+        mps_quaternion([1e300, 1e300, 1.0], [0.0, 20.0, -40.0])
+        triad_quaternion([1e300, 1e300, 1.0], [0.0, 20.0, -40.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])

@@ -606,16 +606,25 @@ def test_runtime_arrays_that_are_not_real_numbers_are_named(position, where, val
     assert rt.state() == before and "\n" not in str(raised.value)  # numpy's repr of a long array took lines
 
 
-@pytest.mark.parametrize("call", ["step", "declination", "state", "bias prior"])
+def test_an_attitude_reading_beyond_a_double_is_missing_and_counted():
+    """An int reading too large for a float is an impossible reading, as the runtime's step takes it
+    (rejected and counted), not an error; the arguments of the filter beyond a double are errors (below)."""
+    from cfdesign.nav import AttitudeFilter
+
+    f = AttitudeFilter(100.0)
+    q = f.step([0.0, 0.0, 10 ** 400], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
+    assert f.missing == {"gyr": 1, "acc": 0, "mag": 0} and all(map(math.isfinite, f.state().values()))
+    assert q == AttitudeFilter(100.0).step([0.0, 0.0, math.nan], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
+
+
+@pytest.mark.parametrize("call", ["declination", "state", "bias prior"])
 def test_attitude_numbers_beyond_a_double_are_named(call):
     from cfdesign.errors import AttitudeInputError
     from cfdesign.nav import AttitudeFilter, estimate_attitude
 
     f = AttitudeFilter(100.0)
     with pytest.raises(AttitudeInputError):
-        if call == "step":
-            f.step([0.0, 0.0, 10 ** 400], [0.0, 0.0, 9.81], [0.2, 0.0, -0.4])
-        elif call == "declination":
+        if call == "declination":
             estimate_attitude(np.zeros((2, 3)), np.tile([0, 0, 9.81], (2, 1)), None, 100.0, declination_rad=10 ** 400)
         elif call == "state":
             f.restore({**f.state(), "bx": 10 ** 400})
@@ -916,3 +925,142 @@ def test_a_choice_field_with_another_value_is_named(field, value):
     CHOICE_FIELDS[field](d, value)
     with pytest.raises(SpecError, match=f"{field} must be one of"):
         parse_spec(d)
+
+
+# ---------------------------------------------------------------------- navigation baselines: bad readings, arguments
+def _baseline_runs(n=40, seed=0):
+    """Each baseline filter with clean readings for ``n`` samples of a sensor at rest (GPS fixes
+    every 10th row, scattered by 1 m): ``{name: (run(readings), readings, {reading: rows that may
+    be corrupted})}``."""
+    from cfdesign.nav import PositionFilter
+    from cfdesign.nav.adaptive import AdaptiveCF
+    from cfdesign.nav.planar_ekf import PlanarEKF
+    from cfdesign.nav.strapdown_ekf import StrapdownEKF
+
+    rng = np.random.default_rng(seed)
+    gyr = rng.normal(0.0, 0.05, (n, 3))
+    acc = np.tile([0.0, 0.0, 9.8], (n, 1)) + rng.normal(0.0, 0.05, (n, 3))
+    mag = np.tile([0.0, 20.0, -40.0], (n, 1))
+    fixes = np.full((n, 3), np.nan)
+    fixes[::10] = rng.normal(0.0, 1.0, (len(fixes[::10]), 3))
+    every, fix_rows = np.arange(n), np.arange(0, n, 10)
+    ekf = StrapdownEKF(10.0, gyro_noise_std=1e-3, accel_noise_std=1e-2, gyro_bias_density=1e-5,
+                       accel_bias_density=1e-4, scale_density=1e-6, gps_pos_std=2.0, gps_vel_std=0.2, triad_std=0.02)
+    planar = PlanarEKF(odo_noise_std=0.01, gyro_noise_std=0.01, kappa_omega=0.1, kappa_rho=0.1, sigma_heading=0.1)
+    position = PositionFilter(10.0, 1.0, accel_noise_std=0.05, accel_bias_density=1e-3, gps_noise_std=2.0)
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    mode = np.where(np.isfinite(fixes[:, 0]), "single", "")
+    return {
+        "strapdown": (lambda r: ekf.run(r["gyr"], r["acc"], mag, r["gps_pos"]),
+                      {"gyr": gyr, "acc": acc, "gps_pos": fixes}, {"gyr": every[1:], "acc": every[1:],
+                                                                   "gps_pos": fix_rows[1:]}),
+        "planar": (lambda r: planar.run(r["distance"], r["gyro_z"], 0.1, r["gps_xy"], mode),
+                   {"distance": np.zeros(n), "gyro_z": gyr[:, 2], "gps_xy": fixes[:, :2]},
+                   {"distance": every[1:], "gyro_z": every[1:], "gps_xy": fix_rows[1:]}),
+        "adaptive": (lambda r: AdaptiveCF(10.0).run(r["gyr"], acc, mag, r["odometry_speed"], r["gps_enu"],
+                                                    np.full(n, 8), initial_position=[0.0, 0.0, 0.0]),
+                     {"gyr": gyr, "odometry_speed": np.zeros(n), "gps_enu": fixes},
+                     {"gyr": every[1:], "odometry_speed": every[1:], "gps_enu": fix_rows[1:]}),
+        "position": (lambda r: position.run(r["acc_body"], r["quat_nb"], r["gps_enu"]),
+                     {"acc_body": acc, "quat_nb": quat, "gps_enu": fixes},
+                     {"acc_body": every[1:], "quat_nb": every[1:], "gps_enu": fix_rows[1:]}),
+    }
+
+
+_BASELINES = _baseline_runs()
+_FINAL = {"strapdown": lambda e: e.position[-1], "planar": lambda e: np.array([e.x[-1], e.y[-1]]),
+          "adaptive": lambda e: np.concatenate([e.position[-1], e.euler[-1]]), "position": lambda e: e.position[-1]}
+
+
+@settings(FUZZ, max_examples=15)
+@given(data=st.data(), which=st.sampled_from(sorted(_BASELINES)))
+def test_baseline_filters_count_bad_readings_as_missing_and_recover(data, which):
+    """The EKFs, the adaptive CF and the position filter ran a NaN or inf gyro row into LinAlgError or
+    a math domain error, nan_to_num made an inf rate 1.8e308 (NaN attitudes), a NaN specific force
+    refused the whole position run; now every non-finite or impossible reading is missing, held
+    (inputs) or skipped (fixes), counted, and the run is the run with those readings missing (NaN)."""
+    run, readings, rows = _BASELINES[which]
+    bad = {name: a.copy() for name, a in readings.items()}
+    missing = {name: a.copy() for name, a in readings.items()}
+    placed = data.draw(st.lists(st.tuples(st.sampled_from(sorted(rows)), st.integers(0, 10 ** 6),
+                                          st.sampled_from([np.inf, -np.inf, 1e300, 1e13])), min_size=1, max_size=4))
+    hit = {}
+    for name, k, value in placed:
+        row = rows[name][k % len(rows[name])]
+        at = (row, 0) if bad[name].ndim == 2 else row          # one entry: the row is unusable
+        bad[name][at], missing[name][at] = value, np.nan
+        hit.setdefault(name, set()).add(row)
+    est, ref = run(bad), run(missing)
+    assert np.isfinite(_FINAL[which](est)).all()
+    assert est.missing == {**dict.fromkeys(est.missing, 0), **{name: len(r) for name, r in hit.items()}}
+    for key, value in vars(est).items():      # an impossible reading is a missing one: nothing else changes
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, vars(ref)[key], err_msg=key)
+
+
+
+def _bad_baseline_calls():
+    from cfdesign.nav import PositionFilter
+    from cfdesign.nav.adaptive import AdaptiveCF
+    from cfdesign.nav.planar_ekf import PlanarEKF
+    from cfdesign.nav.strapdown_ekf import StrapdownEKF
+
+    figures = dict(gyro_noise_std=1e-3, accel_noise_std=1e-2, gyro_bias_density=1e-5, accel_bias_density=1e-4,
+                   scale_density=1e-6, gps_pos_std=2.0, gps_vel_std=0.2, triad_std=0.02)
+    planar = dict(odo_noise_std=0.01, gyro_noise_std=0.01, kappa_omega=0.1, kappa_rho=0.1, sigma_heading=0.1)
+    n = 20
+    gyr, acc, mag = np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8], (n, 1)), np.tile([0.0, 20.0, -40.0], (n, 1))
+    gps, quat = np.full((n, 3), np.nan), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    odo, mode = np.full(n, 0.1), np.full(n, "")
+    pos = PositionFilter(10.0, 1.0, accel_noise_std=0.05, accel_bias_density=1e-3, gps_noise_std=2.0)
+    return {
+        "rate_hz": [lambda: StrapdownEKF(0.0, **figures), lambda: StrapdownEKF(float("nan"), **figures),
+                    lambda: StrapdownEKF("fast", **figures), lambda: AdaptiveCF(1e-300)],
+        "gyro_noise_std": [lambda: StrapdownEKF(50.0, **{**figures, "gyro_noise_std": float("nan")}),
+                           lambda: PlanarEKF(**{**planar, "gyro_noise_std": -1.0})],
+        "kappa_rho": [lambda: PlanarEKF(**{**planar, "kappa_rho": 0.0})],
+        "initial_std": [lambda: StrapdownEKF(50.0, **figures, initial_std={"velocty": 1.0}),
+                        lambda: PlanarEKF(**planar, initial_std=(1.0, 1.0, 1.0))],
+        "gyr": [lambda: StrapdownEKF(50.0, **figures).run(gyr.T, acc, mag, gps),
+                lambda: StrapdownEKF(50.0, **figures).run(gyr[:0], acc[:0], mag[:0], gps[:0]),
+                lambda: AdaptiveCF(10.0).run(gyr + 1j, acc, mag, odo, gps, np.full(n, 8))],
+        "mag": [lambda: StrapdownEKF(50.0, **figures).run(gyr, acc, mag[:5], gps[:5])],
+        "acc_body": [lambda: pos.run(acc.astype(str), quat, gps), lambda: pos.run(acc[:0], quat[:0], gps[:0])],
+        "initial_position": [lambda: pos.run(acc, quat, gps, initial_position=[0.0, 0.0]),
+                             lambda: AdaptiveCF(10.0).run(gyr, acc, mag, odo, gps, np.full(n, 8),
+                                                          initial_position=[np.nan, 0.0, 0.0]),
+                             lambda: StrapdownEKF(50.0, **figures).run(gyr, acc, mag, gps,
+                                                                      initial_position=[np.inf, 0.0, 0.0])],
+        "initial_bias": [lambda: pos.run(acc, quat, gps, initial_bias="abc")],
+        "dt_s": [lambda: PlanarEKF(**planar).run(odo, odo, 0.0, gps[:, :2], mode),
+                 lambda: PlanarEKF(**planar).run(odo, odo, np.full(n, np.nan), gps[:, :2], mode)],
+        "gps_mode": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], np.full(n, "DGPS"))],
+        "initial_state": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], mode, initial_state=[0, 0, 0])],
+    }
+
+
+@pytest.mark.parametrize(("name", "i"), [(name, i) for name, calls in _bad_baseline_calls().items()
+                                         for i in range(len(calls))])
+def test_baseline_filters_name_a_bad_argument(name, i):
+    """A rate of 0 raised ZeroDivisionError, NaN noise LinAlgError, transposed or empty arrays
+    numpy's ValueError, AxisError or IndexError, text and complex arrays were parsed or cut to their
+    real part, a wrong-length initial position ValueError, a GPS mode spelt otherwise ran as no fix."""
+    with pytest.raises(cfdesign.errors.InputError, match=rf"\b{name}\b"):
+        _bad_baseline_calls()[name][i]()
+
+
+@pytest.mark.parametrize("prefix", ["_x", "_heading", "_"])
+def test_a_table_c_prefix_with_a_leading_underscore_is_refused_as_the_attitude_export_refuses_it(heading, tmp_path,
+                                                                                                 cli, prefix):
+    """cfdesign export --format c --prefix _x wrote _x_init, _x_step (file scope: reserved in C) and
+    the guard _X_FILTER_H (reserved everywhere); the attitude export refused the same prefix."""
+    from cfdesign.codegen.attitude import render_attitude_c
+    from cfdesign.nav import AttitudeFilter
+
+    heading.save(tmp_path / "g.json")
+    code, _, err = cli("export", str(tmp_path / "g.json"), "--format", "c", "-o", str(tmp_path / "c"), "--prefix",
+                       prefix)
+    assert code == 2 and "C prefix" in err and "starts with '_'" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "c").exists()
+    with pytest.raises(CfdesignError, match="starts with '_'"):
+        render_attitude_c(AttitudeFilter(100.0), prefix=prefix)

@@ -30,7 +30,7 @@ from string import Template
 from .. import __version__
 from ..errors import CfdesignError
 from ..files import write_into
-from .c99 import _comment_text, check_c_identifier
+from .c99 import _comment_text, check_c_prefix
 
 __all__ = ["render_attitude_c", "write_attitude_c"]
 
@@ -161,10 +161,7 @@ C99_HEADERS = frozenset("""
 def _check_prefix(prefix) -> str:
     """``prefix`` checked: a C identifier, not starting with ``_`` (its names are file-scope, and its
     header guard would be ``_X_H``: both reserved) and not the name of a C99 standard header."""
-    prefix = check_c_identifier(prefix, "C prefix")
-    if prefix.startswith("_"):
-        raise CfdesignError(f"C prefix {prefix!r} starts with '_': names with file scope that do are reserved "
-                            "in C (and so is its header guard); C code needs another prefix")
+    prefix = check_c_prefix(prefix)
     if prefix.lower() in C99_HEADERS:
         raise CfdesignError(f"C prefix {prefix!r} would write {prefix}.h, the name of a C standard header, which "
                             "the generated code includes; C code needs another prefix")

@@ -15,7 +15,7 @@ from ..errors import CfdesignError
 from ..files import write_into
 from ..runtime.filter import READING_LIMIT, filter_sha256
 
-__all__ = ["write_c", "render_c", "check_c_identifier", "C99_KEYWORDS"]
+__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "C99_KEYWORDS"]
 
 #: the reserved words of ISO C99 (6.4.1)
 C99_KEYWORDS = frozenset("""
@@ -157,6 +157,45 @@ def check_c_identifier(name, what: str) -> str:
     raise CfdesignError(f"{what} {name!r} {problem}; C code needs a valid C identifier")
 
 
+def check_c_prefix(prefix) -> str:
+    """Return ``prefix`` if it can prefix the names of generated C, else raise.
+
+    A C identifier (:func:`check_c_identifier`) that does not start with ``_``: the generated
+    functions and tables have file scope, where C reserves every name with a leading
+    underscore, and the header guard (``_X_FILTER_H``) would be reserved everywhere.
+
+    Parameters
+    ----------
+    prefix : str
+        Candidate prefix.
+
+    Returns
+    -------
+    str
+        ``prefix``, unchanged.
+
+    Raises
+    ------
+    CfdesignError
+        The prefix cannot be used; the message names it.
+
+    Examples
+    --------
+    >>> from cfdesign.codegen import check_c_prefix
+    >>> check_c_prefix("heading")
+    'heading'
+    >>> check_c_prefix("_heading")
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.CfdesignError: C prefix '_heading' starts with '_': names with file scope that do are ...
+    """
+    prefix = check_c_identifier(prefix, "C prefix")
+    if prefix.startswith("_"):
+        raise CfdesignError(f"C prefix {prefix!r} starts with '_': names with file scope that do are reserved "
+                            "in C (and so is its header guard); C code needs another prefix")
+    return prefix
+
+
 # ---------------------------------------------------------------------- checks
 def _check_runnable(table):
     if table.domain != "z" or table.gain_form not in ("predictor", "filter"):
@@ -201,7 +240,7 @@ def _fields(table, prefix, precision, output) -> dict:
         raise CfdesignError(f"output must be one of {', '.join(linear.OUTPUTS)}, got {output!r}")
     if precision not in _PRECISIONS:
         raise CfdesignError(f"precision must be 'double' or 'float', got {precision!r}")
-    prefix = check_c_identifier(_default_prefix(table) if prefix is None else prefix, "C prefix")
+    prefix = check_c_prefix(_default_prefix(table) if prefix is None else prefix)
     real, ceil, suffix = _PRECISIONS[precision]
     sensors = _sensors(table)
     n, p, m = table.F.shape[0], table.B.shape[1], table.H.shape[0]

@@ -43,13 +43,15 @@ Reading of the (garbled) equations
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import rotations as rot
 from ..errors import InputError
 from ..linear import wrap_scalar
+from ..runtime.filter import usable
+from .attitude_inputs import finite_vector, held_rows, rate, rows
 from .mps import mps_euler
 
 __all__ = ["AdaptiveEstimate", "AdaptiveCF", "attitude_cutoffs", "position_cutoff", "cutoff_plot"]
@@ -73,6 +75,9 @@ class AdaptiveEstimate:
         Adapted cut-offs (rad/s) for roll, pitch, yaw (0 where a reading is missing).
     cutoff_position : ndarray, shape (N,)
         Adapted position cut-off (rad/s).
+    missing : dict
+        Readings treated as missing (:meth:`AdaptiveCF.run`, Notes): ``{'gyr', 'odometry_speed',
+        'gps_enu'}``.
     """
 
     quaternion: np.ndarray
@@ -80,6 +85,7 @@ class AdaptiveEstimate:
     position: np.ndarray
     cutoff_attitude: np.ndarray
     cutoff_position: np.ndarray
+    missing: dict = field(default_factory=dict)
 
 
 def attitude_cutoffs(acc, k_phi, k_theta, g0=G0_M_S2):
@@ -165,7 +171,8 @@ class AdaptiveCF:
     Raises
     ------
     InputError
-        A parameter that is not a finite number of the right sign, or ``n_max <= 3``.
+        A rate outside [1e-3, 1e6] Hz, a parameter that is not a finite number of the right
+        sign, or ``n_max <= 3``.
 
     Notes
     -----
@@ -177,7 +184,7 @@ class AdaptiveCF:
 
     def __init__(self, rate_hz, *, k_phi=0.5, k_theta=0.5, k_psi=0.3, k_p=0.05, v_max=2.0, n_max=12.0,
                  g0=G0_M_S2, declination_rad=0.0):
-        self.rate_hz = _number("rate_hz", rate_hz, positive=True)
+        self.rate_hz = rate(rate_hz, error=InputError)
         self.k_phi, self.k_theta, self.k_psi, self.k_p = (_number(n, v) for n, v in (
             ("k_phi", k_phi), ("k_theta", k_theta), ("k_psi", k_psi), ("k_p", k_p)))
         self.v_max = _number("v_max", v_max, positive=True)
@@ -220,7 +227,16 @@ class AdaptiveCF:
         Raises
         ------
         InputError
-            An input of the wrong shape (the message names it).
+            An input that is not an array of real numbers or of the wrong shape, or an
+            ``initial_position`` that is not three finite numbers (the message names it).
+
+        Notes
+        -----
+        A rate or speed that is not finite or beyond
+        :data:`~cfdesign.runtime.filter.READING_LIMIT` is missing and holds the last usable one
+        (before the first, the first); such a fix is skipped; an unusable specific force or
+        field skips its correction (cut-off 0).  Rates, speeds and fixes treated as missing are
+        counted in ``AdaptiveEstimate.missing`` (a NaN fix row is no fix and is not counted).
         """
         gyr, acc, mag, gps = (_rows(n, v, 3) for n, v in (("gyr", gyr), ("acc", acc), ("mag", mag),
                                                           ("gps_enu", gps_enu)))
@@ -229,11 +245,19 @@ class AdaptiveCF:
         if len(lengths) != 1 or 0 in lengths:
             raise InputError("gyr, acc, mag, odometry_speed, gps_enu, n_satellites: one non-zero number of rows is "
                             f"needed, got {[len(v) for v in (gyr, acc, mag, speed, gps, n_sat)]}")
+        if initial_position is not None:
+            initial_position = finite_vector("initial_position", initial_position, error=InputError)
+        gyr, missing_gyr = held_rows(gyr)
+        speed, missing_speed = held_rows(speed)
+        fix_given = ~np.isnan(gps).all(axis=1)
+        gps = np.where(usable(gps).all(axis=1)[:, None], gps, np.nan)
+        missing = {"gyr": missing_gyr, "odometry_speed": missing_speed,
+                   "gps_enu": int((fix_given & np.isnan(gps).all(axis=1)).sum())}
         euler, cut_att = self._attitude(gyr, acc, mag)
         cut_pos = position_cutoff(speed, n_sat, self.k_p, self.v_max, self.n_max)
         position = self._position(euler, speed, gps, cut_pos, initial_position)
         return AdaptiveEstimate(quaternion=rot.from_euler(euler), euler=euler, position=position,
-                                cutoff_attitude=cut_att, cutoff_position=cut_pos)
+                                cutoff_attitude=cut_att, cutoff_position=cut_pos, missing=missing)
 
     # ------------------------------------------------------------------ attitude
     def _attitude(self, gyr, acc, mag):
@@ -242,7 +266,7 @@ class AdaptiveCF:
         measured = mps_euler(acc, mag, declination_rad=self.declination_rad)        # [ψ_m, θ_a, φ_a]
         cut = np.zeros((len(acc), 3))
         cut[:, :2] = np.nan_to_num(attitude_cutoffs(acc, self.k_phi, self.k_theta, self.g0))
-        steps = rot.from_rotation_vector(np.nan_to_num(gyr) * T)
+        steps = rot.from_rotation_vector(gyr * T)
         euler = np.empty((len(acc), 3))
         euler[0] = np.nan_to_num(measured[0])
         q = rot.from_euler(euler[0])
@@ -270,11 +294,10 @@ class AdaptiveCF:
         T = self.dt_s
         psi, theta = euler[:, 0], euler[:, 1]
         forward = np.stack([np.cos(psi) * np.cos(theta), np.sin(psi) * np.cos(theta), -np.sin(theta)], axis=-1)
-        step = (T * np.nan_to_num(speed))[:, None] * forward
+        step = (T * speed)[:, None] * forward
         log_alpha = -T * cut                                   # ln α_j per step
         out = np.full((len(step), 3), np.nan)
-        x = None if initial_position is None else _rows("initial_position", np.reshape(initial_position, (1, -1)),
-                                                           3)[0].copy()
+        x = initial_position
         pending = 0.0                                          # Σ ln α_j since the last fix
         for k in range(len(step)):
             fix = gps[k] if np.isfinite(gps[k]).all() else None
@@ -349,12 +372,4 @@ def _number(name, value, *, positive=False, signed=False):
 
 def _rows(name, value, width=None):
     """``value`` as a float array of shape (N,) or (N, width); InputError naming ``name`` otherwise."""
-    try:
-        a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise InputError(f"{name}: a numeric array is needed") from None
-    expected = 1 if width is None else 2
-    if a.ndim != expected or (width is not None and a.shape[1] != width):
-        shape = "(N,)" if width is None else f"(N, {width})"
-        raise InputError(f"{name}: shape {shape} needed, got {a.shape}")
-    return a
+    return rows(name, value, width, error=InputError)

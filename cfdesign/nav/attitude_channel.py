@@ -31,7 +31,7 @@ import numpy as np
 from .. import linear
 from ..errors import AttitudeInputError, TableMismatchError
 from ..spec import parse_spec
-from .attitude_inputs import positive
+from .attitude_inputs import positive, rate
 from .stored_design import as_table, check_fits, design_stored
 
 __all__ = ["STRUCTURE", "channel_spec", "design_channel", "channel_tables", "channel_gains", "gain_schedule"]
@@ -127,7 +127,8 @@ def design_channel(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
     Raises
     ------
     AttitudeInputError
-        A figure that is not a finite positive number (checked before the design).
+        A rate outside [1e-3, 1e6] Hz, or a figure that is not a finite positive number up to
+        1e100 (checked before the design); the message names it.
 
     Examples
     --------
@@ -138,9 +139,19 @@ def design_channel(rate_hz, gyro_noise_std, gyro_bias_density, angle_noise_std):
     >>> table is design_channel(100.0, 0.002, 1e-5, 0.05)
     True
     """
-    return _design_cached(positive("rate_hz", rate_hz), positive("gyro_noise_std", gyro_noise_std),
-                          positive("gyro_bias_density", gyro_bias_density),
-                          positive("angle_noise_std", angle_noise_std))
+    figures = {"gyro_noise_std": gyro_noise_std, "gyro_bias_density": gyro_bias_density,
+               "angle_noise_std": angle_noise_std}
+    rate_hz = rate(rate_hz)
+    for name, value in figures.items():
+        figures[name] = positive(name, value)
+        if figures[name] > _MAX_FIGURE:
+            raise AttitudeInputError(f"{name} must be at most {_MAX_FIGURE:g} (its square is a variance), "
+                                     f"got {value!r}")
+    return _design_cached(rate_hz, *figures.values())
+
+
+#: the largest noise figure a channel is designed from (a design file's limit: its square is finite)
+_MAX_FIGURE = 1e100
 
 
 def channel_tables(tables, given, design_pair):

@@ -86,22 +86,21 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from ..errors import AttitudeInputError
 from ..linear import wrap_scalar
+from ..runtime.step import real_float
 from .attitude_channel import design_channel
 
 __all__ = ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "AttitudeDesign", "GRAVITY", "STATE_FIELDS",
-           "design_attitude"]
+           "STATE_LIMIT", "design_attitude"]
 
 #: standard gravity (m/s²): converts the velocity channel's correction into an angle
 GRAVITY = 9.80665
-#: fastest and slowest sample rates accepted (Hz): the filter's tables are designed per sample
-MAX_RATE_HZ = 1e6
-MIN_RATE_HZ = 1e-3
 #: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
 #: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
 DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
@@ -131,6 +130,16 @@ STATE_FIELDS = (
     "started", "missing_gyr", "missing_acc", "missing_mag",
 )
 _INDEX = {name: i for i, name in enumerate(STATE_FIELDS)}
+#: the largest magnitude :meth:`AttitudeFilter.restore` accepts in a state field that has no
+#: tighter bound (velocities, angles, covariances, times, counters): its square divided by the
+#: smallest threshold a parameter can set (1e-30) stays finite, so no step from it overflows
+STATE_LIMIT = 1e100
+#: the state's field norms (low-passed, reference, candidate): means of the norms of field
+#: readings, each one whose square is finite (the step's test of a field reading)
+_NORMS = ("norm_lp", "norm_ref", "norm_new")
+_MAX_NORM = math.sqrt(sys.float_info.max)
+#: the state's counters: whole numbers from 0 (readings averaged, samples missing)
+_COUNTERS = ("ref_n", "new_n", "tilt_n", "missing_gyr", "missing_acc", "missing_mag")
 
 
 @dataclass(frozen=True)
@@ -497,15 +506,9 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
 
 def _rate(rate_hz) -> float:
     """``rate_hz`` checked before anything is designed or allocated."""
-    try:
-        if isinstance(rate_hz, (bool, np.bool_)):
-            raise TypeError
-        value = float(rate_hz)
-    except (TypeError, ValueError, OverflowError):
-        raise AttitudeInputError(f"rate_hz must be a number, got {rate_hz!r}") from None
-    if not MIN_RATE_HZ <= value <= MAX_RATE_HZ:  # NaN too
-        raise AttitudeInputError(f"rate_hz must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}")
-    return value
+    from .attitude_inputs import rate
+
+    return rate(rate_hz)
 
 
 @dataclass
@@ -666,8 +669,15 @@ class AttitudeFilter:
         ------
         AttitudeInputError
             ``state`` is not a dict, lacks a field or has an unknown one, has a value that is not
-            a finite number, or its ``qw, qx, qy, qz`` is not near a unit quaternion (norm
-            outside (0.5, 2)); the filter's state is then left unchanged.
+            a finite number, or is a state no run of this filter reaches: its ``qw, qx, qy, qz``
+            not near a unit quaternion (norm outside (0.5, 2)), a low-passed or held rate beyond
+            ``gyro_range_rps``, a specific force beyond ``accel_range_mps2``, a covariance that is
+            not positive semi-definite, a negative time, a field norm that is negative or whose
+            square overflows, a dip outside [-pi/2, pi/2], a
+            counter that is not a whole number, a flag or level out of its values, an
+            ``accel_time`` beyond ``max_accel_time_s`` or any field beyond
+            :data:`~cfdesign.nav.attitude_filter.STATE_LIMIT`; the message names the field and
+            the filter's state is left unchanged.
 
         Examples
         --------
@@ -695,9 +705,59 @@ class AttitudeFilter:
             if not math.isfinite(value):
                 raise AttitudeInputError(f"state: {name} must be finite, got {state[name]!r}")
             values.append(value)
-        if not 0.5 < math.sqrt(sum(v * v for v in values[0:4])) < 2.0:
-            raise AttitudeInputError("state: qw, qx, qy, qz is not a unit quaternion")
+        problem = self._impossible(dict(zip(STATE_FIELDS, values, strict=True)))
+        if problem:
+            raise AttitudeInputError(f"state: {problem}")
         self._s = values
+
+    def _impossible(self, v) -> str | None:
+        """What makes the state ``v`` (``{name: float}``, finite) one no run of this filter reaches,
+        or None.  Each bound holds for every state the step leaves (bias, low-passed and held rates
+        (low-passed and held rates within the gyro's range, low-passed specific force within the
+        accelerometer's, field norms those of readings whose square is finite, covariances positive
+        semi-definite, counters whole, flags and levels their values) and keeps the next step finite."""
+        p, tol = self.params, 1.0 + 1e-9
+
+        def norm(prefix):
+            return math.sqrt(sum(v[prefix + c] ** 2 for c in "xyz"))
+
+        big = [name for name in STATE_FIELDS if abs(v[name]) > STATE_LIMIT and name not in _NORMS]
+        if big:
+            return f"{big[0]} = {v[big[0]]!r} is beyond {STATE_LIMIT:g}"
+        if not 0.5 < math.sqrt(sum(v[name] ** 2 for name in ("qw", "qx", "qy", "qz"))) < 2.0:
+            return "qw, qx, qy, qz is not a unit quaternion"
+        for name in _NORMS:
+            if not 0.0 <= v[name] <= _MAX_NORM:
+                return f"{name} = {v[name]!r} is not the norm of a field reading (from 0 to {_MAX_NORM:.4g})"
+        for prefix, what, limit in (("g", "the low-passed rate", p.gyro_range_rps),
+                                    ("lg", "the last good rate", p.gyro_range_rps),
+                                    ("f", "the low-passed specific force", p.accel_range_mps2)):
+            if norm(prefix) > limit * tol:
+                return (f"{prefix}x, {prefix}y, {prefix}z ({what}) has norm {norm(prefix):.6g}, beyond the sensor's "
+                        f"range {limit:g}")
+        for name, limit in (("gyro_dev", p.gyro_range_rps), ("accel_dev", p.accel_range_mps2)):
+            if not 0.0 <= v[name] <= 4.0 * limit * limit * tol:
+                return f"{name} = {v[name]!r} must be from 0 to {4.0 * limit * limit:g} (twice the range, squared)"
+        for c in "rth":
+            p00, p01, p11 = v[c + "00"], v[c + "01"], v[c + "11"]
+            if not (p00 >= 0.0 and p11 >= 0.0 and p01 * p01 <= p00 * p11):
+                return f"{c}00, {c}01, {c}11 is not a covariance (positive semi-definite)"
+        for name in ("rest_time", "new_time", "new_turn"):
+            if v[name] < 0.0:
+                return f"{name} = {v[name]!r} must not be negative"
+        for name in ("dip_lp", "dip_ref", "dip_new"):
+            if abs(v[name]) > math.pi / 2:
+                return f"{name} = {v[name]!r} is not a dip angle (within [-pi/2, pi/2])"
+        for name in _COUNTERS:
+            if v[name] < 0.0 or v[name] != math.floor(v[name]):
+                return f"{name} = {v[name]!r} must be a whole number from 0"
+        for name, allowed in (("started", (0.0, 1.0, 2.0)), ("disturbed", (0.0, 1.0)),
+                              ("level", tuple(float(j) for j in range(len(self.design.velocity) - 1)))):
+            if v[name] not in allowed:
+                return f"{name} = {v[name]!r} must be one of {', '.join(f'{a:g}' for a in allowed)}"
+        if abs(v["accel_time"]) > p.max_accel_time_s:
+            return f"accel_time = {v['accel_time']!r} is beyond max_accel_time_s {p.max_accel_time_s:g}"
+        return None
 
     # ------------------------------------------------------------------ readings of the state
     @property
@@ -755,7 +815,9 @@ class AttitudeFilter:
         Raises
         ------
         AttitudeInputError
-            ``gyr``, ``acc`` or (in 9D) ``mag`` is not three numbers.
+            ``gyr``, ``acc`` or (in 9D) ``mag`` is not three real numbers (text, None, complex
+            values are refused as the runtime's ``step`` refuses them); the message names the
+            argument and the state is unchanged.
 
         Examples
         --------
@@ -768,15 +830,9 @@ class AttitudeFilter:
         >>> [round(v, 6) + 0.0 for v in q]
         [0.995004, 0.099833, 0.0, 0.0]
         """
-        try:
-            gx, gy, gz = (float(v) for v in gyr)
-            ax, ay, az = (float(v) for v in acc)
-            if mag is None or not self.magnetometer:
-                mx = my = mz = math.nan
-            else:
-                mx, my, mz = (float(v) for v in mag)
-        except (TypeError, ValueError, OverflowError):
-            raise AttitudeInputError("gyr, acc and mag must each be three numbers") from None
+        gx, gy, gz = _three("gyr", gyr)
+        ax, ay, az = _three("acc", acc)
+        mx, my, mz = _NAN3 if mag is None or not self.magnetometer else _three("mag", mag)
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
 
@@ -815,7 +871,7 @@ class AttitudeFilter:
         out = [None] * n
         G, A = gyr.tolist(), acc.tolist()
         M = mag.tolist() if nine else None
-        nan3 = (math.nan, math.nan, math.nan)
+        nan3 = _NAN3
         if not details:
             for k in range(n):
                 m = M[k] if nine else nan3
@@ -837,6 +893,26 @@ class AttitudeFilter:
         flags = np.array(flags, dtype=float).reshape(n, 5)
         return AttitudeRun(_unit(out), np.array(bias, dtype=float).reshape(n, 3), flags[:, 0] > 0, flags[:, 1] > 0,
                            flags[:, 2].astype(int), flags[:, 3], flags[:, 4], self.missing)
+
+
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+def _three(name, value) -> tuple:
+    """``value`` as three Python floats (``cfdesign.runtime.step.real_float``), or
+    :class:`~cfdesign.errors.AttitudeInputError` naming ``name``."""
+    try:
+        x, y, z = value
+    except (TypeError, ValueError):
+        x = y = z = None
+    else:
+        if type(x) is float and type(y) is float and type(z) is float:
+            return x, y, z
+        x, y, z = real_float(x), real_float(y), real_float(z)
+    if x is None or y is None or z is None or isinstance(value, (str, bytes)):
+        shown = " ".join(repr(value).split())
+        raise AttitudeInputError(f"{name} must be three real numbers, got {shown[:80]}")
+    return x, y, z
 
 
 def _unit(rows) -> np.ndarray:
@@ -1057,6 +1133,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 den = t00 + rr
                 k1t, k2t = t00 / den, t01 / den
                 t00, t01, t11 = (1.0 - k1t) * t00, (1.0 - k1t) * t01, t11 - k2t * t01
+                t11 = t11 if t11 > 0.0 else 0.0   # a variance, not negative by rounding
             e1 = -(r0 * ex + r1 * ey + r2 * ez)
             e2 = -(r3 * ex + r4 * ey + r5 * ez)
             d1, d2, d3 = r0 * e1 + r3 * e2, r1 * e1 + r4 * e2, r2 * e1 + r5 * e2
@@ -1127,6 +1204,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                     den = h00 + rr
                     hk1, hk2 = h00 / den, h01 / den
                     h00, h01, h11 = (1.0 - hk1) * h00, (1.0 - hk1) * h01, h11 - hk2 * h01
+                    h11 = h11 if h11 > 0.0 else 0.0   # a variance, not negative by rounding
                 cz = hk1 * eh
                 dz = hk2 * eh
                 bx -= r6 * dz
@@ -1155,6 +1233,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             den = r00 + rr
             k1r, k2r = r00 / den, r01 / den
             r00, r01, r11 = (1.0 - k1r) * r00, (1.0 - k1r) * r01, r11 - k2r * r01
+            r11 = r11 if r11 > 0.0 else 0.0   # a variance, not negative by rounding
         e1, e2, e3 = -px, -py, -pz
         px += k1r * e1
         py += k1r * e2

@@ -14,7 +14,13 @@ from .. import rotations as rot
 from ..errors import AttitudeInputError
 from .mps import mps_quaternion
 
-__all__ = ["positive", "vectors", "imu_inputs", "usable_rows", "initial_quaternion"]
+__all__ = ["positive", "rate", "rows", "vectors", "finite_vector", "held_rows", "imu_inputs", "usable_rows",
+           "initial_quaternion"]
+
+#: fastest and slowest sample rates the navigation filters accept (Hz): their tables and process
+#: noise are computed per sample
+MAX_RATE_HZ = 1e6
+MIN_RATE_HZ = 1e-3
 
 
 def positive(name, value, allow_zero=False) -> float:
@@ -62,6 +68,195 @@ def positive(name, value, allow_zero=False) -> float:
     return value
 
 
+def rate(value, name="rate_hz", error=AttitudeInputError) -> float:
+    """Check a sample rate before anything is designed or allocated and return it as a float.
+
+    Parameters
+    ----------
+    value : float
+        The rate (Hz).
+    name : str
+        The argument's name, as the error message shows it.
+    error : type
+        The :class:`~cfdesign.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    InputError
+        ``value`` is not a number (a bool is not one) or is outside ``[MIN_RATE_HZ, MAX_RATE_HZ]``
+        (1e-3 to 1e6 Hz; NaN too); the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import rate
+    >>> rate(100)
+    100.0
+    >>> rate(0.0)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: rate_hz must be a number in [0.001, 1e+06] Hz, got 0.0
+    """
+    try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
+        out = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name} must be a number, got {value!r}") from None
+    if not MIN_RATE_HZ <= out <= MAX_RATE_HZ:  # NaN too
+        raise error(f"{name} must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {value!r}")
+    return out
+
+
+def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarray:
+    """Check that a value is an array of real numbers, one row (or one number) per sample.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it.
+    value : array_like (N,) or (N, width)
+        The readings.
+    width : int, optional
+        Columns per row; None: one number per sample, shape (N,).
+    n : int, optional
+        The number of rows required; any number when None.
+    error : type
+        The :class:`~cfdesign.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    ndarray (N,) or (N, width)
+        ``value`` as a float array (not copied when it already is one).  Non-finite entries are
+        kept.
+
+    Raises
+    ------
+    InputError
+        ``value`` is not an array of real numbers (text, None and complex values are refused as
+        ``cfdesign.runtime.filter.real_array`` refuses them), has another shape, or a number of
+        rows other than ``n``; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import rows
+    >>> rows("odometry_speed", [1, 2, 3]).tolist()
+    [1.0, 2.0, 3.0]
+    >>> rows("gps_xy", [[0.0, 1.0]] * 2, width=3)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: gps_xy must have shape (N, 3), got (2, 2)
+    """
+    from ..errors import CfdesignError
+    from ..runtime.filter import real_array
+
+    shape = "(N,)" if width is None else f"(N, {width})"
+    try:
+        arr = real_array(value, name)
+    except CfdesignError as exc:
+        raise error(f"{exc}: a numeric array of shape {shape} is needed") from None
+    if arr.ndim != (1 if width is None else 2) or (width is not None and arr.shape[1] != width):
+        raise error(f"{name} must have shape {shape}, got {arr.shape}")
+    if n is not None and len(arr) != n:
+        raise error(f"{name} has {len(arr)} rows but {n} are needed")
+    return arr
+
+
+def finite_vector(name, value, size=3, error=AttitudeInputError) -> np.ndarray:
+    """Check an initial state (a position, a velocity, a pose): ``size`` finite real numbers.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it.
+    value : array_like (size,)
+        The numbers.
+    size : int
+        How many.
+    error : type
+        The :class:`~cfdesign.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    ndarray (size,)
+        A new float array.
+
+    Raises
+    ------
+    InputError
+        ``value`` is not ``size`` real numbers, or one is not finite or beyond
+        :data:`~cfdesign.runtime.filter.READING_LIMIT`; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import finite_vector
+    >>> finite_vector("initial_position", [1, 2, 3]).tolist()
+    [1.0, 2.0, 3.0]
+    >>> finite_vector("initial_position", [1.0, float("nan"), 3.0])
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: initial_position must be 3 finite numbers, got [1.0, nan, 3.0]
+    """
+    from ..runtime.filter import usable
+
+    try:
+        v = rows(name, value, error=error)
+    except error:
+        v = None
+    if v is None or v.shape != (size,) or not usable(v).all():
+        raise error(f"{name} must be {size} finite numbers, got {' '.join(repr(value).split())[:80]}")
+    return v.copy()
+
+
+def held_rows(values, limit=None, bad=None) -> tuple:
+    """Rows that are not usable readings replaced by the last usable one: the missing readings of
+    an input every sample needs (a rate, a specific force, a distance).
+
+    A row is usable when every entry is finite and within
+    :data:`~cfdesign.runtime.filter.READING_LIMIT` (beyond it a reading is not physical and would
+    overflow the state) and its norm is within ``limit`` (the sensor's range); rows before the
+    first usable one take that one, and zero when there is none.
+
+    Parameters
+    ----------
+    values : ndarray (N,) or (N, k)
+        Readings, one row (or number) per sample.
+    limit : float, optional
+        The largest norm of a usable row (the sensor's range, in its unit).
+    bad : ndarray (N,) of bool, optional
+        Rows not to use besides those (a zero quaternion).
+
+    Returns
+    -------
+    held : ndarray, same shape as ``values``
+        A new array, every row usable.
+    missing : int
+        How many rows were replaced.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.nav.attitude_inputs import held_rows
+    >>> held, missing = held_rows(np.array([np.nan, 1.0, np.inf, 2e12, 3.0]))
+    >>> held.tolist(), missing
+    ([1.0, 1.0, 1.0, 1.0, 3.0], 3)
+    """
+    from ..runtime.filter import held, usable
+
+    a = values[:, None] if values.ndim == 1 else values
+    bad = ~usable(a).all(axis=1) | (False if bad is None else bad)
+    if limit is not None:
+        bad |= ~(np.linalg.norm(np.where(bad[:, None], 0.0, a), axis=1) <= limit)
+    good = np.flatnonzero(~bad)
+    first = a[good[0]] if len(good) else np.zeros(a.shape[1])
+    out = held(a, np.repeat(bad[:, None], a.shape[1], axis=1), first)
+    return out.reshape(values.shape), int(bad.sum())
+
+
 def vectors(name, value, n=None, allow_none=False):
     """Check that a value is an array of 3-vectors, one row per sample, and return it as floats.
 
@@ -85,8 +280,10 @@ def vectors(name, value, n=None, allow_none=False):
     Raises
     ------
     AttitudeInputError
-        ``value`` is not numeric, is not two-dimensional with three columns (None included when
-        not allowed), or has a number of rows other than ``n``; the message names ``name``.
+        ``value`` is not an array of real numbers (text, None, complex values are refused, as
+        ``cfdesign.runtime.filter.real_array`` refuses them), is not two-dimensional with
+        three columns (None included when not allowed), or has a number of rows other than
+        ``n``; the message names ``name``.
 
     Examples
     --------
@@ -102,12 +299,7 @@ def vectors(name, value, n=None, allow_none=False):
     """
     if value is None and allow_none:
         return None
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise AttitudeInputError(f"{name} must be a numeric array of shape (N, 3)") from None
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise AttitudeInputError(f"{name} must have shape (N, 3), got {arr.shape}")
+    arr = rows(name, value, 3)
     if n is not None and len(arr) != n:
         raise AttitudeInputError(f"{name} has {len(arr)} rows but gyr has {n}")
     return arr
@@ -166,7 +358,8 @@ def imu_inputs(gyr, acc, mag, velocity_body=None):
 
 
 def usable_rows(vectors_):
-    """Mark the readings that cannot correct the attitude: rows not finite or all zero become NaN.
+    """Mark the readings that cannot correct the attitude: rows not finite, beyond
+    :data:`~cfdesign.runtime.filter.READING_LIMIT` or all zero become NaN.
 
     A filter skips the correction of a NaN row (a missing accelerometer or magnetometer sample).
 
@@ -195,7 +388,9 @@ def usable_rows(vectors_):
     """
     if vectors_ is None:
         return None
-    bad = ~np.isfinite(vectors_).all(axis=1) | ~(np.abs(vectors_).sum(axis=1) > 0)
+    from ..runtime.filter import usable
+
+    bad = ~usable(vectors_).all(axis=1) | ~(np.abs(vectors_).sum(axis=1) > 0)
     return np.where(bad[:, None], np.nan, vectors_)
 
 

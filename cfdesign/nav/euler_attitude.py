@@ -22,8 +22,9 @@ import numpy as np
 from .. import rotations as rot
 from ..errors import AttitudeInputError
 from ..linear import wrap_scalar
+from ..runtime.filter import usable
 from .attitude_channel import channel_gains, channel_tables, design_channel
-from .attitude_inputs import imu_inputs, initial_quaternion, positive, usable_rows
+from .attitude_inputs import imu_inputs, initial_quaternion, positive, rate, usable_rows
 from .mps import mps_euler
 
 __all__ = ["EulerAttitudeFilter", "EulerEstimate"]
@@ -90,7 +91,8 @@ class EulerAttitudeFilter:
     Raises
     ------
     AttitudeInputError
-        A missing or invalid noise figure or rate, or both tables and noise figures given.
+        A missing or invalid noise figure, a rate outside [1e-3, 1e6] Hz, a declination that is
+        not a number within [-pi, pi], or both tables and noise figures given.
     TableMismatchError
         A table that is not the channel's model or not at ``rate_hz`` (the message names it).
 
@@ -104,8 +106,13 @@ class EulerAttitudeFilter:
 
     def __init__(self, rate_hz, *, gyro_noise_std=None, gyro_bias_density=None, tilt_noise_std=None,
                  heading_noise_std=None, declination_rad=0.0, tables=None):
-        self.rate_hz = positive("rate_hz", rate_hz)
-        self.declination_rad = float(declination_rad)
+        self.rate_hz = rate(rate_hz)
+        try:
+            self.declination_rad = float(declination_rad)
+        except (TypeError, ValueError, OverflowError):
+            raise AttitudeInputError(f"declination_rad must be a number, got {declination_rad!r}") from None
+        if not abs(self.declination_rad) <= math.pi:  # NaN too
+            raise AttitudeInputError(f"declination_rad must be within [-pi, pi], got {declination_rad!r}")
         figures = {"gyro_noise_std": gyro_noise_std, "gyro_bias_density": gyro_bias_density,
                    "tilt_noise_std": tilt_noise_std, "heading_noise_std": heading_noise_std}
 
@@ -139,7 +146,8 @@ class EulerAttitudeFilter:
         ----------
         gyr : array_like (N, 3)
             Body rate, rad/s, body (sensor) frame, at ``rate_hz``; N >= 1.  A row that is not
-            finite counts as a zero reading.
+            finite or beyond :data:`~cfdesign.runtime.filter.READING_LIMIT` counts as a zero
+            reading.
         acc : array_like (N, 3)
             Specific force, m/s², body frame (points up at rest).  A row that is not finite or is
             zero skips the whole correction of its sample.
@@ -150,7 +158,7 @@ class EulerAttitudeFilter:
         velocity_body : array_like (N, 3), optional
             Velocity in the body frame, m/s: the MPS then compensates the centripetal
             acceleration, ``a - ω̂ × v_B`` with the bias-corrected rate (computed per sample,
-            slower).
+            slower); a row that is not finite skips the correction of its sample.
         initial : array_like (3,), optional
             Initial ZYX ``[yaw, pitch, roll]`` (rad), body relative to ENU; default: the MPS of
             the first usable sample (:func:`~cfdesign.nav.attitude_inputs.initial_quaternion`).
@@ -183,7 +191,9 @@ class EulerAttitudeFilter:
         """
         gyr, acc, mag, vel = imu_inputs(gyr, acc, mag, velocity_body)
         acc, mag = usable_rows(acc), usable_rows(mag)
-        gyr = np.where(np.isfinite(gyr).all(axis=1)[:, None], gyr, 0.0)
+        if vel is not None:  # a velocity that is not usable: the compensated reading is not either
+            acc = np.where(usable(vel).all(axis=1)[:, None], acc, np.nan)
+        gyr = np.where(usable(gyr).all(axis=1)[:, None], gyr, 0.0)
         y = None if vel is not None else mps_euler(acc, mag, declination_rad=self.declination_rad).tolist()
         lam = [float(v) for v in self._initial(acc, mag, initial)]
         b = [0.0, 0.0, 0.0]

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..linear import posterior_covariance
 
-__all__ = ["joseph_update", "first_finite"]
+__all__ = ["joseph_update", "first_finite", "noise_figure"]
 
 
 def joseph_update(x, P, innovation, H, R):
@@ -58,3 +58,45 @@ def first_finite(rows):
     """
     ok = np.flatnonzero(np.isfinite(rows).all(axis=1))
     return None if len(ok) == 0 else rows[ok[0]]
+
+
+def noise_figure(name, value, allow_zero=False) -> float:
+    """Check a noise figure of an EKF: a finite positive number up to 1e15 (its square is finite).
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it.
+    value : float
+        A standard deviation or a density.
+    allow_zero : bool
+        Accept zero as well (a random walk that is not there).
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    InputError
+        ``value`` is not a number, not finite, negative, zero without ``allow_zero``, or beyond
+        1e15; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.kalman_update import noise_figure
+    >>> noise_figure("gps_pos_std", 2)
+    2.0
+    >>> noise_figure("gps_pos_std", -1.0)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: gps_pos_std must be a finite positive number, got -1.0
+    """
+    from ..errors import InputError
+    from .attitude_inputs import positive
+
+    value = positive(name, value, allow_zero)
+    if value > 1e15:
+        raise InputError(f"{name} must be at most 1e15, got {value!r}")
+    return value

@@ -28,7 +28,50 @@ import numpy as np
 from .. import rotations as rot
 from ..linear import wrap
 
-__all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_compensated_field"]
+__all__ = ["centripetal_compensation", "mps_euler", "mps_quaternion", "tilt_compensated_field", "real_vectors"]
+
+
+def real_vectors(name, value) -> np.ndarray:
+    """Check that a value is one 3-vector or an array of them and return it as floats.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it (``acc``, ``mag``).
+    value : array_like (..., 3)
+        The vectors.
+
+    Returns
+    -------
+    ndarray (..., 3)
+        ``value`` as a float array.  Non-finite entries are kept.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``value`` is not an array of real numbers (text, None, complex values) or its last axis
+        is not of length 3; the message names ``name``.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.mps import real_vectors
+    >>> real_vectors("acc", [0, 0, 9.81]).tolist()
+    [0.0, 0.0, 9.81]
+    >>> real_vectors("acc", [0.0, 9.81])
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: acc must be 3-vectors (shape (..., 3)), got shape (2,)
+    """
+    from ..errors import AttitudeInputError, CfdesignError
+    from ..runtime.filter import real_array
+
+    try:
+        a = real_array(value, name)
+    except CfdesignError as exc:
+        raise AttitudeInputError(f"{exc}: 3-vectors are needed") from None
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise AttitudeInputError(f"{name} must be 3-vectors (shape (..., 3)), got shape {a.shape}")
+    return a
 
 
 def centripetal_compensation(acc, rate, velocity_body):
@@ -94,21 +137,27 @@ def mps_euler(acc, mag=None, *, declination_rad=0.0, rate=None, velocity_body=No
     -------
     ndarray (..., 3)
         ``[yaw, pitch, roll]``; yaw wrapped to ``(-pi, pi]``.  Rows whose field is zero or not
-        finite get a NaN yaw; rows with a non-finite acceleration are all NaN.
+        finite get a NaN yaw; rows with a non-finite acceleration (after the compensation) are
+        all NaN.
+
+    Raises
+    ------
+    AttitudeInputError
+        ``acc``, ``mag``, ``rate`` or ``velocity_body`` is not an array of real 3-vectors.
     """
-    a = np.asarray(acc, dtype=float)
-    if velocity_body is not None and rate is not None:
-        a = centripetal_compensation(a, rate, velocity_body)
-    roll = np.arctan2(a[..., 1], a[..., 2])
-    pitch = np.arctan2(-a[..., 0], np.hypot(a[..., 1], a[..., 2]))
-    if mag is None:
-        yaw = np.full(roll.shape, np.nan)
-    else:
-        mp = tilt_compensated_field(mag, pitch, roll)
-        horizontal = np.hypot(mp[..., 0], mp[..., 1])
-        with np.errstate(invalid="ignore"):
-            yaw = np.where(horizontal > 0, wrap(np.arctan2(mp[..., 0], mp[..., 1]) - declination_rad),
-                           np.nan)
+    a = real_vectors("acc", acc)
+    mag = None if mag is None else real_vectors("mag", mag)
+    with np.errstate(invalid="ignore", over="ignore"):  # an unusable row: NaN, as documented
+        if velocity_body is not None and rate is not None:
+            a = centripetal_compensation(a, real_vectors("rate", rate), real_vectors("velocity_body", velocity_body))
+        roll = np.arctan2(a[..., 1], a[..., 2])
+        pitch = np.arctan2(-a[..., 0], np.hypot(a[..., 1], a[..., 2]))
+        if mag is None:
+            yaw = np.full(roll.shape, np.nan)
+        else:
+            mp = tilt_compensated_field(mag, pitch, roll)
+            horizontal = np.hypot(mp[..., 0], mp[..., 1])
+            yaw = np.where(horizontal > 0, wrap(np.arctan2(mp[..., 0], mp[..., 1]) - declination_rad), np.nan)
     return np.stack([yaw, pitch, roll], axis=-1)
 
 
@@ -134,7 +183,13 @@ def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
     Returns
     -------
     ndarray, shape (..., 4)
-        Unit quaternion ``[w, x, y, z]`` rotating body to ENU.
+        Unit quaternion ``[w, x, y, z]`` rotating body to ENU; NaN where ``acc`` is zero or not
+        finite (no up).
+
+    Raises
+    ------
+    AttitudeInputError
+        ``acc`` or ``mag`` is not an array of real 3-vectors.
 
     Examples
     --------
@@ -142,22 +197,25 @@ def mps_quaternion(acc, mag=None, *, declination_rad=0.0):
     >>> mps_quaternion([0.0, 0.0, 9.81], [0.0, 1.0, -1.0]).round(6).tolist()  # level, axes along ENU
     [1.0, 0.0, 0.0, 0.0]
     """
-    a = np.asarray(acc, dtype=float)
-    up = a / np.linalg.norm(a, axis=-1, keepdims=True)
-    east = None
-    if mag is not None:
-        east = np.cross(np.asarray(mag, dtype=float), up)
-        norm = np.linalg.norm(east, axis=-1, keepdims=True)
-        ok = norm > 1e-9 * np.maximum(np.linalg.norm(mag, axis=-1, keepdims=True), 1e-300)
-        east = np.where(ok, east / np.where(ok, norm, 1.0), np.nan)
-    tilt = _tilt_only(up)
-    if east is None:
-        return tilt
-    north = np.cross(up, east)
-    q = rot.from_matrix(np.stack([east, north, up], axis=-2))
-    q = rot.multiply(rot.from_rotation_vector(np.array([0.0, 0.0, -declination_rad])), q)
-    q = rot.normalize(q)
-    return np.where(np.isfinite(q).all(axis=-1, keepdims=True), q, tilt)
+    a = real_vectors("acc", acc)
+    mag = None if mag is None else real_vectors("mag", mag)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # an unusable row: NaN, as documented
+        up = a / np.linalg.norm(a, axis=-1, keepdims=True)
+        east = None
+        if mag is not None:
+            east = np.cross(mag, up)
+            norm = np.linalg.norm(east, axis=-1, keepdims=True)
+            ok = norm > 1e-9 * np.maximum(np.linalg.norm(mag, axis=-1, keepdims=True), 1e-300)
+            east = np.where(ok, east / np.where(ok, norm, 1.0), np.nan)
+        tilt = _tilt_only(up)
+        if east is None:
+            return tilt
+        north = np.cross(up, east)
+        q = rot.from_matrix(np.where(np.isfinite(east).all(axis=-1)[..., None, None],
+                                     np.stack([east, north, up], axis=-2), np.eye(3)))
+        q = rot.multiply(rot.from_rotation_vector(np.array([0.0, 0.0, -declination_rad])), q)
+        q = rot.normalize(q)
+        return np.where(np.isfinite(east).all(axis=-1, keepdims=True), q, tilt)
 
 
 def _tilt_only(up):

@@ -27,13 +27,15 @@ previous fix gives a position-only update.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import InputError
 from ..linear import wrap_scalar
-from .kalman_update import first_finite, joseph_update
+from ..runtime.filter import usable
+from .attitude_inputs import MIN_RATE_HZ, finite_vector, held_rows, rows
+from .kalman_update import first_finite, joseph_update, noise_figure
 
 __all__ = ["PlanarEstimate", "PlanarEKF", "planar_step"]
 
@@ -57,6 +59,9 @@ class PlanarEstimate:
         when there was none.
     gps_std_used : ndarray (N,)
         GPS position standard deviation used at that sample (by mode), NaN without a fix.
+    missing : dict
+        Readings treated as missing (:meth:`PlanarEKF.run`, Notes): ``{'distance', 'gyro_z',
+        'gps_xy'}``.
     """
 
     x: np.ndarray
@@ -66,6 +71,7 @@ class PlanarEstimate:
     covariance: np.ndarray
     heading_std: np.ndarray
     gps_std_used: np.ndarray
+    missing: dict = field(default_factory=dict)
 
 
 def planar_step(state, rho: float, omega: float, dt: float, *, jacobian: bool = True):
@@ -132,7 +138,10 @@ class PlanarEKF:
     Raises
     ------
     InputError
-        ``sigma_heading`` does not give one value per GPS mode.
+        A noise figure, ``κ_ω``, ``κ_ρ``, ``σ_θ`` or initial std that is not a finite positive
+        number (``alpha_noise_std``: non-negative), a ``gps_std`` that names no mode or the
+        mode ``''``, or a ``sigma_heading`` that does not give one value per GPS mode; the
+        message names the argument.
 
     Notes
     -----
@@ -142,16 +151,27 @@ class PlanarEKF:
     def __init__(self, *, odo_noise_std: float, gyro_noise_std: float, gps_std: dict | None = None,
                  kappa_omega: float, kappa_rho: float, sigma_heading, alpha_noise_std: float = 1e-5,
                  initial_std=(10.0, 10.0, math.pi, 0.1)):
-        self.gps_std = dict(gps_std or {"single": 3.0, "dgps": 0.5})
+        if gps_std is not None and not isinstance(gps_std, dict):
+            raise InputError(f"gps_std must be a dict {{mode: std}}, got {type(gps_std).__name__}")
+        self.gps_std = {str(mode): noise_figure(f"gps_std[{mode!r}]", value)
+                        for mode, value in (gps_std or {"single": 3.0, "dgps": 0.5}).items()}
+        if not self.gps_std or "" in self.gps_std:
+            raise InputError("gps_std must name at least one GPS mode, and '' (no fix) is not one")
         modes = set(self.gps_std)
-        self.sigma_heading = (dict(sigma_heading) if isinstance(sigma_heading, dict)
-                              else dict.fromkeys(modes, float(sigma_heading)))
+        self.sigma_heading = ({str(mode): noise_figure(f"sigma_heading[{mode!r}]", value)
+                               for mode, value in sigma_heading.items()} if isinstance(sigma_heading, dict)
+                              else dict.fromkeys(modes, noise_figure("sigma_heading", sigma_heading)))
         if set(self.sigma_heading) != modes:
             raise InputError("sigma_heading must give one value per GPS mode")
-        self.U = np.diag([odo_noise_std**2, gyro_noise_std**2])
-        self.kappa_omega, self.kappa_rho = float(kappa_omega), float(kappa_rho)
-        self.alpha_var = alpha_noise_std**2
-        self.initial_std = np.asarray(initial_std, dtype=float)
+        self.U = np.diag([noise_figure("odo_noise_std", odo_noise_std) ** 2,
+                          noise_figure("gyro_noise_std", gyro_noise_std) ** 2])
+        self.kappa_omega = noise_figure("kappa_omega", kappa_omega)
+        self.kappa_rho = noise_figure("kappa_rho", kappa_rho)
+        self.alpha_var = noise_figure("alpha_noise_std", alpha_noise_std, allow_zero=True) ** 2
+        stds = rows("initial_std", initial_std, error=InputError)
+        if stds.shape != (4,):
+            raise InputError(f"initial_std must be 4 numbers (the stds of x, y, theta, alpha), got {stds.shape}")
+        self.initial_std = np.array([noise_figure(f"initial_std[{i}]", v) for i, v in enumerate(stds)])
 
     def heading_std(self, mode: str, turned: float, travelled: float) -> float:
         """GPS-heading standard deviation of eq. (13): ``σ_θ (Σ|ω| + κ_ω) / (Σρ + κ_ρ)``.
@@ -192,16 +212,48 @@ class PlanarEKF:
         -------
         PlanarEstimate
             Position (m), heading (rad), odometer scale and covariance after every sample.
+
+        Raises
+        ------
+        InputError
+            An array that is not of real numbers (``gps_mode``: of text) or of another shape or
+            length, an interval that is not a finite positive number of seconds up to 1000, a
+            GPS mode other than those of ``gps_std`` and ``''``, or an ``initial_state`` that is
+            not four finite numbers; the message names the argument (and the row).
+
+        Notes
+        -----
+        A distance or rate that is not finite or beyond
+        :data:`~cfdesign.runtime.filter.READING_LIMIT` is missing: it holds the last usable one
+        (before the first, the first); a fix given but unusable (inf, beyond the limit) is
+        skipped.  Both are counted in ``PlanarEstimate.missing``.
         """
-        rho, omega = np.asarray(distance, dtype=float), np.asarray(gyro_z, dtype=float)
+        rho = rows("distance", distance, error=InputError)
         N = len(rho)
-        dt = np.broadcast_to(np.asarray(dt_s, dtype=float), (N,))
-        gps = np.asarray(gps_xy, dtype=float)
-        mode = np.asarray(gps_mode).astype(str)
+        omega = rows("gyro_z", gyro_z, n=N, error=InputError)
+        dt = rows("dt_s", np.broadcast_to(dt_s, (N,)) if np.ndim(dt_s) == 0 else dt_s, n=N, error=InputError)
+        bad_dt = np.flatnonzero(~((dt > 0) & (dt <= 1.0 / MIN_RATE_HZ)))
+        if bad_dt.size:
+            raise InputError(f"dt_s must be a positive number of seconds up to {1.0 / MIN_RATE_HZ:g}, got "
+                             f"{float(dt[bad_dt[0]])!r} at row {bad_dt[0]}")
+        gps = rows("gps_xy", gps_xy, 2, N, error=InputError)
+        mode = np.asarray(gps_mode)
+        if mode.shape != (N,) or mode.dtype.kind not in "UO" or not all(isinstance(m, str) for m in mode.tolist()):
+            raise InputError(f"gps_mode must be {N} strings (a GPS mode, or '' for no fix)")
+        unknown = sorted(set(mode.tolist()) - set(self.gps_std) - {""})
+        if unknown:
+            raise InputError(f"gps_mode: unknown mode(s) {', '.join(map(repr, unknown[:5]))}; the modes are "
+                             f"{', '.join(map(repr, self.gps_std))} and '' (no fix)")
+        rho, missing_rho = held_rows(rho)
+        omega, missing_omega = held_rows(omega)
+        bad_fix = ~usable(gps).all(axis=1)
+        missing = {"distance": missing_rho, "gyro_z": missing_omega,
+                   "gps_xy": int((bad_fix & ~np.isnan(gps).all(axis=1) & (mode != "")).sum())}
+        gps = np.where(bad_fix[:, None], np.nan, gps)
         if initial_state is None:
             first = first_finite(gps)
             initial_state = [*(np.zeros(2) if first is None else first), 0.0, 1.0]
-        state, P = np.asarray(initial_state, dtype=float).copy(), np.diag(self.initial_std**2)
+        state, P = finite_vector("initial_state", initial_state, 4, error=InputError), np.diag(self.initial_std**2)
         out = np.empty((N, 4))
         cov = np.empty((N, 4, 4))
         used = np.full((N, 2), np.nan)
@@ -220,7 +272,7 @@ class PlanarEKF:
             state[2] = _wrap(state[2])
             out[k], cov[k] = state, P
         return PlanarEstimate(x=out[:, 0], y=out[:, 1], theta=out[:, 2], alpha=out[:, 3], covariance=cov,
-                              heading_std=used[:, 1], gps_std_used=used[:, 0])
+                              heading_std=used[:, 1], gps_std_used=used[:, 0], missing=missing)
 
     def _gps_update(self, state, P, fix, mode, last_fix, turned, travelled):
         """GPS update, eqs. (6)-(13): position, plus the chord heading when a previous fix exists."""

@@ -43,14 +43,16 @@ the accelerometer and recovers with the next fixes.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import rotations as rot
 from ..errors import InputError, TableMismatchError
 from ..rotations import GRAVITY_ENU
+from ..runtime.filter import usable
 from ..spec import parse_spec
+from .attitude_inputs import finite_vector, held_rows, rows
 from .stored_design import as_table, check_fits, design_stored
 
 __all__ = ["PositionEstimate", "PositionFilter", "position_spec", "design_position", "earth_acceleration"]
@@ -71,11 +73,15 @@ class PositionEstimate:
         ENU velocity (m/s).
     accel_bias : ndarray (N, 3)
         Accelerometer bias as seen in ENU, ``R_nb b_body`` (m/s^2).
+    missing : dict
+        Rows treated as missing (:meth:`PositionFilter.run`, Notes): ``{'acc_body', 'quat_nb',
+        'gps_enu'}``.
     """
 
     position: np.ndarray
     velocity: np.ndarray
     accel_bias: np.ndarray
+    missing: dict = field(default_factory=dict)
 
 
 def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: float, accel_bias_density: float,
@@ -257,7 +263,7 @@ class PositionFilter:
         Parameters
         ----------
         acc_body : array_like (N, 3)
-            Specific force in the body frame (m/s^2), mean over ``[t_k, t_k+1]``; finite.
+            Specific force in the body frame (m/s^2), mean over ``[t_k, t_k+1]``.
         quat_nb : array_like (N, 4)
             Attitude ``[w, x, y, z]`` body -> ENU at ``t_k`` (an estimate or the truth).
         gps_enu : array_like (N, 3)
@@ -273,23 +279,47 @@ class PositionFilter:
         PositionEstimate
             ENU position (m), velocity (m/s) and accelerometer bias seen in ENU (m/s^2) at every IMU
             sample.
+
+        Raises
+        ------
+        InputError
+            An array that is not of real numbers or of another shape or length, no sample, a
+            fix off the GPS schedule, or an initial value that is not three finite numbers; the
+            message names the argument.
+
+        Notes
+        -----
+        A row of ``acc_body`` or ``quat_nb`` that is not finite or beyond
+        :data:`~cfdesign.runtime.filter.READING_LIMIT` (a quaternion: or zero) is missing: the
+        Earth-frame acceleration holds the last one, a quaternion the last usable one; a fix
+        given but unusable (inf, beyond the limit) is skipped.  Each is counted in
+        ``PositionEstimate.missing``.
         """
         acc, q, gps = self._checked(acc_body, quat_nb, gps_enu)
-        u = earth_acceleration(acc, q)
-        runtimes = self._runtimes(gps, initial_position, initial_velocity, initial_bias)
+        p0, v0, b0 = (None if value is None else finite_vector(name, value, error=InputError) for name, value in
+                      (("initial_position", initial_position), ("initial_velocity", initial_velocity),
+                       ("initial_bias", initial_bias)))
+        q, missing_q = held_rows(q, bad=~(np.linalg.norm(np.where(usable(q), q, 0.0), axis=1) > 0))
+        bad_acc = ~usable(acc).all(axis=1)
+        u = earth_acceleration(np.where(bad_acc[:, None], 0.0, acc), q)
+        u[bad_acc] = np.nan                        # a missing input: the runtime holds the last one
+        bad_fix = ~usable(gps).all(axis=1)
+        missing = {"acc_body": int(bad_acc.sum()), "quat_nb": missing_q,
+                   "gps_enu": int((bad_fix & ~np.isnan(gps).all(axis=1)).sum())}
+        gps = np.where(bad_fix[:, None], np.nan, gps)
+        runtimes = self._runtimes(gps, p0, v0, b0)
         post = np.stack([rt.run({self._input: u[:, i], self._fix: gps[:, i]}, states=True)[1]
                          for i, rt in enumerate(runtimes)], axis=1)  # (N, axis, state): x+ of every step
         return PositionEstimate(position=post[:, :, 0].copy(), velocity=post[:, :, 1].copy(),
-                                accel_bias=post[:, :, 2].copy())
+                                accel_bias=post[:, :, 2].copy(), missing=missing)
 
     def _checked(self, acc_body, quat_nb, gps_enu):
-        acc, q, gps = (np.asarray(a, dtype=float) for a in (acc_body, quat_nb, gps_enu))
+        acc = rows("acc_body", acc_body, 3, error=InputError)
         N = len(acc)
-        for name, a, cols in (("acc_body", acc, 3), ("quat_nb", q, 4), ("gps_enu", gps, 3)):
-            if a.shape != (N, cols):
-                raise InputError(f"{name}: expected shape ({N}, {cols}), got {a.shape}")
-        if N == 0 or not np.all(np.isfinite(acc)) or not np.all(np.isfinite(q)):
-            raise InputError("acc_body and quat_nb must be non-empty and finite")
+        if N == 0:
+            raise InputError("acc_body is empty: need at least one sample")
+        q = rows("quat_nb", quat_nb, 4, N, error=InputError)
+        gps = rows("gps_enu", gps_enu, 3, N, error=InputError)
         fixes = np.flatnonzero(np.isfinite(gps).any(axis=1))
         stray = fixes[~np.isin(fixes % self.table.period, self.fix_phases)]
         if stray.size:
@@ -304,9 +334,9 @@ class PositionFilter:
         if p0 is None:
             rows = np.flatnonzero(np.isfinite(gps).all(axis=1))
             p0 = gps[rows[0]] if rows.size else np.zeros(3)
-        v0 = np.zeros(3) if v0 is None else np.asarray(v0, dtype=float)
-        b0 = np.zeros(3) if b0 is None else np.asarray(b0, dtype=float)
-        x0 = np.column_stack([np.asarray(p0, dtype=float), v0, b0])
+        v0 = np.zeros(3) if v0 is None else v0
+        b0 = np.zeros(3) if b0 is None else b0
+        x0 = np.column_stack([p0, v0, b0])
         return [Runtime(self.table, x0=x0[i], output="posterior") for i in range(3)]
 
 

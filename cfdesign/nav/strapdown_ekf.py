@@ -49,14 +49,16 @@ velocity and position, gyro bias and scale factor, accelerometer bias and scale 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import rotations as rot
 from ..errors import InputError
 from ..rotations import GRAVITY_ENU
-from .kalman_update import first_finite, joseph_update
+from ..runtime.filter import usable
+from .attitude_inputs import finite_vector, held_rows, rate, rows
+from .kalman_update import first_finite, joseph_update, noise_figure
 from .mps import centripetal_compensation
 from .triad import triad_quaternion
 
@@ -67,6 +69,17 @@ N_STATES = 22
 _Q, _V, _R = slice(0, 4), slice(4, 7), slice(7, 10)
 _BG, _SG, _BA, _SA = slice(10, 13), slice(13, 16), slice(16, 19), slice(19, 22)
 _UP = np.array([0.0, 0.0, 1.0])
+
+
+def _present(**readings) -> tuple:
+    """Each ``(M, 3)`` array with its unusable rows (not finite, or beyond the reading limit) made
+    NaN, and ``{name: rows given but unusable}``."""
+    out, missing = [], {}
+    for name, a in readings.items():
+        bad = ~usable(a).all(axis=1)
+        missing[name] = int((bad & ~np.isnan(a).all(axis=1)).sum())
+        out.append(np.where(bad[:, None], np.nan, a))
+    return (*out, missing)
 
 
 def _left(q) -> np.ndarray:
@@ -148,10 +161,10 @@ def strapdown_step(x, gyro, accel, dt: float, *, jacobian: bool = True):
     F[_Q, _SG] = dq_dphi * (-dt * omega / x[_SG])
     dv_dba = C * (-1.0 / x[_SA])                          # ∂(C f)/∂b_a, then ∂/∂s_a
     dv_dsa = C * (-force / x[_SA])
-    for rows, h in ((_V, dt), (_R, 0.5 * dt * dt)):
-        F[rows, _Q] = dCf * h
-        F[rows, _BA] = dv_dba * h
-        F[rows, _SA] = dv_dsa * h
+    for block, h in ((_V, dt), (_R, 0.5 * dt * dt)):
+        F[block, _Q] = dCf * h
+        F[block, _BA] = dv_dba * h
+        F[block, _SA] = dv_dsa * h
     F[_R, _V] = dt * np.eye(3)
     return x_next, F
 
@@ -196,6 +209,9 @@ class EkfEstimate:
         ``max|P - P^T| / max|P|`` (0 after the symmetrisation).
     final_covariance : ndarray (22, 22)
         The last a posteriori covariance.
+    missing : dict
+        Readings treated as missing (:meth:`StrapdownEKF.run`, Notes): ``{'gyr', 'acc', 'mag',
+        'gps_pos', 'gps_vel'}``.
     """
 
     quaternion: np.ndarray
@@ -206,6 +222,7 @@ class EkfEstimate:
     covariance_trace: np.ndarray
     covariance_asymmetry: np.ndarray
     final_covariance: np.ndarray
+    missing: dict = field(default_factory=dict)
 
 
 class StrapdownEKF:
@@ -236,11 +253,17 @@ class StrapdownEKF:
     initial_std : dict, optional
         Initial standard deviations; keys ``gyro_bias`` (rad/s, default 1°/s), ``accel_bias``
         (m/s², 0.2), ``scale`` (0.02), ``velocity`` (m/s, 10 unless given/measured).
+    gyro_range_rps, accel_range_mps2 : float
+        Readings whose norm is beyond these are impossible and treated as missing (defaults 100
+        rad/s and 1000 m/s², as :class:`~cfdesign.nav.AttitudeParams`).
 
     Raises
     ------
     InputError
-        ``mag_rate_hz`` does not divide ``rate_hz``.
+        A rate outside [1e-3, 1e6] Hz, a ``mag_rate_hz`` that does not divide ``rate_hz``, a
+        noise figure that is not a finite positive number (a density: non-negative), a
+        ``mag_reference_enu`` that is not a finite non-zero 3-vector, or an ``initial_std``
+        with an unknown key or a bad value; the message names the argument.
 
     Notes
     -----
@@ -252,16 +275,36 @@ class StrapdownEKF:
     def __init__(self, rate_hz: float, *, gyro_noise_std: float, accel_noise_std: float, gyro_bias_density: float,
                  accel_bias_density: float, scale_density: float, gps_pos_std: float, gps_vel_std: float,
                  triad_std: float, mag_rate_hz: float | None = None, mag_reference_enu=(0.0, 1.0, 0.0),
-                 norm_std: float = 1e-3, initial_std: dict | None = None):
-        self.dt = 1.0 / float(rate_hz)
-        mag_rate = float(rate_hz if mag_rate_hz is None else mag_rate_hz)
+                 norm_std: float = 1e-3, initial_std: dict | None = None, gyro_range_rps: float = 100.0,
+                 accel_range_mps2: float = 1000.0):
+        rate_hz = rate(rate_hz, error=InputError)
+        self.dt = 1.0 / rate_hz
+        mag_rate = rate_hz if mag_rate_hz is None else rate(mag_rate_hz, "mag_rate_hz", error=InputError)
         self.mag_every = round(rate_hz / mag_rate)
         if self.mag_every < 1 or not math.isclose(self.mag_every * mag_rate, rate_hz, rel_tol=1e-9):
             raise InputError(f"mag_rate_hz {mag_rate:g} must divide rate_hz {rate_hz:g}")
-        self.mag_reference = np.asarray(mag_reference_enu, dtype=float)
-        self.init_std = {"gyro_bias": math.radians(1.0), "accel_bias": 0.2, "scale": 0.02, "velocity": 10.0,
-                         **(initial_std or {})}
-        self.gps_pos_std, self.gps_vel_std = float(gps_pos_std), float(gps_vel_std)
+        self.gyro_range_rps = noise_figure("gyro_range_rps", gyro_range_rps)
+        self.accel_range_mps2 = noise_figure("accel_range_mps2", accel_range_mps2)
+        stds = {"gyro_noise_std": gyro_noise_std, "accel_noise_std": accel_noise_std, "gps_pos_std": gps_pos_std,
+                "gps_vel_std": gps_vel_std, "triad_std": triad_std, "norm_std": norm_std}
+        densities = {"gyro_bias_density": gyro_bias_density, "accel_bias_density": accel_bias_density,
+                     "scale_density": scale_density}
+        stds = {name: noise_figure(name, value) for name, value in stds.items()}
+        densities = {name: noise_figure(name, value, allow_zero=True) for name, value in densities.items()}
+        self.mag_reference = rows("mag_reference_enu", [mag_reference_enu], 3, error=InputError)[0]
+        if not (np.isfinite(self.mag_reference).all() and np.abs(self.mag_reference).sum() > 0):
+            raise InputError(f"mag_reference_enu must be a finite non-zero 3-vector, got {mag_reference_enu!r}")
+        if initial_std is not None and not isinstance(initial_std, dict):
+            raise InputError(f"initial_std must be a dict, got {type(initial_std).__name__}")
+        self.init_std = {"gyro_bias": math.radians(1.0), "accel_bias": 0.2, "scale": 0.02, "velocity": 10.0}
+        unknown = sorted(map(str, set(initial_std or {}) - set(self.init_std)))
+        if unknown:
+            raise InputError(f"initial_std: unknown key(s) {', '.join(unknown)}; known: {', '.join(self.init_std)}")
+        for key, value in (initial_std or {}).items():
+            self.init_std[key] = noise_figure(f"initial_std[{key!r}]", value)
+        gyro_noise_std, accel_noise_std, gps_pos_std, gps_vel_std, triad_std, norm_std = stds.values()
+        gyro_bias_density, accel_bias_density, scale_density = densities.values()
+        self.gps_pos_std, self.gps_vel_std = gps_pos_std, gps_vel_std
         self.Q = self._process_noise(gyro_noise_std, accel_noise_std, gyro_bias_density, accel_bias_density,
                                      scale_density)
         self.R_triad = (0.5 * triad_std) ** 2 * np.eye(4)
@@ -361,19 +404,39 @@ class StrapdownEKF:
         Raises
         ------
         InputError
-            Arrays of the wrong shapes, or unusable first accelerometer/magnetometer samples
-            (the alignment fails).
+            An array that is not of real numbers or of the wrong shape, an initial position or
+            velocity that is not three finite numbers, or unusable first accelerometer and
+            magnetometer samples (the alignment fails); the message names the argument.
+
+        Notes
+        -----
+        Readings that are not finite or beyond :data:`~cfdesign.runtime.filter.READING_LIMIT`
+        (a rate or specific force: with a norm beyond ``gyro_range_rps`` or ``accel_range_mps2``)
+        are missing: a gyro or accelerometer row holds the last usable one (before the first,
+        the first), a field or GPS row is skipped; every one is counted in
+        ``EkfEstimate.missing`` (for the field and the fixes, the rows given but unusable: a
+        NaN row is no reading and is not counted).
         """
-        gyr, acc, mag = (np.asarray(a, dtype=float) for a in (gyr, acc, mag))
+        gyr = rows("gyr", gyr, 3, error=InputError)
+        if len(gyr) == 0:
+            raise InputError("gyr is empty: need at least one sample")
+        acc = rows("acc", acc, 3, len(gyr), error=InputError)
+        mag = rows("mag", mag, 3, error=InputError)
         M = len(mag)
-        gps_p = np.asarray(gps_pos_enu, dtype=float)
-        gps_v = np.full((M, 3), np.nan) if gps_vel_enu is None else np.asarray(gps_vel_enu, dtype=float)
-        if len(gyr) != len(acc) or M not in (len(gyr), len(gyr) + 1) or len(gps_p) != M or len(gps_v) != M:
-            raise InputError("gyr, acc must have N rows and mag, gps M = N or N + 1 rows")
-        if initial_position is None:
-            initial_position = first_finite(gps_p)
-        if initial_velocity is None:
-            initial_velocity = first_finite(gps_v)
+        if M not in (len(gyr), len(gyr) + 1) or M == 0:
+            raise InputError(f"mag has {M} rows: M = N or N + 1 (N = {len(gyr)}, the rows of gyr) and at least one "
+                             "are needed")
+        gps_p = rows("gps_pos_enu", gps_pos_enu, 3, M, error=InputError)
+        gps_v = np.full((M, 3), np.nan) if gps_vel_enu is None else rows("gps_vel_enu", gps_vel_enu, 3, M,
+                                                                          error=InputError)
+        gyr, missing_gyr = held_rows(gyr, self.gyro_range_rps)
+        acc, missing_acc = held_rows(acc, self.accel_range_mps2)
+        mag, gps_p, gps_v, missing = _present(mag=mag, gps_pos=gps_p, gps_vel=gps_v)
+        missing = {"gyr": missing_gyr, "acc": missing_acc, **missing}
+        initial_position, initial_velocity = (
+            first_finite(fixes) if value is None else finite_vector(name, value, error=InputError)
+            for name, value, fixes in (("initial_position", initial_position, gps_p),
+                                       ("initial_velocity", initial_velocity, gps_v)))
         x, P = self._initial(acc[0], mag[0], initial_position, initial_velocity)
         out = {k: np.empty((M, n)) for k, n in (("states", N_STATES), ("diag", 3))}
         for k in range(M):
@@ -387,7 +450,7 @@ class StrapdownEKF:
         s = out["states"]
         return EkfEstimate(quaternion=rot.normalize(s[:, _Q]), position=s[:, _R].copy(), velocity=s[:, _V].copy(),
                            states=s, covariance_min_eig=out["diag"][:, 0], covariance_trace=out["diag"][:, 1],
-                           covariance_asymmetry=out["diag"][:, 2], final_covariance=P)
+                           covariance_asymmetry=out["diag"][:, 2], final_covariance=P, missing=missing)
 
     def _observe(self, k, x, P, gyr, acc, mag_k, pos_k, vel_k):
         """All observations available at sample ``k``: TRIAD (at its rate), GPS position, velocity."""

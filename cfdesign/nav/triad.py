@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import rotations as rot
+from .mps import real_vectors
 
 __all__ = ["triad_frame", "triad_matrix", "triad_quaternion"]
 
@@ -89,7 +90,13 @@ def triad_quaternion(b1, b2, r1, r2) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 4)
-        ``[w, x, y, z]`` with ``w >= 0``; NaN where undefined (a parallel pair).
+        ``[w, x, y, z]`` with ``w >= 0``; NaN where undefined (a parallel pair, a zero or
+        non-finite vector).
+
+    Raises
+    ------
+    AttitudeInputError
+        A vector that is not real 3-vectors (text, complex, another length); the message names it.
 
     Examples
     --------
@@ -97,7 +104,9 @@ def triad_quaternion(b1, b2, r1, r2) -> np.ndarray:
     >>> triad_quaternion([0, 0, 1], [0, 1, 0], [0, 0, 1], [0, 1, 0]).tolist()
     [1.0, 0.0, 0.0, 0.0]
     """
-    C = triad_matrix(b1, b2, r1, r2)
+    b1, b2, r1, r2 = (real_vectors(name, v) for name, v in (("b1", b1), ("b2", b2), ("r1", r1), ("r2", r2)))
+    with np.errstate(invalid="ignore", over="ignore"):  # an unusable vector: NaN, as documented
+        C = triad_matrix(b1, b2, r1, r2)
     finite = np.isfinite(C).all(axis=(-2, -1))
     q = rot.from_matrix(np.where(finite[..., None, None], C, np.eye(3)))
     return np.where(finite[..., None], q, np.nan)

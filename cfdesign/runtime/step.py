@@ -58,6 +58,35 @@ def _as_float(v):
     return None
 
 
+def real_float(v):
+    """A reading as a Python float, or None if it is not a real number (see ``_as_float``).
+
+    Fast for a float and for the real types seen before (``_REALS``: int, bool, a numpy float
+    once one has come); an int too large for a float is +-inf.
+
+    Parameters
+    ----------
+    v : object
+        The reading.
+
+    Returns
+    -------
+    float or None
+        Its value, or None for text, None, complex, a ``Decimal`` or an array of one value or more.
+    """
+    if type(v) is float:
+        return v
+    if type(v) in _REALS:
+        try:
+            return float(v)
+        except OverflowError:
+            return math.inf if v > 0 else -math.inf
+    out = _as_float(v)
+    if out is not None and isinstance(v, numbers.Real):
+        _REALS.add(type(v))
+    return out
+
+
 def _num(v: float) -> str:
     v = float(v)
     if not math.isfinite(v):  # a table is checked at load; this guards the source anyway
