@@ -24,8 +24,9 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    without a gain; only a table without a model to recompute from (fixed gains) leaves the
    readings off its schedule unused, and those are counted and reported.  When the pattern
    keeps changing (the stretches average fewer than :data:`STEADY_PERIODS` periods: a rate
-   that drifts, arrivals that straddle half a tick), no periodic gain is the right one for
-   long: the log then runs the Kalman filter of the table's model with each tick's gain from
+   that drifts, arrivals that straddle half a tick), or a sensor arrives faster than the table
+   reads it (a 3.3 Hz GPS into a 3 Hz table: no periodic gain is there for the extra readings),
+   no periodic gain is the right one for long: the log then runs the Kalman filter of the table's model with each tick's gain from
    the covariance recursion over the readings as they arrive
    (:class:`cfdesign.runtime.arrivals.ArrivalKalman`), which converges to the periodic gains
    wherever the pattern holds still.
@@ -390,7 +391,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         The segments, offsets, measured rates and notes.
     """
     sched, P, dt = table.schedule, table.period, table.sample_time_s
-    notes, rates, patterns = [], {}, {}
+    notes, rates, patterns, faster = [], {}, {}, False
     for name in sched.measurements:
         ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
         if not len(ticks):
@@ -400,9 +401,12 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         expected = len(phases) / (P * dt)
         if len(ticks) >= 10:
             rates[name] = _arrival_rate(ticks, len(phases), dt)
-        if name in rates and rates[name] > 1.05 * expected:
+        if name in rates and rates[name] > 1.05 * expected:  # more readings than the schedule has gains for
             notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz: "
-                         "readings off its schedule have no gain")
+                         + ("every reading is used: the log runs the Kalman filter of the table's model with "
+                            "gains from the readings as they arrive" if recompute
+                            else "readings off its schedule have no gain"))
+            faster |= recompute
             ticks = ticks[:0]
         elif name in rates and rates[name] < 0.95 * expected:  # fewer readings: each still has a gain
             notes.append(f"{name} has {rates[name]:.4g} readings a second where the table reads it at "
@@ -427,12 +431,12 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
                      + " after the table's schedule: " + ("gains recomputed for the arrival pattern (periodic DARE "
                                                             "of the table's model)" if any(s.offsets for s in segments)
                                                             else "the schedule is locked to the arrivals"))
-    varying = recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments)
-    if varying:
+    varying = faster or (recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments))
+    if varying and not faster:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): the log runs the Kalman filter of the table's model with gains from the readings "
                      "as they arrive")
-    elif len(segments) > 1:
+    elif len(segments) > 1 and not faster:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): each stretch runs with the gains of its own pattern")
     return Lock(segments or [Segment(0, n_ticks)], main, rates, notes, varying)
