@@ -328,6 +328,8 @@ def _pairs(items, option, form) -> dict:
         key, sep, value = item.partition("=")
         if not sep or not key.strip() or not value.strip():
             raise CfdesignError(f"{option} {item!r} is not of the form {form}")
+        if key.strip() in out:  # the last one winning in silence ran a sensor on the column not meant
+            raise CfdesignError(f"{option} {key.strip()} is given twice ({out[key.strip()]!r} and {value.strip()!r})")
         out[key.strip()] = value.strip()
     return out
 

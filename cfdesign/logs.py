@@ -147,6 +147,15 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
+    shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
+    shared = {c: names for c, names in shared.items() if len(names) > 1}
+    if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
+        c, names = next(iter(shared.items()))
+        raise DataError(f"{source}: column {c!r} is given to sensors {' and '.join(names)} "
+                        "(each sensor needs a column of its own: --map SENSOR=COLUMN)")
+    if time is not None and time in sensors.values():
+        s = next(s for s, c in sensors.items() if c == time)
+        raise DataError(f"{source}: column {time!r} is both the time and sensor {s} (--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
     return _Columns(sensors, time, refs, [h for h in header if h not in used])
@@ -163,6 +172,8 @@ def _references(table, reference, header, source) -> dict:
                             f"(states: {', '.join(table.states)})")
         if col not in header:
             raise DataError(f"{source}: no reference column {col!r} (columns: {', '.join(header)})")
+        if state in out:
+            raise DataError(f"--reference {item}: state {state} already has the reference {out[state]!r}")
         out[state] = col
     return out
 

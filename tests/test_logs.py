@@ -398,6 +398,27 @@ def test_bad_logs_one_line_exit_2_nothing_written(name, tmp_path, cli):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["g.json", name, "out.csv"])
 
 
+BAD_OPTIONS = {  # each ran without a word: the filter on the wrong readings, or a reference lost
+    "a column for two sensors": (["--map", "gyro=gz", "--map", "compass=gz"], "column 'gz' is given to sensors gyro and compass"),
+    "a sensor's own column taken": (["--map", "compass=gyro"], "column 'gyro' is given to sensors gyro and compass"),
+    "a sensor mapped twice": (["--map", "gyro=gz", "--map", "gyro=gyro"], "--map gyro is given twice ('gz' and 'gyro')"),
+    "the time as a sensor": (["--map", "gyro=time"], "column 'time' is both the time and sensor gyro"),
+    "a sensor as the time": (["--time", "gz", "--map", "gyro=gz"], "column 'gz' is both the time and sensor gyro"),
+    "two references of a state": (["--reference", "truth", "--reference", "heading=compass"],
+                                  "state heading already has the reference 'truth'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OPTIONS))
+def test_conflicting_map_time_and_reference_options_are_refused(case, heading, tmp_path, cli):
+    log, _ = heading_log(0, 0, n=300)
+    log.assign(gz=log["gyro"]).to_csv(tmp_path / "log.csv", index=False)
+    options, message = BAD_OPTIONS[case]
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv", *options)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "e.csv").exists()
+
+
 def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
     table = heading.save(tmp_path / "g.json")
     folder = tmp_path / "logs"
