@@ -261,6 +261,8 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import run_log, run_logs
 
+    if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
+        raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
@@ -299,6 +301,10 @@ def cmd_run(args) -> int:
     return 0
 
 
+#: the logs a folder given to ``cfdesign run`` holds (a compressed CSV as well)
+LOG_SUFFIXES = (".csv", ".parquet", ".pq", ".csv.gz", ".csv.bz2", ".csv.xz", ".csv.zip")
+
+
 def _log_paths(items) -> tuple:
     """Files named, globbed or in named directories (CSV and Parquet), in a stable order, and
     whether they are a fleet (several files, or a directory or a glob, whatever it matched)."""
@@ -309,7 +315,8 @@ def _log_paths(items) -> tuple:
     for item in items:
         p = Path(item)
         if is_dir(p):
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
+            found = sorted(q for q in p.iterdir() if "".join(q.suffixes[-2:]).lower() in LOG_SUFFIXES
+                           or q.suffix.lower() in LOG_SUFFIXES)
             fleet = True
         elif any(c in item for c in "*?["):
             found = sorted(Path(q) for q in glob.glob(item))

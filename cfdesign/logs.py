@@ -140,13 +140,13 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
-        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {', '.join(header)}); "
+        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
                         "name them as the table's sensors or map them with --map SENSOR=COLUMN")
     if time is None:  # 'time' or 't', else in another case ('Time', 'T')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None)
     elif time not in header:
-        raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
+        raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
     shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
     shared = {c: names for c, names in shared.items() if len(names) > 1}
     if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
@@ -155,10 +155,18 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
                         "(each sensor needs a column of its own: --map SENSOR=COLUMN)")
     if time is not None and time in sensors.values():
         s = next(s for s, c in sensors.items() if c == time)
-        raise DataError(f"{source}: column {time!r} is both the time and sensor {s} (--time COLUMN, --map SENSOR=COLUMN)")
+        raise DataError(f"{source}: column {time!r} is both the time and sensor {s} "
+                        "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
     return _Columns(sensors, time, refs, [h for h in header if h not in used])
+
+
+def _listed(header, limit=300) -> str:
+    """The column names for a message, cut to about ``limit`` characters (a file read as one
+    column - JSON, a spreadsheet - or a log of thousands of columns gave a line of megabytes)."""
+    text = ", ".join(str(h) for h in header)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(header)} columns)"
 
 
 def _references(table, reference, header, source) -> dict:
@@ -171,7 +179,7 @@ def _references(table, reference, header, source) -> dict:
             raise DataError(f"--reference {item}: {table.name} has no state {state!r} "
                             f"(states: {', '.join(table.states)})")
         if col not in header:
-            raise DataError(f"{source}: no reference column {col!r} (columns: {', '.join(header)})")
+            raise DataError(f"{source}: no reference column {col!r} (columns: {_listed(header)})")
         if state in out:
             raise DataError(f"--reference {item}: state {state} already has the reference {out[state]!r}")
         out[state] = col
@@ -241,10 +249,82 @@ def _epoch_seconds(s):
 
 
 # ---------------------------------------------------------------------------- reading
+#: the first bytes of the compressions a CSV log may come in (pandas and Python's modules read them)
+COMPRESSIONS = {b"\x1f\x8b": "gzip", b"BZh": "bz2", b"\xfd7zXZ\x00": "xz", b"PK\x03\x04": "zip"}
+#: what cfdesign reads, for the messages about a file it cannot
+_READS = "CSV (plain, or compressed with gzip, bz2, xz or zip) and Parquet"
+
+
+#: the endings of a compressed file's name, left off the names of the estimate files of a fleet
+_PACKED_SUFFIXES = (".gz", ".bz2", ".xz", ".zip")
+
+
+def _log_stem(path) -> str:
+    """A log's name without its extensions: ``flight`` of ``flight.csv``, ``flight.csv.gz``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+
+    Returns
+    -------
+    str
+        The name an estimate file of a fleet takes (:func:`run_logs`) before its own suffix.
+    """
+    path = Path(path)
+    if path.suffix.lower() in _PACKED_SUFFIXES:
+        path = Path(path.stem)
+    return path.stem
+
+
+def _kind(path) -> str:
+    """``'parquet'``, ``'csv'`` or the compression of a CSV (:data:`COMPRESSIONS`), from the
+    file's first bytes, whatever its name (``log.csv.gz``, a Parquet file named ``.bin``); a
+    ``.parquet`` name without Parquet's bytes is read as Parquet, for pyarrow to name the fault."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        raise _read_error(Path(path), exc) from None
+    if head.startswith(b"PAR1"):
+        return "parquet"
+    kind = next((k for magic, k in COMPRESSIONS.items() if head.startswith(magic)), None)
+    if kind:
+        return kind
+    return "parquet" if Path(path).suffix.lower() in (".parquet", ".pq") else "csv"
+
+
+def _open_csv(path, kind):
+    """The bytes of a CSV log, decompressed (a zip must hold one file)."""
+    if kind == "csv":
+        return open(path, "rb")
+    if kind == "zip":
+        import zipfile
+
+        try:
+            archive = zipfile.ZipFile(path)
+        except zipfile.BadZipFile as exc:
+            raise DataError(f"cannot read {path}: {exc} (a damaged zip archive)") from None
+        names = [n for n in archive.namelist() if not n.endswith("/")]
+        if len(names) != 1:
+            archive.close()
+            raise DataError(f"cannot read {path}: a zip archive of {len(names)} files (a spreadsheet's own format "
+                            "is one: export it as CSV); cfdesign reads a zip that holds one CSV")
+        return archive.open(names[0])
+    import bz2
+    import gzip
+    import lzma
+
+    return {"gzip": gzip.open, "bz2": bz2.open, "xz": lzma.open}[kind](path, "rb")
+
+
 def read_log(path, columns=None, *, chunksize=None):
     """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
 
-    A CSV's separator is a comma, or the semicolon or tab of its header line when that has no
+    What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
+    compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
+    separator is a comma, or the semicolon or tab of its header line when that has no
     comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
     stripped of spaces, and a row with more cells than the header is an error naming its line
     (it was read without its extra cells).
@@ -252,7 +332,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Parameters
     ----------
     path : str or Path
-        ``.parquet`` / ``.pq`` is read as Parquet, anything else as CSV.
+        A Parquet file (by its content, or named ``.parquet`` / ``.pq``), else a CSV.
     columns : list of str, optional
         Keep only these.
     chunksize : int, optional
@@ -266,21 +346,31 @@ def read_log(path, columns=None, *, chunksize=None):
     Raises
     ------
     DataError
-        The file cannot be read, is empty, or is not a table (also while blocks are read).
+        The file cannot be read, is empty, is not text (UTF-8) or not a table (also while blocks
+        are read).
     """
     pd = _pandas()
     path = Path(path)
-    parquet = path.suffix.lower() in (".parquet", ".pq")
+    kind = _kind(path)
     try:
-        if parquet:
+        if kind == "parquet":
             return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
         reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, **_csv_format(path))
+                             low_memory=False, compression=None if kind == "csv" else kind, **_csv_format(path, kind))
         if chunksize:
             return _csv_blocks(path, reader, columns)
         return _stripped(reader, columns)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError) as exc:
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
+            *_unpack_errors()) as exc:
         raise _read_error(path, exc) from None
+
+
+def _unpack_errors() -> tuple:
+    """What a truncated or damaged compressed CSV raises while it is read (gzip's is an OSError)."""
+    import lzma
+    import zlib
+
+    return EOFError, zlib.error, lzma.LZMAError
 
 
 def _read_error(path, exc) -> DataError:
@@ -288,20 +378,34 @@ def _read_error(path, exc) -> DataError:
     pd = _pandas()
     if isinstance(exc, FileNotFoundError):
         return DataError(f"cannot read {path}: no such file")
-    if isinstance(exc, (OSError, UnicodeDecodeError)):
+    if isinstance(exc, UnicodeDecodeError):  # Latin-1 or UTF-16 text, or a file that is not text
+        return DataError(f"cannot read {path}: not UTF-8 text (byte {exc.object[exc.start:exc.start + 1].hex()} "
+                         f"at byte {exc.start}); cfdesign reads {_READS}: save the log as UTF-8")
+    if isinstance(exc, OSError):
         return DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}")
     if isinstance(exc, pd.errors.EmptyDataError):
         return DataError(f"{path}: empty file (expected a header row naming the columns)")
     return DataError(f"{path}: not a readable log: {_first_line(exc)}")
 
 
-def _csv_format(path) -> dict:
+def _csv_format(path, kind="csv") -> dict:
     """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
     has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
-    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers)."""
-    with open(path, "rb") as fh:
-        line = fh.readline(1 << 16)
-        rows = fh.read(1 << 16)
+    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    A file whose first 64 kB hold a NUL byte is not text (UTF-16, a spreadsheet, a binary log):
+    a DataError says so."""
+    try:
+        with _open_csv(path, kind) as fh:
+            line = fh.readline(1 << 16)
+            rows = fh.read(1 << 16)
+    except DataError:
+        raise
+    except (OSError, EOFError, ValueError) as exc:  # a truncated or corrupt archive
+        raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    if b"\x00" in line + rows:
+        what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
+        raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
+                        + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
     if b"," in line:
         return {}
     sep = ";" if b";" in line else "\t" if b"\t" in line else None
@@ -334,7 +438,7 @@ def _csv_blocks(path, reader, columns):
                 block = next(reader)
             except StopIteration:
                 return
-            except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+            except (pd.errors.ParserError, UnicodeDecodeError, ValueError, OSError, *_unpack_errors()) as exc:
                 raise _read_error(path, exc) from None
             yield _stripped(block, columns)
 
@@ -352,18 +456,22 @@ def _parquet_blocks(path, columns, rows):
 
 
 def _header(path) -> list:
+    import io
+
     pd = _pandas()
     path = Path(path)
-    if path.suffix.lower() in (".parquet", ".pq"):
+    kind = _kind(path)
+    if kind == "parquet":
         import pyarrow.parquet as pq
 
         try:
             return list(pq.read_schema(path).names)
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    sep = _csv_format(path, kind).get("sep", ",")
     try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            header = next(csv.reader(fh, delimiter=_csv_format(path).get("sep", ",")), None)
+        with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
+            header = next(csv.reader(fh, delimiter=sep), None)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
     if not header:
@@ -399,7 +507,7 @@ def read_columns(path, columns, time=None) -> dict:
     header = _header(path)
     missing = [c for c in wanted if c not in header]
     if missing:
-        raise DataError(f"{path}: no column {missing[0]!r} (columns: {', '.join(header)[:300]})")
+        raise DataError(f"{path}: no column {missing[0]!r} (columns: {_listed(header)})")
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
@@ -532,6 +640,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
+    if output is not None and Path(output).suffix.lower() == ".zip":
+        raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
+                          ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference)
     _check_output_names(table, cols, std, source)
@@ -647,7 +758,8 @@ def _blocks(data, frame, cols, rows):
         whole = frame
     else:
         path = Path(data)
-        if os.path.getsize(path) >= ONE_PASS_BYTES:
+        packed = 10 if _kind(path) in COMPRESSIONS.values() else 1  # a compressed CSV unpacks to several times its size
+        if packed * os.path.getsize(path) >= ONE_PASS_BYTES:
             return (lambda: read_log(path, cols.read, chunksize=rows)), None
         whole = read_log(path, cols.read)
     return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
@@ -968,27 +1080,57 @@ def _estimates(table, block, cols, values, states, stds, std):
     return frame
 
 
+def _gzip(fh):
+    import gzip
+
+    return gzip.GzipFile(fileobj=fh, mode="wb")
+
+
+def _bz2(fh):
+    import bz2
+
+    return bz2.BZ2File(fh, "wb")
+
+
+def _xz(fh):
+    import lzma
+
+    return lzma.LZMAFile(fh, "wb")
+
+
+#: an estimates file named so is a CSV compressed so (the compressors leave the file under them open)
+_PACK = {".gz": _gzip, ".bz2": _bz2, ".xz": _xz}
+
+
 class _Writer:
     """Blocks of estimates to a file (atomically) and/or kept in memory."""
 
     def __init__(self, path, keep, types=None):
         self.path, self.keep = (Path(path) if path else None), keep
         self.frames, self.errors = [], {}
-        self._ctx = self._fh = self._parquet = None
+        self._ctx = self._fh = self._parquet = self._packed = None
         self._types = types  # Parquet types of the log's passed-through columns over the whole log
         self._blocks = 0  # CSV blocks written
 
     def __enter__(self):
         if self.path is not None:
             parquet = self.path.suffix.lower() in (".parquet", ".pq")
-            self._ctx = open_atomic(self.path, "wb" if parquet else "w", **({} if parquet else {"newline": ""}))
+            packed = _PACK.get(self.path.suffix.lower())  # estimates.csv.gz: a gzip-compressed CSV
+            binary = parquet or packed
+            self._ctx = open_atomic(self.path, "wb" if binary else "w", **({} if binary else {"newline": ""}))
             self._fh = self._ctx.__enter__()
+            if packed:
+                import io
+
+                self._fh = self._packed = io.TextIOWrapper(packed(self._fh), encoding="utf-8", newline="")
             self._is_parquet = parquet
         return self
 
     def __exit__(self, *exc):
         if self._parquet is not None:
             self._parquet.close()
+        if self._packed is not None:
+            self._packed.close()  # the compressed stream's end; the file under it stays open until moved into place
         if self._ctx is not None:
             self._ctx.__exit__(*exc)
         return False
@@ -1198,7 +1340,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         outdir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
-    targets = [outdir / (Path(p).stem + suffix) for p in paths]
+    targets = [outdir / (_log_stem(p) + suffix) for p in paths]
     first = {}
     for i, t in enumerate(targets):
         j = first.setdefault(t, i)

@@ -26,8 +26,8 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    keeps changing (the stretches average fewer than :data:`STEADY_PERIODS` periods: a rate
    that drifts, arrivals that straddle half a tick), or a sensor arrives faster than the table
    reads it (a 3.3 Hz GPS into a 3 Hz table: no periodic gain is there for the extra readings),
-   no periodic gain is the right one for long: the log then runs the Kalman filter of the table's model with each tick's gain from
-   the covariance recursion over the readings as they arrive
+   no periodic gain is the right one for long: the log then runs the Kalman filter of the
+   table's model with each tick's gain from the covariance recursion over the readings as they arrive
    (:class:`cfdesign.runtime.arrivals.ArrivalKalman`), which converges to the periodic gains
    wherever the pattern holds still.
 """

@@ -91,7 +91,7 @@ def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, tmp_path
     gps[fix] = x[fix, 0] + 2.0 * np.random.default_rng(4).standard_normal(len(fix))
     pd.DataFrame({"time": np.arange(12_000) * 0.01, "accelerometer": readings["accelerometer"], "gps": gps,
                   "truth": x[:, 0]}).to_csv(tmp_path / "fast.csv", index=False)
-    code, out, err = cli("run", table.save(tmp_path / "g.json"), tmp_path / "fast.csv", "-o", tmp_path / "e.csv")
+    code, _, err = cli("run", table.save(tmp_path / "g.json"), tmp_path / "fast.csv", "-o", tmp_path / "e.csv")
     assert code == 0 and "gps arrives at 3.297 Hz but the table reads it at 3 Hz: every reading is used" in err
     assert "not used" not in err
     est = pd.read_csv(tmp_path / "e.csv")["position"].to_numpy()
@@ -399,9 +399,11 @@ def test_bad_logs_one_line_exit_2_nothing_written(name, tmp_path, cli):
 
 
 BAD_OPTIONS = {  # each ran without a word: the filter on the wrong readings, or a reference lost
-    "a column for two sensors": (["--map", "gyro=gz", "--map", "compass=gz"], "column 'gz' is given to sensors gyro and compass"),
+    "a column for two sensors": (["--map", "gyro=gz", "--map", "compass=gz"],
+                                 "column 'gz' is given to sensors gyro and compass"),
     "a sensor's own column taken": (["--map", "compass=gyro"], "column 'gyro' is given to sensors gyro and compass"),
-    "a sensor mapped twice": (["--map", "gyro=gz", "--map", "gyro=gyro"], "--map gyro is given twice ('gz' and 'gyro')"),
+    "a sensor mapped twice": (["--map", "gyro=gz", "--map", "gyro=gyro"],
+                              "--map gyro is given twice ('gz' and 'gyro')"),
     "the time as a sensor": (["--map", "gyro=time"], "column 'time' is both the time and sensor gyro"),
     "a sensor as the time": (["--time", "gz", "--map", "gyro=gz"], "column 'gz' is both the time and sensor gyro"),
     "two references of a state": (["--reference", "truth", "--reference", "heading=compass"],
@@ -414,9 +416,84 @@ def test_conflicting_map_time_and_reference_options_are_refused(case, heading, t
     log, _ = heading_log(0, 0, n=300)
     log.assign(gz=log["gyro"]).to_csv(tmp_path / "log.csv", index=False)
     options, message = BAD_OPTIONS[case]
-    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv", *options)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv", *options)
     assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
     assert not (tmp_path / "e.csv").exists()
+
+
+def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
+    """A CSV compressed with gzip, bz2, xz or zip (one file) runs as the plain CSV, whatever its
+    name (a gzip named .csv; a Parquet file named .bin); estimates named .csv.gz are gzip.  Each
+    was an error naming a byte of UTF-8 ('0x8b') or, for .csv.gz output, a plain CSV."""
+    import bz2
+    import gzip
+    import lzma
+    import zipfile
+
+    from cfdesign.cli import _log_paths
+    from cfdesign.logs import _log_stem
+
+    log, _ = heading_log(0, 0, n=1000)
+    text = log.to_csv(index=False).encode()
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    (tmp_path / "gz.csv").write_bytes(gzip.compress(text))
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs/log.csv.bz2").write_bytes(bz2.compress(text))
+    (tmp_path / "logs/log.csv.xz").write_bytes(lzma.compress(text))
+    with zipfile.ZipFile(tmp_path / "logs/log.csv.zip", "w") as z:
+        z.writestr("log.csv", text)
+    log.to_parquet(tmp_path / "parquet.bin")
+    table = heading.save(tmp_path / "g.json")
+    for name in ("gz.csv", "logs/log.csv.bz2", "logs/log.csv.xz", "logs/log.csv.zip", "parquet.bin"):
+        code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "e.csv.gz")
+        assert code == 0, (name, err)
+        with gzip.open(tmp_path / "e.csv.gz", "rt") as fh:
+            assert np.allclose(pd.read_csv(fh)["heading"], expected, rtol=1e-12, atol=1e-15), name
+    assert [p.name for p in _log_paths([str(tmp_path / "logs")])[0]] == ["log.csv.bz2", "log.csv.xz", "log.csv.zip"]
+    assert [_log_stem(p) for p in ("a/flight.csv.gz", "flight.parquet", "f.csv.ZIP")] == ["flight", "flight", "f"]
+
+
+def _zip_of_two(path):
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("a.csv", "time,gyro\n")
+        z.writestr("b.csv", "time,gyro\n")
+
+
+UNREADABLE = {  # each was a traceback (exit 3), or a message naming a byte of UTF-8
+    "utf16.csv": (lambda p: p.write_bytes("time,gyro,compass,odometry\n0,1,2,3\n".encode("utf-16")),
+                  "UTF-16 text; .* save the log as UTF-8"),
+    "latin1.csv": (lambda p: p.write_bytes("time,gyro,compass,odometry,note\n0,1,2,3,caf\xe9\n".encode("latin-1")),
+                   r"not UTF-8 text \(byte e9 at byte 43\); .*save the log as UTF-8"),
+    "binary.dat": (lambda p: p.write_bytes(b"\x00\x01\x02" * 100), "not a text file; cfdesign reads CSV"),
+    "two.zip": (_zip_of_two, "a zip archive of 2 files .*reads a zip that holds one CSV"),
+    "damaged.xlsx": (lambda p: p.write_bytes(b"PK\x03\x04 no archive"), r"\(a damaged zip archive\)"),
+    "cut.csv.gz": (lambda p: p.write_bytes(pytest.importorskip("gzip").compress(
+        ("time,gyro,compass,odometry\n" + "".join(f"{0.2 * k},1,2,3\n" for k in range(30000))).encode())[:30000]),
+        "not a readable log: Compressed file ended"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(UNREADABLE))
+def test_a_file_that_is_not_a_csv_log_is_named_on_one_line(name, heading, tmp_path, cli):
+    make, message = UNREADABLE[name]
+    make(tmp_path / name)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / name, "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert pytest.importorskip("re").search(message, err), err
+
+
+@pytest.mark.parametrize("output", ["-", "e.zip"])
+def test_estimates_to_stdout_or_a_zip_are_refused(output, heading, tmp_path, cli, monkeypatch):
+    """``-o -`` wrote a file named '-', ``-o e.zip`` a plain CSV named .zip."""
+    monkeypatch.chdir(tmp_path)
+    log, _ = heading_log(0, 0, n=300)
+    log.to_csv("log.csv", index=False)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), "log.csv", "-o", output)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and output in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.json", "log.csv"]
 
 
 def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
