@@ -266,7 +266,7 @@ def cmd_run(args) -> int:
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
-    options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
+    options = {"time": args.time, "time_unit": args.time_unit, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
     if args.workers is not None and args.workers < 1:
         raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
@@ -460,6 +460,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                                          "directory or a glob of logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
                                                     "or 't' in any case; without one, each row is one base tick)")
+    p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"], default="s",
+                   help="unit of a numeric time column (default s; ns for the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error (repeatable)")

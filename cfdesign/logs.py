@@ -29,10 +29,13 @@ from .errors import CfdesignError, DataError, OutputError
 from .files import check_distinct, is_dir, not_a_device, open_atomic, write_bytes, write_text
 from .linear import wrap
 
-__all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
+__all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "TIME_UNITS",
+           "BLOCK_ROWS"]
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
+#: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
 MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
 #: rows read, run and written at a time (and ticks run at a time across a gap without rows)
@@ -114,6 +117,7 @@ class _Columns:
     time: str | None
     references: dict       # state -> column
     extra: list            # passed through
+    time_scale: float = 1.0  # seconds per unit of a numeric time column
 
     @property
     def numeric(self) -> list:
@@ -127,7 +131,9 @@ class _Columns:
         return list(dict.fromkeys(self.numeric + self.extra))
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None) -> _Columns:
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit="s") -> _Columns:
+    if time_unit not in TIME_UNITS:
+        raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -159,7 +165,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used])
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], TIME_UNITS[time_unit])
 
 
 def _listed(header, limit=300) -> str:
@@ -186,19 +192,20 @@ def _references(table, reference, header, source) -> dict:
     return out
 
 
-def _numeric(df, columns, source, first_line, time=None):
+def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
     """The columns as float arrays; a cell that is not a number is an error naming its line.
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
     without a time zone is taken as UTC; only differences matter); durations (a timedelta
-    column) become seconds."""
+    column) become seconds.  Numbers in the ``time`` column are multiplied by ``time_scale``
+    (seconds per unit: milliseconds, nanoseconds ...)."""
     pd = _pandas()
     out = {}
     for c in columns:
         s = df[c]
         if s.dtype.kind in "fiub":
-            out[c] = s.to_numpy(dtype=float)
+            out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
             out[c] = _epoch_seconds(s)
@@ -219,7 +226,7 @@ def _numeric(df, columns, source, first_line, time=None):
         if len(bad):
             what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
             raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is {what}: {s.iloc[bad[0]]!r}")
-        out[c] = values.to_numpy(dtype=float)
+        out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
 
 
@@ -576,7 +583,7 @@ class _Pass:
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
             prediction=False, plot=None, start="reading", block_rows=None, progress=False,
-            source=None) -> LogResult:
+            source=None, time_unit="s") -> LogResult:
     """Run a discrete gain table on a timestamped log (module docstring).
 
     Parameters
@@ -612,6 +619,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         A progress bar on stderr for long logs.
     source : str, optional
         The log's name in messages.
+    time_unit : {'s', 'ms', 'us', 'ns'}
+        The unit of a numeric time column (:data:`TIME_UNITS`): ``'ns'`` for the integer
+        nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Dates and durations are
+        read as they are.
 
     Returns
     -------
@@ -644,7 +655,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
-    cols = _columns(table, header, source, time, mapping, reference)
+    cols = _columns(table, header, source, time, mapping, reference, time_unit)
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
@@ -672,7 +683,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, 2 + place.rows, cols.time)
+            values = _numeric(block, cols.numeric, source, 2 + place.rows, cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -688,7 +699,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
             from .plot import figure_bytes
 
-            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, time_unit), plot))
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
                      _time_note(cols) + lock.notes, Path(output) if output else None, source)
 
@@ -800,9 +811,9 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          2 + place.rows, cols.time)
+                          2 + place.rows, cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
-            _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source)
+            _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
         first_line = 2 + place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
@@ -825,11 +836,12 @@ def _lock(table, blocks, cols, source, types=False):
     return lock, place.rows, schemas or None
 
 
-def _check_float32_time(t, name, dt, source):
-    """A float32 time column must resolve a tenth of a tick (at 1.7e9 s, Unix time, its steps are 128 s)."""
+def _check_float32_time(t, name, dt, source, scale=1.0):
+    """A float32 time column (``t`` in seconds, ``scale`` seconds a unit of the column) must resolve
+    a tenth of a tick (at 1.7e9 s, Unix time, its steps are 128 s)."""
     finite = np.abs(t[np.isfinite(t)])
     if finite.size:
-        step = float(np.spacing(np.float32(finite.max())))
+        step = float(np.spacing(np.float32(finite.max() / scale))) * scale
         if step > dt / 10:
             raise DataError(f"{source}: the time column {name!r} is float32, whose steps at {finite.max():.6g} s are "
                             f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
@@ -1217,7 +1229,7 @@ def _progress(total, show):
 
 
 # ---------------------------------------------------------------------------- plots
-def plot_log(table, estimates, references=None, time=None):
+def plot_log(table, estimates, references=None, time=None, time_unit="s"):
     """Every state over time with its predicted +-2 sigma band; against its reference where given.
 
     Parameters
@@ -1231,6 +1243,8 @@ def plot_log(table, estimates, references=None, time=None):
         ``{state: column}``: these states get a panel of the error inside the +-2 sigma band.
     time : str, optional
         The time column (else the row number is the x axis).
+    time_unit : {'s', 'ms', 'us', 'ns'}
+        The unit of a numeric time column (:data:`TIME_UNITS`); the axis is in seconds.
 
     Returns
     -------
@@ -1242,7 +1256,7 @@ def plot_log(table, estimates, references=None, time=None):
     refs = references or {}
     rows = sum(2 if s in refs else 1 for s in table.states)
     fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
-    x, xlabel = _time_axis(estimates, time)
+    x, xlabel = _time_axis(estimates, time, TIME_UNITS[time_unit])
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
     units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
@@ -1275,12 +1289,15 @@ def plot_log(table, estimates, references=None, time=None):
     return fig
 
 
-def _time_axis(estimates, time):
-    """``(x, label)``: the time column in seconds (dates as seconds after the first row), or the
-    row number."""
+def _time_axis(estimates, time, scale=1.0):
+    """``(x, label)``: the time column in seconds (``scale`` seconds a unit; dates as seconds after
+    the first row), or the row number."""
     if not time:
         return np.arange(len(estimates)), "row"
     col = estimates[time]
+    if col.dtype.kind in "fiu" and scale != 1.0:  # nanoseconds since 1970: seconds from the first row
+        raw = col.to_numpy()  # whole numbers subtracted before they become floats: exact
+        return (raw - raw[0]).astype(float) * scale, f"{time} (s after the first row)"
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=float), f"{time} (s)"
     x = _numeric(estimates, [time], "estimates", 2, time)[time]

@@ -221,9 +221,14 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
     if gap.size:
         i = gap[0] + 1
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {float(d[gap[0]]):.6g} s after the "
+        step = float(d[gap[0]])  # one to ten ticks in micro- or nanoseconds (ROS's %time), not a gap
+        unit = next((f"times in {name}? They are read as seconds unless --time-unit {short} is given"
+                     for name, short, scale in _TIME_UNITS[1:]
+                     if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
+                    "are the times in seconds? Split the log at the gap")
+        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {step:.6g} s after the "
                         f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
-                        "tick): are the times in seconds? Split the log at the gap")
+                        f"tick): {unit}")
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)
@@ -271,14 +276,14 @@ def check_rate(t, dt, source):
     ticks = max(float(np.rint(span / unit)), 1.0)
     spacing = span / ticks
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
-        unit = next((f" (times in {name}? they must be seconds)" for name, scale in _TIME_UNITS
-                     if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
+        unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
+                     for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
         raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "
                         f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate{unit}")
 
 
 #: time units a log may have written instead of seconds, named in the message of a rate that is off by their scale
-_TIME_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
+_TIME_UNITS = (("milliseconds", "ms", 1e3), ("microseconds", "us", 1e6), ("nanoseconds", "ns", 1e9))
 
 
 @dataclass(frozen=True)

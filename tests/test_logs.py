@@ -241,6 +241,34 @@ def test_durations_as_times_run_as_seconds(heading, tmp_path):
         assert got["time"].dtype.kind == "m"  # written as the log had it
 
 
+def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_path, cli):
+    """The integer nanoseconds since 1970 of a ROS ``rostopic echo -p`` export (``%time``) run with
+    ``--time-unit ns`` as the seconds do, the column written as it was; without it, the error
+    names nanoseconds (it asked 'are the times in seconds?' of a 'gap' of 1e7 s); milliseconds
+    in Python with ``time_unit='ms'``."""
+    from cfdesign.logs import _time_axis
+
+    log, _ = heading_log(0, 0, n=1000, jitter=0.0)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    ns = log.drop(columns="time")
+    ns.insert(0, "%time", 1_700_000_000_000_000_000 + np.arange(1000, dtype=np.int64) * 10_000_000)
+    ns.to_csv(tmp_path / "ros.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time")
+    assert code == 2 and "times in nanoseconds? They are read as seconds unless --time-unit ns is given" in err
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time",
+                       "--time-unit", "ns")
+    assert code == 0, err
+    est = pd.read_csv(tmp_path / "e.csv")
+    assert np.allclose(_time_axis(est, "%time", 1e-9)[0][:3], [0.0, 0.01, 0.02])  # the plot's axis: seconds
+    assert np.allclose(est["heading"], expected, rtol=0, atol=1e-12)
+    assert np.array_equal(est["%time"], ns["%time"])  # as the log had it
+    ms = log.assign(time=(log["time"] * 1000).round().astype(np.int64))
+    assert np.allclose(run_log(heading, ms, time_unit="ms").estimates["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(CfdesignError, match="time unit 'min' is none of s, ms, us, ns"):
+        run_log(heading, ms, time_unit="min")
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
@@ -377,7 +405,8 @@ BAD_LOGS = {
     "rate.csv": ("time,gyro,compass,odometry\n" + "".join(f"{0.1 * k},1,2,3\n" for k in range(5)),
                  "base rate is 10 Hz .* the table runs at 5 Hz; a gain table is designed for one rate$"),
     "ms.csv": ("time,gyro,compass,odometry\n" + "".join(f"{200 * k},1,2,3\n" for k in range(5)),
-               r"base rate is 0\.005 Hz .* \(times in milliseconds\? they must be seconds\)"),
+               r"base rate is 0\.005 Hz .* \(times in milliseconds\? they are read as seconds unless "
+               r"--time-unit ms is given\)"),
     "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
     "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
     "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
