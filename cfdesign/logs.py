@@ -118,6 +118,7 @@ class _Columns:
     references: dict       # state -> column
     extra: list            # passed through
     time_scale: float = 1.0  # seconds per unit of a numeric time column
+    first_line: int = 2      # the file line of the first row (after the header and the comments before it)
 
     @property
     def numeric(self) -> list:
@@ -131,7 +132,8 @@ class _Columns:
         return list(dict.fromkeys(self.numeric + self.extra))
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit="s") -> _Columns:
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit="s",
+             first_line=2) -> _Columns:
     if time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
     header = [str(h).strip() for h in header]
@@ -165,7 +167,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used], TIME_UNITS[time_unit])
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], TIME_UNITS[time_unit], first_line)
 
 
 def _listed(header, limit=300) -> str:
@@ -362,11 +364,13 @@ def read_log(path, columns=None, *, chunksize=None):
     try:
         if kind == "parquet":
             return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
+        fmt = _csv_format(path, kind)
+        hashed = fmt.pop("_hashed", False)
         reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, compression=None if kind == "csv" else kind, **_csv_format(path, kind))
+                             low_memory=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
-            return _csv_blocks(path, reader, columns)
-        return _stripped(reader, columns)
+            return _csv_blocks(path, reader, columns, hashed)
+        return _stripped(reader, columns, hashed)
     except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
             *_unpack_errors()) as exc:
         raise _read_error(path, exc) from None
@@ -395,15 +399,27 @@ def _read_error(path, exc) -> DataError:
     return DataError(f"{path}: not a readable log: {_first_line(exc)}")
 
 
+#: most comment lines before a CSV's header (``# logged by ...``) that are skipped
+COMMENT_LINES = 1000
+
+
 def _csv_format(path, kind="csv") -> dict:
-    """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
+    """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
     has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
     of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
-    A file whose first 64 kB hold a NUL byte is not text (UTF-16, a spreadsheet, a binary log):
-    a DataError says so."""
+    Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
+    the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
+    ``# time,gyro``) and ``_hashed`` says so.  A file whose first 64 kB hold a NUL byte is not
+    text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
     try:
         with _open_csv(path, kind) as fh:
+            skipped, comment = 0, None
             line = fh.readline(1 << 16)
+            while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
+                                               or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
+                comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
+                skipped += 1
+                line = fh.readline(1 << 16)
             rows = fh.read(1 << 16)
     except DataError:
         raise
@@ -413,30 +429,49 @@ def _csv_format(path, kind="csv") -> dict:
         what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
         raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
                         + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
+    out = {"skiprows": skipped} if skipped else {}
+    if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
+        out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
+        rows, line = line + rows, comment
     if b"," in line:
-        return {}
+        return out
     sep = ";" if b";" in line else "\t" if b"\t" in line else None
     if sep is None:
-        return {}
+        return out
     cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % ((re.escape(sep.encode()),) * 2)
-    return {"sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {"sep": sep}
+    return {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
 
 
-def _column_name(i: int, name) -> str:
+def _numbers(line, header) -> bool:
+    """Whether a CSV line is a row of numbers (or empty cells), split as its ``header`` line is."""
+    sep = b"," if b"," in header else b";" if b";" in header else b"\t" if b"\t" in header else b","
+    try:
+        for cell in line.strip().split(sep):
+            cell = cell.strip(b' "')
+            if cell:
+                float(cell.replace(b",", b"."))
+    except ValueError:
+        return False
+    return bool(line.strip())
+
+
+def _column_name(i: int, name, hashed=False) -> str:
     """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
     name) when nothing is left.  The one rule for the header read as written and for pandas'
     frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
-    other, and its lookup raised KeyError (an internal error)."""
-    return str(name).strip() or f"Unnamed: {i}"
+    other, and its lookup raised KeyError (an internal error).  A ``hashed`` header (``# time,gyro``)
+    loses the ``#`` of its first name."""
+    name = str(name).strip()
+    return (name.lstrip("#").strip() if hashed and i == 0 else name) or f"Unnamed: {i}"
 
 
-def _stripped(frame, columns=None):
+def _stripped(frame, columns=None, hashed=False):
     """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
-    frame.columns = [_column_name(i, c) for i, c in enumerate(frame.columns)]
+    frame.columns = [_column_name(i, c, hashed) for i, c in enumerate(frame.columns)]
     return frame if columns is None else frame[list(columns)]
 
 
-def _csv_blocks(path, reader, columns):
+def _csv_blocks(path, reader, columns, hashed=False):
     """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too."""
     pd = _pandas()
     with reader:
@@ -447,7 +482,7 @@ def _csv_blocks(path, reader, columns):
                 return
             except (pd.errors.ParserError, UnicodeDecodeError, ValueError, OSError, *_unpack_errors()) as exc:
                 raise _read_error(path, exc) from None
-            yield _stripped(block, columns)
+            yield _stripped(block, columns, hashed)
 
 
 def _first_line(exc) -> str:
@@ -460,6 +495,12 @@ def _parquet_blocks(path, columns, rows):
     with pq.ParquetFile(path) as f:
         for batch in f.iter_batches(batch_size=rows, columns=columns):
             yield batch.to_pandas()
+
+
+def _first_row_line(path) -> int:
+    """The file line of a log's first row: 2, after the comment lines of a CSV."""
+    kind = _kind(path)
+    return 2 if kind == "parquet" else 2 + _csv_format(path, kind).get("skiprows", 0)
 
 
 def _header(path) -> list:
@@ -475,15 +516,17 @@ def _header(path) -> list:
             return list(pq.read_schema(path).names)
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
-    sep = _csv_format(path, kind).get("sep", ",")
+    fmt = _csv_format(path, kind)
     try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
         with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
-            header = next(csv.reader(fh, delimiter=sep), None)
+            for _ in range(fmt.get("skiprows", 0)):
+                fh.readline()
+            header = next(csv.reader(fh, delimiter=fmt.get("sep", ",")), None)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
     if not header:
         raise _read_error(path, pd.errors.EmptyDataError())
-    return [_column_name(i, h) for i, h in enumerate(header)]
+    return [_column_name(i, h, fmt.get("_hashed", False)) for i, h in enumerate(header)]
 
 
 def read_columns(path, columns, time=None) -> dict:
@@ -518,7 +561,7 @@ def read_columns(path, columns, time=None) -> dict:
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
-    return _numeric(read_log(path, wanted), wanted, path, 2, time=time)
+    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time)
 
 
 # ---------------------------------------------------------------------------- the run
@@ -552,7 +595,7 @@ class _Pass:
                 self.t0 = grid_origin(first, self.table.sample_time_s) if first.size else t[0]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  first_line=2 + self.rows - len(tail_t),
+                  first_line=self.cols.first_line + self.rows - len(tail_t),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
             self._sample(t[base])
             # a reading logged before the first input row is used at tick 0
@@ -655,7 +698,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
-    cols = _columns(table, header, source, time, mapping, reference, time_unit)
+    cols = _columns(table, header, source, time, mapping, reference, time_unit,
+                    2 if frame is not None else _first_row_line(data))
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
@@ -683,7 +727,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, 2 + place.rows, cols.time, cols.time_scale)
+            values = _numeric(block, cols.numeric, source, cols.first_line + place.rows, cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -811,10 +855,10 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          2 + place.rows, cols.time, cols.time_scale)
+                          cols.first_line + place.rows, cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
             _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
-        first_line = 2 + place.rows
+        first_line = cols.first_line + place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])

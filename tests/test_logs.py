@@ -269,6 +269,27 @@ def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_p
         run_log(heading, ms, time_unit="min")
 
 
+def test_comment_lines_before_the_header_and_numpy_savetxt_headers(heading, tmp_path, cli):
+    """Lines starting with '#' (and blank lines) before the header are skipped, and the header of
+    ``numpy.savetxt`` (``# time,gyro,...`` over rows of numbers) is the header; messages name the
+    file's own lines.  Both were 'missing column(s) ... (columns: # logged by ...)'."""
+    log, _ = heading_log(0, 0, n=500)
+    log = log.drop(columns="lap")
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    table = heading.save(tmp_path / "g.json")
+    (tmp_path / "comments.csv").write_text("# logged by robot 7\n\n# 100 Hz\n" + log.to_csv(index=False))
+    np.savetxt(tmp_path / "savetxt.csv", log.to_numpy(), delimiter=";", header="run 3\n" + ";".join(log.columns))
+    for name in ("comments.csv", "savetxt.csv"):
+        code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "e.csv")
+        assert code == 0, err
+        assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12)
+    text = (tmp_path / "comments.csv").read_text().splitlines()
+    text[10] = "0.07x" + text[10][text[10].index(","):]  # line 11 of the file
+    (tmp_path / "bad.csv").write_text("\n".join(text) + "\n")
+    code, _, err = cli("run", table, tmp_path / "bad.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "bad.csv line 11: column 'time' is neither a number" in err, err
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
