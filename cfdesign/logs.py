@@ -571,6 +571,7 @@ class _Pass:
     def __init__(self, table, cols, source):
         self.table, self.cols, self.source = table, cols, source
         self.t0 = None
+        self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
@@ -582,24 +583,25 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import grid_origin, nearest_tick, place
+            from .timing import grid_fit, nearest_tick, place
 
             t = values[self.cols.time]
             read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
             base = np.ones(n, dtype=bool)
             for s in self.table.inputs:
                 base &= read[s.name]
-            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
-                # the grid of the first such rows (not its own jittered time)
-                first = t[base]
-                self.t0 = grid_origin(first, self.table.sample_time_s) if first.size else t[0]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
                   first_line=self.cols.first_line + self.rows - len(tail_t),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
+            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
+                # the grid of the first block's such rows (not its own jittered time; timing.grid_fit)
+                first = t[base]
+                self.t0, self.spacing = (grid_fit(first, self.table.sample_time_s) if first.size
+                                         else (t[0], self.spacing))
             self._sample(t[base])
             # a reading logged before the first input row is used at tick 0
-            ticks = np.maximum(nearest_tick((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
+            ticks = np.maximum(nearest_tick((t - self.t0) / self.spacing), 0).astype(np.int64)
             if n:
                 last = t == t[-1]
                 if last.all() and len(tail_t) and tail_t[-1] == t[-1]:  # a block all at the tail's time

@@ -5,10 +5,11 @@ phases at which each measurement sensor is read.  A log says when each reading h
 steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 ``docs/logs.md``):
 
-1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``
-   (:func:`nearest_tick`: halves up),
-   ``t0`` the time of the log's first row where the input sensors read (the base clock; a
-   reading logged before it is used at tick 0): the nearest tick, so a reading is used at most ``T/2`` before
+1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / S)``
+   (:func:`nearest_tick`: halves up), ``S`` the table's tick ``T`` or, when the log's clock
+   drifts against it, the log's own (:func:`grid_fit`), ``t0`` the time of the log's first row
+   where the input sensors read (the base clock; a reading logged before it is used at tick 0)
+   moved to the phase of the grid: the nearest tick, so a reading is used at most ``T/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
    does not move it).  Times must be finite and increasing (rows at one time read different
    sensors), and the rate of the input sensors' rows must be the table's base rate within 1 %.
@@ -41,8 +42,8 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "MAX_GAP_TICKS", "date_seconds",
-           "nearest_tick", "grid_origin", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "MAX_GAP_TICKS",
+           "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -154,6 +155,100 @@ def grid_origin(time, dt: float) -> float:
     p = (t[:PHASE_ROWS] - t[0]) / dt
     phase = float(np.angle(np.mean(np.exp(2j * np.pi * (p - np.rint(p)))))) / (2 * np.pi)  # (-1/2, 1/2]
     return float(t[0] + phase * dt)
+
+
+#: rows whose phases give the shortest arc that holds them (:func:`grid_fit`): enough that the
+#: empty arc of bounded jitter (0.02 tick for +-0.49 tick) is longer than the gaps between phases
+ARC_ROWS = 10_000
+#: rows over which a step is measured for a log's own spacing (:func:`grid_fit`)
+DRIFT_LAG = 100
+
+
+def grid_fit(time, dt: float) -> tuple:
+    """The tick grid of a log's base-rate rows: ``(origin, spacing)``, rows placed on
+    ``nearest_tick((t - origin) / spacing)``.
+
+    Two things move rows of a steady clock onto their neighbours' ticks when the grid is the
+    table's ``dt`` from :func:`grid_origin`.  A log clock that drifts against the table (a rate
+    0.5 % off, within the :data:`RATE_RTOL` that :func:`check_rate` allows) gains a tick every
+    200: two rows on one tick (the second reading of the input not used) or a tick without one.
+    And time-stamp jitter that spans most of a tick (uniform within +-0.49 tick, or a delay of
+    0 to 0.9 tick when the stamp is the time of receipt) leaves the circular mean of the phases
+    almost undetermined: one input row in four of such a log shared a tick.  So:
+
+    * the spacing is, of ``dt`` and the log's own, the one that puts fewer rows on a shared
+      tick or skips fewer ticks between rows (``dt`` on a tie: a log on the table's clock is
+      placed on the table's ticks).  The log's own is the median step over
+      :data:`DRIFT_LAG` rows (a dropped row moves few of them), refined by the least-squares
+      slope of the times over the ticks it puts them on;
+    * the origin is, of the circular mean of the phases (:func:`grid_origin`) and the middle of
+      the shortest arc that holds the phases of the first :data:`ARC_ROWS` rows (the centre of
+      bounded jitter), the one that puts fewer of the rows on a shared tick (the circular mean
+      on a tie).
+
+    A rate beyond :func:`check_rate`'s tolerance keeps ``dt`` (the log is refused there).
+
+    Parameters
+    ----------
+    time : array_like
+        Times (s) of the rows where the input sensors read, ascending, at least one (the first
+        block of a log: up to a million).
+    dt : float
+        The table's base tick (s).
+
+    Returns
+    -------
+    tuple of float
+        ``(origin, spacing)`` in seconds.
+
+    Examples
+    --------
+    >>> t = 0.2 + 1.005 * np.arange(1000)              # a clock 0.5 % slow against a 1 s tick
+    >>> origin, spacing = grid_fit(t, 1.0)
+    >>> round(origin, 9), round(spacing, 9)
+    (0.2, 1.005)
+    """
+    t = np.asarray(time, dtype=float)
+    fits = [(dt, _phase_origin(t, dt))]
+    lag = min(DRIFT_LAG, len(t) // 4)
+    if lag >= 2:
+        # the median step over `lag` rows (a dropped row moves few of them), then the least-squares
+        # slope of the times over the ticks it puts them on, twice
+        spacing = float(np.median(t[lag:] - t[:-lag])) / lag
+        for _ in range(3):
+            if not abs(spacing / dt - 1) <= 2 * RATE_RTOL:
+                break
+            k = nearest_tick((t - _phase_origin(t, spacing)) / spacing)
+            spacing = float(np.polyfit(k, t, 1)[0]) if k[-1] > k[0] else dt
+        if abs(spacing / dt - 1) <= RATE_RTOL:
+            fits.append((spacing, _phase_origin(t, spacing)))
+    # the grid that puts the rows one a tick: fewest rows sharing a tick or ticks skipped (dt on a tie)
+    spacing, origin = min(fits, key=lambda f: _irregular(t, f[1], f[0]))[:2]
+    return origin, spacing
+
+
+def _irregular(t, origin, spacing) -> int:
+    """Rows that share a tick, and ticks skipped between rows, on a grid."""
+    return int(np.sum(np.abs(np.diff(nearest_tick((t - origin) / spacing)) - 1)))
+
+
+def _phase_origin(t, spacing):
+    """Of the circular mean of the first rows' phases and the middle of the shortest arc that
+    holds them, the origin that leaves fewer rows on a shared tick (:func:`grid_fit`)."""
+    mean = grid_origin(t, spacing)
+    p = np.sort(((t[:ARC_ROWS] - t[0]) / spacing) % 1.0)
+    if len(p) < 2:
+        return mean
+    gaps = np.diff(np.concatenate([p, [p[0] + 1.0]]))
+    i = int(np.argmax(gaps))  # the arc from p[i+1] round to p[i] holds every phase
+    middle = (p[(i + 1) % len(p)] + (1.0 - gaps[i]) / 2) % 1.0
+    arc = float(t[0] + (middle - np.rint(middle)) * spacing)
+
+    def shared(origin):
+        k = nearest_tick((t - origin) / spacing)
+        return int(np.sum(np.diff(k) == 0))
+
+    return arc if shared(arc) < shared(mean) else mean
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
