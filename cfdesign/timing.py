@@ -43,7 +43,8 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "MAX_GAP_TICKS",
-           "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+           "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock",
+           "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
