@@ -42,9 +42,9 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "MAX_GAP_TICKS",
-           "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock",
-           "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
+           "MAX_GAP_TICKS", "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate",
+           "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -163,6 +163,8 @@ def grid_origin(time, dt: float) -> float:
 ARC_ROWS = 10_000
 #: rows over which a step is measured for a log's own spacing (:func:`grid_fit`)
 DRIFT_LAG = 100
+#: the first rows of a log its grid is fitted to (:func:`grid_fit`: 200 ppm of drift shows as 40 ticks)
+FIT_ROWS = 200_000
 
 
 def grid_fit(time, dt: float) -> tuple:
@@ -193,7 +195,7 @@ def grid_fit(time, dt: float) -> tuple:
     ----------
     time : array_like
         Times (s) of the rows where the input sensors read, ascending, at least one (the first
-        block of a log: up to a million).
+        :data:`FIT_ROWS` are used).
     dt : float
         The table's base tick (s).
 
@@ -209,7 +211,7 @@ def grid_fit(time, dt: float) -> tuple:
     >>> round(origin, 9), round(spacing, 9)
     (0.2, 1.005)
     """
-    t = np.asarray(time, dtype=float)
+    t = np.asarray(time, dtype=float)[:FIT_ROWS]
     fits = [(dt, _phase_origin(t, dt))]
     lag = min(DRIFT_LAG, len(t) // 4)
     if lag >= 2:
@@ -220,7 +222,8 @@ def grid_fit(time, dt: float) -> tuple:
             if not abs(spacing / dt - 1) <= 2 * RATE_RTOL:
                 break
             k = nearest_tick((t - _phase_origin(t, spacing)) / spacing)
-            spacing = float(np.polyfit(k, t, 1)[0]) if k[-1] > k[0] else dt
+            k -= k.mean()
+            spacing = float(k @ (t - t[0]) / (k @ k)) if k[-1] > k[0] else dt
         if abs(spacing / dt - 1) <= RATE_RTOL:
             fits.append((spacing, _phase_origin(t, spacing)))
     # the grid that puts the rows one a tick: fewest rows sharing a tick or ticks skipped (dt on a tie)
