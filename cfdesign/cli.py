@@ -460,8 +460,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                                          "directory or a glob of logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
                                                     "or 't' in any case; without one, each row is one base tick)")
-    p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"], default="s",
-                   help="unit of a numeric time column (default s; ns for the %%time of a ROS rostopic echo -p export)")
+    p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
+                   help="unit of a numeric time column (default: the one its name gives, 'time [ms]', else s; ns for "
+                        "the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error (repeatable)")

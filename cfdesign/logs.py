@@ -117,8 +117,13 @@ class _Columns:
     time: str | None
     references: dict       # state -> column
     extra: list            # passed through
-    time_scale: float = 1.0  # seconds per unit of a numeric time column
+    time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
     first_line: int = 2      # the file line of the first row (after the header and the comments before it)
+
+    @property
+    def time_scale(self) -> float:
+        """Seconds per unit of a numeric time column."""
+        return TIME_UNITS[self.time_unit]
 
     @property
     def numeric(self) -> list:
@@ -132,9 +137,26 @@ class _Columns:
         return list(dict.fromkeys(self.numeric + self.extra))
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit="s",
+#: how a time column's name may write its unit (``time [sec]``, ``t (µs)``)
+_UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
+               **{w: "ms" for w in ("ms", "msec", "millisecond", "milliseconds")},
+               **{w: "us" for w in ("us", "\u00b5s", "\u03bcs", "usec", "microsecond", "microseconds")},
+               **{w: "ns" for w in ("ns", "nsec", "nanosecond", "nanoseconds")}}
+
+
+def _unit(name) -> tuple:
+    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``), else ``(name, None)``;
+    a unit of time as :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
+    m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
+    if not (m and m.group(1)):
+        return name, None
+    unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
+    return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
              first_line=2) -> _Columns:
-    if time_unit not in TIME_UNITS:
+    if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
@@ -148,13 +170,23 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
+        # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
+        like = [(s, h) for s, c in sensors.items() if c not in header and s not in mapping
+                for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()]
+        hint = " ".join(f'--map "{s}={h}"' for s, h in like)
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
-                        "name them as the table's sensors or map them with --map SENSOR=COLUMN")
-    if time is None:  # 'time' or 't', else in another case ('Time', 'T')
+                        + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                           "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
+    if time is None:  # 'time' or 't', else in another case ('Time', 'T'), else with a unit ('time [ms]')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
-            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None)
+            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
+            (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
+    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
+    if named in TIME_UNITS and time_unit not in (None, named):
+        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
+    time_unit = time_unit or (named if named in TIME_UNITS else "s")
     shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
     shared = {c: names for c, names in shared.items() if len(names) > 1}
     if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
@@ -167,7 +199,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used], TIME_UNITS[time_unit], first_line)
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, first_line)
 
 
 def _listed(header, limit=300) -> str:
@@ -628,7 +660,7 @@ class _Pass:
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
             prediction=False, plot=None, start="reading", block_rows=None, progress=False,
-            source=None, time_unit="s") -> LogResult:
+            source=None, time_unit=None) -> LogResult:
     """Run a discrete gain table on a timestamped log (module docstring).
 
     Parameters
@@ -664,9 +696,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         A progress bar on stderr for long logs.
     source : str, optional
         The log's name in messages.
-    time_unit : {'s', 'ms', 'us', 'ns'}
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
         The unit of a numeric time column (:data:`TIME_UNITS`): ``'ns'`` for the integer
-        nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Dates and durations are
+        nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Default: the unit the
+        column's name gives (``time [ms]``, ``t (us)``), else seconds.  Dates and durations are
         read as they are.
 
     Returns
@@ -745,7 +778,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
             from .plot import figure_bytes
 
-            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, time_unit), plot))
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
                      _time_note(cols) + lock.notes, Path(output) if output else None, source)
 

@@ -297,9 +297,10 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if not t.size:
         return np.zeros(0, dtype=np.int64)
     bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise DataError(f"{source} line {first_line + bad[0]}: time {float(t[bad[0]])!r} is not a finite number "
-                        "of seconds")
+    if bad.size:  # an empty cell is NaN: say so (a spreadsheet's rows of empty cells below the data)
+        raise DataError(f"{source} line {first_line + bad[0]}: " + (
+            "no time (an empty cell; every row needs one)" if np.isnan(t[bad[0]])
+            else f"time {float(t[bad[0]])!r} is not a finite number of seconds"))
     d = np.diff(t)
     back = np.flatnonzero(d < 0) if readings is not None else np.flatnonzero(d <= 0)
     if readings is not None:  # a repeated time is a duplicate when a sensor reads twice at it

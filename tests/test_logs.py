@@ -290,6 +290,26 @@ def test_comment_lines_before_the_header_and_numpy_savetxt_headers(heading, tmp_
     assert code == 2 and "bad.csv line 11: column 'time' is neither a number" in err, err
 
 
+def test_columns_named_with_their_units(heading, tmp_path, cli):
+    """A time column named with its unit (``Time (ms)``, ``t [sec]``) is the time, in that unit (it
+    was no time column: every row one tick); a sensor's column named with a unit is not taken in
+    silence (its unit may not be the table's): the error gives the --map that takes it."""
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    ms = log.assign(time=(log["time"] * 1000).round(3)).rename(columns={"time": "Time (ms)"})
+    assert np.allclose(run_log(heading, ms).estimates["heading"], expected, rtol=0, atol=1e-12)
+    assert np.allclose(run_log(heading, log.rename(columns={"time": "t [sec]"})).estimates["heading"], expected,
+                       rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match=r"the time column 'Time \(ms\)' is in ms, but the time unit given is s"):
+        run_log(heading, ms, time_unit="s")
+    log.rename(columns={"gyro": "gyro [rad/s]"}).to_csv(tmp_path / "units.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "mapped where it is the table's: --map \"gyro=gyro [rad/s]\"" in err, err
+    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv", "--map", "gyro=gyro [rad/s]")
+    assert code == 0, err
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
@@ -452,7 +472,9 @@ BAD_LOGS = {
                r"--time-unit ms is given\)"),
     "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
     "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
-    "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
+    "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n",
+                r"line 3: no time \(an empty cell; every row needs one\)"),
+    "inf.csv": ("time,gyro,compass,odometry\n0,1,2,3\ninf,1,2,3\n", "line 3: time inf is not a finite number"),
     "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
 }
 
