@@ -529,6 +529,41 @@ def _parquet_blocks(path, columns, rows):
             yield batch.to_pandas()
 
 
+def _pipe(path) -> bool:
+    """Whether ``path`` is a pipe or a socket (``/dev/stdin`` of ``cat log.csv |``, ``<(zcat log.gz)``)."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError, TypeError):
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
+
+
+def _spooled(path, source):
+    """A context giving a temporary copy of a pipe's log (its header is read before its rows, and
+    a pipe gives its bytes once: the first data row became the header, 'duplicate column(s) 0.5')."""
+    import contextlib
+    import shutil
+    import tempfile
+
+    @contextlib.contextmanager
+    def copy():
+        with tempfile.TemporaryDirectory(prefix="cfdesign-log-") as folder:
+            target = Path(folder) / "log"
+            try:
+                with open(path, "rb") as src, open(target, "wb") as dst:
+                    shutil.copyfileobj(src, dst, 1 << 20)
+            except OSError as exc:
+                raise DataError(f"cannot read {source}: {exc.strerror or exc}") from None
+            try:
+                yield target
+            except DataError as exc:  # messages name the pipe, not the copy
+                raise DataError(str(exc).replace(str(target), str(source))) from None
+
+    return copy()
+
+
 def _first_row_line(path) -> int:
     """The file line of a log's first row: 2, after the comment lines of a CSV."""
     kind = _kind(path)
@@ -586,6 +621,9 @@ def read_columns(path, columns, time=None) -> dict:
         (naming its line).
     """
     wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
+    if _pipe(path):
+        with _spooled(path, str(path)) as spooled:
+            return read_columns(spooled, columns, time)
     header = _header(path)
     missing = [c for c in wanted if c not in header]
     if missing:
@@ -726,6 +764,11 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     frame, source = _source(data, source, time)
     if frame is None and not_a_device(data):  # /dev/zero: an endless line
         raise DataError(f"cannot read {source}: {not_a_device(data)}")
+    if frame is None and _pipe(data):  # read once into a file: a log is read more than once
+        with _spooled(data, source) as path:
+            return run_log(table, path, output=output, time=time, mapping=mapping, reference=reference, std=std,
+                           prediction=prediction, plot=plot, start=start, block_rows=block_rows, progress=progress,
+                           source=source, time_unit=time_unit)
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})

@@ -548,6 +548,33 @@ def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
     assert [_log_stem(p) for p in ("a/flight.csv.gz", "flight.parquet", "f.csv.ZIP")] == ["flight", "flight", "f"]
 
 
+@pytest.mark.skipif(not Path("/dev/stdin").exists(), reason="needs /dev/stdin")
+def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
+    """``zcat log.csv.gz | cfdesign run g.json /dev/stdin`` (or ``<(zcat log.gz)``): a pipe gives
+    its bytes once, and a log's header is read before its rows - the first row was taken as the
+    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first."""
+    import gzip
+    import os
+
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    data = gzip.compress(log.to_csv(index=False).encode())
+    assert len(data) < 60_000  # all of it in the pipe's buffer: written before the run reads it
+    read, write = os.pipe()
+    os.write(write, data)
+    os.close(write)
+    stdin = os.dup(0)
+    os.dup2(read, 0)
+    try:
+        code, _, err = cli("run", heading.save(tmp_path / "g.json"), "/dev/stdin", "-o", tmp_path / "e.csv")
+    finally:
+        os.dup2(stdin, 0)
+        os.close(stdin)
+        os.close(read)
+    assert code == 0, err
+    assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12)
+
+
 def _zip_of_two(path):
     import zipfile
 
