@@ -262,10 +262,12 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import run_log, run_logs
 
+    if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
+        raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
-    options = {"time": args.time, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
+    options = {"time": args.time, "time_unit": args.time_unit, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
                "reference": args.reference or None, "std": args.std, "prediction": args.prediction}
     if args.workers is not None and args.workers < 1:
         raise CfdesignError(f"--workers must be a positive number of processes, got {args.workers}")
@@ -304,6 +306,10 @@ def cmd_run(args) -> int:
     return 0
 
 
+#: the logs a folder given to ``cfdesign run`` holds (a compressed CSV as well)
+LOG_SUFFIXES = (".csv", ".parquet", ".pq", ".csv.gz", ".csv.bz2", ".csv.xz", ".csv.zip")
+
+
 def _log_paths(items) -> tuple:
     """Files named, globbed or in named directories (CSV and Parquet), in a stable order, and
     whether they are a fleet (several files, or a directory or a glob, whatever it matched)."""
@@ -314,7 +320,8 @@ def _log_paths(items) -> tuple:
     for item in items:
         p = Path(item)
         if is_dir(p):
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in (".csv", ".parquet", ".pq"))
+            found = sorted(q for q in p.iterdir() if "".join(q.suffixes[-2:]).lower() in LOG_SUFFIXES
+                           or q.suffix.lower() in LOG_SUFFIXES)
             fleet = True
         elif any(c in item for c in "*?["):
             found = sorted(Path(q) for q in glob.glob(item))
@@ -333,6 +340,8 @@ def _pairs(items, option, form) -> dict:
         key, sep, value = item.partition("=")
         if not sep or not key.strip() or not value.strip():
             raise CfdesignError(f"{option} {item!r} is not of the form {form}")
+        if key.strip() in out:  # the last one winning in silence ran a sensor on the column not meant
+            raise CfdesignError(f"{option} {key.strip()} is given twice ({out[key.strip()]!r} and {value.strip()!r})")
         out[key.strip()] = value.strip()
     return out
 
@@ -457,6 +466,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                                          "directory or a glob of logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
                                                     "or 't' in any case; without one, each row is one base tick)")
+    p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
+                   help="unit of a numeric time column (default: the one its name gives, 'time [ms]', else s; ns for "
+                        "the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error (repeatable)")

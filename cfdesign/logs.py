@@ -29,10 +29,13 @@ from .errors import CfdesignError, DataError, OutputError
 from .files import check_distinct, is_dir, not_a_device, open_atomic, write_bytes, write_text
 from .linear import wrap
 
-__all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "BLOCK_ROWS"]
+__all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "TIME_UNITS",
+           "BLOCK_ROWS"]
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
+#: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
 MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
 #: rows read, run and written at a time (and ticks run at a time across a gap without rows)
@@ -121,6 +124,13 @@ class _Columns:
     time: str | None
     references: dict       # state -> column
     extra: list            # passed through
+    time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
+    first_line: int = 2      # the file line of the first row (after the header and the comments before it)
+
+    @property
+    def time_scale(self) -> float:
+        """Seconds per unit of a numeric time column."""
+        return TIME_UNITS[self.time_unit]
 
     @property
     def numeric(self) -> list:
@@ -134,7 +144,27 @@ class _Columns:
         return list(dict.fromkeys(self.numeric + self.extra))
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None) -> _Columns:
+#: how a time column's name may write its unit (``time [sec]``, ``t (µs)``)
+_UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
+               **{w: "ms" for w in ("ms", "msec", "millisecond", "milliseconds")},
+               **{w: "us" for w in ("us", "\u00b5s", "\u03bcs", "usec", "microsecond", "microseconds")},
+               **{w: "ns" for w in ("ns", "nsec", "nanosecond", "nanoseconds")}}
+
+
+def _unit(name) -> tuple:
+    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``), else ``(name, None)``;
+    a unit of time as :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
+    m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
+    if not (m and m.group(1)):
+        return name, None
+    unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
+    return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
+             first_line=2) -> _Columns:
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -147,16 +177,43 @@ def _columns(table, header, source, time=None, mapping=None, reference=None) -> 
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
-        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {', '.join(header)}); "
-                        "name them as the table's sensors or map them with --map SENSOR=COLUMN")
-    if time is None:  # 'time' or 't', else in another case ('Time', 'T')
+        # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
+        like = [(s, h) for s, c in sensors.items() if c not in header and s not in mapping
+                for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()]
+        hint = " ".join(f'--map "{s}={h}"' for s, h in like)
+        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
+                        + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                           "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
+    if time is None:  # 'time' or 't', else in another case ('Time', 'T'), else with a unit ('time [ms]')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
-            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None)
+            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
+            (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
     elif time not in header:
-        raise DataError(f"{source}: no time column {time!r} (columns: {', '.join(header)})")
+        raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
+    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
+    if named in TIME_UNITS and time_unit not in (None, named):
+        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
+    time_unit = time_unit or (named if named in TIME_UNITS else "s")
+    shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
+    shared = {c: names for c, names in shared.items() if len(names) > 1}
+    if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
+        c, names = next(iter(shared.items()))
+        raise DataError(f"{source}: column {c!r} is given to sensors {' and '.join(names)} "
+                        "(each sensor needs a column of its own: --map SENSOR=COLUMN)")
+    if time is not None and time in sensors.values():
+        s = next(s for s, c in sensors.items() if c == time)
+        raise DataError(f"{source}: column {time!r} is both the time and sensor {s} "
+                        "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used])
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, first_line)
+
+
+def _listed(header, limit=300) -> str:
+    """The column names for a message, cut to about ``limit`` characters (a file read as one
+    column - JSON, a spreadsheet - or a log of thousands of columns gave a line of megabytes)."""
+    text = ", ".join(str(h) for h in header)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(header)} columns)"
 
 
 def _references(table, reference, header, source) -> dict:
@@ -169,24 +226,27 @@ def _references(table, reference, header, source) -> dict:
             raise DataError(f"--reference {item}: {table.name} has no state {state!r} "
                             f"(states: {', '.join(table.states)})")
         if col not in header:
-            raise DataError(f"{source}: no reference column {col!r} (columns: {', '.join(header)})")
+            raise DataError(f"{source}: no reference column {col!r} (columns: {_listed(header)})")
+        if state in out:
+            raise DataError(f"--reference {item}: state {state} already has the reference {out[state]!r}")
         out[state] = col
     return out
 
 
-def _numeric(df, columns, source, first_line, time=None):
+def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
     """The columns as float arrays; a cell that is not a number is an error naming its line.
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
     without a time zone is taken as UTC; only differences matter); durations (a timedelta
-    column) become seconds."""
+    column) become seconds.  Numbers in the ``time`` column are multiplied by ``time_scale``
+    (seconds per unit: milliseconds, nanoseconds ...)."""
     pd = _pandas()
     out = {}
     for c in columns:
         s = df[c]
         if s.dtype.kind in "fiub":
-            out[c] = s.to_numpy(dtype=float)
+            out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
             out[c] = _epoch_seconds(s)
@@ -207,7 +267,7 @@ def _numeric(df, columns, source, first_line, time=None):
         if len(bad):
             what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
             raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is {what}: {s.iloc[bad[0]]!r}")
-        out[c] = values.to_numpy(dtype=float)
+        out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
 
 
@@ -237,10 +297,82 @@ def _epoch_seconds(s):
 
 
 # ---------------------------------------------------------------------------- reading
+#: the first bytes of the compressions a CSV log may come in (pandas and Python's modules read them)
+COMPRESSIONS = {b"\x1f\x8b": "gzip", b"BZh": "bz2", b"\xfd7zXZ\x00": "xz", b"PK\x03\x04": "zip"}
+#: what cfdesign reads, for the messages about a file it cannot
+_READS = "CSV (plain, or compressed with gzip, bz2, xz or zip) and Parquet"
+
+
+#: the endings of a compressed file's name, left off the names of the estimate files of a fleet
+_PACKED_SUFFIXES = (".gz", ".bz2", ".xz", ".zip")
+
+
+def _log_stem(path) -> str:
+    """A log's name without its extensions: ``flight`` of ``flight.csv``, ``flight.csv.gz``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+
+    Returns
+    -------
+    str
+        The name an estimate file of a fleet takes (:func:`run_logs`) before its own suffix.
+    """
+    path = Path(path)
+    if path.suffix.lower() in _PACKED_SUFFIXES:
+        path = Path(path.stem)
+    return path.stem
+
+
+def _kind(path) -> str:
+    """``'parquet'``, ``'csv'`` or the compression of a CSV (:data:`COMPRESSIONS`), from the
+    file's first bytes, whatever its name (``log.csv.gz``, a Parquet file named ``.bin``); a
+    ``.parquet`` name without Parquet's bytes is read as Parquet, for pyarrow to name the fault."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        raise _read_error(Path(path), exc) from None
+    if head.startswith(b"PAR1"):
+        return "parquet"
+    kind = next((k for magic, k in COMPRESSIONS.items() if head.startswith(magic)), None)
+    if kind:
+        return kind
+    return "parquet" if Path(path).suffix.lower() in (".parquet", ".pq") else "csv"
+
+
+def _open_csv(path, kind):
+    """The bytes of a CSV log, decompressed (a zip must hold one file)."""
+    if kind == "csv":
+        return open(path, "rb")
+    if kind == "zip":
+        import zipfile
+
+        try:
+            archive = zipfile.ZipFile(path)
+        except zipfile.BadZipFile as exc:
+            raise DataError(f"cannot read {path}: {exc} (a damaged zip archive)") from None
+        names = [n for n in archive.namelist() if not n.endswith("/")]
+        if len(names) != 1:
+            archive.close()
+            raise DataError(f"cannot read {path}: a zip archive of {len(names)} files (a spreadsheet's own format "
+                            "is one: export it as CSV); cfdesign reads a zip that holds one CSV")
+        return archive.open(names[0])
+    import bz2
+    import gzip
+    import lzma
+
+    return {"gzip": gzip.open, "bz2": bz2.open, "xz": lzma.open}[kind](path, "rb")
+
+
 def read_log(path, columns=None, *, chunksize=None):
     """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
 
-    A CSV's separator is a comma, or the semicolon or tab of its header line when that has no
+    What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
+    compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
+    separator is a comma, or the semicolon or tab of its header line when that has no
     comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
     stripped of spaces, and a row with more cells than the header is an error naming its line
     (it was read without its extra cells).
@@ -248,7 +380,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Parameters
     ----------
     path : str or Path
-        ``.parquet`` / ``.pq`` is read as Parquet, anything else as CSV.
+        A Parquet file (by its content, or named ``.parquet`` / ``.pq``), else a CSV.
     columns : list of str, optional
         Keep only these.
     chunksize : int, optional
@@ -262,21 +394,33 @@ def read_log(path, columns=None, *, chunksize=None):
     Raises
     ------
     DataError
-        The file cannot be read, is empty, or is not a table (also while blocks are read).
+        The file cannot be read, is empty, is not text (UTF-8) or not a table (also while blocks
+        are read).
     """
     path = Path(path)
-    parquet = path.suffix.lower() in (".parquet", ".pq")
-    pd = _pandas(parquet)
+    kind = _kind(path)
+    pd = _pandas(kind == "parquet")
     try:
-        if parquet:
+        if kind == "parquet":
             return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
+        fmt = _csv_format(path, kind)
+        hashed = fmt.pop("_hashed", False)
         reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, **_csv_format(path))
+                             low_memory=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
-            return _csv_blocks(path, reader, columns)
-        return _stripped(reader, columns)
-    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError) as exc:
+            return _csv_blocks(path, reader, columns, hashed)
+        return _stripped(reader, columns, hashed)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
+            *_unpack_errors()) as exc:
         raise _read_error(path, exc) from None
+
+
+def _unpack_errors() -> tuple:
+    """What a truncated or damaged compressed CSV raises while it is read (gzip's is an OSError)."""
+    import lzma
+    import zlib
+
+    return EOFError, zlib.error, lzma.LZMAError
 
 
 def _read_error(path, exc) -> DataError:
@@ -284,44 +428,89 @@ def _read_error(path, exc) -> DataError:
     pd = _pandas()
     if isinstance(exc, FileNotFoundError):
         return DataError(f"cannot read {path}: no such file")
-    if isinstance(exc, (OSError, UnicodeDecodeError)):
+    if isinstance(exc, UnicodeDecodeError):  # Latin-1 or UTF-16 text, or a file that is not text
+        return DataError(f"cannot read {path}: not UTF-8 text (byte {exc.object[exc.start:exc.start + 1].hex()} "
+                         f"at byte {exc.start}); cfdesign reads {_READS}: save the log as UTF-8")
+    if isinstance(exc, OSError):
         return DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}")
     if isinstance(exc, pd.errors.EmptyDataError):
         return DataError(f"{path}: empty file (expected a header row naming the columns)")
     return DataError(f"{path}: not a readable log: {_first_line(exc)}")
 
 
-def _csv_format(path) -> dict:
-    """``read_csv`` options of a CSV's separator, from its header line: a comma unless the line
+#: most comment lines before a CSV's header (``# logged by ...``) that are skipped
+COMMENT_LINES = 1000
+
+
+def _csv_format(path, kind="csv") -> dict:
+    """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
     has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
-    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers)."""
-    with open(path, "rb") as fh:
-        line = fh.readline(1 << 16)
-        rows = fh.read(1 << 16)
+    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
+    the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
+    ``# time,gyro``) and ``_hashed`` says so.  A file whose first 64 kB hold a NUL byte is not
+    text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
+    try:
+        with _open_csv(path, kind) as fh:
+            skipped, comment = 0, None
+            line = fh.readline(1 << 16)
+            while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
+                                               or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
+                comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
+                skipped += 1
+                line = fh.readline(1 << 16)
+            rows = fh.read(1 << 16)
+    except DataError:
+        raise
+    except (OSError, EOFError, ValueError) as exc:  # a truncated or corrupt archive
+        raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    if b"\x00" in line + rows:
+        what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
+        raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
+                        + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
+    out = {"skiprows": skipped} if skipped else {}
+    if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
+        out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
+        rows, line = line + rows, comment
     if b"," in line:
-        return {}
+        return out
     sep = ";" if b";" in line else "\t" if b"\t" in line else None
     if sep is None:
-        return {}
+        return out
     cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % ((re.escape(sep.encode()),) * 2)
-    return {"sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {"sep": sep}
+    return {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
 
 
-def _column_name(i: int, name) -> str:
+def _numbers(line, header) -> bool:
+    """Whether a CSV line is a row of numbers (or empty cells), split as its ``header`` line is."""
+    sep = b"," if b"," in header else b";" if b";" in header else b"\t" if b"\t" in header else b","
+    try:
+        for cell in line.strip().split(sep):
+            cell = cell.strip(b' "')
+            if cell:
+                float(cell.replace(b",", b"."))
+    except ValueError:
+        return False
+    return bool(line.strip())
+
+
+def _column_name(i: int, name, hashed=False) -> str:
     """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
     name) when nothing is left.  The one rule for the header read as written and for pandas'
     frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
-    other, and its lookup raised KeyError (an internal error)."""
-    return str(name).strip() or f"Unnamed: {i}"
+    other, and its lookup raised KeyError (an internal error).  A ``hashed`` header (``# time,gyro``)
+    loses the ``#`` of its first name."""
+    name = str(name).strip()
+    return (name.lstrip("#").strip() if hashed and i == 0 else name) or f"Unnamed: {i}"
 
 
-def _stripped(frame, columns=None):
+def _stripped(frame, columns=None, hashed=False):
     """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
-    frame.columns = [_column_name(i, c) for i, c in enumerate(frame.columns)]
+    frame.columns = [_column_name(i, c, hashed) for i, c in enumerate(frame.columns)]
     return frame if columns is None else frame[list(columns)]
 
 
-def _csv_blocks(path, reader, columns):
+def _csv_blocks(path, reader, columns, hashed=False):
     """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too."""
     pd = _pandas()
     with reader:
@@ -330,9 +519,9 @@ def _csv_blocks(path, reader, columns):
                 block = next(reader)
             except StopIteration:
                 return
-            except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
+            except (pd.errors.ParserError, UnicodeDecodeError, ValueError, OSError, *_unpack_errors()) as exc:
                 raise _read_error(path, exc) from None
-            yield _stripped(block, columns)
+            yield _stripped(block, columns, hashed)
 
 
 def _first_line(exc) -> str:
@@ -347,24 +536,71 @@ def _parquet_blocks(path, columns, rows):
             yield batch.to_pandas()
 
 
+def _pipe(path) -> bool:
+    """Whether ``path`` is a pipe or a socket (``/dev/stdin`` of ``cat log.csv |``, ``<(zcat log.gz)``)."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError, TypeError):
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
+
+
+def _spooled(path, source):
+    """A context giving a temporary copy of a pipe's log (its header is read before its rows, and
+    a pipe gives its bytes once: the first data row became the header, 'duplicate column(s) 0.5')."""
+    import contextlib
+    import shutil
+    import tempfile
+
+    @contextlib.contextmanager
+    def copy():
+        with tempfile.TemporaryDirectory(prefix="cfdesign-log-") as folder:
+            target = Path(folder) / "log"
+            try:
+                with open(path, "rb") as src, open(target, "wb") as dst:
+                    shutil.copyfileobj(src, dst, 1 << 20)
+            except OSError as exc:
+                raise DataError(f"cannot read {source}: {exc.strerror or exc}") from None
+            try:
+                yield target
+            except DataError as exc:  # messages name the pipe, not the copy
+                raise DataError(str(exc).replace(str(target), str(source))) from None
+
+    return copy()
+
+
+def _first_row_line(path) -> int:
+    """The file line of a log's first row: 2, after the comment lines of a CSV."""
+    kind = _kind(path)
+    return 2 if kind == "parquet" else 2 + _csv_format(path, kind).get("skiprows", 0)
+
+
 def _header(path) -> list:
+    import io
+
     path = Path(path)
-    pd = _pandas(path.suffix.lower() in (".parquet", ".pq"))
-    if path.suffix.lower() in (".parquet", ".pq"):
+    kind = _kind(path)
+    pd = _pandas(kind == "parquet")
+    if kind == "parquet":
         import pyarrow.parquet as pq
 
         try:
             return list(pq.read_schema(path).names)
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    fmt = _csv_format(path, kind)
     try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            header = next(csv.reader(fh, delimiter=_csv_format(path).get("sep", ",")), None)
+        with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
+            for _ in range(fmt.get("skiprows", 0)):
+                fh.readline()
+            header = next(csv.reader(fh, delimiter=fmt.get("sep", ",")), None)
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
     if not header:
         raise _read_error(path, pd.errors.EmptyDataError())
-    return [_column_name(i, h) for i, h in enumerate(header)]
+    return [_column_name(i, h, fmt.get("_hashed", False)) for i, h in enumerate(header)]
 
 
 def read_columns(path, columns, time=None) -> dict:
@@ -392,14 +628,17 @@ def read_columns(path, columns, time=None) -> dict:
         (naming its line).
     """
     wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
+    if _pipe(path):
+        with _spooled(path, str(path)) as spooled:
+            return read_columns(spooled, columns, time)
     header = _header(path)
     missing = [c for c in wanted if c not in header]
     if missing:
-        raise DataError(f"{path}: no column {missing[0]!r} (columns: {', '.join(header)[:300]})")
+        raise DataError(f"{path}: no column {missing[0]!r} (columns: {_listed(header)})")
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
-    return _numeric(read_log(path, wanted), wanted, path, 2, time=time)
+    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time)
 
 
 # ---------------------------------------------------------------------------- the run
@@ -409,6 +648,7 @@ class _Pass:
     def __init__(self, table, cols, source):
         self.table, self.cols, self.source = table, cols, source
         self.t0 = None
+        self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
@@ -420,24 +660,25 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import grid_origin, nearest_tick, place
+            from .timing import grid_fit, nearest_tick, place
 
             t = values[self.cols.time]
             read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
             base = np.ones(n, dtype=bool)
             for s in self.table.inputs:
                 base &= read[s.name]
-            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
-                # the grid of the first such rows (not its own jittered time)
-                first = t[base]
-                self.t0 = grid_origin(first, self.table.sample_time_s) if first.size else t[0]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  first_line=2 + self.rows - len(tail_t),
+                  first_line=self.cols.first_line + self.rows - len(tail_t),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
+            if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
+                # the grid of the first block's such rows (not its own jittered time; timing.grid_fit)
+                first = t[base]
+                self.t0, self.spacing = (grid_fit(first, self.table.sample_time_s) if first.size
+                                         else (t[0], self.spacing))
             self._sample(t[base])
             # a reading logged before the first input row is used at tick 0
-            ticks = np.maximum(nearest_tick((t - self.t0) / self.table.sample_time_s), 0).astype(np.int64)
+            ticks = np.maximum(nearest_tick((t - self.t0) / self.spacing), 0).astype(np.int64)
             if n:
                 last = t == t[-1]
                 if last.all() and len(tail_t) and tail_t[-1] == t[-1]:  # a block all at the tail's time
@@ -464,7 +705,7 @@ class _Pass:
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
             prediction=False, plot=None, start="reading", block_rows=None, progress=False,
-            source=None) -> LogResult:
+            source=None, time_unit=None) -> LogResult:
     """Run a discrete gain table on a timestamped log (module docstring).
 
     Parameters
@@ -500,6 +741,11 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         A progress bar on stderr for long logs.
     source : str, optional
         The log's name in messages.
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
+        The unit of a numeric time column (:data:`TIME_UNITS`): ``'ns'`` for the integer
+        nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Default: the unit the
+        column's name gives (``time [ms]``, ``t (us)``), else seconds.  Dates and durations are
+        read as they are.
 
     Returns
     -------
@@ -525,12 +771,21 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     frame, source = _source(data, source, time)
     if frame is None and not_a_device(data):  # /dev/zero: an endless line
         raise DataError(f"cannot read {source}: {not_a_device(data)}")
+    if frame is None and _pipe(data):  # read once into a file: a log is read more than once
+        with _spooled(data, source) as path:
+            return run_log(table, path, output=output, time=time, mapping=mapping, reference=reference, std=std,
+                           prediction=prediction, plot=plot, start=start, block_rows=block_rows, progress=progress,
+                           source=source, time_unit=time_unit)
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
     _pandas(output is not None and Path(output).suffix.lower() in (".parquet", ".pq"))  # before the log is read
+    if output is not None and Path(output).suffix.lower() == ".zip":
+        raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
+                          ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
-    cols = _columns(table, header, source, time, mapping, reference)
+    cols = _columns(table, header, source, time, mapping, reference, time_unit,
+                    2 if frame is not None else _first_row_line(data))
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
@@ -558,7 +813,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, 2 + place.rows, cols.time)
+            values = _numeric(block, cols.numeric, source, cols.first_line + place.rows, cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -574,7 +829,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
             from .plot import figure_bytes
 
-            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time), plot))
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
                      _time_note(cols) + lock.notes, Path(output) if output else None, source)
 
@@ -644,7 +899,8 @@ def _blocks(data, frame, cols, rows):
         whole = frame
     else:
         path = Path(data)
-        if os.path.getsize(path) >= ONE_PASS_BYTES:
+        packed = 10 if _kind(path) in COMPRESSIONS.values() else 1  # a compressed CSV unpacks to several times its size
+        if packed * os.path.getsize(path) >= ONE_PASS_BYTES:
             return (lambda: read_log(path, cols.read, chunksize=rows)), None
         whole = read_log(path, cols.read)
     return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
@@ -685,10 +941,10 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          2 + place.rows, cols.time)
+                          cols.first_line + place.rows, cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
-            _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source)
-        first_line = 2 + place.rows
+            _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
+        first_line = cols.first_line + place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
@@ -710,11 +966,12 @@ def _lock(table, blocks, cols, source, types=False):
     return lock, place.rows, schemas or None
 
 
-def _check_float32_time(t, name, dt, source):
-    """A float32 time column must resolve a tenth of a tick (at 1.7e9 s, Unix time, its steps are 128 s)."""
+def _check_float32_time(t, name, dt, source, scale=1.0):
+    """A float32 time column (``t`` in seconds, ``scale`` seconds a unit of the column) must resolve
+    a tenth of a tick (at 1.7e9 s, Unix time, its steps are 128 s)."""
     finite = np.abs(t[np.isfinite(t)])
     if finite.size:
-        step = float(np.spacing(np.float32(finite.max())))
+        step = float(np.spacing(np.float32(finite.max() / scale))) * scale
         if step > dt / 10:
             raise DataError(f"{source}: the time column {name!r} is float32, whose steps at {finite.max():.6g} s are "
                             f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
@@ -965,27 +1222,57 @@ def _estimates(table, block, cols, values, states, stds, std):
     return frame
 
 
+def _gzip(fh):
+    import gzip
+
+    return gzip.GzipFile(fileobj=fh, mode="wb")
+
+
+def _bz2(fh):
+    import bz2
+
+    return bz2.BZ2File(fh, "wb")
+
+
+def _xz(fh):
+    import lzma
+
+    return lzma.LZMAFile(fh, "wb")
+
+
+#: an estimates file named so is a CSV compressed so (the compressors leave the file under them open)
+_PACK = {".gz": _gzip, ".bz2": _bz2, ".xz": _xz}
+
+
 class _Writer:
     """Blocks of estimates to a file (atomically) and/or kept in memory."""
 
     def __init__(self, path, keep, types=None):
         self.path, self.keep = (Path(path) if path else None), keep
         self.frames, self.errors = [], {}
-        self._ctx = self._fh = self._parquet = None
+        self._ctx = self._fh = self._parquet = self._packed = None
         self._types = types  # Parquet types of the log's passed-through columns over the whole log
         self._blocks = 0  # CSV blocks written
 
     def __enter__(self):
         if self.path is not None:
             parquet = self.path.suffix.lower() in (".parquet", ".pq")
-            self._ctx = open_atomic(self.path, "wb" if parquet else "w", **({} if parquet else {"newline": ""}))
+            packed = _PACK.get(self.path.suffix.lower())  # estimates.csv.gz: a gzip-compressed CSV
+            binary = parquet or packed
+            self._ctx = open_atomic(self.path, "wb" if binary else "w", **({} if binary else {"newline": ""}))
             self._fh = self._ctx.__enter__()
+            if packed:
+                import io
+
+                self._fh = self._packed = io.TextIOWrapper(packed(self._fh), encoding="utf-8", newline="")
             self._is_parquet = parquet
         return self
 
     def __exit__(self, *exc):
         if self._parquet is not None:
             self._parquet.close()
+        if self._packed is not None:
+            self._packed.close()  # the compressed stream's end; the file under it stays open until moved into place
         if self._ctx is not None:
             self._ctx.__exit__(*exc)
         return False
@@ -1072,7 +1359,7 @@ def _progress(total, show):
 
 
 # ---------------------------------------------------------------------------- plots
-def plot_log(table, estimates, references=None, time=None):
+def plot_log(table, estimates, references=None, time=None, time_unit="s"):
     """Every state over time with its predicted +-2 sigma band; against its reference where given.
 
     Parameters
@@ -1086,6 +1373,8 @@ def plot_log(table, estimates, references=None, time=None):
         ``{state: column}``: these states get a panel of the error inside the +-2 sigma band.
     time : str, optional
         The time column (else the row number is the x axis).
+    time_unit : {'s', 'ms', 'us', 'ns'}
+        The unit of a numeric time column (:data:`TIME_UNITS`); the axis is in seconds.
 
     Returns
     -------
@@ -1097,7 +1386,7 @@ def plot_log(table, estimates, references=None, time=None):
     refs = references or {}
     rows = sum(2 if s in refs else 1 for s in table.states)
     fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
-    x, xlabel = _time_axis(estimates, time)
+    x, xlabel = _time_axis(estimates, time, TIME_UNITS[time_unit])
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
     units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
@@ -1130,12 +1419,15 @@ def plot_log(table, estimates, references=None, time=None):
     return fig
 
 
-def _time_axis(estimates, time):
-    """``(x, label)``: the time column in seconds (dates as seconds after the first row), or the
-    row number."""
+def _time_axis(estimates, time, scale=1.0):
+    """``(x, label)``: the time column in seconds (``scale`` seconds a unit; dates as seconds after
+    the first row), or the row number."""
     if not time:
         return np.arange(len(estimates)), "row"
     col = estimates[time]
+    if col.dtype.kind in "fiu" and scale != 1.0:  # nanoseconds since 1970: seconds from the first row
+        raw = col.to_numpy()  # whole numbers subtracted before they become floats: exact
+        return (raw - raw[0]).astype(float) * scale, f"{time} (s after the first row)"
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=float), f"{time} (s)"
     x = _numeric(estimates, [time], "estimates", 2, time)[time]
@@ -1194,7 +1486,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     except ImportError:
         raise CfdesignError('running many logs needs Dask: pip install "cfdesign[fleet]"') from None
     outdir = Path(outdir)
-    targets = [outdir / (Path(p).stem + suffix) for p in paths]
+    targets = [outdir / (_log_stem(p) + suffix) for p in paths]
     first = {}
     for i, t in enumerate(targets):
         j = first.setdefault(t, i)

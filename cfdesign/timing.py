@@ -5,10 +5,11 @@ phases at which each measurement sensor is read.  A log says when each reading h
 steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 ``docs/logs.md``):
 
-1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / T)``
-   (:func:`nearest_tick`: halves up),
-   ``t0`` the time of the log's first row where the input sensors read (the base clock; a
-   reading logged before it is used at tick 0): the nearest tick, so a reading is used at most ``T/2`` before
+1. **Placement.**  A reading at time ``t`` goes to the base tick ``k = round((t - t0) / S)``
+   (:func:`nearest_tick`: halves up), ``S`` the table's tick ``T`` or, when the log's clock
+   drifts against it, the log's own (:func:`grid_fit`), ``t0`` the time of the log's first row
+   where the input sensors read (the base clock; a reading logged before it is used at tick 0)
+   moved to the phase of the grid: the nearest tick, so a reading is used at most ``T/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
    does not move it).  Times must be finite and increasing (rows at one time read different
    sensors), and the rate of the input sensors' rows must be the table's base rate within 1 %.
@@ -24,9 +25,10 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    without a gain; only a table without a model to recompute from (fixed gains) leaves the
    readings off its schedule unused, and those are counted and reported.  When the pattern
    keeps changing (the stretches average fewer than :data:`STEADY_PERIODS` periods: a rate
-   that drifts, arrivals that straddle half a tick), no periodic gain is the right one for
-   long: the log then runs the Kalman filter of the table's model with each tick's gain from
-   the covariance recursion over the readings as they arrive
+   that drifts, arrivals that straddle half a tick), or a sensor arrives faster than the table
+   reads it (a 3.3 Hz GPS into a 3 Hz table: no periodic gain is there for the extra readings),
+   no periodic gain is the right one for long: the log then runs the Kalman filter of the
+   table's model with each tick's gain from the covariance recursion over the readings as they arrive
    (:class:`cfdesign.runtime.arrivals.ArrivalKalman`), which converges to the periodic gains
    wherever the pattern holds still.
 """
@@ -40,8 +42,9 @@ import numpy as np
 
 from .errors import DataError
 
-__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "MAX_GAP_TICKS", "date_seconds",
-           "nearest_tick", "grid_origin", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+__all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
+           "MAX_GAP_TICKS", "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate",
+           "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -155,6 +158,103 @@ def grid_origin(time, dt: float) -> float:
     return float(t[0] + phase * dt)
 
 
+#: rows whose phases give the shortest arc that holds them (:func:`grid_fit`): enough that the
+#: empty arc of bounded jitter (0.02 tick for +-0.49 tick) is longer than the gaps between phases
+ARC_ROWS = 10_000
+#: rows over which a step is measured for a log's own spacing (:func:`grid_fit`)
+DRIFT_LAG = 100
+#: the first rows of a log its grid is fitted to (:func:`grid_fit`: 200 ppm of drift shows as 40 ticks)
+FIT_ROWS = 200_000
+
+
+def grid_fit(time, dt: float) -> tuple:
+    """The tick grid of a log's base-rate rows: ``(origin, spacing)``, rows placed on
+    ``nearest_tick((t - origin) / spacing)``.
+
+    Two things move rows of a steady clock onto their neighbours' ticks when the grid is the
+    table's ``dt`` from :func:`grid_origin`.  A log clock that drifts against the table (a rate
+    0.5 % off, within the :data:`RATE_RTOL` that :func:`check_rate` allows) gains a tick every
+    200: two rows on one tick (the second reading of the input not used) or a tick without one.
+    And time-stamp jitter that spans most of a tick (uniform within +-0.49 tick, or a delay of
+    0 to 0.9 tick when the stamp is the time of receipt) leaves the circular mean of the phases
+    almost undetermined: one input row in four of such a log shared a tick.  So:
+
+    * the spacing is, of ``dt`` and the log's own, the one that puts fewer rows on a shared
+      tick or skips fewer ticks between rows (``dt`` on a tie: a log on the table's clock is
+      placed on the table's ticks).  The log's own is the median step over
+      :data:`DRIFT_LAG` rows (a dropped row moves few of them), refined by the least-squares
+      slope of the times over the ticks it puts them on;
+    * the origin is, of the circular mean of the phases (:func:`grid_origin`) and the middle of
+      the shortest arc that holds the phases of the first :data:`ARC_ROWS` rows (the centre of
+      bounded jitter), the one that puts fewer of the rows on a shared tick (the circular mean
+      on a tie).
+
+    A rate beyond :func:`check_rate`'s tolerance keeps ``dt`` (the log is refused there).
+
+    Parameters
+    ----------
+    time : array_like
+        Times (s) of the rows where the input sensors read, ascending, at least one (the first
+        :data:`FIT_ROWS` are used).
+    dt : float
+        The table's base tick (s).
+
+    Returns
+    -------
+    tuple of float
+        ``(origin, spacing)`` in seconds.
+
+    Examples
+    --------
+    >>> t = 0.2 + 1.005 * np.arange(1000)              # a clock 0.5 % slow against a 1 s tick
+    >>> origin, spacing = grid_fit(t, 1.0)
+    >>> round(origin, 9), round(spacing, 9)
+    (0.2, 1.005)
+    """
+    t = np.asarray(time, dtype=float)[:FIT_ROWS]
+    fits = [(dt, _phase_origin(t, dt))]
+    lag = min(DRIFT_LAG, len(t) // 4)
+    if lag >= 2:
+        # the median step over `lag` rows (a dropped row moves few of them), then the least-squares
+        # slope of the times over the ticks it puts them on, twice
+        spacing = float(np.median(t[lag:] - t[:-lag])) / lag
+        for _ in range(3):
+            if not abs(spacing / dt - 1) <= 2 * RATE_RTOL:
+                break
+            k = nearest_tick((t - _phase_origin(t, spacing)) / spacing)
+            k -= k.mean()
+            spacing = float(k @ (t - t[0]) / (k @ k)) if k[-1] > k[0] else dt
+        if abs(spacing / dt - 1) <= RATE_RTOL:
+            fits.append((spacing, _phase_origin(t, spacing)))
+    # the grid that puts the rows one a tick: fewest rows sharing a tick or ticks skipped (dt on a tie)
+    spacing, origin = min(fits, key=lambda f: _irregular(t, f[1], f[0]))[:2]
+    return origin, spacing
+
+
+def _irregular(t, origin, spacing) -> int:
+    """Rows that share a tick, and ticks skipped between rows, on a grid."""
+    return int(np.sum(np.abs(np.diff(nearest_tick((t - origin) / spacing)) - 1)))
+
+
+def _phase_origin(t, spacing):
+    """Of the circular mean of the first rows' phases and the middle of the shortest arc that
+    holds them, the origin that leaves fewer rows on a shared tick (:func:`grid_fit`)."""
+    mean = grid_origin(t, spacing)
+    p = np.sort(((t[:ARC_ROWS] - t[0]) / spacing) % 1.0)
+    if len(p) < 2:
+        return mean
+    gaps = np.diff(np.concatenate([p, [p[0] + 1.0]]))
+    i = int(np.argmax(gaps))  # the arc from p[i+1] round to p[i] holds every phase
+    middle = (p[(i + 1) % len(p)] + (1.0 - gaps[i]) / 2) % 1.0
+    arc = float(t[0] + (middle - np.rint(middle)) * spacing)
+
+    def shared(origin):
+        k = nearest_tick((t - origin) / spacing)
+        return int(np.sum(np.diff(k) == 0))
+
+    return arc if shared(arc) < shared(mean) else mean
+
+
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
           readings=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
@@ -197,9 +297,10 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if not t.size:
         return np.zeros(0, dtype=np.int64)
     bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise DataError(f"{source} line {first_line + bad[0]}: time {float(t[bad[0]])!r} is not a finite number "
-                        "of seconds")
+    if bad.size:  # an empty cell is NaN: say so (a spreadsheet's rows of empty cells below the data)
+        raise DataError(f"{source} line {first_line + bad[0]}: " + (
+            "no time (an empty cell; every row needs one)" if np.isnan(t[bad[0]])
+            else f"time {float(t[bad[0]])!r} is not a finite number of seconds"))
     d = np.diff(t)
     back = np.flatnonzero(d < 0) if readings is not None else np.flatnonzero(d <= 0)
     if readings is not None:  # a repeated time is a duplicate when a sensor reads twice at it
@@ -220,9 +321,14 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
     if gap.size:
         i = gap[0] + 1
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {float(d[gap[0]]):.6g} s after the "
+        step = float(d[gap[0]])  # one to ten ticks in micro- or nanoseconds (ROS's %time), not a gap
+        unit = next((f"times in {name}? They are read as seconds unless --time-unit {short} is given"
+                     for name, short, scale in _TIME_UNITS[1:]
+                     if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
+                    "are the times in seconds? Split the log at the gap")
+        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {step:.6g} s after the "
                         f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
-                        "tick): are the times in seconds? Split the log at the gap")
+                        f"tick): {unit}")
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)
@@ -270,14 +376,14 @@ def check_rate(t, dt, source):
     ticks = max(float(np.rint(span / unit)), 1.0)
     spacing = span / ticks
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
-        unit = next((f" (times in {name}? they must be seconds)" for name, scale in _TIME_UNITS
-                     if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
+        unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
+                     for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
         raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "
                         f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate{unit}")
 
 
 #: time units a log may have written instead of seconds, named in the message of a rate that is off by their scale
-_TIME_UNITS = (("milliseconds", 1e3), ("microseconds", 1e6), ("nanoseconds", 1e9))
+_TIME_UNITS = (("milliseconds", "ms", 1e3), ("microseconds", "us", 1e6), ("nanoseconds", "ns", 1e9))
 
 
 @dataclass(frozen=True)
@@ -390,7 +496,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         The segments, offsets, measured rates and notes.
     """
     sched, P, dt = table.schedule, table.period, table.sample_time_s
-    notes, rates, patterns = [], {}, {}
+    notes, rates, patterns, faster = [], {}, {}, False
     for name in sched.measurements:
         ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
         if not len(ticks):
@@ -400,9 +506,12 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         expected = len(phases) / (P * dt)
         if len(ticks) >= 10:
             rates[name] = _arrival_rate(ticks, len(phases), dt)
-        if name in rates and rates[name] > 1.05 * expected:
+        if name in rates and rates[name] > 1.05 * expected:  # more readings than the schedule has gains for
             notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz: "
-                         "readings off its schedule have no gain")
+                         + ("every reading is used: the log runs the Kalman filter of the table's model with "
+                            "gains from the readings as they arrive" if recompute
+                            else "readings off its schedule have no gain"))
+            faster |= recompute
             ticks = ticks[:0]
         elif name in rates and rates[name] < 0.95 * expected:  # fewer readings: each still has a gain
             notes.append(f"{name} has {rates[name]:.4g} readings a second where the table reads it at "
@@ -427,12 +536,12 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
                      + " after the table's schedule: " + ("gains recomputed for the arrival pattern (periodic DARE "
                                                             "of the table's model)" if any(s.offsets for s in segments)
                                                             else "the schedule is locked to the arrivals"))
-    varying = recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments)
-    if varying:
+    varying = faster or (recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments))
+    if varying and not faster:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): the log runs the Kalman filter of the table's model with gains from the readings "
                      "as they arrive")
-    elif len(segments) > 1:
+    elif len(segments) > 1 and not faster:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): each stretch runs with the gains of its own pattern")
     return Lock(segments or [Segment(0, n_ticks)], main, rates, notes, varying)

@@ -72,18 +72,34 @@ def test_sensors_at_their_own_offsets_run_as_well_as_aligned_ones(heading, tmp_p
     assert rms_after(lost, psi) > 20 * rms["offset"] and rt.counts["unscheduled"]["compass"] == 300
 
 
-def test_a_reading_without_a_gain_is_reported(heading, tmp_path, cli):
-    """A compass logged at 10 Hz into a table that reads it at 1 Hz: the extra readings have no
-    gain; cfdesign run says so on stderr, the Python result counts them."""
-    log, _ = heading_log(0, 0, n=3000)
-    log["compass"] = np.where(np.arange(3000) % 10 == 0, log["truth"], np.nan)
-    log.to_csv(tmp_path / "fast.csv", index=False)
-    table = heading.save(tmp_path / "g.json")
-    code, _, err = cli("run", table, tmp_path / "fast.csv", "-o", tmp_path / "e.csv")
-    assert code == 0
-    assert "compass arrives at 10 Hz but the table reads it at 1 Hz" in err
-    assert "270 readings were not used (unscheduled: compass 270)" in err
-    assert run_log(heading, log).unused == {"unscheduled": {"compass": 270}}
+GPS3 = {"name": "imu 100 Hz + gps 3 Hz", "structure": "position", "gain_form": "filter", "sensors": {
+    "accelerometer": {"rate_hz": 100.0, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-3}},
+    "gps": {"rate_hz": 3.0, "noise": {"std": 2.0}}}}
+
+
+def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, tmp_path, cli):
+    """A GPS at 3.3 Hz into a table designed for 3 Hz (a 10 Hz compass into a 1 Hz table): a table
+    with a model runs its Kalman filter over the arrivals, every reading used (on the schedule
+    only 1 reading in 13 had a gain: 21 m RMS where 0.52 m was designed); a table without one
+    (fixed gains) counts the readings off its schedule, on stderr and in the result."""
+    import dataclasses
+
+    table = cfdesign.design(parse_spec(GPS3))
+    x, readings = model_log(table, 12_000, seed=3)
+    fix = np.unique(np.rint(np.arange(0, 12_000, 100 / 3.3)).astype(int))
+    gps = np.full(12_000, np.nan)
+    gps[fix] = x[fix, 0] + 2.0 * np.random.default_rng(4).standard_normal(len(fix))
+    pd.DataFrame({"time": np.arange(12_000) * 0.01, "accelerometer": readings["accelerometer"], "gps": gps,
+                  "truth": x[:, 0]}).to_csv(tmp_path / "fast.csv", index=False)
+    code, _, err = cli("run", table.save(tmp_path / "g.json"), tmp_path / "fast.csv", "-o", tmp_path / "e.csv")
+    assert code == 0 and "gps arrives at 3.297 Hz but the table reads it at 3 Hz: every reading is used" in err
+    assert "not used" not in err
+    est = pd.read_csv(tmp_path / "e.csv")["position"].to_numpy()
+    assert np.sqrt(np.mean((est[4000:] - x[4000:, 0]) ** 2)) < 1.2 * table.predicted_std
+    log, _ = heading_log(0, 0, n=1000)
+    log["compass"] = np.where(np.arange(1000) % 10 == 0, log["truth"], np.nan)
+    hand = dataclasses.replace(heading, provenance={**heading.provenance, "solver": {"method": "hand-tuned"}})
+    assert run_log(hand, log).unused == {"unscheduled": {"compass": 90}}
 
 
 def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
@@ -225,6 +241,75 @@ def test_durations_as_times_run_as_seconds(heading, tmp_path):
         assert got["time"].dtype.kind == "m"  # written as the log had it
 
 
+def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_path, cli):
+    """The integer nanoseconds since 1970 of a ROS ``rostopic echo -p`` export (``%time``) run with
+    ``--time-unit ns`` as the seconds do, the column written as it was; without it, the error
+    names nanoseconds (it asked 'are the times in seconds?' of a 'gap' of 1e7 s); milliseconds
+    in Python with ``time_unit='ms'``."""
+    from cfdesign.logs import _time_axis
+
+    log, _ = heading_log(0, 0, n=1000, jitter=0.0)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    ns = log.drop(columns="time")
+    ns.insert(0, "%time", 1_700_000_000_000_000_000 + np.arange(1000, dtype=np.int64) * 10_000_000)
+    ns.to_csv(tmp_path / "ros.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time")
+    assert code == 2 and "times in nanoseconds? They are read as seconds unless --time-unit ns is given" in err
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time",
+                       "--time-unit", "ns")
+    assert code == 0, err
+    est = pd.read_csv(tmp_path / "e.csv")
+    assert np.allclose(_time_axis(est, "%time", 1e-9)[0][:3], [0.0, 0.01, 0.02])  # the plot's axis: seconds
+    assert np.allclose(est["heading"], expected, rtol=0, atol=1e-12)
+    assert np.array_equal(est["%time"], ns["%time"])  # as the log had it
+    ms = log.assign(time=(log["time"] * 1000).round().astype(np.int64))
+    assert np.allclose(run_log(heading, ms, time_unit="ms").estimates["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(CfdesignError, match="time unit 'min' is none of s, ms, us, ns"):
+        run_log(heading, ms, time_unit="min")
+
+
+def test_comment_lines_before_the_header_and_numpy_savetxt_headers(heading, tmp_path, cli):
+    """Lines starting with '#' (and blank lines) before the header are skipped, and the header of
+    ``numpy.savetxt`` (``# time,gyro,...`` over rows of numbers) is the header; messages name the
+    file's own lines.  Both were 'missing column(s) ... (columns: # logged by ...)'."""
+    log, _ = heading_log(0, 0, n=500)
+    log = log.drop(columns="lap")
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    table = heading.save(tmp_path / "g.json")
+    (tmp_path / "comments.csv").write_text("# logged by robot 7\n\n# 100 Hz\n" + log.to_csv(index=False))
+    np.savetxt(tmp_path / "savetxt.csv", log.to_numpy(), delimiter=";", header="run 3\n" + ";".join(log.columns))
+    for name in ("comments.csv", "savetxt.csv"):
+        code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "e.csv")
+        assert code == 0, err
+        assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12)
+    text = (tmp_path / "comments.csv").read_text().splitlines()
+    text[10] = "0.07x" + text[10][text[10].index(","):]  # line 11 of the file
+    (tmp_path / "bad.csv").write_text("\n".join(text) + "\n")
+    code, _, err = cli("run", table, tmp_path / "bad.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "bad.csv line 11: column 'time' is neither a number" in err, err
+
+
+def test_columns_named_with_their_units(heading, tmp_path, cli):
+    """A time column named with its unit (``Time (ms)``, ``t [sec]``) is the time, in that unit (it
+    was no time column: every row one tick); a sensor's column named with a unit is not taken in
+    silence (its unit may not be the table's): the error gives the --map that takes it."""
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    ms = log.assign(time=(log["time"] * 1000).round(3)).rename(columns={"time": "Time (ms)"})
+    assert np.allclose(run_log(heading, ms).estimates["heading"], expected, rtol=0, atol=1e-12)
+    assert np.allclose(run_log(heading, log.rename(columns={"time": "t [sec]"})).estimates["heading"], expected,
+                       rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match=r"the time column 'Time \(ms\)' is in ms, but the time unit given is s"):
+        run_log(heading, ms, time_unit="s")
+    log.rename(columns={"gyro": "gyro [rad/s]"}).to_csv(tmp_path / "units.csv", index=False)
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "mapped where it is the table's: --map \"gyro=gyro [rad/s]\"" in err, err
+    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv", "--map", "gyro=gyro [rad/s]")
+    assert code == 0, err
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")
@@ -353,6 +438,28 @@ def test_time_stamps_jittered_within_half_a_tick_put_every_row_on_its_own_tick(h
         assert np.array_equal(result.estimates["heading"], exact.estimates["heading"])
 
 
+@pytest.mark.parametrize("case", ["drift +0.5%, jitter +-0.3", "drift -0.8%", "drift 200 ppm, 30000 rows",
+                                  "jitter +-0.49", "stamped on receipt: delay 0 to 0.9 tick"])
+def test_a_drifting_clock_or_jitter_across_a_tick_puts_every_row_on_its_own_tick(case, heading):
+    """A log clock that drifts within the 1 % the rate check allows gained or lost a tick every
+    1/drift rows (0.5 %: a second gyro row on one tick not used every 200 rows, RMS 1.14 times the
+    designed on the 5 Hz heading example); jitter spanning most of a tick left the circular mean of
+    the phases undetermined (+-0.49 tick: one IMU row in four on a shared tick).  The grid is now
+    fitted to the rows (timing.grid_fit): the estimates are those of the same log on exact ticks."""
+    n = 30_000 if "ppm" in case else 4000
+    log, _ = heading_log(0, 0, n=n, jitter=0.0)
+    exact = run_log(heading, log).estimates["heading"].to_numpy()
+    rng = np.random.default_rng(11)
+    k = np.arange(n)
+    drift = {"drift +0.5%, jitter +-0.3": 1.005, "drift -0.8%": 0.992,
+             "drift 200 ppm, 30000 rows": 1.0002}.get(case, 1.0)
+    jitter = {"drift +0.5%, jitter +-0.3": rng.uniform(-0.3, 0.3, n), "jitter +-0.49": rng.uniform(-0.49, 0.49, n),
+              "stamped on receipt: delay 0 to 0.9 tick": rng.uniform(0, 0.9, n)}.get(case, np.zeros(n))
+    result = run_log(heading, log.assign(time=1.7e9 + 0.01 * (k * drift + jitter)))
+    assert result.unused == {} and result.notes == [], (result.unused, result.notes)
+    assert np.array_equal(result.estimates["heading"].to_numpy(), exact)
+
+
 BAD_LOGS = {
     "empty.csv": ("", "empty file"),
     "header.csv": ("time,gyro,compass,odometry\n", "header but no rows"),
@@ -361,10 +468,13 @@ BAD_LOGS = {
     "rate.csv": ("time,gyro,compass,odometry\n" + "".join(f"{0.1 * k},1,2,3\n" for k in range(5)),
                  "base rate is 10 Hz .* the table runs at 5 Hz; a gain table is designed for one rate$"),
     "ms.csv": ("time,gyro,compass,odometry\n" + "".join(f"{200 * k},1,2,3\n" for k in range(5)),
-               r"base rate is 0\.005 Hz .* \(times in milliseconds\? they must be seconds\)"),
+               r"base rate is 0\.005 Hz .* \(times in milliseconds\? they are read as seconds unless "
+               r"--time-unit ms is given\)"),
     "back.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.1,1,2,3\n", "line 4: time 0.1 goes back"),
     "dup.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3\n0.2,1,2,3\n", "line 4: time 0.2 repeats"),
-    "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n", "line 3: time nan is not a finite"),
+    "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n",
+                r"line 3: no time \(an empty cell; every row needs one\)"),
+    "inf.csv": ("time,gyro,compass,odometry\n0,1,2,3\ninf,1,2,3\n", "line 3: time inf is not a finite number"),
     "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
 }
 
@@ -380,6 +490,131 @@ def test_bad_logs_one_line_exit_2_nothing_written(name, tmp_path, cli):
     assert pytest.importorskip("re").search(message, err), err
     assert (tmp_path / "out.csv").read_text() == "previous"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["g.json", name, "out.csv"])
+
+
+BAD_OPTIONS = {  # each ran without a word: the filter on the wrong readings, or a reference lost
+    "a column for two sensors": (["--map", "gyro=gz", "--map", "compass=gz"],
+                                 "column 'gz' is given to sensors gyro and compass"),
+    "a sensor's own column taken": (["--map", "compass=gyro"], "column 'gyro' is given to sensors gyro and compass"),
+    "a sensor mapped twice": (["--map", "gyro=gz", "--map", "gyro=gyro"],
+                              "--map gyro is given twice ('gz' and 'gyro')"),
+    "the time as a sensor": (["--map", "gyro=time"], "column 'time' is both the time and sensor gyro"),
+    "a sensor as the time": (["--time", "gz", "--map", "gyro=gz"], "column 'gz' is both the time and sensor gyro"),
+    "two references of a state": (["--reference", "truth", "--reference", "heading=compass"],
+                                  "state heading already has the reference 'truth'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_OPTIONS))
+def test_conflicting_map_time_and_reference_options_are_refused(case, heading, tmp_path, cli):
+    log, _ = heading_log(0, 0, n=300)
+    log.assign(gz=log["gyro"]).to_csv(tmp_path / "log.csv", index=False)
+    options, message = BAD_OPTIONS[case]
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv", *options)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "e.csv").exists()
+
+
+def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
+    """A CSV compressed with gzip, bz2, xz or zip (one file) runs as the plain CSV, whatever its
+    name (a gzip named .csv; a Parquet file named .bin); estimates named .csv.gz are gzip.  Each
+    was an error naming a byte of UTF-8 ('0x8b') or, for .csv.gz output, a plain CSV."""
+    import bz2
+    import gzip
+    import lzma
+    import zipfile
+
+    from cfdesign.cli import _log_paths
+    from cfdesign.logs import _log_stem
+
+    log, _ = heading_log(0, 0, n=1000)
+    text = log.to_csv(index=False).encode()
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    (tmp_path / "gz.csv").write_bytes(gzip.compress(text))
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs/log.csv.bz2").write_bytes(bz2.compress(text))
+    (tmp_path / "logs/log.csv.xz").write_bytes(lzma.compress(text))
+    with zipfile.ZipFile(tmp_path / "logs/log.csv.zip", "w") as z:
+        z.writestr("log.csv", text)
+    log.to_parquet(tmp_path / "parquet.bin")
+    table = heading.save(tmp_path / "g.json")
+    for name in ("gz.csv", "logs/log.csv.bz2", "logs/log.csv.xz", "logs/log.csv.zip", "parquet.bin"):
+        code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "e.csv.gz")
+        assert code == 0, (name, err)
+        with gzip.open(tmp_path / "e.csv.gz", "rt") as fh:
+            assert np.allclose(pd.read_csv(fh)["heading"], expected, rtol=1e-12, atol=1e-15), name
+    assert [p.name for p in _log_paths([str(tmp_path / "logs")])[0]] == ["log.csv.bz2", "log.csv.xz", "log.csv.zip"]
+    assert [_log_stem(p) for p in ("a/flight.csv.gz", "flight.parquet", "f.csv.ZIP")] == ["flight", "flight", "f"]
+
+
+@pytest.mark.skipif(not Path("/dev/stdin").exists(), reason="needs /dev/stdin")
+def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
+    """``zcat log.csv.gz | cfdesign run g.json /dev/stdin`` (or ``<(zcat log.gz)``): a pipe gives
+    its bytes once, and a log's header is read before its rows - the first row was taken as the
+    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first."""
+    import gzip
+    import os
+
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    data = gzip.compress(log.to_csv(index=False).encode())
+    assert len(data) < 60_000  # all of it in the pipe's buffer: written before the run reads it
+    read, write = os.pipe()
+    os.write(write, data)
+    os.close(write)
+    stdin = os.dup(0)
+    os.dup2(read, 0)
+    try:
+        code, _, err = cli("run", heading.save(tmp_path / "g.json"), "/dev/stdin", "-o", tmp_path / "e.csv")
+    finally:
+        os.dup2(stdin, 0)
+        os.close(stdin)
+        os.close(read)
+    assert code == 0, err
+    assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12)
+
+
+def _zip_of_two(path):
+    import zipfile
+
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("a.csv", "time,gyro\n")
+        z.writestr("b.csv", "time,gyro\n")
+
+
+UNREADABLE = {  # each was a traceback (exit 3), or a message naming a byte of UTF-8
+    "utf16.csv": (lambda p: p.write_bytes("time,gyro,compass,odometry\n0,1,2,3\n".encode("utf-16")),
+                  "UTF-16 text; .* save the log as UTF-8"),
+    "latin1.csv": (lambda p: p.write_bytes("time,gyro,compass,odometry,note\n0,1,2,3,caf\xe9\n".encode("latin-1")),
+                   r"not UTF-8 text \(byte e9 at byte 43\); .*save the log as UTF-8"),
+    "binary.dat": (lambda p: p.write_bytes(b"\x00\x01\x02" * 100), "not a text file; cfdesign reads CSV"),
+    "two.zip": (_zip_of_two, "a zip archive of 2 files .*reads a zip that holds one CSV"),
+    "damaged.xlsx": (lambda p: p.write_bytes(b"PK\x03\x04 no archive"), r"\(a damaged zip archive\)"),
+    "cut.csv.gz": (lambda p: p.write_bytes(pytest.importorskip("gzip").compress(
+        ("time,gyro,compass,odometry\n" + "".join(f"{0.2 * k},1,2,3\n" for k in range(30000))).encode())[:30000]),
+        "not a readable log: Compressed file ended"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(UNREADABLE))
+def test_a_file_that_is_not_a_csv_log_is_named_on_one_line(name, heading, tmp_path, cli):
+    make, message = UNREADABLE[name]
+    make(tmp_path / name)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / name, "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert pytest.importorskip("re").search(message, err), err
+
+
+@pytest.mark.parametrize("output", ["-", "e.zip"])
+def test_estimates_to_stdout_or_a_zip_are_refused(output, heading, tmp_path, cli, monkeypatch):
+    """``-o -`` wrote a file named '-', ``-o e.zip`` a plain CSV named .zip."""
+    monkeypatch.chdir(tmp_path)
+    log, _ = heading_log(0, 0, n=300)
+    log.to_csv("log.csv", index=False)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), "log.csv", "-o", output)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and output in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.json", "log.csv"]
 
 
 def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
