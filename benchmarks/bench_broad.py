@@ -422,6 +422,7 @@ PROXIES = {
     "long: the motion twice (remounted)": repeated_trial,
     "office field (10 uT waves, 2 m)": office_trial,
     "gyro bias step 0.5 deg/s mid-motion": bias_step_trial,
+    "rest breaks, the bias step after the 2nd": lambda d: bias_step_trial(breaks_trial(d)),
 }
 
 

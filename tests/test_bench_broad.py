@@ -73,7 +73,8 @@ def enu(d, key):
 
 
 PROXIES = {"backwards": bench.reversed_trial, "breaks": bench.breaks_trial, "long": bench.long_trial,
-           "repeated": bench.repeated_trial, "office": bench.office_trial, "bias step": bench.bias_step_trial}
+           "repeated": bench.repeated_trial, "office": bench.office_trial, "bias step": bench.bias_step_trial,
+           "breaks, bias step": lambda d: bench.bias_step_trial(bench.breaks_trial(d))}
 
 
 @pytest.mark.parametrize("name", list(PROXIES))
@@ -83,15 +84,18 @@ def test_proxy_readings_agree_with_its_reference(name, trial):
     n = len(out["gyr"])
     assert all(len(out[key]) == n for key in ("acc", "mag", "ref", "movement"))
     bias = np.tile(-BIAS if name == "backwards" else BIAS, (n, 1))      # played backwards, the bias is negated
-    if name == "bias step":
-        changed = np.flatnonzero(np.any(out["gyr"] != d["gyr"], axis=1))
-        assert changed[0] == (30 * 50 + 70 * 50) // 2 and changed[-1] == n - 1
+    if "bias step" in name:
+        # the step from halfway through the motion to the end, rests included
+        base = bench.breaks_trial(d) if "breaks" in name else d
+        first, last = np.flatnonzero(base["movement"])[[0, -1]]
+        changed = np.flatnonzero(np.any(out["gyr"] != base["gyr"], axis=1))
+        assert changed[0] == (first + last + 1) // 2 and len(changed) == n - changed[0]
         bias[changed[0]:] += bench.BIAS_STEP
     assert gyro_mismatch(out, bias) < 1e-9
     # the rests of "breaks" hold a block of the recorded noise (its mean is not zero) and the field of a
     # 0.1-s window (noise averaged over 5 samples at 50 Hz)
-    shortest = min(s for _, s in bench.BREAKS) * RATE if name == "breaks" else n
-    window = 2 * round(0.05 * RATE) + 1 if name == "breaks" else n
+    shortest = min(s for _, s in bench.BREAKS) * RATE if "breaks" in name else n
+    window = 2 * round(0.05 * RATE) + 1 if "breaks" in name else n
     acc, ok = enu(out, "acc")
     np.testing.assert_allclose(acc.mean(axis=0), [0.0, 0.0, GRAVITY],
                                atol=4 * ACC_STD / np.sqrt(min(ok.sum(), shortest)))
