@@ -47,8 +47,11 @@ that each estimate is scored against the attitude after its gyro sample, as forw
 ``--proxies``: the ten trials turned into recordings none of the filters was tuned on (see
 ``PROXIES``: another mounting of the sensor, other sample rates, a noisier, biased or
 mis-scaled gyro, the field in Gauss or with a hard-iron offset, time reversal, starts in the
-middle of the motion), ours9d, VQF and Madgwick on each: mean total RMSE per proxy, the
-trials where ours9d is worse than Madgwick, and ours9d's wins against VQF.
+middle of the motion; and BROAD's categories the ten lack: rest breaks in the motion, trials of
+240-360 s, an office field that varies with the position, a gyro bias step), ours9d, ours6d, VQF
+and Madgwick on each: mean total RMSE per proxy, the trials where ours9d is worse than Madgwick,
+and ours9d's wins against VQF.  ``--proxies WORDS`` keeps the proxies whose name contains one of
+the comma-separated words.
 
 Optional dependencies (bench only, never needed by cfdesign or its tests):
 ``pip install vqf ahrs imufusion``.
