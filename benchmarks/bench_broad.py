@@ -33,7 +33,8 @@ loops.
 
 Run::
 
-    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--proxies] [--only ours9d,vqf]
+    python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--proxies [WORDS]]
+                                     [--only ours9d,vqf]
 
 ``--ablation``: ours9d with each mechanism off (parameters of AttitudeParams), mean and per
 trial.  ``--loo``: leave-one-out over the constants tuned on these trials: for each held-out
@@ -46,8 +47,11 @@ that each estimate is scored against the attitude after its gyro sample, as forw
 ``--proxies``: the ten trials turned into recordings none of the filters was tuned on (see
 ``PROXIES``: another mounting of the sensor, other sample rates, a noisier, biased or
 mis-scaled gyro, the field in Gauss or with a hard-iron offset, time reversal, starts in the
-middle of the motion), ours9d, VQF and Madgwick on each: mean total RMSE per proxy, the
-trials where ours9d is worse than Madgwick, and ours9d's wins against VQF.
+middle of the motion; and BROAD's categories the ten lack: rest breaks in the motion, trials of
+240-360 s, an office field that varies with the position, a gyro bias step), ours9d, ours6d, VQF
+and Madgwick on each: mean total RMSE per proxy, the trials where ours9d is worse than Madgwick,
+and ours9d's wins against VQF.  ``--proxies WORDS`` keeps the proxies whose name contains one of
+the comma-separated words.
 
 Optional dependencies (bench only, never needed by cfdesign or its tests):
 ``pip install vqf ahrs imufusion``.
@@ -56,6 +60,7 @@ Optional dependencies (bench only, never needed by cfdesign or its tests):
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -169,18 +174,21 @@ def available(names):
     return out
 
 
-def reversed_trial(d):
-    """The trial played backwards: readings in reverse order, body rates negated, the reference
-    and the movement flags shifted by one sample (sample ``k`` of the reversed trial integrates
-    the rate between original samples ``N-1-k`` and ``N-2-k``)."""
+def reversed_trial(d, bias=None):
+    """The trial played backwards: every sample's specific force, field, reference and movement flag
+    in reverse order, and the body rates negated and moved by one sample: the rate of reversed sample
+    ``k`` turns the attitude of original sample ``N-k`` into that of ``N-1-k``, so it is the negated
+    rate of original sample ``N-k`` (sample 0, whose predecessor there is none, reads no rotation).
+    The gyro's bias is negated with the rate unless given (``bias``, rad/s): then the reversed rate is
+    ``2 bias - w`` and sample 0 reads ``bias``."""
     out = dict(d)
-    out["gyr"] = np.ascontiguousarray(-d["gyr"][::-1])
-    out["acc"], out["mag"] = np.ascontiguousarray(d["acc"][::-1]), np.ascontiguousarray(d["mag"][::-1])
-    ref = np.full_like(d["ref"], np.nan)
-    ref[:-1] = d["ref"][::-1][1:]
-    movement = np.zeros_like(d["movement"])
-    movement[:-1] = d["movement"][::-1][1:]
-    out["ref"], out["movement"] = ref, movement
+    b = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
+    gyr = np.empty_like(d["gyr"])
+    gyr[0] = b
+    gyr[1:] = -d["gyr"][::-1][:-1] + (0.0 if bias is None else 2.0 * b)
+    out["gyr"] = gyr
+    for key in ("acc", "mag", "ref", "movement"):
+        out[key] = np.ascontiguousarray(d[key][::-1])
     return out
 
 
@@ -242,6 +250,162 @@ def trimmed_trial(d):
     return out
 
 
+#: the quiet start of every dev trial (s; each rests for 33 s or more before its motion): its readings are
+#: the recorded noise (and gyro bias) the rest-break proxy synthesises rests from
+REST_S = 25.0
+#: rest breaks inserted by ``breaks_trial``: (fraction of the motion, duration in s)
+BREAKS = ((0.25, 5.0), (0.5, 10.0), (0.75, 20.0))
+
+
+def _finite_ref(ref):
+    """``ref`` with every NaN row replaced by the last finite one before it (the first finite one at the start)."""
+    ok = np.isfinite(ref).all(axis=1)
+    idx = np.where(ok, np.arange(len(ref)), 0)
+    idx = np.maximum.accumulate(idx)
+    idx[~ok[idx]] = int(np.argmax(ok))
+    return ref[idx] / np.linalg.norm(ref[idx], axis=1, keepdims=True)
+
+
+def _concat(parts):
+    keys = ("gyr", "acc", "mag", "ref", "movement")
+    out = {key: np.ascontiguousarray(np.concatenate([p[key] for p in parts])) for key in keys}
+    out["rate"] = parts[0]["rate"]
+    return out
+
+
+def _slice(d, start, stop):
+    out = {key: d[key][start:stop] for key in ("gyr", "acc", "mag", "ref", "movement")}
+    out["rate"] = d["rate"]
+    return out
+
+
+def rest_segment(d, k, seconds, offset=0):
+    """``seconds`` of rest at the reference attitude of sample ``k`` (NaN rows: the last finite one), synthesised
+    from the trial's quiet start (``REST_S``) from sample ``offset`` on: the gyro as recorded there (its bias and
+    noise), the specific force the recorded magnitude of gravity turned into the body frame plus the recorded
+    noise, the field of sample ``k``'s neighbourhood (0.1 s, turned to ``k``'s attitude by the reference: the
+    Earth-fixed field there) plus the recorded noise.  ``movement`` is 0 (BROAD scores motion only)."""
+    n, quiet = round(seconds * d["rate"]), round(REST_S * d["rate"])
+    if offset + n > quiet:
+        raise ValueError(f"a rest of {seconds} s from {offset} does not fit in the quiet start of {REST_S} s")
+    ref = _finite_ref(d["ref"])
+    q = ref[k]
+    acc0, mag0 = d["acc"][:quiet], d["mag"][:quiet]
+    g = float(np.linalg.norm(acc0, axis=1).mean())
+    w = round(0.05 * d["rate"])
+    window = slice(max(k - w, 0), k + w + 1)
+    field_enu = rot.rotate(ref[window], d["mag"][window]).mean(axis=0)
+    block = slice(offset, offset + n)
+    acc = rot.rotate(rot.conjugate(q), [0.0, 0.0, g]) + (acc0[block] - acc0.mean(axis=0))
+    mag = rot.rotate(rot.conjugate(q), field_enu) + (mag0[block] - mag0.mean(axis=0))
+    return {"gyr": d["gyr"][block], "acc": acc, "mag": mag, "ref": np.tile(q, (n, 1)),
+            "movement": np.zeros(n, dtype=bool), "rate": d["rate"]}
+
+
+def breaks_trial(d, breaks=BREAKS):
+    """The trial with rests inserted into its motion (``BREAKS``: at fractions of the motion, for so many
+    seconds), each at the reference attitude where it is inserted (``rest_segment``), as BROAD's trials
+    with breaks (three rests of 10 s in the motion) hold the sensor still mid-motion."""
+    first = int(np.argmax(d["movement"]))
+    last = len(d["movement"]) - int(np.argmax(d["movement"][::-1]))
+    parts, start = [], 0
+    for fraction, seconds in breaks:
+        k = first + round(fraction * (last - first))
+        parts += [_slice(d, start, k + 1), rest_segment(d, k, seconds)]
+        start = k + 1
+    return _concat([*parts, _slice(d, start, len(d["movement"]))])
+
+
+def quiet_bias(d):
+    """The gyro's mean over the trial's quiet start (``REST_S``): its bias, rad/s."""
+    return d["gyr"][:round(REST_S * d["rate"])].mean(axis=0)
+
+
+def long_trial(d):
+    """A long trial (BROAD's combined trials last 240-360 s): the trial up to the end of its motion, then
+    played back to its start (``reversed_trial`` keeping the gyro's bias: the reversed rate is
+    ``2 b - w`` with ``b`` the bias of ``quiet_bias``, so the bias does not change sign at the turn); the
+    attitude is continuous at the turn."""
+    last = len(d["movement"]) - int(np.argmax(d["movement"][::-1]))
+    forward = _slice(d, 0, last)
+    return _concat([forward, reversed_trial(forward, bias=quiet_bias(d))])
+
+
+#: where ``repeated_trial`` joins the repeat: this long into the rest after the motion, to this long before
+#: the motion in the repeat (s)
+JOIN_AFTER_S, JOIN_BEFORE_S = 5.0, 1.0
+
+
+def repeated_trial(d):
+    """A long trial (BROAD's combined trials last 240-360 s) played forwards only: the trial up to
+    ``JOIN_AFTER_S`` into its final rest, then its motion again (from ``JOIN_BEFORE_S`` before it) with
+    the sensor remounted by the rotation ``C`` that makes the attitude continuous at the join (readings
+    turned by ``C⁻¹``, the gyro about its bias of ``quiet_bias``; reference ``q ⊗ C``, as
+    ``rotated_trial``)."""
+    first = int(np.argmax(d["movement"]))
+    last = len(d["movement"]) - int(np.argmax(d["movement"][::-1]))
+    end = min(last + round(JOIN_AFTER_S * d["rate"]), len(d["movement"]))
+    start = first - round(JOIN_BEFORE_S * d["rate"])
+    ref = _finite_ref(d["ref"])
+    c = rot.multiply(rot.conjugate(ref[start]), ref[end - 1])
+    copy = _slice(d, start, len(d["movement"]))
+    turn = np.tile(rot.conjugate(c), (len(copy["gyr"]), 1))
+    b = quiet_bias(d)
+    copy["gyr"] = rot.rotate(turn, d["gyr"][start:] - b) + b
+    copy["acc"], copy["mag"] = rot.rotate(turn, d["acc"][start:]), rot.rotate(turn, d["mag"][start:])
+    copy["ref"] = rot.multiply(d["ref"][start:], np.tile(c, (len(copy["gyr"]), 1)))
+    return _concat([_slice(d, 0, end), copy])
+
+
+def _positions(d):
+    """``opt_pos`` with its NaN rows filled by the last finite one (the first finite one at the start)."""
+    pos = d["pos"]
+    ok = np.isfinite(pos).all(axis=1)
+    idx = np.maximum.accumulate(np.where(ok, np.arange(len(pos)), 0))
+    idx[~ok[idx]] = int(np.argmax(ok))
+    return pos[idx]
+
+
+#: the office field of ``office_trial``: amplitude per ENU component (uT), wavelength (m), and the
+#: wave directions and phases (fixed, chosen once)
+OFFICE_UT, OFFICE_WAVELENGTH_M = 10.0, 2.0
+OFFICE_DIRECTIONS = np.array([[0.8, 0.6, 0.0], [-0.36, 0.48, 0.8], [0.48, -0.64, 0.6]])
+OFFICE_PHASES = np.array([0.7, 2.1, -1.3])
+
+
+def office_field(pos):
+    """The office's disturbance of the field at ENU positions ``pos`` (m): each ENU component a plane wave
+    in space, ``OFFICE_UT * (sin(k_i . p + phi_i) - sin(phi_i))`` (zero at the origin), uT."""
+    k = 2.0 * np.pi / OFFICE_WAVELENGTH_M * OFFICE_DIRECTIONS
+    return OFFICE_UT * (np.sin(pos @ k.T + OFFICE_PHASES) - np.sin(OFFICE_PHASES))
+
+
+def office_trial(d):
+    """The field of an office (BROAD's office trials: the field varies as the sensor moves through it): the
+    ``office_field`` of the marker's position relative to its first one, an ENU vector that changes the
+    field's norm and dip, turned into the body frame by the reference and added to the readings."""
+    pos = _positions(d)
+    disturbance = office_field(pos - pos[0])
+    out = dict(d)
+    out["mag"] = np.ascontiguousarray(d["mag"] + rot.rotate(rot.conjugate(_finite_ref(d["ref"])), disturbance))
+    return out
+
+
+#: the gyro bias step of ``bias_step_trial`` (rad/s, body frame; 0.5 deg/s): a temperature change mid-motion
+BIAS_STEP = np.radians(0.5) * np.array([0.6, -0.64, 0.48])
+
+
+def bias_step_trial(d):
+    """The gyro's bias changed by ``BIAS_STEP`` halfway through the motion (a temperature step)."""
+    first = int(np.argmax(d["movement"]))
+    last = len(d["movement"]) - int(np.argmax(d["movement"][::-1]))
+    out = dict(d)
+    gyr = d["gyr"].copy()
+    gyr[(first + last) // 2:] += BIAS_STEP
+    out["gyr"] = gyr
+    return out
+
+
 #: the proxies of ``--proxies``: recordings none of the filters was tuned on, made from the ten
 PROXIES = {
     "as recorded": lambda d: d,
@@ -256,6 +420,12 @@ PROXIES = {
     "hard iron (4, -3, 2) uT": lambda d: modified_trial(d, hard_iron=(4.0, -3.0, 2.0)),
     "played backwards": reversed_trial,
     f"started mid-motion ({CONVERGE_S:g} s unscored)": trimmed_trial,
+    "rest breaks of 5, 10, 20 s mid-motion": breaks_trial,
+    "long: to the motion's end and back": long_trial,
+    "long: the motion twice (remounted)": repeated_trial,
+    "office field (10 uT waves, 2 m)": office_trial,
+    "gyro bias step 0.5 deg/s mid-motion": bias_step_trial,
+    "rest breaks, the bias step after the 2nd": lambda d: bias_step_trial(breaks_trial(d)),
 }
 
 
@@ -274,9 +444,15 @@ def proxy_scores(files, names, jobs, proxies=None):
     return {proxy: dict(zip(names, flat[i], strict=True)) for i, proxy in enumerate(proxies)}
 
 
-def proxy_table(files, jobs):
-    names = available(["ours9d", "vqf", "madgwick"])
-    scores = proxy_scores(files, names, jobs)
+def select_proxies(spec):
+    """The keys of ``PROXIES`` that contain one of the comma-separated words of ``spec`` (all for ``""``)."""
+    words = [w.strip().lower() for w in spec.split(",") if w.strip()]
+    return [p for p in PROXIES if not words or any(w in p.lower() for w in words)]
+
+
+def proxy_table(files, jobs, proxies=None):
+    names = available(["ours9d", "ours6d", "vqf", "madgwick"])
+    scores = proxy_scores(files, names, jobs, proxies)
     print("\nProxies of unseen recordings: mean total RMSE (deg) over the ten trials; trials where ours9d is "
           "worse than Madgwick; trials where ours9d beats VQF")
     print("proxy".ljust(42) + "".join(f"{n:>10}" for n in names) + "   worse than Madgwick / beats VQF")
@@ -373,8 +549,9 @@ def main(argv=None):
     parser.add_argument("--loo", action="store_true", help="also the leave-one-out check of the tuned constants")
     parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation, --loo and --proxies")
     parser.add_argument("--reversed", action="store_true", help="also the table of every trial played backwards")
-    parser.add_argument("--proxies", action="store_true",
-                        help="also ours9d, VQF and Madgwick on proxies of unseen recordings (PROXIES)")
+    parser.add_argument("--proxies", nargs="?", const="", metavar="WORDS",
+                        help="also ours9d, ours6d, VQF and Madgwick on proxies of unseen recordings (PROXIES); "
+                             "WORDS (comma-separated) keeps the proxies whose name contains one of them")
     args = parser.parse_args(argv)
     files = sorted(args.data.glob("*.mat"))
     if not files:
@@ -385,12 +562,16 @@ def main(argv=None):
     if unknown:
         print(f"unknown filter(s): {', '.join(unknown)}")
         return 1
+    proxies = None if args.proxies is None else select_proxies(args.proxies)
+    if proxies == []:
+        print(f"--proxies: no proxy matches {args.proxies!r}; the proxies are: {'; '.join(PROXIES)}", file=sys.stderr)
+        return 2
     main_table(files, names)
     if args.reversed:
         print()
         main_table(files, names, reverse=True)
-    if args.proxies:
-        proxy_table(files, args.jobs)
+    if args.proxies is not None:
+        proxy_table(files, args.jobs, proxies)
     if args.ablation:
         ablation(files, args.jobs)
     if args.loo:

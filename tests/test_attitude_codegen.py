@@ -189,3 +189,24 @@ def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
         render_attitude_c(AttitudeFilter(100.0), prefix="_imu")
     with pytest.raises(CfdesignError, match="AttitudeFilter"):
         render_attitude_c("not a filter")
+
+
+@needs_cc
+def test_c_agrees_through_a_rest_that_relearns_a_stepped_bias(tmp_path):
+    """The bias steps by 0.5 deg/s in the motion, then a rest: C widens the bias prior at the rest's
+    start as Python does, and both learn the new bias."""
+    gyr, acc, mag = readings(n=6000)
+    step = np.radians(0.5) * np.array([0.6, -0.64, 0.48])
+    gyr[4500:] += step
+    rng = np.random.default_rng(5)
+    still = 1500
+    gyr = np.vstack([gyr, np.array([0.01, -0.02, 0.015]) + step + rng.normal(0, 0.003, (still, 3))])
+    acc = np.vstack([acc, acc[-1] + rng.normal(0, 0.05, (still, 3))])
+    mag = np.vstack([mag, mag[-1] + rng.normal(0, 0.5, (still, 3))])
+    f = AttitudeFilter(100.0)
+    out = f.run(gyr, acc, mag, details=True)
+    assert out.rest[-500:].all()
+    assert np.degrees(np.abs(out.bias[-1] - [0.01, -0.02, 0.015] - step).max()) < 0.03
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag)
+    assert np.abs(q_c - out.quaternion).max() <= 1e-9
+    assert abs(state_c["r11"] - f.state()["r11"]) <= 1e-9 * abs(f.state()["r11"])

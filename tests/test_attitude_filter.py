@@ -173,6 +173,24 @@ def test_rest_is_detected_and_the_bias_learnt_at_rest():
     assert not off.rest.any() and np.abs(off.bias[int(6 * RATE)] - BIAS).max() > 3e-3
 
 
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_a_rest_relearns_a_bias_that_stepped_during_the_motion(magnetometer):
+    """20 s at rest, 40 s of motion in which the bias steps by 0.5 deg/s (a temperature step: ~70 times
+    what the bias random walk lets it move in that time), then a rest: the rest's first reading of the bias
+    widens the prior it contradicts, so the rest learns the new bias in seconds, as it learnt the first."""
+    q = motion(6000, still_s=20.0)
+    q = np.vstack([q, np.tile(q[-1], (1000, 1))])                    # a rest from 60 s
+    step = np.radians(0.5) * np.array([0.6, -0.64, 0.48])
+    gyr, acc, mag = imu(q)
+    gyr[5000:] += step                                              # at 50 s
+    out = AttitudeFilter(RATE, magnetometer=magnetometer).run(gyr, acc, mag if magnetometer else None, details=True)
+    t = np.arange(len(q)) / RATE
+    start = t[np.argmax(out.rest & (t > 60.0))]                      # the stop's transient settles first
+    assert 61.5 < start < 67.0 and out.rest[t >= start].all()
+    # 2 s into the rest the bias is the new one to 0.03 deg/s (from the prior the random walk left: 0.23 deg/s off)
+    assert np.degrees(np.abs(out.bias[int((start + 2.0) * RATE)] - BIAS - step).max()) < 0.03
+
+
 # ---------------------------------------------------------------------- magnetic disturbance
 def magnet_run(**params):
     q = motion(9000, still_s=5.0)

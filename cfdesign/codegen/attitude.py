@@ -114,7 +114,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     design = attitude_filter.design
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
      new_s, new_rot, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels, use_bias,
-     inertial, max_acc_s, hold_s, tilt_alpha) = _coefficients(design)
+     inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -132,6 +132,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "max_accel_time": _hex(max_acc_s), "accel_hold": _hex(hold_s), "tilt_alpha": _hex(tilt_alpha),
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "hold_var": _hex(hold_var),
+        "rest_lp_var": _hex(lp_var),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
         "n_velocity": len(velocity),
         "velocity": ",\n".join(f"    {{{_hex(k1)}, {_hex(k2)}}}" for k1, k2 in velocity),

@@ -36,7 +36,10 @@ gyro propagates the attitude and four designed complementary channels correct it
   field is disturbed.
 * **rest: a zero-rotation channel** (``cf2``: the body's rotation since rest began, read as
   zero, noise the gyro's own noise over one sample), whose rate correction is the full gyro
-  bias, vertical axis included: a rest of a second or two averages the gyro into the bias.
+  bias, vertical axis included: a rest of a second or two averages the gyro into the bias.  Its
+  bias variance starts from what the random walk left, widened at the rest's start to what its first
+  reading of the bias (the detector's low-passed rate) says the bias errs by, so a bias that stepped
+  during the motion (a temperature change) is relearnt in that time too.
 
 The tilt, heading and zero-rotation channels run the Kalman covariance recursion of their own
 table (``F, Q, R``; its fixed point is the table's DARE covariance, so the steady gains are the
@@ -486,9 +489,10 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
     for name in ("tilt", "heading", "rest"):
         channels[name], priors[name] = _channel(tables[name], gains[name], _prior(name, tables[name], p))
     rest_std = p.rest_sigma * math.sqrt(3.0)
+    rest_alpha = -math.expm1(-T / p.rest_filter_s)
     constants = {
         "T": T,
-        "rest_alpha": -math.expm1(-T / p.rest_filter_s),
+        "rest_alpha": rest_alpha,
         "rest_gyro_th2": (rest_std * gyro_std) ** 2,
         "rest_accel_th2": (rest_std * accel_std) ** 2,
         "rest_bias_th2": max(3.0 * p.gyro_bias_std0, rest_std * gyro_std) ** 2,
@@ -498,6 +502,9 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
         "speed2": p.max_speed_mps ** 2,
         "accel_hold_s": p.max_reach_m / p.max_speed_mps,
         "tilt_alpha": T * math.sqrt(GRAVITY * p.tilt_drift_density / p.velocity_noise_density),
+        # variance of the rest detector's low-passed rate about the bias, per axis (white noise through its
+        # first-order low-pass): what a rest's first reading of the bias errs by from noise alone
+        "rest_lp_var": gyro_std ** 2 * rest_alpha / (2.0 - rest_alpha),
         "gyro_range2": p.gyro_range_rps ** 2,
         "accel_range2": p.accel_range_mps2 ** 2,
     }
@@ -972,7 +979,7 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
-            c["accel_hold_s"], c["tilt_alpha"])
+            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"])
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -982,7 +989,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha) = coef
+     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
      ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
@@ -1229,6 +1236,11 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     if rest:
         if not was_rest:
             r00, r01 = hold_var, 0.0                    # a new rest: the rotation since it began is zero
+            # the rest's first reading of the bias (the detector's low-passed rate) against the bias known so
+            # far: an error beyond the variance the random walk left it (a bias changed by a temperature step)
+            # is the variance the bias now has (its moment estimate, the low-pass's noise removed)
+            d2 = (glx - bx) * (glx - bx) + (gly - by) * (gly - by) + (glz - bz) * (glz - bz)
+            r11 = max(r11, d2 / 3.0 - lp_var)
         if kal:
             den = r00 + rr
             k1r, k2r = r00 / den, r01 / den

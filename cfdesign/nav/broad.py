@@ -34,7 +34,8 @@ def load_trial(path) -> dict:
         ``gyr`` (N, 3): body rate, rad/s; ``acc`` (N, 3): specific force, m/s²; ``mag``
         (N, 3): magnetic field, uT (all three in the sensor frame, C-contiguous); ``ref``
         (N, 4): the optical ground truth ``[w, x, y, z]``, sensor frame relative to ENU, NaN
-        rows where the markers were lost; ``movement`` (N,) bool: the samples the metric
+        rows where the markers were lost; ``pos`` (N, 3): the marker's position, m (NaN rows
+        likewise); ``movement`` (N,) bool: the samples the metric
         scores (:func:`broad_rmse`); ``rate``: the sample rate, Hz.
 
     Raises
@@ -57,7 +58,7 @@ def load_trial(path) -> dict:
 
     d = loadmat(path)
     return {"gyr": np.ascontiguousarray(d["imu_gyr"]), "acc": np.ascontiguousarray(d["imu_acc"]),
-            "mag": np.ascontiguousarray(d["imu_mag"]), "ref": d["opt_quat"],
+            "mag": np.ascontiguousarray(d["imu_mag"]), "ref": d["opt_quat"], "pos": d["opt_pos"],
             "movement": d["movement"].ravel().astype(bool), "rate": float(d["sampling_rate"].item())}
 
 
