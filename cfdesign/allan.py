@@ -24,6 +24,11 @@ inertial sensors using Allan variance*, IEEE Trans. Instrum. Meas. 57(1), 2008):
 
 Method (:func:`identify_noise`):
 
+0. a recording that jumps is refused, naming where: an outlier, a step, motion or an integer
+   reading that wrapped puts its variance into one or two differences of adjacent block means,
+   which for the model's noises are Gaussian with one spread; read as noise, it passed for white
+   noise or a rate random walk with a tight interval around the wrong value (the test:
+   :data:`~cfdesign.allan.JUMP_FALSE_ALARM`, :data:`~cfdesign.allan.JUMP_SHARE`);
 1. the overlapping Allan deviation at octave-spaced ``tau = m / f``, ``m = 1, 2, 4, ...``
    (D. W. Allan's estimator with all overlapping differences; W. J. Riley, *Handbook of
    Frequency Stability Analysis*, NIST SP 1065, 2008, eq. (11)) from the phase
@@ -118,6 +123,21 @@ DEPARTURE_LEVEL = 0.999
 #: factor on the ADEV a point may lie below the model beyond its chi-square interval (a real
 #: sensor's anti-alias filter lowers the first octaves)
 MODEL_TOLERANCE = 1.5
+#: chance that a recording of the model's Gaussian noises is refused as jumping (an outlier or a
+#: step, :func:`identify_noise`): the limit on the largest difference of adjacent block means,
+#: Bonferroni over every difference tested
+JUMP_FALSE_ALARM = 1e-6
+#: fewest blocks of an octave whose block-mean differences are tested for a jump
+MIN_BLOCKS = 128
+#: a jump must also exceed this many steps of the readings' resolution (a quantised sensor
+#: reading one level most of the time jumps between levels)
+JUMP_LSBS = 8
+#: share of an octave's mean square of block-mean differences that jumps must hold to be named
+#: (the Allan deviation there 5 % higher than without them)
+JUMP_SHARE = 0.1
+#: mean square of a standard normal variable over its smallest nine tenths in magnitude:
+#: (0.9 - 2 z phi(z)) / 0.9 with z = 1.645, the 95th percentile
+TRIMMED_SQUARE = 0.6230155
 
 
 # ---------------------------------------------------------------------------- the deviation
@@ -465,7 +485,10 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     InputError
         Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
-        noise figure (``cfdesign.noise.FIGURE_RANGE``), or a rate outside 1e-9 to 1e9 Hz.
+        noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
+        recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
+        adjacent block means beyond :data:`~cfdesign.allan.JUMP_FALSE_ALARM` holding at least
+        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where).
 
     Examples
     --------
@@ -494,6 +517,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     if np.ptp(y) < FIGURE_RANGE[0]:  # their squares underflow: an Allan variance of zeros, then an empty fit
         raise InputError(f"{name}: the readings vary by {np.ptp(y):g} only, below {FIGURE_RANGE[0]:g}, the smallest "
                          "noise figure a design takes (check the units)")
+    _check_still(y, float(rate_hz), name)
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
@@ -515,6 +539,68 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     coef, terms, missing, edf = fit
     coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _check_still(y, rate_hz, name):
+    """InputError where the recording jumps: an outlier, a step, motion or a wrapped integer.
+
+    The Allan variance at ``tau = m / f`` is half the mean square of the differences ``d_j``
+    between the means of adjacent blocks of ``m`` readings.  For the noises of the model those
+    differences are Gaussian with one variance, so none strays far from their typical size (taken
+    from the mean square of the smallest nine tenths of those not zero, which a few jumps do not
+    move); a single outlier or step puts its variance into one or two of them and, read through
+    the Allan deviation, passes for white noise or a rate random walk with a tight interval around
+    the wrong value.  At every octave with at least :data:`MIN_BLOCKS` blocks, a difference beyond
+    :data:`JUMP_FALSE_ALARM` (Bonferroni over every difference tested), larger than
+    :data:`JUMP_LSBS` steps of the readings' resolution (a quantised sensor reads one level most
+    of the time and jumps between levels) is a jump; the largest is named where the jumps are
+    material (their excess over the typical square at least :data:`JUMP_SHARE` of the
+    octave's mean square and two of its standard errors)."""
+    from scipy.stats import norm
+
+    n = len(y)
+    x = np.concatenate([[0.0], np.cumsum(y - y.mean())])
+    octaves = [mk for mk in octave_taus(n, rate_hz) if n // mk >= MIN_BLOCKS]
+    tested = sum(n // mk - 1 for mk in octaves)
+    limit = float(norm.isf(JUMP_FALSE_ALARM / (2 * max(tested, 1))))
+    worst, resolution = None, None
+    for mk in octaves:
+        d = np.diff(np.diff(x[::mk][: n // mk + 1]) / mk)
+        # the spread from the mean square of the smallest nine tenths of the differences that are
+        # not zero (a normal variable's is TRIMMED_SQUARE times its variance): a flood of jumps (an
+        # int16 reading wrapping at one sample in twenty) is not its own scale, and a sensor logged
+        # faster than it reads (each value held over a few rows: differences of zero) does not shrink it
+        dd = d[d != 0] ** 2
+        if not dd.size:
+            continue
+        keep = max(1, int(0.9 * len(dd)))
+        spread = math.sqrt(float(np.mean(np.partition(dd, keep - 1)[:keep])) / TRIMMED_SQUARE)
+        big = np.abs(d) > limit * spread
+        if not big.any():
+            continue
+        if resolution is None:
+            levels = np.unique(y)
+            resolution = float(np.min(np.diff(levels)))
+        big &= np.abs(d) > JUMP_LSBS * resolution
+        # significant, and material: their excess over the typical square is at least JUMP_SHARE of
+        # the octave's mean square and two of its standard errors (a gyro whose noise has heavier
+        # tails than a normal one, 10-sigma differences among 11,000 that move its Allan deviation
+        # by 1.7 %, is noise, not a jump)
+        excess = float(np.sum(d[big] ** 2)) - big.sum() * spread**2
+        if big.any() and excess > max(JUMP_SHARE, 2 * math.sqrt(2 / len(d))) * float(np.dot(d, d)):
+            j = int(np.argmax(np.abs(d)))
+            z = abs(d[j]) / spread if spread > 0 else math.inf
+            if worst is None or z > worst[0]:
+                worst = (z, mk, j, float(d[j]))
+    if worst is None:
+        return
+    z, mk, j, jump = worst
+    at = (j + 1) * mk
+    over = "reading" if mk == 1 else f"mean over {mk} readings"
+    raise InputError(f"{name}: the recording jumps near reading {at} ({at / rate_hz:.6g} s from its start): the {over} "
+                     f"changes by {jump:.4g}, {z:.3g} times the typical such change over the recording (at most "
+                     f"{limit:.3g} for the noise of a sensor at rest); an outlier, a step, motion or an integer "
+                     "reading that wrapped? Cut the recording to a still stretch")
 
 
 def _swap_long_terms(tau, adev, m, n, rate_hz, fit):
