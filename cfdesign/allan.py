@@ -931,11 +931,12 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     """Read numeric columns from a log, as ``cfdesign run`` reads logs (:func:`cfdesign.logs.read_columns`).
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
-    every row; with ``time_column`` the rate is the number of steps over the time they span,
+    every row; with ``time_column`` the rate is that of the even grid that fits the times best,
     written as the shortest decimal within ``RATE_RTOL`` of it (jittered stamps of a 100 Hz
     sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
-    and the times must increase steadily (no gap longer than 1.5 steps, no step shorter than
-    half of one).
+    and the times must increase steadily: no gap longer than 1.5 steps and no step shorter than
+    half of one, unless every time is within half a step of its own tick of the even grid that
+    fits them best (time stamps jittered by up to half a step, as ``cfdesign run`` takes them).
 
     Parameters
     ----------
@@ -990,11 +991,48 @@ def _rate_from_time(path, name, t) -> float:
     if not step > 0:
         raise DataError(f"{path}: column {_comment(name)!r} does not increase")
     bad = np.flatnonzero((dt > 1.5 * step) | (dt < 0.5 * step))
-    if bad.size:
-        i = int(bad[0])
+    unit = _grid_step(t)
+    if bad.size and not _on_grid(t, unit):
+        i = _grid_break(t, unit) - 1  # the step into the first row the grid breaks at
         raise DataError(f"{path} line {i + 3}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
                         f"step is {step:.6g} s; the Allan deviation needs evenly sampled data (cut the log at the gap)")
-    return nominal_rate(float((len(t) - 1) / (t[-1] - t[0])))
+    return nominal_rate(1.0 / unit)
+
+
+def _grid_step(t) -> float:
+    """The step of the even grid that fits the times best (least squares): the stamps' jitter
+    moves it by far less than it moves the span of the first and last (a log of pairs stamped as
+    their packet arrives reads 99.98 Hz from its ends, 100 Hz from the grid)."""
+    i = np.arange(len(t), dtype=float) - (len(t) - 1) / 2
+    return float(np.dot(i, t - np.mean(t)) / np.dot(i, i))
+
+
+def _on_grid(t, unit) -> bool:
+    """Every time within half a step of its own tick of the grid of step ``unit`` that fits them
+    best (as ``cfdesign run`` places jittered rows on the nearest tick,
+    :func:`cfdesign.timing.nearest_tick`): a stamp jittered by up to half a step (readings stamped
+    when a USB packet arrives) is not a gap; a missing or extra reading moves the rows on one side
+    of it half a step or more off the grid."""
+    from .timing import nearest_tick
+
+    if not unit > 0:
+        return False
+    ticks = nearest_tick((t - np.mean(t)) / unit + (len(t) - 1) / 2)
+    return bool(np.array_equal(ticks, np.arange(len(t), dtype=float)))
+
+
+def _grid_break(t, step) -> int:
+    """The row where the times leave their grid for good (a missing or extra reading): where the
+    mean offset from the grid of the up to 64 rows from it differs most from that of the up to 64
+    before it.  A lone jittered stamp moves one row; a gap moves every row after it."""
+    n = len(t)
+    off = (t - t[0]) / step - np.arange(n)
+    w = max(1, min(64, n // 4))
+    c = np.concatenate([[0.0], np.cumsum(off)])
+    i = np.arange(1, n)
+    lo, hi = np.maximum(i - w, 0), np.minimum(i + w, n)
+    moved = (c[hi] - c[i]) / (hi - i) - (c[i] - c[lo]) / (i - lo)
+    return int(i[np.argmax(np.abs(moved))])
 
 
 def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:

@@ -234,6 +234,28 @@ def test_cli_rate_from_jittered_times_is_the_nominal_rate(cli, tmp_path):
     assert table.period == 10
 
 
+@pytest.mark.parametrize("stamps", ["jitter of 0.45 step", "pairs stamped together"])
+def test_cli_times_jittered_up_to_half_a_step_are_read(cli, tmp_path, stamps):
+    """Stamps jittered by +-0.4 step (one step in a few then 1.6 steps) or readings stamped in
+    pairs as their packet arrives (steps of 0.05 and 1.95) were refused as jumps ('cut the log at
+    the gap') although no reading was missing; cfdesign run takes such stamps. A reading that is
+    missing from a jittered log is still named at its line."""
+    rng = np.random.default_rng(5)
+    n = 6000
+    t = np.arange(n) / RATE
+    t = t + (0.0045 * rng.uniform(-1, 1, n) if stamps.startswith("jitter") else np.r_[0.0, 0.0095] [np.arange(n) % 2])
+    y = gyro(n / RATE)
+    log = tmp_path / "j.csv"
+    log.write_text("time,gyro\n" + "".join(f"{a:.6f},{float(v)!r}\n" for a, v in zip(t, y, strict=True)))
+    code, out, err = cli("noise", log, "--column", "gyro", "--time", "time")
+    assert code == 0 and "at 100 Hz" in out, err
+    rows = zip(np.delete(t, 4000), y, strict=False)
+    log.write_text("time,gyro\n" + "".join(f"{a:.6f},{float(v)!r}\n" for a, v in rows))
+    code, _, err = cli("noise", log, "--column", "gyro", "--time", "time")
+    line = int(re.search(r"line (\d+):", err).group(1))
+    assert code == 2 and abs(line - 4002) <= 8 and err.count("\n") == 1  # within the jitter's reach
+
+
 def test_cli_time_column_of_dates(cli, tmp_path):
     """ISO 8601 times give the rate as seconds do (as ``cfdesign run`` reads them); a time cell
     that is neither is named."""
