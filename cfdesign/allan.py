@@ -809,6 +809,28 @@ def _key(name: str) -> str:
     return key
 
 
+def _keys(names) -> list:
+    """Distinct design-file sensor names for the columns (:func:`_key`): a column already named
+    so keeps its name, the others take the next free ``_2``, ``_3``, ...  Columns 'gyro x' and
+    'gyro_x', or two of Greek letters, both became ``gyro_x`` (``sensor``) and the TOML declared
+    one table twice, which no reader takes."""
+    names = list(names)
+    keys = [name if _key(name) == name else None for name in names]
+    taken = set()
+    for i, key in enumerate(keys):
+        if key is not None and key in taken:
+            keys[i] = None
+        taken.add(key)
+    for i, name in enumerate(names):
+        if keys[i] is None:
+            key, k = _key(name), 2
+            while key in taken:
+                key, k = f"{_key(name)}_{k}", k + 1
+            keys[i] = key
+            taken.add(key)
+    return keys
+
+
 def _comment(text: str) -> str:
     return "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
 
@@ -840,8 +862,7 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
              "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
              "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
              "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
-    for fit in fits:
-        key = _key(fit.name)
+    for fit, key in zip(fits, _keys(fit.name for fit in fits), strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))

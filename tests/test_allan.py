@@ -403,3 +403,19 @@ def test_still_recordings_are_not_refused_as_jumping(kind):
         y[rng.choice(n, 6, replace=False)] += 10.0
     fit = identify_noise(y, RATE)  # no InputError
     assert fit.terms or kind == "held"  # held values are not white at the log's rate: no term need fit
+
+
+def test_columns_whose_names_clash_get_distinct_sensor_tables(cli, tmp_path):
+    """Columns 'gyro x' and 'gyro_x' (and two named in Greek) both became [sensors.gyro_x]
+    ([sensors.sensor]): noise.toml declared a table twice, which no TOML reader takes, exit 0."""
+    rng = np.random.default_rng(2)
+    cols = {name: rng.standard_normal(400) for name in ("gyro x", "gyro_x", "\u03c9", "\u03b1")}
+    log = tmp_path / "n.csv"
+    log.write_text(",".join(cols) + "\n" + "".join(",".join(repr(float(v[i])) for v in cols.values()) + "\n"
+                                                  for i in range(400)), encoding="utf-8")
+    code, _, err = cli("noise", log, "--column", ",".join(cols), "--rate-hz", 100, "-o", tmp_path / "n.toml")
+    assert code == 0, err
+    sensors = tomllib.loads((tmp_path / "n.toml").read_text())["sensors"]
+    assert list(sensors) == ["gyro_x_2", "gyro_x", "sensor", "sensor_2"]  # a column named so keeps its name
+    code, _, err = cli("noise", log, "--column", "gyro_x,gyro_x", "--rate-hz", 100)
+    assert code == 2 and "'gyro_x' twice" in err and err.count("\n") == 1
