@@ -875,7 +875,9 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
             lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s); "
                          + _ci_text(rw))
         else:
-            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])})")
+            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); a structure "
+                         "that estimates the bias (a cf2 of order 2, for one) needs bias = { model = \"random_walk\", "
+                         "density = ... } from a longer recording or the datasheet")
         if bi is not None:
             lines.append(f"# bias instability B = {bi.value:.4g} {unit} ({_ci_text(bi)}); the design "
                          "models the bias as a random walk")
