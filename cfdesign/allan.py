@@ -24,6 +24,11 @@ inertial sensors using Allan variance*, IEEE Trans. Instrum. Meas. 57(1), 2008):
 
 Method (:func:`identify_noise`):
 
+0. a recording that jumps is refused, naming where: an outlier, a step, motion or an integer
+   reading that wrapped puts its variance into one or two differences of adjacent block means,
+   which for the model's noises are Gaussian with one spread; read as noise, it passed for white
+   noise or a rate random walk with a tight interval around the wrong value (the test:
+   :data:`~cfdesign.allan.JUMP_FALSE_ALARM`, :data:`~cfdesign.allan.JUMP_SHARE`);
 1. the overlapping Allan deviation at octave-spaced ``tau = m / f``, ``m = 1, 2, 4, ...``
    (D. W. Allan's estimator with all overlapping differences; W. J. Riley, *Handbook of
    Frequency Stability Analysis*, NIST SP 1065, 2008, eq. (11)) from the phase
@@ -118,6 +123,21 @@ DEPARTURE_LEVEL = 0.999
 #: factor on the ADEV a point may lie below the model beyond its chi-square interval (a real
 #: sensor's anti-alias filter lowers the first octaves)
 MODEL_TOLERANCE = 1.5
+#: chance that a recording of the model's Gaussian noises is refused as jumping (an outlier or a
+#: step, :func:`identify_noise`): the limit on the largest difference of adjacent block means,
+#: Bonferroni over every difference tested
+JUMP_FALSE_ALARM = 1e-6
+#: fewest blocks of an octave whose block-mean differences are tested for a jump
+MIN_BLOCKS = 128
+#: a jump must also exceed this many steps of the readings' resolution (a quantised sensor
+#: reading one level most of the time jumps between levels)
+JUMP_LSBS = 8
+#: share of an octave's mean square of block-mean differences that jumps must hold to be named
+#: (the Allan deviation there 5 % higher than without them)
+JUMP_SHARE = 0.1
+#: mean square of a standard normal variable over its smallest nine tenths in magnitude:
+#: (0.9 - 2 z phi(z)) / 0.9 with z = 1.645, the 95th percentile
+TRIMMED_SQUARE = 0.6230155
 
 
 # ---------------------------------------------------------------------------- the deviation
@@ -465,7 +485,10 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     InputError
         Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
-        noise figure (``cfdesign.noise.FIGURE_RANGE``), or a rate outside 1e-9 to 1e9 Hz.
+        noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
+        recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
+        adjacent block means beyond :data:`~cfdesign.allan.JUMP_FALSE_ALARM` holding at least
+        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where).
 
     Examples
     --------
@@ -494,6 +517,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     if np.ptp(y) < FIGURE_RANGE[0]:  # their squares underflow: an Allan variance of zeros, then an empty fit
         raise InputError(f"{name}: the readings vary by {np.ptp(y):g} only, below {FIGURE_RANGE[0]:g}, the smallest "
                          "noise figure a design takes (check the units)")
+    _check_still(y, float(rate_hz), name)
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
@@ -515,6 +539,68 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     coef, terms, missing, edf = fit
     coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+
+
+def _check_still(y, rate_hz, name):
+    """InputError where the recording jumps: an outlier, a step, motion or a wrapped integer.
+
+    The Allan variance at ``tau = m / f`` is half the mean square of the differences ``d_j``
+    between the means of adjacent blocks of ``m`` readings.  For the noises of the model those
+    differences are Gaussian with one variance, so none strays far from their typical size (taken
+    from the mean square of the smallest nine tenths of those not zero, which a few jumps do not
+    move); a single outlier or step puts its variance into one or two of them and, read through
+    the Allan deviation, passes for white noise or a rate random walk with a tight interval around
+    the wrong value.  At every octave with at least :data:`MIN_BLOCKS` blocks, a difference beyond
+    :data:`JUMP_FALSE_ALARM` (Bonferroni over every difference tested), larger than
+    :data:`JUMP_LSBS` steps of the readings' resolution (a quantised sensor reads one level most
+    of the time and jumps between levels) is a jump; the largest is named where the jumps are
+    material (their excess over the typical square at least :data:`JUMP_SHARE` of the
+    octave's mean square and two of its standard errors)."""
+    from scipy.stats import norm
+
+    n = len(y)
+    x = np.concatenate([[0.0], np.cumsum(y - y.mean())])
+    octaves = [mk for mk in octave_taus(n, rate_hz) if n // mk >= MIN_BLOCKS]
+    tested = sum(n // mk - 1 for mk in octaves)
+    limit = float(norm.isf(JUMP_FALSE_ALARM / (2 * max(tested, 1))))
+    worst, resolution = None, None
+    for mk in octaves:
+        d = np.diff(np.diff(x[::mk][: n // mk + 1]) / mk)
+        # the spread from the mean square of the smallest nine tenths of the differences that are
+        # not zero (a normal variable's is TRIMMED_SQUARE times its variance): a flood of jumps (an
+        # int16 reading wrapping at one sample in twenty) is not its own scale, and a sensor logged
+        # faster than it reads (each value held over a few rows: differences of zero) does not shrink it
+        dd = d[d != 0] ** 2
+        if not dd.size:
+            continue
+        keep = max(1, int(0.9 * len(dd)))
+        spread = math.sqrt(float(np.mean(np.partition(dd, keep - 1)[:keep])) / TRIMMED_SQUARE)
+        big = np.abs(d) > limit * spread
+        if not big.any():
+            continue
+        if resolution is None:
+            levels = np.unique(y)
+            resolution = float(np.min(np.diff(levels)))
+        big &= np.abs(d) > JUMP_LSBS * resolution
+        # significant, and material: their excess over the typical square is at least JUMP_SHARE of
+        # the octave's mean square and two of its standard errors (a gyro whose noise has heavier
+        # tails than a normal one, 10-sigma differences among 11,000 that move its Allan deviation
+        # by 1.7 %, is noise, not a jump)
+        excess = float(np.sum(d[big] ** 2)) - big.sum() * spread**2
+        if big.any() and excess > max(JUMP_SHARE, 2 * math.sqrt(2 / len(d))) * float(np.dot(d, d)):
+            j = int(np.argmax(np.abs(d)))
+            z = abs(d[j]) / spread if spread > 0 else math.inf
+            if worst is None or z > worst[0]:
+                worst = (z, mk, j, float(d[j]))
+    if worst is None:
+        return
+    z, mk, j, jump = worst
+    at = (j + 1) * mk
+    over = "reading" if mk == 1 else f"mean over {mk} readings"
+    raise InputError(f"{name}: the recording jumps near reading {at} ({at / rate_hz:.6g} s from its start): the {over} "
+                     f"changes by {jump:.4g}, {z:.3g} times the typical such change over the recording (at most "
+                     f"{limit:.3g} for the noise of a sensor at rest); an outlier, a step, motion or an integer "
+                     "reading that wrapped? Cut the recording to a still stretch")
 
 
 def _swap_long_terms(tau, adev, m, n, rate_hz, fit):
@@ -723,6 +809,28 @@ def _key(name: str) -> str:
     return key
 
 
+def _keys(names) -> list:
+    """Distinct design-file sensor names for the columns (:func:`_key`): a column already named
+    so keeps its name, the others take the next free ``_2``, ``_3``, ...  Columns 'gyro x' and
+    'gyro_x', or two of Greek letters, both became ``gyro_x`` (``sensor``) and the TOML declared
+    one table twice, which no reader takes."""
+    names = list(names)
+    keys = [name if _key(name) == name else None for name in names]
+    taken = set()
+    for i, key in enumerate(keys):
+        if key is not None and key in taken:
+            keys[i] = None
+        taken.add(key)
+    for i, name in enumerate(names):
+        if keys[i] is None:
+            key, k = _key(name), 2
+            while key in taken:
+                key, k = f"{_key(name)}_{k}", k + 1
+            keys[i] = key
+            taken.add(key)
+    return keys
+
+
 def _comment(text: str) -> str:
     return "".join(c if c.isprintable() and c.isascii() else "?" for c in text)
 
@@ -754,8 +862,7 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
              "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
              "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
              "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
-    for fit in fits:
-        key = _key(fit.name)
+    for fit, key in zip(fits, _keys(fit.name for fit in fits), strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
@@ -768,7 +875,9 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
             lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s); "
                          + _ci_text(rw))
         else:
-            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])})")
+            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); a structure "
+                         "that estimates the bias (a cf2 of order 2, for one) needs bias = { model = \"random_walk\", "
+                         "density = ... } from a longer recording or the datasheet")
         if bi is not None:
             lines.append(f"# bias instability B = {bi.value:.4g} {unit} ({_ci_text(bi)}); the design "
                          "models the bias as a random walk")
@@ -845,11 +954,12 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     """Read numeric columns from a log, as ``cfdesign run`` reads logs (:func:`cfdesign.logs.read_columns`).
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
-    every row; with ``time_column`` the rate is the number of steps over the time they span,
+    every row; with ``time_column`` the rate is that of the even grid that fits the times best,
     written as the shortest decimal within ``RATE_RTOL`` of it (jittered stamps of a 100 Hz
     sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
-    and the times must increase steadily (no gap longer than 1.5 steps, no step shorter than
-    half of one).
+    and the times must increase steadily: no gap longer than 1.5 steps and no step shorter than
+    half of one, unless every time is within half a step of its own tick of the even grid that
+    fits them best (time stamps jittered by up to half a step, as ``cfdesign run`` takes them).
 
     Parameters
     ----------
@@ -904,11 +1014,48 @@ def _rate_from_time(path, name, t) -> float:
     if not step > 0:
         raise DataError(f"{path}: column {_comment(name)!r} does not increase")
     bad = np.flatnonzero((dt > 1.5 * step) | (dt < 0.5 * step))
-    if bad.size:
-        i = int(bad[0])
+    unit = _grid_step(t)
+    if bad.size and not _on_grid(t, unit):
+        i = _grid_break(t, unit) - 1  # the step into the first row the grid breaks at
         raise DataError(f"{path} line {i + 3}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
                         f"step is {step:.6g} s; the Allan deviation needs evenly sampled data (cut the log at the gap)")
-    return nominal_rate(float((len(t) - 1) / (t[-1] - t[0])))
+    return nominal_rate(1.0 / unit)
+
+
+def _grid_step(t) -> float:
+    """The step of the even grid that fits the times best (least squares): the stamps' jitter
+    moves it by far less than it moves the span of the first and last (a log of pairs stamped as
+    their packet arrives reads 99.98 Hz from its ends, 100 Hz from the grid)."""
+    i = np.arange(len(t), dtype=float) - (len(t) - 1) / 2
+    return float(np.dot(i, t - np.mean(t)) / np.dot(i, i))
+
+
+def _on_grid(t, unit) -> bool:
+    """Every time within half a step of its own tick of the grid of step ``unit`` that fits them
+    best (as ``cfdesign run`` places jittered rows on the nearest tick,
+    :func:`cfdesign.timing.nearest_tick`): a stamp jittered by up to half a step (readings stamped
+    when a USB packet arrives) is not a gap; a missing or extra reading moves the rows on one side
+    of it half a step or more off the grid."""
+    from .timing import nearest_tick
+
+    if not unit > 0:
+        return False
+    ticks = nearest_tick((t - np.mean(t)) / unit + (len(t) - 1) / 2)
+    return bool(np.array_equal(ticks, np.arange(len(t), dtype=float)))
+
+
+def _grid_break(t, step) -> int:
+    """The row where the times leave their grid for good (a missing or extra reading): where the
+    mean offset from the grid of the up to 64 rows from it differs most from that of the up to 64
+    before it.  A lone jittered stamp moves one row; a gap moves every row after it."""
+    n = len(t)
+    off = (t - t[0]) / step - np.arange(n)
+    w = max(1, min(64, n // 4))
+    c = np.concatenate([[0.0], np.cumsum(off)])
+    i = np.arange(1, n)
+    lo, hi = np.maximum(i - w, 0), np.minimum(i + w, n)
+    moved = (c[hi] - c[i]) / (hi - i) - (c[i] - c[lo]) / (i - lo)
+    return int(i[np.argmax(np.abs(moved))])
 
 
 def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:

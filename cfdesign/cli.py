@@ -360,6 +360,9 @@ def cmd_noise(args) -> int:
     columns = [c.strip() for item in args.column for c in item.split(",") if c.strip()]
     if not columns:
         raise CfdesignError("cfdesign noise: name at least one --column")
+    twice = next((c for i, c in enumerate(columns) if c in columns[:i]), None)
+    if twice is not None:
+        raise CfdesignError(f"cfdesign noise: --column names {twice!r} twice")
     rate, data = read_log_columns(args.log, columns, args.time)
     rate = args.rate_hz if rate is None else rate
     fits = [identify_noise(data[c], rate, name=c) for c in columns]
