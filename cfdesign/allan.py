@@ -950,7 +950,7 @@ RATE_RTOL = 1e-4
 MAX_LOG_BYTES = 2_000_000_000
 
 
-def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
+def read_log_columns(path, columns, time_column: str | None = None, time_unit: str | None = None) -> tuple:
     """Read numeric columns from a log, as ``cfdesign run`` reads logs (:func:`cfdesign.logs.read_columns`).
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
@@ -968,7 +968,10 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
     columns : sequence of str
         Columns to read.
     time_column : str, optional
-        Column of times to take the rate from: seconds, or ISO 8601 dates.
+        Column of times to take the rate from: numbers in ``time_unit``, or ISO 8601 dates.
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
+        Unit of a numeric time column (:data:`cfdesign.logs.TIME_UNITS`); by default the one
+        its name gives (``time [ms]``), else seconds.
 
     Returns
     -------
@@ -994,7 +997,7 @@ def read_log_columns(path, columns, time_column: str | None = None) -> tuple:
             raise DataError(f"cannot read {path}: {not_a_device(path)}")
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
-    data = read_columns(path, columns, time_column)
+    data = read_columns(path, columns, time_column, time_unit)
     for c, v in data.items():
         gap = np.flatnonzero(~np.isfinite(v))
         if gap.size:

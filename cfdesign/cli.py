@@ -363,7 +363,12 @@ def cmd_noise(args) -> int:
     twice = next((c for i, c in enumerate(columns) if c in columns[:i]), None)
     if twice is not None:
         raise CfdesignError(f"cfdesign noise: --column names {twice!r} twice")
-    rate, data = read_log_columns(args.log, columns, args.time)
+    if args.time_unit is not None and args.time is None:
+        raise CfdesignError("cfdesign noise: --time-unit is the unit of the --time column; give --time COLUMN too")
+    rate, data = read_log_columns(args.log, columns, args.time, args.time_unit)
+    if rate is not None and rate < 1.0 and args.time_unit is None:  # a log of milliseconds read as seconds
+        print(f"cfdesign noise: note: the times in {args.time!r} give {rate:g} Hz; if they are not seconds, "
+              "give --time-unit ms|us|ns", file=sys.stderr)
     rate = args.rate_hz if rate is None else rate
     fits = [identify_noise(data[c], rate, name=c) for c in columns]
     for fit in fits:
@@ -494,6 +499,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
     p.add_argument("--time", metavar="COLUMN", help="time column (seconds or ISO 8601 dates) to take the rate from, "
                    "instead of --rate-hz")
+    p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
+                   help="unit of a numeric --time column (default: the one its name gives, 'time [ms]', else s)")
     p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
     p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
     p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")

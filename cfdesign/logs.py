@@ -161,10 +161,19 @@ def _unit(name) -> tuple:
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             first_line=2) -> _Columns:
+def _time_unit(source, time, time_unit) -> str:
+    """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
+    (``time [ms]``), else seconds; a given unit that contradicts the name is refused."""
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
+    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
+    if named in TIME_UNITS and time_unit not in (None, named):
+        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
+    return time_unit or (named if named in TIME_UNITS else "s")
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
+             first_line=2) -> _Columns:
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -190,10 +199,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
             (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
-    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
-    if named in TIME_UNITS and time_unit not in (None, named):
-        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
-    time_unit = time_unit or (named if named in TIME_UNITS else "s")
+    time_unit = _time_unit(source, time, time_unit)
     shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
     shared = {c: names for c, names in shared.items() if len(names) > 1}
     if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
@@ -603,7 +609,7 @@ def _header(path) -> list:
     return [_column_name(i, h, fmt.get("_hashed", False)) for i, h in enumerate(header)]
 
 
-def read_columns(path, columns, time=None) -> dict:
+def read_columns(path, columns, time=None, time_unit=None) -> dict:
     """Whole numeric columns of a log, read as :func:`run_log` reads them (``cfdesign noise``).
 
     Parameters
@@ -613,8 +619,11 @@ def read_columns(path, columns, time=None) -> dict:
     columns : sequence of str
         Columns to read.
     time : str, optional
-        A column of times: seconds, or dates (ISO 8601 text, a datetime column) as seconds
-        since 1970-01-01 UTC.
+        A column of times: numbers in ``time_unit``, or dates (ISO 8601 text, a datetime
+        column) as seconds since 1970-01-01 UTC.
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
+        The unit of a numeric ``time`` column (:data:`TIME_UNITS`), returned in seconds; by
+        default the one its name gives (``time [ms]``), else seconds.
 
     Returns
     -------
@@ -630,7 +639,7 @@ def read_columns(path, columns, time=None) -> dict:
     wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
     if _pipe(path):
         with _spooled(path, str(path)) as spooled:
-            return read_columns(spooled, columns, time)
+            return read_columns(spooled, columns, time, time_unit)
     header = _header(path)
     missing = [c for c in wanted if c not in header]
     if missing:
@@ -638,7 +647,8 @@ def read_columns(path, columns, time=None) -> dict:
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
-    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time)
+    scale = TIME_UNITS[_time_unit(path, time, time_unit)]
+    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time, time_scale=scale)
 
 
 # ---------------------------------------------------------------------------- the run
