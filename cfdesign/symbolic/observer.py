@@ -729,6 +729,63 @@ class Observer:
             out[x.name] = _display(num, v) / sp.collect(sp.expand(den), v)
         return out
 
+    @cached_property
+    def relations_follow_the_model(self) -> bool:
+        """Whether the sensors' relations are a trajectory of the model: the proof for every gain.
+
+        With ``X(v) = (vI - F)^-1 sum_inputs B_i D_i(v)`` (the state the exact inputs drive),
+        the relations follow the model when ``H_j X = D_j`` for every measurement ``j`` and
+        ``C X = 1``.  Then ``X`` is what the observer's state becomes for exact readings, in
+        predictor form (``(vI - F + K H) X = sum_i B_i D_i + K H X``) and in filter form
+        alike, so ``sum_i T_i = C X = 1`` for every ``K``: no gain enters the check
+        (``docs/derivations.md``, "Bands, and why they sum to one").  A False leaves the
+        question to :attr:`residual_numerator`.
+
+        Returns
+        -------
+        bool
+            True when every relation is the model's (each difference cancels to zero).
+        """
+        n, v = self.n_states, self.variable
+        drive = sp.zeros(n, 1)
+        for x in self.sensors:
+            if x.role == "input":
+                drive += self.B[:, x.index] * self.relation(x)
+        X = (v * sp.eye(n) - self.F).LUsolve(drive).applyfunc(sp.cancel)
+        rows = [(self.output, sp.Integer(1))]
+        rows += [(self.H[x.index, :], self.relation(x)) for x in self.sensors if x.role != "input"]
+        return all(sp.cancel((row * X)[0, 0] - want) == 0 for row, want in rows)
+
+    @cached_property
+    def residual_numerator(self):
+        """The numerator of ``sum_i T_i(v) - 1`` over one common denominator, expanded.
+
+        With ``T_i = (C adj(vI - A) B_i + D_i det(vI - A)) D_i(v) / det(vI - A)`` (``D_i = n_i /
+        d_i`` the sensor's relation, :meth:`relation`) and ``L = lcm(d_i)``,
+        ``sum_i T_i - 1 = N / (det(vI - A) L)`` with
+        ``N = sum_i (C adj B_i + D_i det) n_i L / d_i - det L``: the bands sum to one for every
+        value of the variable and the parameters exactly when ``N`` expands to zero
+        (``docs/derivations.md``, "One observer").  No band is brought to lowest terms, so this
+        is far cheaper than :attr:`bands` for large symbolic gain matrices.
+
+        Returns
+        -------
+        sympy expression
+            ``N``, expanded (the integer ``0`` when the bands are complementary).
+        """
+        _, Co, routes = self._routes
+        adj, det = self._resolvent
+        parts = []
+        for x in self.sensors:
+            Bi, Di = routes[x.name]
+            rel_num, rel_den = sp.fraction(sp.cancel(self.relation(x)))
+            parts.append(((Co * adj * Bi)[0, 0] + Di * det, rel_num, rel_den))
+        common = sp.Integer(1)
+        for *_, rel_den in parts:
+            common = sp.lcm(common, rel_den)
+        total = sum(num * rel_num * sp.cancel(common / rel_den) for num, rel_num, rel_den in parts)
+        return sp.expand(total - det * common)
+
     def band_fraction(self, name: str):
         """One band as a numerator and denominator.
 

@@ -1,14 +1,19 @@
 """Exact complementarity proofs: the bands of an observer sum to one.
 
 Continuous (Carreira et al. eq. (1)): ``sum_i T_i(s) = 1``; discrete (Carreira et al. eq. (34)):
-``sum_i T_i(z) = 1``.  The proof reduces ``sum_i T_i - 1`` with ``sympy.cancel``, which
-returns the canonical ``p/q`` form (``p`` and ``q`` coprime, expanded): the identity holds
-for every value of the variable and of every symbolic gain exactly when ``p`` is the zero
-polynomial.  No floating point is involved; numeric gains are kept as exact rationals.
+``sum_i T_i(z) = 1``.  The proof writes ``sum_i T_i - 1`` over the bands' common
+denominator: the identity holds for every value of the variable and of every symbolic gain
+exactly when the numerator expands to the zero polynomial.  Before that, a check free of the
+gains settles most observers: when the sensors' relations are a trajectory of the model, the
+bands sum to one for every gain.  When it does not, ``sum_i T_i - 1``
+is reduced with ``sympy.cancel`` to the canonical ``p/q`` form (``p`` and ``q`` coprime,
+expanded) that shows what is left.  No floating point is involved; numeric gains are kept as
+exact rationals.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import sympy as sp
@@ -26,8 +31,9 @@ class Proof:
         Name of the observer proved.
     variable : sympy.Symbol
         ``s`` (continuous) or ``z`` (discrete).
-    bands : dict
-        ``{sensor: T_i}`` as derived by the engine.
+    bands : Mapping
+        ``{sensor: T_i}`` as derived by the engine (derived when first read if the proof
+        holds).
     total : sympy expression
         ``sum_i T_i`` in canonical form (``1`` when the proof holds).
     residual : sympy expression
@@ -127,10 +133,14 @@ def prove(observer) -> Proof:
     """Prove (or refute) exactly that the bands of an observer sum to one.
 
     Continuous (Carreira et al. eq. (1)): ``sum_i T_i(s) = 1``; discrete (Carreira et al.
-    eq. (34)): ``sum_i T_i(z) = 1``.  ``sum_i T_i - 1`` is reduced with ``sympy.cancel`` to
-    its canonical ``p/q`` form; the identity holds for every value of the variable and of
-    every symbolic gain exactly when ``p`` is the zero polynomial (``docs/derivations.md``,
-    "One observer").
+    eq. (34)): ``sum_i T_i(z) = 1``.  It holds for every gain when the sensors' relations are a
+    trajectory of the model (:attr:`Observer.relations_follow_the_model
+    <cfdesign.symbolic.observer.Observer.relations_follow_the_model>`, no gain involved).
+    Otherwise, over the bands' common denominator, ``sum_i T_i - 1`` has the numerator
+    :attr:`Observer.residual_numerator <cfdesign.symbolic.observer.Observer.residual_numerator>`;
+    the identity holds for every value of the variable and of every symbolic gain exactly when
+    that expands to the zero polynomial (``docs/derivations.md``, "One observer").  When it does not, ``sum_i T_i - 1``
+    is reduced with ``sympy.cancel`` to its canonical ``p/q`` form to show what is left.
 
     Parameters
     ----------
@@ -149,7 +159,29 @@ def prove(observer) -> Proof:
     >>> proof.holds, proof.residual
     (True, 0)
     """
+    if observer.relations_follow_the_model or observer.residual_numerator == 0:  # holds, no band reduced
+        return Proof(observer.name, observer.variable, _Bands(observer), sp.Integer(1), sp.Integer(0),
+                     observer.parameters)
     bands = observer.bands
     total = sp.cancel(sp.together(sum(bands.values())))
     residual = sp.cancel(sp.together(total - 1))
     return Proof(observer.name, observer.variable, dict(bands), total, residual, observer.parameters)
+
+
+class _Bands(Mapping):
+    """An observer's bands, derived when first read (a proof that holds needs none of them)."""
+
+    def __init__(self, observer):
+        self._observer = observer
+
+    def __getitem__(self, name):
+        return self._observer.bands[name]
+
+    def __iter__(self):
+        return iter(x.name for x in self._observer.sensors)
+
+    def __len__(self):
+        return len(self._observer.sensors)
+
+    def __repr__(self):
+        return repr(dict(self))
