@@ -225,14 +225,14 @@ def grid_fit(time, dt: float) -> tuple:
         # (FIT_START first): the ticks of the rows are only right where the spacing so far keeps
         # them within half a tick, and a slope fitted to wrong ticks is that spacing again
         spacing = float(np.median(t[lag:] - t[:-lag])) / lag
-        m = min(FIT_START, len(t))
-        while abs(spacing / dt - 1) <= 2 * RATE_RTOL:
+        m, last = min(FIT_START, len(t)), 0
+        while abs(spacing / dt - 1) <= 2 * RATE_RTOL and last < 3:  # the whole span up to three times
             part = t[:m]
             k = nearest_tick((part - _phase_origin(part, spacing)) / spacing)
             k -= k.mean()
-            spacing = float(k @ (part - part[0]) / (k @ k)) if k[-1] > k[0] else dt
+            before, spacing = spacing, (float(k @ (part - part[0]) / (k @ k)) if k[-1] > k[0] else dt)
             if m == len(t):
-                break
+                last = 3 if spacing == before else last + 1  # the same ticks again: the same slope
             m = min(2 * m, len(t))
         if abs(spacing / dt - 1) <= RATE_RTOL:
             fits.append((spacing, _phase_origin(t, spacing)))
