@@ -9,7 +9,7 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    (:func:`nearest_tick`: halves up), ``S`` the table's tick ``T`` or, when the log's clock
    drifts against it, the log's own (:func:`grid_fit`), ``t0`` the time of the log's first row
    where the input sensors read (the base clock; a reading logged before it is used at tick 0)
-   moved to the phase of the grid: the nearest tick, so a reading is used at most ``T/2`` before
+   moved to the phase of the grid: the nearest tick, so a reading is used at most ``S/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
    does not move it).  Times must be finite and increasing (rows at one time read different
    sensors), and the rate of the input sensors' rows must be the table's base rate within 1 %.
