@@ -9,7 +9,7 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
    (:func:`nearest_tick`: halves up), ``S`` the table's tick ``T`` or, when the log's clock
    drifts against it, the log's own (:func:`grid_fit`), ``t0`` the time of the log's first row
    where the input sensors read (the base clock; a reading logged before it is used at tick 0)
-   moved to the phase of the grid: the nearest tick, so a reading is used at most ``T/2`` before
+   moved to the phase of the grid: the nearest tick, so a reading is used at most ``S/2`` before
    or after it was taken (the worst-case placement latency; jitter of a few percent of a tick
    does not move it).  Times must be finite and increasing (rows at one time read different
    sensors), and the rate of the input sensors' rows must be the table's base rate within 1 %.
@@ -43,6 +43,7 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
+           "FIT_START",
            "MAX_GAP_TICKS", "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate",
            "Segment", "Lock", "lock_schedule"]
 
@@ -165,6 +166,8 @@ ARC_ROWS = 10_000
 DRIFT_LAG = 100
 #: the first rows of a log its grid is fitted to (:func:`grid_fit`: 200 ppm of drift shows as 40 ticks)
 FIT_ROWS = 200_000
+#: the rows the least-squares slope is first fitted over (:func:`grid_fit`), doubled up to :data:`FIT_ROWS`
+FIT_START = 1000
 
 
 def grid_fit(time, dt: float) -> tuple:
@@ -183,7 +186,9 @@ def grid_fit(time, dt: float) -> tuple:
       tick or skips fewer ticks between rows (``dt`` on a tie: a log on the table's clock is
       placed on the table's ticks).  The log's own is the median step over
       :data:`DRIFT_LAG` rows (a dropped row moves few of them), refined by the least-squares
-      slope of the times over the ticks it puts them on;
+      slope of the times over the ticks it puts them on, over the first :data:`FIT_START` rows
+      and then a span doubled each time (a spacing a few parts in a million off slips the ticks
+      of a long span, and a slope fitted to slipped ticks is that spacing again);
     * the origin is, of the circular mean of the phases (:func:`grid_origin`) and the middle of
       the shortest arc that holds the phases of the first :data:`ARC_ROWS` rows (the centre of
       bounded jitter), the one that puts fewer of the rows on a shared tick (the circular mean
@@ -216,14 +221,19 @@ def grid_fit(time, dt: float) -> tuple:
     lag = min(DRIFT_LAG, len(t) // 4)
     if lag >= 2:
         # the median step over `lag` rows (a dropped row moves few of them), then the least-squares
-        # slope of the times over the ticks it puts them on, twice
+        # slope of the times over the ticks it puts them on, over a span of rows doubled each time
+        # (FIT_START first): the ticks of the rows are only right where the spacing so far keeps
+        # them within half a tick, and a slope fitted to wrong ticks is that spacing again
         spacing = float(np.median(t[lag:] - t[:-lag])) / lag
-        for _ in range(3):
-            if not abs(spacing / dt - 1) <= 2 * RATE_RTOL:
-                break
-            k = nearest_tick((t - _phase_origin(t, spacing)) / spacing)
+        m, last = min(FIT_START, len(t)), 0
+        while abs(spacing / dt - 1) <= 2 * RATE_RTOL and last < 3:  # the whole span up to three times
+            part = t[:m]
+            k = nearest_tick((part - _phase_origin(part, spacing)) / spacing)
             k -= k.mean()
-            spacing = float(k @ (t - t[0]) / (k @ k)) if k[-1] > k[0] else dt
+            before, spacing = spacing, (float(k @ (part - part[0]) / (k @ k)) if k[-1] > k[0] else dt)
+            if m == len(t):
+                last = 3 if spacing == before else last + 1  # the same ticks again: the same slope
+            m = min(2 * m, len(t))
         if abs(spacing / dt - 1) <= RATE_RTOL:
             fits.append((spacing, _phase_origin(t, spacing)))
     # the grid that puts the rows one a tick: fewest rows sharing a tick or ticks skipped (dt on a tie)
