@@ -766,7 +766,7 @@ class Observer:
         ``N = sum_i (C adj B_i + D_i det) n_i L / d_i - det L``: the bands sum to one for every
         value of the variable and the parameters exactly when ``N`` expands to zero
         (``docs/derivations.md``, "One observer").  No band is brought to lowest terms, so this
-        is far cheaper than :attr:`bands` for large symbolic gain matrices.
+        is far cheaper than the bands in lowest terms for large symbolic gain matrices.
 
         Returns
         -------
