@@ -80,7 +80,8 @@ class LogResult:
     unused : dict
         Readings not used, by reason and sensor: ``rejected`` (inf, or beyond the runtime's
         :data:`~cfdesign.runtime.filter.READING_LIMIT`), ``unscheduled`` (no gain at its
-        tick), ``same_tick`` (a second reading of a sensor on one base tick).
+        tick), ``same_tick`` (a second reading of a sensor on one base tick), ``before_start``
+        (logged more than half a tick before the first row where the inputs read).
     notes : list of str
         What a user should know: offsets found, gains recomputed, rate mismatches.
     output : Path or None
@@ -661,6 +662,7 @@ class _Pass:
         self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
+        self.early = {}  # sensor -> readings logged before tick 0 (not used)
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
         self._sampled = 0
 
@@ -687,8 +689,15 @@ class _Pass:
                 self.t0, self.spacing = (grid_fit(first, self.table.sample_time_s) if first.size
                                          else (t[0], self.spacing))
             self._sample(t[base])
-            # a reading logged before the first input row is used at tick 0
-            ticks = np.maximum(nearest_tick((t - self.t0) / self.spacing), 0).astype(np.int64)
+            ticks = nearest_tick((t - self.t0) / self.spacing).astype(np.int64)
+            early = ticks < 0  # logged more than half a tick before the first row where the inputs read:
+            if early.any():  # no tick of the run is within S/2 of it, so it is counted, not used late
+                for name, col in self.cols.sensors.items():
+                    gone = early & ~np.isnan(values[col])
+                    if gone.any():
+                        self.early[name] = self.early.get(name, 0) + int(gone.sum())
+                        values[col] = np.where(gone, np.nan, values[col])
+                ticks = np.maximum(ticks, 0)  # the row itself gets the first tick's estimate
             if n:
                 last = t == t[-1]
                 if last.all() and len(tail_t) and tail_t[-1] == t[-1]:  # a block all at the tail's time
@@ -840,6 +849,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             from .plot import figure_bytes
 
             write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
+    if place.early:
+        _merge(runner.counts, {"before_start": place.early})
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
                      _time_note(cols) + lock.notes, Path(output) if output else None, source)
 

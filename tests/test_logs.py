@@ -755,6 +755,29 @@ def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
         assert np.max(np.abs(r.estimates["heading"].to_numpy()[imu] - clean)) < 1e-9
 
 
+def test_readings_logged_before_the_first_input_row_are_counted_not_used_late(heading):
+    """A log that starts with compass and odometry rows 0.3-0.9 s before the gyro's first row: those
+    readings were all put on tick 0, the oldest used (0.9 s late, far beyond the S/2 placement
+    latency) and the fresh one there counted as a second reading. Now a reading more than half a
+    tick before the first input row is counted (``before_start``) and not used; the rest of the
+    log runs as it does without those rows, also with a block boundary after the first input row."""
+    log, _ = heading_log(0, 0, n=600, jitter=0.0)
+    clean = run_log(heading, log)
+    early = pd.DataFrame({"time": [-0.9, -0.3, -0.004], "compass": [2.5, np.nan, np.nan],
+                          "odometry": [np.nan, 1.0, 1.9]})  # the last is within half a tick of tick 0
+    with_early = pd.concat([early, log], ignore_index=True)
+    imu = with_early["gyro"].notna().to_numpy()
+    for rows in (None, 4, 5):
+        r = run_log(heading, with_early, block_rows=rows)
+        assert r.unused == {"before_start": {"compass": 1, "odometry": 1}, "same_tick": {"odometry": 1}}
+        got = r.estimates["heading"].to_numpy()
+        assert np.isfinite(got[:3]).all()
+        assert np.max(np.abs(got[imu] - clean.estimates["heading"].to_numpy())) > 0  # odometry at -0.004 s is used
+    no_late = with_early.drop(index=[0, 1])
+    assert np.allclose(run_log(heading, with_early).estimates["heading"].to_numpy()[2:],
+                       run_log(heading, no_late).estimates["heading"].to_numpy(), atol=1e-12)
+
+
 def test_text_columns_pass_through_csv_and_parquet_in_blocks(heading, tmp_path, monkeypatch):
     """Columns that are not sensors are passed through whatever they hold: text (empty in the
     first block), integers with a gap in a later block; also when the file is read in chunks."""
