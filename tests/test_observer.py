@@ -253,3 +253,35 @@ def test_a_long_chain_with_many_gains_proves_and_designs():
                   for n, q in (("p", "position"), ("v", "velocity"), ("a", "acceleration"))}}
     table = design(parse_spec({"structure": "chain", "order": 3, "discrete": True, "sensors": sensors}))
     assert table.checks["complementary"] is True and table.checks["stable"] is True
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_gain_free_check_is_sound_on_random_observers(seed):
+    """Random two-state observers with symbolic gains, their relations derived from the model
+    (X = (vI - F)^-1 B D_u normalised so that C X = 1, D_j = H_j X) and then, in odd seeds, one
+    relation spoilt: the gain-free check says True only where the canonical sum of the bands is
+    exactly one, and the numerator route agrees with the canonical sum either way."""
+    rng = np.random.default_rng(seed)
+    discrete = seed % 4 >= 2
+    v = z if discrete else sp.Symbol("s")
+    F = sp.Matrix(rng.integers(-2, 3, (2, 2)).tolist())
+    B = sp.Matrix([int(rng.integers(-2, 3)), int(rng.integers(1, 3))])
+    C = sp.Matrix([[1, int(rng.integers(0, 2))]])
+    H = sp.eye(2) if seed % 3 else sp.Matrix([[1, 1]])
+    drive = v - 1 if discrete else v  # the input reads a rate (a difference when discrete)
+    X = (v * sp.eye(2) - F).LUsolve(B * drive)
+    scale = sp.cancel((C * X)[0, 0])  # the common quantity C X, made one below
+    assert scale != 0
+    X = (X / scale).applyfunc(sp.cancel)
+    relations = [sp.cancel((H[j, :] * X)[0, 0]) for j in range(H.rows)]
+    if seed % 2:
+        relations[0] = sp.cancel(relations[0] * (v + 2) / (v + 3))
+    K = sp.Matrix(2, H.rows, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))
+    sensors = [Sensor.input("u", "rate", relation=sp.cancel(drive / scale)),
+               *(Sensor.measurement(f"y{j}", "angle", j, relation=r) for j, r in enumerate(relations))]
+    obs = Observer(F, B, H, K, sensors, domain="z" if discrete else "s", output=C,
+                   **({"sample_time": sp.Rational(1, 10)} if discrete else {}))
+    holds = _canonical_residual(obs) == 0
+    assert obs.relations_follow_the_model is (seed % 2 == 0)
+    assert holds is (seed % 2 == 0) and obs.proof().holds is holds
+    assert (obs.residual_numerator == 0) is holds
