@@ -100,6 +100,12 @@ def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, tmp_path
     log["compass"] = np.where(np.arange(1000) % 10 == 0, log["truth"], np.nan)
     hand = dataclasses.replace(heading, provenance={**heading.provenance, "solver": {"method": "hand-tuned"}})
     assert run_log(hand, log).unused == {"unscheduled": {"compass": 90}}
+    # beside a sensor off its schedule, the note names what runs (it said 'gains recomputed ...')
+    log, _ = heading_log(3, 0, n=3000)
+    log["compass"] = np.where(np.arange(3000) % 10 == 0, log["truth"], np.nan)
+    r = run_log(heading, log)
+    assert r.unused == {} and any("odometry 3 ticks" in n and "as they arrive" in n for n in r.notes)
+    assert not any("recomputed" in n or "locked" in n for n in r.notes)
 
 
 def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
