@@ -3,6 +3,7 @@
 Target (issue: symbolic engine): each filter of the papers (Carreira et al.'s CF, CF³, CKF³,
 DCKF³; Vasconcelos et al.'s position filter) proved in under 1 s.
 Baseline in the same run: sympy.simplify on the same sum, the generic way one would check it.
+Second table: design-file chains, the proof against the canonical reduction of the bands.
 Run: python benchmarks/bench_proofs.py
 """
 
@@ -53,6 +54,34 @@ def main():
         print(f"{name:18s} {t_syn:14.3f} {t_proof:10.3f} {t_syn + t_proof:10.3f} {t_base:22.3f} "
               f"{t_base / t_proof:15.1f}  {proof.holds}")
     print(f"slowest paper filter, synthesis + proof: {worst:.3f} s (target < 1 s)")
+    chains()
+
+
+#: design-file chains (states by derivative order, a bias state, full symbolic gain): (order, inputs, measurements)
+CHAINS = {
+    "chain 2, two inputs, p v": (2, ["acc_a", "acc_b"], [("p", 0), ("v", 1)]),
+    "chain 3, p v": (3, ["jerk"], [("p", 0), ("v", 1)]),
+    "chain 3, p a": (3, ["jerk"], [("p", 0), ("a", 2)]),
+}
+
+
+def chains():
+    """The proof as cfdesign design runs it (no band brought to lowest terms when it holds)
+    against the canonical reduction of the sum of the bands in lowest terms, the first way
+    it was written; an order-3 chain with p, v and a sensors (12 gains) took minutes that way."""
+    from cfdesign.symbolic.filters import chain
+
+    print(f"\n{'chain (discrete, bias state)':30s} {'gains':>5s} {'proof (s)':>10s} {'canonical (s)':>14s} "
+          f"{'canonical/proof':>16s}  holds")
+    for name, args in CHAINS.items():
+        proof, t_proof = timed(lambda args=args: chain(*args, bias=True, discrete=True).proof())
+        obs = chain(*args, bias=True, discrete=True)
+        residual, t_canon = timed(lambda obs=obs: sp.cancel(sp.together(sum(obs.bands.values()) - 1)))
+        assert (residual == 0) == proof.holds
+        print(f"{name:30s} {len(obs.gains):5d} {t_proof:10.3f} {t_canon:14.2f} {t_canon / t_proof:16.1f}  "
+              f"{proof.holds}")
+    big, t_big = timed(lambda: chain(3, ["jerk"], [("p", 0), ("v", 1), ("a", 2)], bias=True, discrete=True).proof())
+    print(f"{'chain 3, p v a':30s} {12:5d} {t_big:10.3f} {'(minutes)':>14s} {'':>16s}  {big.holds}")
 
 
 if __name__ == "__main__":
