@@ -61,7 +61,10 @@ Method (:func:`identify_noise`):
    the same octaves clearly better (the two split the last octaves, and whichever is dropped
    first leaves the other to claim them);
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
-   ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit.
+   ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit, counting the correlation of the
+   overlapping estimates at neighbouring octaves (strong for a random walk: a fit of its
+   octaves has fewer degrees of freedom than its first octave alone), at most the EDF of the
+   term's best single point.
 
 Why not allantools: its ``oadev`` computes the same deviation (the tests and
 ``benchmarks/bench_noise.py`` hold the two against each other to 1e-12), but the package has
@@ -74,6 +77,7 @@ does (``pip install "cfdesign[logs]"``); matplotlib only in :meth:`NoiseFit.plot
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -674,7 +678,8 @@ def _edf(model_parts, m, n_phase):
 
 def _fit(tau, var, m, n_phase, active, dt):
     """Weighted NNLS of the variance model with the ``active`` terms; ``(coef, cov, edf, used, vscale)``,
-    ``cov`` the covariance of ``coef / vscale``."""
+    ``cov`` the covariances of ``coef / vscale``: ``cov[0]`` taking the octave points as independent
+    (the weights' own), ``cov[1]`` counting their correlation (:func:`_octave_correlation`)."""
     from scipy.optimize import nnls
 
     A = _basis(tau, dt) * np.array([k in active for k in TERMS], dtype=float)
@@ -701,10 +706,84 @@ def _fit(tau, var, m, n_phase, active, dt):
     used = coef > 0
     w = np.sqrt(edf / 2.0) / model
     Aw = (A * w[:, None])[:, used]
-    cov = np.zeros((A.shape[1], A.shape[1]))
+    cov = np.zeros((2, A.shape[1], A.shape[1]))
     if used.any():
-        cov[np.ix_(used, used)] = np.linalg.pinv(Aw.T @ Aw)
+        # the fit is a linear map of the variance estimates, coef = P Aw' w var; the estimates of
+        # overlapping octaves are correlated (R), so its covariance is the sandwich P Aw' R Aw P
+        # and not P alone, which took them as independent
+        P = np.linalg.pinv(Aw.T @ Aw)
+        both = np.ix_(used, used)
+        cov[0][both] = P
+        cov[1][both] = P @ Aw.T @ _octave_correlation(m, parts, n_phase) @ Aw @ P
     return coef * vscale, cov, edf, used, vscale  # cov: of coef / vscale (its square underflowed at 1e-100)
+
+
+#: octaves below which the correlation of two Allan variance estimates is tabulated exactly; from
+#: ``m = 2**_CORR_OCTAVES`` on it depends on their distance in octaves only (to three digits)
+_CORR_OCTAVES = 4
+#: octaves apart up to which the correlation is tabulated; beyond, it falls by the last ratio
+_CORR_SPAN = 8
+
+
+@functools.cache
+def _correlation_table(alpha: int) -> np.ndarray:
+    """Correlation of the overlapping Allan variance estimates at ``m = 2**j`` and ``2**(j + d)``
+    of a long recording of one power-law noise: ``[j, d]`` for ``j <= _CORR_OCTAVES``,
+    ``d <= _CORR_SPAN``.
+
+    Each estimate is the mean square of a filter ``h_m`` of the noise's white innovations (block
+    means ``m`` apart, differenced; for a random walk its running sum, for white phase noise its
+    difference), so two of them have the covariance ``2 sum_l r(l)^2 / n`` with ``r = h_j * h_k``
+    their cross-correlation: the correlation is ``|h_j * h_k|^2 / (|h_j * h_j| |h_k * h_k|)``.
+    Flicker frequency noise has no finite filter; it takes the random walk's (larger) values.
+    """
+    def h(mk):
+        hy = np.concatenate([-np.ones(mk), np.ones(mk)]) / mk
+        if alpha <= -1:
+            return np.cumsum(hy)[:-1]
+        if alpha >= 1:
+            return np.diff(np.concatenate([[0.0], hy, [0.0]]))
+        return hy
+
+    def cross(a, b):
+        ha, hb = h(a), h(b)[::-1]
+        size = len(ha) + len(hb) - 1
+        c = np.fft.irfft(np.fft.rfft(ha, size) * np.fft.rfft(hb, size), size)
+        return float(np.dot(c, c))
+
+    out = np.empty((_CORR_OCTAVES + 1, _CORR_SPAN + 1))
+    for j in range(_CORR_OCTAVES + 1):
+        for d in range(_CORR_SPAN + 1):
+            a, b = 2**j, 2 ** (j + d)
+            out[j, d] = cross(a, b) / math.sqrt(cross(a, a) * cross(b, b))
+    return out
+
+
+def _octave_correlation(m, parts, n_phase) -> np.ndarray:
+    """Correlation matrix of the Allan variance estimates at the octave factors ``m`` (powers of
+    two) of a recording of ``n_phase`` phase points whose fitted variance is ``parts`` (one column
+    per term of :data:`TERMS`).
+
+    The terms are independent noises, so the covariance of two estimates is the sum of each
+    term's (the cross-terms between two noises left out): the term's correlation from
+    :func:`_correlation_table` times its share of either estimate's variance, ``parts^2 / edf``.
+    """
+    j = np.round(np.log2(m)).astype(int)
+    lo, d = np.minimum.outer(j, j).clip(max=_CORR_OCTAVES), np.abs(np.subtract.outer(j, j))
+    spread = np.zeros(parts.shape)
+    for i, key in enumerate(TERMS):
+        if parts[:, i].any():
+            spread[:, i] = parts[:, i] ** 2 / np.maximum(edf_simple(n_phase, m, _ALPHA[key]), 1.0)
+    spread /= np.maximum(spread.sum(axis=1, keepdims=True), 1e-300)
+    R = np.zeros((len(m), len(m)))
+    for i, key in enumerate(TERMS):
+        if spread[:, i].any():
+            table = _correlation_table(_ALPHA[key])
+            fall = table[:, -1] / table[:, -2]  # per octave beyond the table
+            rho = table[lo, np.minimum(d, _CORR_SPAN)] * fall[lo] ** np.maximum(d - _CORR_SPAN, 0)
+            share = np.sqrt(spread[:, i])
+            R += rho * np.outer(share, share)
+    return R
 
 
 def _terms(tau, adev, edf, coef, cov, vscale, used, duration, dt):
@@ -719,7 +798,7 @@ def _terms(tau, adev, edf, coef, cov, vscale, used, duration, dt):
         if not used[i]:
             missing[key] = _absent_reason(key, tau, duration)
             continue
-        se = math.sqrt(max(cov[i, i], 0.0))  # of coef[i] / vscale
+        se = math.sqrt(max(cov[0][i, i], 0.0))  # of coef[i] / vscale
         if coef[i] / vscale <= 2 * se:
             missing[key] = (f"not significant: {symbol}^2 = {coef[i]:.3g} is within two standard errors "
                             f"({se * vscale:.2g}) of zero")
@@ -758,10 +837,12 @@ def _terms(tau, adev, edf, coef, cov, vscale, used, duration, dt):
             missing[key] = (f"the slope check fails: the measured slope {measured:+.2f} over tau {tau[lo]:.3g} to "
                             f"{tau[hi]:.3g} s differs from the model's {expected:+.2f} (expected near {slope:+.1f})")
             continue
-        # EDF: the fit treats the octave points as independent, but overlapping estimates
-        # share data (strongly so for the random walk); the interval takes the term's best
-        # single point instead, nu = max edf_i share_i^2 (as if its points were fully correlated)
-        nu = min(2 * (coef[i] / vscale / se) ** 2 if se > 0 else math.inf, float(np.max(edf[sel] * share[sel] ** 2)))
+        # EDF from the fit's variance counting the correlation of the overlapping octave estimates
+        # (_fit; strong for the random walk, whose fit of correlated octaves is worse than its best
+        # single point), and at most that of the term's best single point, edf_i share_i^2
+        spread = math.sqrt(max(cov[1][i, i], 0.0))
+        best = float(np.max(edf[sel] * share[sel] ** 2))
+        nu = min(2 * (coef[i] / vscale / spread) ** 2 if spread > 0 else math.inf, best)
         lo_var = coef[i] * nu / chi2.ppf(0.5 + CONFIDENCE / 2, nu)
         hi_var = coef[i] * nu / chi2.ppf(0.5 - CONFIDENCE / 2, nu)
         terms[key] = NoiseTerm(key, symbol, math.sqrt(coef[i]), (math.sqrt(lo_var), math.sqrt(hi_var)),
