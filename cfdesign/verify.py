@@ -14,7 +14,9 @@ and sensor relations it rebuilds every band numerically and checks
     of a periodic one, strictly inside the unit circle (left half-plane when continuous).
     The phases of a multirate table between measurements are open loop (eigenvalues on the
     unit circle) by design, so the monodromy is what must be stable;
-(c) with the spec: re-designing from it gives the same gains (``rtol``).
+(c) covariances: ``P`` and ``P_filtered``, behind every predicted standard deviation, satisfy
+    the Lyapunov recursion of the table's own gains (:func:`covariance_check`);
+(d) with the spec: re-designing from it gives the same gains (``rtol``).
 
 Band of sensor ``j``: ``T_j = (C_o adj(vI - A) G_j + D_j den) / den * rel_j``
 (docs/derivations.md, "One observer"), with ``rel_j = v**order`` (continuous) or the ZOH
@@ -31,8 +33,8 @@ import numpy as np
 from . import linear
 from .errors import InputError
 
-__all__ = ["Check", "verify_table", "numeric_checks", "band_polynomials", "phase_realisation", "frequency_grid",
-           "polynomial_error"]
+__all__ = ["Check", "verify_table", "numeric_checks", "covariance_check", "band_polynomials", "phase_realisation",
+           "frequency_grid", "polynomial_error"]
 
 IDENTITY_RTOL = 1e-12
 GRID_RTOL = 1e-9
@@ -273,6 +275,72 @@ def _stability(table) -> Check:
     return Check(f"stable ({what})", bool(margin < 1), f"spectral radius {margin:.6g}")
 
 
+#: relative residual up to which ``P`` and ``P_filtered`` count as the gains' own covariances:
+#: Riccati and Lyapunov solutions leave ~1e-15; an edited gain leaves its relative change
+COVARIANCE_RTOL = 1e-7
+
+
+def covariance_check(table) -> Check:
+    """Are ``P`` and ``P_filtered`` the error covariances of the table's own gains?
+
+    The predicted standard deviations (``cfdesign design``, ``--std`` columns, the plot's
+    ±2σ band) come from ``P``; a gain edited after the design leaves them stale.  Each phase
+    ``k`` of a discrete table must satisfy the Lyapunov recursion of its gain (prior, then
+    Joseph-form posterior, :func:`cfdesign.linear.posterior_covariance`)::
+
+        P[k+1] = (F - Kp_k H_k) P[k] (F - Kp_k H_k)' + Kp_k R_k Kp_k' + Q
+        P_filtered[k] = (I - L_k H_k) P[k] (I - L_k H_k)' + L_k R_k L_k'
+
+    and a continuous one ``(F - K H) P + P (F - K H)' + Q + K R K' = 0``; ``(Kp_k, L_k)`` from
+    :func:`cfdesign.linear.gain_pair`, ``H_k, R_k`` the rows measured at phase ``k``.  The
+    residual is a backward error: its Frobenius norm relative to the norms of the terms
+    (``2 |A| |P| + |W|`` for the continuous equation), :data:`COVARIANCE_RTOL`.
+
+    Parameters
+    ----------
+    table : GainTable
+        The table to check.
+
+    Returns
+    -------
+    Check
+        ``covariances of these gains``: the worst relative residual and where.
+    """
+    worst, where = 0.0, ""
+    Q, R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
+    norm = np.linalg.norm
+    for k in range(table.period):
+        F, _, H, K = table.phase_model(k)
+        rows = list(table.schedule.rows(k))
+        Rk, P = R[np.ix_(rows, rows)], np.asarray(table.P[k], dtype=float)
+        if table.domain == "s":
+            A, W = F - K @ H, Q + K @ Rk @ K.T
+            terms = [(A @ P + P @ A.T + W, 2 * norm(A) * norm(P) + norm(W), "P")]
+        else:
+            Kp, L = linear.gain_pair(F, K, table.gain_form)
+            A, W = F - Kp @ H, Kp @ Rk @ Kp.T + Q
+            nxt = (k + 1) % table.period
+            terms = [(A @ P @ A.T + W - table.P[nxt], norm(A) ** 2 * norm(P) + norm(W) + norm(table.P[nxt]),
+                      f"P[{nxt}]")]
+            if L is None:
+                post, size = P, norm(P)
+            else:
+                IKH = np.eye(len(P)) - L @ H
+                post = linear.posterior_covariance(P, H, L, Rk)
+                size = norm(IKH) ** 2 * norm(P) + norm(L) ** 2 * norm(Rk)
+            terms.append((post - table.P_filtered[k], size + norm(table.P_filtered[k]), f"P_filtered[{k}]"))
+        for residual, scale, name in terms:
+            error = norm(residual) / scale if scale != 0 else 0.0  # a NaN scale stays NaN
+            if not error <= worst:  # NaN counts as the worst
+                worst, where = error, name
+    ok = bool(worst <= COVARIANCE_RTOL)
+    detail = f"relative residual {worst:.3g}{' at ' + where if where else ''}, tolerance {COVARIANCE_RTOL:g}"
+    if not ok:
+        detail += (": the predicted standard deviations are not those of these gains (a gain edited after "
+                   "the design, or P computed inaccurately)")
+    return Check("covariances of these gains", ok, detail)
+
+
 def _eigvals(M) -> np.ndarray:
     """Eigenvalues of ``M``; ``[inf]`` when it overflowed (a product of phases that grows without bound)."""
     return np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.array([np.inf])
@@ -374,7 +442,8 @@ def numeric_checks(table) -> list:
     """The checks the designer applies to every table it writes.
 
     Complementarity (polynomial identity within ``1e-12`` relative at every phase, frequency
-    grid within ``1e-9``) and stability (poles or monodromy multipliers).
+    grid within ``1e-9``), stability (poles or monodromy multipliers) and the covariances of
+    the gains (:func:`covariance_check`).
 
     Parameters
     ----------
@@ -386,7 +455,7 @@ def numeric_checks(table) -> list:
     list of Check
         One result per check, in the order run.
     """
-    return [*_complementarity(table), _stability(table)]
+    return [*_complementarity(table), _stability(table), covariance_check(table)]
 
 
 def verify_table(table, spec=None, rtol: float = 1e-9) -> list:

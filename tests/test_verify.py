@@ -36,6 +36,29 @@ def test_designed_tables_pass_every_check(name, tables):
     assert_complementary(tables[name], spec=cfdesign.example_path(name))
 
 
+@pytest.mark.parametrize("name", EXAMPLES)
+def test_a_gain_edited_after_the_design_fails_the_covariance_check(name, tables):
+    """Scaling the gains by 3 % keeps the filter complementary and stable, so only the stale
+    covariances (every predicted standard deviation) can tell: without --spec, verify names them."""
+    t = tables[name]
+    edited = dataclasses.replace(t, K=[k * 1.03 for k in t.K])
+    failed = [c for c in verify_table(edited) if not c.ok]
+    assert [c.name for c in failed] == ["covariances of these gains"], [c.line() for c in failed]
+    assert "not those of these gains" in failed[0].detail
+
+
+@pytest.mark.parametrize("gain, value", [("k1", 1e-12), ("k2", 1e-12), ("k2", 1e-6)])
+def test_near_marginal_fixed_gains_pass_the_covariance_check(gain, value):
+    """A pole at -8e-14 (k2 = 1e-12) makes the Lyapunov equation ill-conditioned; its solution is
+    still backward stable, which is what the check measures (an entrywise scale failed it)."""
+    from cfdesign.verify import covariance_check
+
+    spec = cfdesign.load_spec(cfdesign.example_path("cf3"))
+    table = cfdesign.design(dataclasses.replace(spec, gains={**spec.gains, gain: value}))
+    check = covariance_check(table)
+    assert check.ok, check.line()
+
+
 def test_numeric_bands_match_the_symbolic_engine(tables):
     table = tables["dckf3"]
     numeric, _ = band_polynomials(table, output="prior")  # the predictor's own estimate (tests/test_linear.py: both)
@@ -51,7 +74,7 @@ def test_unstable_gain_fails(tables):
     K = [k.copy() for k in t.K]
     K[0][1, 0] = 5.0
     failed = [c for c in verify_table(dataclasses.replace(t, K=K)) if not c.ok]
-    assert [c.name for c in failed] == ["stable (closed-loop poles)"]
+    assert [c.name for c in failed] == ["stable (closed-loop poles)", "covariances of these gains"]
     with pytest.raises(AssertionError, match="stable"):
         assert_complementary(dataclasses.replace(t, K=K))
 
@@ -61,7 +84,7 @@ def test_unstable_periodic_gain_fails(tables):
     K = [k.copy() for k in t.K]
     K[0][:, 0] = [3.0, 0.0, 0.0]
     failed = [c.name for c in verify_table(dataclasses.replace(t, K=K)) if not c.ok]
-    assert failed == ["stable (monodromy multipliers)"]
+    assert failed == ["stable (monodromy multipliers)", "covariances of these gains"]
 
 
 @pytest.mark.parametrize("matrix", ["F", "B"])
@@ -84,12 +107,12 @@ def test_spec_mismatch_fails(tables, tmp_path):
 def test_cli_verify_exit_codes(tables, tmp_path):
     good = tables["dckf3"].save(tmp_path / "good.json")
     r = cli("verify", str(good), "--spec", str(cfdesign.example_path("dckf3")))
-    assert r.returncode == 0 and "4 of 4 checks hold" in r.stdout
+    assert r.returncode == 0 and "5 of 5 checks hold" in r.stdout
     data = json.loads(good.read_text())
     data["K"][0][1][0] = 5.0
     (tmp_path / "unstable.json").write_text(json.dumps(data))
     r = cli("verify", str(tmp_path / "unstable.json"))
-    assert r.returncode == 1 and r.stdout.count("FAIL") == 1
+    assert r.returncode == 1 and r.stdout.count("FAIL") == 2  # unstable, so P is not its covariance either
     del data["K"]
     (tmp_path / "missing.json").write_text(json.dumps(data))
     r = cli("verify", str(tmp_path / "missing.json"))
