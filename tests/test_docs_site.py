@@ -248,3 +248,25 @@ def test_every_option_a_page_gives_a_command_exists():
                 if option not in actual[command] and option not in ("--help", "--debug", "--version"):
                     unknown.append((page.name, command, option))
     assert not unknown, f"options the commands do not have: {sorted(set(unknown))}"
+
+
+def _toml_blocks() -> list:
+    """``(page, n, text)`` of every TOML block of the README and the pages."""
+    return [(page.relative_to(DOCS.parent).as_posix(), n, block) for page in _pages()
+            for n, block in enumerate(re.findall(r"^```toml\n(.*?)^```", page.read_text(), re.M | re.S))]
+
+
+@pytest.mark.parametrize("page, n, block", _toml_blocks(), ids=[f"{p}-{n}" for p, n, _ in _toml_blocks()])
+def test_every_design_file_a_page_gives_designs(page, n, block):
+    """A design file a page asks the reader to save (getting started's ``heading.toml``, the
+    crossover file of the noise page) parses and designs, complementary and stable; an excerpt
+    (a block that leaves sensors out with ``...``) is at least TOML."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    data = tomllib.loads(block)
+    if "..." in block:
+        return
+    table = cfdesign.design(cfdesign.parse_spec(data))
+    assert table.checks["complementary"] and table.checks["stable"], (page, n)
