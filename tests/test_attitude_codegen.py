@@ -179,6 +179,9 @@ def test_generated_c_names_the_filter_and_refuses_bad_prefixes():
     files = render_attitude_c(AttitudeFilter(285.0, declination_rad=0.1), prefix="imu_att")
     assert set(files) == {"imu_att.h", "imu_att.c"}
     assert "GENERATED FILE - DO NOT EDIT" in files["imu_att.c"] and "declination_rad=0.1" in files["imu_att.c"]
+    for text in files.values():  # the call that writes them again names them as they are (not cf_attitude.*)
+        assert "write_attitude_c(AttitudeFilter(rate_hz, ...), directory, prefix='imu_att')\n" in text
+    assert "directory)\n" in render_attitude_c(AttitudeFilter(285.0))["cf_attitude.h"]
     assert "malloc" not in files["imu_att.c"] and "#include <math.h>" in files["imu_att.c"]
     with pytest.raises(CfdesignError, match="C identifier"):
         render_attitude_c(AttitudeFilter(100.0), prefix="1bad")

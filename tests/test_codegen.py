@@ -339,6 +339,24 @@ def test_prefix_and_files(tables, tmp_path):
     assert "#define IMU_GPS_Y_GPS 0" in paths[0].read_text()
 
 
+@pytest.mark.parametrize("options", [{}, {"prefix": "heading"}, {"precision": "float"}, {"output": "prior"},
+                                     {"prefix": "heading", "precision": "float", "output": "prior"}])
+def test_the_regenerate_command_of_the_comment_writes_the_same_files(options, tables, tmp_path):
+    """The do-not-edit comment gives the command that writes the files again; run on their table
+    it writes the same files (it gave no options: regenerating a --prefix heading export wrote
+    dckf3_* files beside the stale heading_* ones, and a float or prediction export as double, posterior)."""
+    from cfdesign.cli import main
+
+    table = tables["dckf3"]
+    table.save(tmp_path / "gains.json")
+    files = render_c(table, **options)
+    command = re.search(r"^ \*     (cfdesign export .*)$", next(iter(files.values())), re.M).group(1)
+    assert all(re.search(rf"^ \*     {re.escape(command)}$", text, re.M) for text in files.values())
+    words = command.replace("<gains.json>", str(tmp_path / "gains.json")).replace("<dir>", str(tmp_path / "c")).split()
+    assert main(words[1:]) == 0
+    assert {p.name: p.read_text() for p in (tmp_path / "c").iterdir()} == files
+
+
 # ---------------------------------------------------------------------- committed copy
 _FLOAT = re.compile(r"(?<![\w.])-?(?:\d+\.\d*(?:e[-+]?\d+)?|\d+e[-+]?\d+)f?")
 

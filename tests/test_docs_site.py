@@ -195,3 +195,78 @@ def test_the_notebooks_extra_runs_every_notebook():
         # (the notebooks' modules have their distribution's name: numpy, sympy, matplotlib, ...)
         missing = sorted(m for m in modules - {"cfdesign", ""} - sys.stdlib_module_names if m.lower() not in installed)
         assert not missing, f"{nb.name} imports {missing}, which the notebooks extra does not install"
+
+
+def _pages() -> list:
+    """The README and every Markdown page of the site (its build output aside)."""
+    return [DOCS.parent / "README.md", *(p for p in sorted(DOCS.rglob("*.md")) if "_build" not in p.parts)]
+
+
+def _resolves(dotted: str) -> bool:
+    """Whether ``cfdesign.a.b.c`` is a module or an attribute reached from the longest importable
+    module prefix."""
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for name in parts[i:]:
+            if not hasattr(obj, name):
+                return False
+            obj = getattr(obj, name)
+        return True
+    return False
+
+
+def test_every_dotted_name_the_pages_give_exists():
+    """A name written out in prose (``cfdesign.nav.strapdown_ekf``, ``cfdesign.timing.grid_fit``)
+    is not a Sphinx cross-reference, so ``-W`` does not check it: it must still be a module or
+    an attribute of one (``cfdesign.nav.ekf`` was neither)."""
+    named = {(page.relative_to(DOCS.parent).as_posix(), m.rstrip("."))
+             for page in _pages() for m in re.findall(r"(?<![\w/.])cfdesign(?:\.[A-Za-z_]\w*)+", page.read_text())}
+    assert named
+    missing = sorted((page, name) for page, name in named if not _resolves(name))
+    assert not missing, f"names that do not exist: {missing}"
+
+
+def test_every_option_a_page_gives_a_command_exists():
+    """Every ``cfdesign COMMAND ... --option`` written in a page (a console line or inline code)
+    names an option that command has: the usage-line test above holds README's and cli.md's
+    synopses to the parser, this one the examples of every other page."""
+    actual = {c: _command_options(c) for c in COMMANDS}
+    actual |= {p: _command_options(*p.split()) for p in PAPERS}
+    unknown = []
+    for page in _pages():
+        text = page.read_text()
+        for line in re.findall(r"`(cfdesign [^`]+)`", text) + re.findall(r"^\$? ?(cfdesign .*)$", text, re.M):
+            words = line.split("#")[0].split()
+            command = " ".join(words[1:3]) if " ".join(words[1:3]) in actual else words[1]
+            if command not in actual:  # prose that starts with the name, or 'cfdesign COMMAND --help'
+                continue
+            for option in re.findall(r"(?<![\w-])(-o|--[a-z][a-z-]*)", " ".join(words)):
+                if option not in actual[command] and option not in ("--help", "--debug", "--version"):
+                    unknown.append((page.name, command, option))
+    assert not unknown, f"options the commands do not have: {sorted(set(unknown))}"
+
+
+def _toml_blocks() -> list:
+    """``(page, n, text)`` of every TOML block of the README and the pages."""
+    return [(page.relative_to(DOCS.parent).as_posix(), n, block) for page in _pages()
+            for n, block in enumerate(re.findall(r"^```toml\n(.*?)^```", page.read_text(), re.M | re.S))]
+
+
+@pytest.mark.parametrize("page, n, block", _toml_blocks(), ids=[f"{p}-{n}" for p, n, _ in _toml_blocks()])
+def test_every_design_file_a_page_gives_designs(page, n, block):
+    """A design file a page asks the reader to save (getting started's ``heading.toml``, the
+    crossover file of the noise page) parses and designs, complementary and stable; an excerpt
+    (a block that leaves sensors out with ``...``) is at least TOML."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10
+        import tomli as tomllib
+    data = tomllib.loads(block)
+    if "..." in block:
+        return
+    table = cfdesign.design(cfdesign.parse_spec(data))
+    assert table.checks["complementary"] and table.checks["stable"], (page, n)

@@ -146,7 +146,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     for stem, what in (("h", "the attitude filter's state and functions"),
                        ("c", "the attitude filter's step (C99, libm only, no allocation)")):
         name = f"{prefix}.{stem}"
-        header = _header(name, what, attitude_filter)
+        header = _header(name, what, attitude_filter, prefix)
         out[name] = Template(_template(f"attitude.{stem}.in")).substitute(fields, header=header)
     return out
 
@@ -183,13 +183,14 @@ def _hex(value) -> str:
     return value.hex()
 
 
-def _header(name, what, attitude_filter) -> str:
+def _header(name, what, attitude_filter, prefix) -> str:
     p = attitude_filter.params
+    named = "" if prefix == "cf_attitude" else f", prefix={prefix!r}"  # the regenerated files keep their names
     mode = "9D (magnetometer)" if attitude_filter.magnetometer else "6D (no magnetometer)"
     params = ", ".join(f"{k}={getattr(p, k)!r}" for k in p.__dataclass_fields__)
     lines = [f"{name} - {what}", "",
              "GENERATED FILE - DO NOT EDIT.  Regenerate it from the filter instead:",
-             "    cfdesign.codegen.attitude.write_attitude_c(AttitudeFilter(rate_hz, ...), directory)", "",
+             f"    cfdesign.codegen.attitude.write_attitude_c(AttitudeFilter(rate_hz, ...), directory{named})", "",
              f"generator : cfdesign {__version__} (cfdesign.codegen.attitude, C99, double)",
              f"filter    : cfdesign.nav.AttitudeFilter at {attitude_filter.rate_hz!r} Hz, {mode}",
              "frames    : body (sensor) frame relative to ENU; quaternions [w, x, y, z] body -> ENU",

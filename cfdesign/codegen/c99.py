@@ -254,6 +254,7 @@ def _fields(table, prefix, precision, output) -> dict:
     return {
         **_provenance(table), **_summary(table, output, sensors, prefix), **arrays,
         **_step_code(table, prefix, gains), "prefix": prefix,
+        "export_command": _export_command(table, prefix, precision, output),
         "PREFIX": prefix.upper(), "real": real, "ceil": ceil, "n": n, "p": p, "m": m, "p_alloc": max(p, 1),
         "m_alloc": max(m, 1), "period": table.period,
         "sample_time": _literal(table.sample_time_s, suffix, "sample time"),
@@ -264,6 +265,19 @@ def _fields(table, prefix, precision, output) -> dict:
         "sensor_macros": _sensor_macros(sensors, prefix),
         "pi": _literal(math.pi, suffix, "pi"), "two_pi": _literal(2 * math.pi, suffix, "2 pi"),
     }
+
+
+def _export_command(table, prefix, precision, output) -> str:
+    """The command that writes these files again from their table: ``cfdesign export`` with every
+    option that made them differ from its defaults (a prefix, float, the prediction)."""
+    command = "cfdesign export <gains.json> --format c -o <dir>"
+    if prefix != _default_prefix(table):
+        command += f" --prefix {prefix}"
+    if precision != "double":
+        command += f" --precision {precision}"
+    if output != table.output:  # the command line can only ask for the prediction
+        command += " --prediction" if output == "prior" else f' (in Python: write_c(..., output="{output}"))'
+    return command
 
 
 def _gains(table, output) -> dict:
