@@ -315,6 +315,39 @@ def test_the_inertial_frame_tilt_holds_while_turning():
     assert ours < 0.1 and theirs > 3 * ours, (ours, theirs)
 
 
+def coning(rate, seconds=5.0, cone=0.3, hz=2.0, fine=8):
+    """A coning motion (the body's x axis sweeping a cone of half-angle ``cone`` about ENU z at ``hz``):
+    the gyro as an integrating IMU reads it (each reading the body rate averaged over its interval, no
+    noise, no bias), the specific force at each interval's end, and the attitude there."""
+    w = 2 * math.pi * hz
+    n = round(seconds * rate)
+    c, s = math.cos(cone / 2), math.sin(cone / 2)
+
+    def track(t):
+        return np.stack([np.full_like(t, c), s * np.cos(w * t), s * np.sin(w * t), 0 * t], axis=1)
+
+    t = (np.arange(n * fine) + 0.5) / (rate * fine)
+    dq = np.stack([0 * t, -s * w * np.sin(w * t), s * w * np.cos(w * t), 0 * t], axis=1)
+    gyr = (2 * rot.multiply(rot.conjugate(track(t)), dq)[:, 1:]).reshape(n, fine, 3).mean(axis=1)
+    q = track(np.arange(1, n + 1) / rate)
+    acc = np.einsum("nji,j->ni", rot.to_matrix(q), [0.0, 0.0, GRAVITY])
+    return gyr, acc, q
+
+
+def test_the_attitude_does_not_drift_with_the_rate_under_coning():
+    """A coning motion read by an integrating gyro (rates averaged over each interval) at 50 and 400 Hz,
+    6D (heading the gyro's alone): the heading must not drift with the sample interval.  Integrated one
+    averaged rate at a time, the attitude drifted by 1.9° RMS over 5 s at 50 Hz (0.03° at 400 Hz); with
+    the two-sample coning term 0.005° and 0.0001°."""
+    rms = {}
+    for rate in (50.0, 400.0):
+        gyr, acc, q = coning(rate)
+        est = AttitudeFilter(rate, magnetometer=False, initial=q[0]).run(gyr, acc)
+        heading, incl = errors(est, q)
+        rms[rate] = math.sqrt(np.mean(heading ** 2) + np.mean(incl ** 2))
+    assert rms[50.0] < 0.1 and abs(rms[50.0] - rms[400.0]) < 0.1, rms
+
+
 # ---------------------------------------------------------------------- bad input
 def test_impossible_and_non_finite_samples_are_missing_and_counted():
     q = motion(3000, still_s=5.0)

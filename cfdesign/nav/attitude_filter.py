@@ -996,6 +996,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
      started, miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
+    ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
     if gx * gx + gy * gy + gz * gz <= g_range2:
         lgx, lgy, lgz = gx, gy, gz
     else:
@@ -1055,9 +1056,12 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     rest_time = rest_time + T if still else 0.0
     rest = rest_time >= rest_min
 
-    # the gyro: q <- q (x) exp((w - b) T / 2)
+    # the gyro: q <- q (x) exp(u / 2), u = (w - b) T plus the two-sample coning term (u_prev x u) / 12
     if not first:
         ux, uy, uz = (gx - bx) * T, (gy - by) * T, (gz - bz) * T
+        ox, oy, oz = (ox - bx) * T, (oy - by) * T, (oz - bz) * T
+        ux, uy, uz = (ux + (oy * uz - oz * uy) / 12.0, uy + (oz * ux - ox * uz) / 12.0,
+                      uz + (ox * uy - oy * ux) / 12.0)
         ang = math.sqrt(ux * ux + uy * uy + uz * uz)
         if ang > 1e-12:
             sc = math.sin(0.5 * ang) / ang
