@@ -504,6 +504,22 @@ def test_readings_in_other_units_are_warned_of():
         f.run(gyr, acc)
 
 
+def test_a_streamed_accelerometer_in_g_is_warned_of_once():
+    """``step`` has no median to check: the specific force it starts from, 1 in g, is warned of once (the
+    filter runs on; the velocity channel takes m/s², so readings in g weight the tilt 9.8 times down)."""
+    import warnings
+
+    f = AttitudeFilter(100.0, magnetometer=False)
+    with pytest.warns(UserWarning, match="first specific force is 1; the filter takes m/s²"):
+        f.step([0.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        f.step([0.0, 0.0, 0.0], [0.0, 0.0, 1.0])                  # once, at the start
+        g = AttitudeFilter(100.0, magnetometer=False)
+        g.step([0.0, 0.0, 0.0], [0.0, 0.0, math.nan])            # missing: not the start yet
+        g.step([0.0, 0.0, 0.0], [0.0, 0.3, 9.8])
+
+
 def test_a_noisy_first_field_reading_does_not_latch_a_disturbance_at_rest():
     # A still sensor with a magnetometer ten times noisier than BROAD's (3.2 µT per axis per
     # sample on a 44 µT field of dip 69 deg, as in BROAD's lab).  The first reading once seeded

@@ -826,6 +826,13 @@ class AttitudeFilter:
             values are refused as the runtime's ``step`` refuses them); the message names the
             argument and the state is unchanged.
 
+        Warns
+        -----
+        UserWarning
+            The specific force the filter starts from (the first usable one) is below 3 or above
+            30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
+            arrays instead.
+
         Examples
         --------
         The first sample of a sensor rolled by 0.2 rad sets the tilt from its specific force:
@@ -840,6 +847,11 @@ class AttitudeFilter:
         gx, gy, gz = _three("gyr", gyr)
         ax, ay, az = _three("acc", acc)
         mx, my, mz = _NAN3 if mag is None or not self.magnetometer else _three("mag", mag)
+        if self._s[_INDEX["started"]] < 2.0:
+            # the specific force the filter starts from: one far from gravity's 9.81 is in other units (g)
+            f = math.sqrt(ax * ax + ay * ay + az * az)
+            if 0.0 < f < 3.0 or 30.0 < f <= self.params.accel_range_mps2:
+                _warn_accel_unit("the first specific force", f, stacklevel=3)
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
 
@@ -964,11 +976,18 @@ def _check_units(gyr, acc):
         w = np.linalg.norm(gyr, axis=1)
     a, w = a[np.isfinite(a)], w[np.isfinite(w)]
     if len(a) and not 3.0 <= float(np.median(a)) <= 30.0:
-        warnings.warn(f"acc: the median specific force is {float(np.median(a)):.3g}; the filter takes m/s² (gravity "
-                      "9.81): readings in g need multiplying by 9.80665", UserWarning, stacklevel=3)
+        _warn_accel_unit("the median specific force", float(np.median(a)))
     if len(w) and float(np.median(w)) > 20.0:
         warnings.warn(f"gyr: the median rate is {float(np.median(w)):.3g}; the filter takes rad/s: readings in "
                       "deg/s need multiplying by pi/180", UserWarning, stacklevel=3)
+
+
+def _warn_accel_unit(what, value, stacklevel=4):
+    """Warn that a specific force of ``value`` (``what``: which one) is not in m/s² (gravity 9.81)."""
+    import warnings
+
+    warnings.warn(f"acc: {what} is {value:.3g}; the filter takes m/s² (gravity 9.81): readings in g need "
+                  "multiplying by 9.80665", UserWarning, stacklevel=stacklevel)
 
 
 def _coefficients(design: AttitudeDesign) -> tuple:
