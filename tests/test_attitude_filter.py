@@ -226,6 +226,24 @@ def test_a_new_homogeneous_field_is_accepted_after_a_while_of_motion():
     assert abs(np.median(heading[8500:]) - 20.0) < 2.0                  # it now follows the new north
 
 
+@pytest.mark.parametrize("rate", [100.0, 400.0])
+def test_a_still_sensor_does_not_accept_a_magnet_beside_it_at_any_rate(rate):
+    """A magnet put down beside a still sensor is not a new homogeneous field: it is accepted only after
+    the sensor turned (``mag_new_field_rotation_rad``, here 0.7 rad within ``mag_new_field_s`` 15 s).
+    The turn was summed from the raw rate, whose noise adds up with the square root of the rate: at
+    400 Hz (gyro 2e-3 rad/s/sqrt(Hz)) the noise alone turned the still sensor by about 1 rad and the
+    magnet's field became the reference; at 100 Hz by 0.5 rad, and it did not."""
+    rng = np.random.default_rng(3)
+    n, density = round(25.0 * rate), 2e-3
+    gyr = rng.normal(0.0, density * math.sqrt(rate), (n, 3))
+    acc = np.tile([0.0, 0.0, GRAVITY], (n, 1)) + rng.normal(0.0, 3e-3 * math.sqrt(rate), (n, 3))
+    mag = np.tile(FIELD, (n, 1))
+    mag[round(5.0 * rate):, 0] += 15.0                                     # the magnet, from 5 s on
+    out = AttitudeFilter(rate, gyro_noise_density=density, mag_new_field_s=15.0,
+                         mag_new_field_rotation_rad=0.7).run(gyr, acc, mag, details=True)
+    assert out.mag_disturbed[round(6.0 * rate):].all()
+
+
 # ---------------------------------------------------------------------- acceleration disturbance
 def test_taps_and_vibration_leave_the_tilt_alone():
     q = motion(4000, still_s=40.0)

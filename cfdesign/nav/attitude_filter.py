@@ -1052,7 +1052,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         if acc_ok:
             flx, fly, flz = ax, ay, az
         started = 2.0
-        ang = 0.0
         ux = uy = uz = 0.0
         first = True
     else:
@@ -1213,7 +1212,10 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                     thn = tol * math.cos(dip_new)
                     if abs(norm_lp - norm_new) <= thn * norm_new and abs(dip_lp - dip_new) <= thn:
                         new_time += T
-                        new_turn += ang
+                        # turned: the rest detector's low-passed rate, whose noise (unlike the raw rate's)
+                        # does not add up faster at a higher rate
+                        new_turn += T * math.sqrt((glx - bx) * (glx - bx) + (gly - by) * (gly - by)
+                                                  + (glz - bz) * (glz - bz))
                         if new_time >= new_s and new_turn >= new_rot:
                             norm_ref, dip_ref, ref_n, dist = norm_new, dip_new, new_n, False
                             new_n = new_time = new_turn = 0.0
