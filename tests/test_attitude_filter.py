@@ -632,6 +632,22 @@ def test_a_sensor_mounted_otherwise_gives_the_same_attitude_of_the_body():
     assert np.degrees(2 * np.arccos(np.clip(np.abs(e[100:, 0]), 0, 1))).max() < 0.01
 
 
+@pytest.mark.parametrize("scale", [0.01, 1000.0, 1.0 / 44.7])
+def test_the_field_in_any_unit_gives_the_same_attitude(scale):
+    """The field in Gauss, nT or normalised to the Earth's (any constant scale, with a field change the
+    disturbance check must see): only directions, the dip and relative changes of the norm are used,
+    so every quaternion is the same (no threshold in µT)."""
+    q = motion(3000, still_s=3.0)
+    field = np.tile(FIELD, (len(q), 1))
+    field[1500:2000] *= 1.3                                                # a disturbance of the norm
+    gyr, acc, mag = imu(q, field=field)
+    out = AttitudeFilter(RATE).run(gyr, acc, mag, details=True)
+    scaled = AttitudeFilter(RATE).run(gyr, acc, mag * scale, details=True)
+    assert out.mag_disturbed[1550:1950].all()
+    np.testing.assert_array_equal(scaled.mag_disturbed, out.mag_disturbed)
+    np.testing.assert_allclose(scaled.quaternion, out.quaternion, rtol=0, atol=1e-9)
+
+
 EULER_FIGURES = dict(gyro_noise_std=1e-3, gyro_bias_density=1e-5, tilt_noise_std=0.01, heading_noise_std=0.02)
 
 

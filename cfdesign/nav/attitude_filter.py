@@ -75,10 +75,15 @@ Every threshold is in physical units, derived from the noise figures where it ca
   when ``|dN| / B`` or ``|dD|`` exceeds ``mag_tolerance_rad * cos(dip)``; a new field is
   accepted after ``mag_new_field_s`` in which it stayed consistent while the sensor turned by
   at least ``mag_new_field_rotation_rad`` (the idea of accepting a new homogeneous field after
-  a while of motion is VQF's);
+  a while of motion is VQF's; the turn is summed from the rest detector's low-passed rate, whose
+  noise, unlike the raw rate's, does not add up faster at a higher sample rate);
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
+
+The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
+``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
+(an IMU's anti-alias filter, a decimated log) integrate alike at any sample rate.
 
 Frames: attitude of the body (sensor) frame relative to **ENU** (x east, y north, z up);
 quaternions ``[w, x, y, z]`` map body to ENU; rates (rad/s), specific force (m/s²) and the
