@@ -75,10 +75,15 @@ Every threshold is in physical units, derived from the noise figures where it ca
   when ``|dN| / B`` or ``|dD|`` exceeds ``mag_tolerance_rad * cos(dip)``; a new field is
   accepted after ``mag_new_field_s`` in which it stayed consistent while the sensor turned by
   at least ``mag_new_field_rotation_rad`` (the idea of accepting a new homogeneous field after
-  a while of motion is VQF's);
+  a while of motion is VQF's; the turn is summed from the rest detector's low-passed rate, whose
+  noise, unlike the raw rate's, does not add up faster at a higher sample rate);
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
+
+The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
+``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
+(an IMU's anti-alias filter, a decimated log) integrate alike at any sample rate.
 
 Frames: attitude of the body (sensor) frame relative to **ENU** (x east, y north, z up);
 quaternions ``[w, x, y, z]`` map body to ENU; rates (rad/s), specific force (m/s²) and the
@@ -826,6 +831,13 @@ class AttitudeFilter:
             values are refused as the runtime's ``step`` refuses them); the message names the
             argument and the state is unchanged.
 
+        Warns
+        -----
+        UserWarning
+            The specific force the filter starts from (the first usable one) is below 3 or above
+            30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
+            arrays instead.
+
         Examples
         --------
         The first sample of a sensor rolled by 0.2 rad sets the tilt from its specific force:
@@ -840,6 +852,11 @@ class AttitudeFilter:
         gx, gy, gz = _three("gyr", gyr)
         ax, ay, az = _three("acc", acc)
         mx, my, mz = _NAN3 if mag is None or not self.magnetometer else _three("mag", mag)
+        if self._s[_INDEX["started"]] < 2.0:
+            # the specific force the filter starts from: one far from gravity's 9.81 is in other units (g)
+            f = math.sqrt(ax * ax + ay * ay + az * az)
+            if 0.0 < f < 3.0 or 30.0 < f <= self.params.accel_range_mps2:
+                _warn_accel_unit("the first specific force", f, stacklevel=3)
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
         return self.quaternion
 
@@ -964,11 +981,18 @@ def _check_units(gyr, acc):
         w = np.linalg.norm(gyr, axis=1)
     a, w = a[np.isfinite(a)], w[np.isfinite(w)]
     if len(a) and not 3.0 <= float(np.median(a)) <= 30.0:
-        warnings.warn(f"acc: the median specific force is {float(np.median(a)):.3g}; the filter takes m/s² (gravity "
-                      "9.81): readings in g need multiplying by 9.80665", UserWarning, stacklevel=3)
+        _warn_accel_unit("the median specific force", float(np.median(a)))
     if len(w) and float(np.median(w)) > 20.0:
         warnings.warn(f"gyr: the median rate is {float(np.median(w)):.3g}; the filter takes rad/s: readings in "
                       "deg/s need multiplying by pi/180", UserWarning, stacklevel=3)
+
+
+def _warn_accel_unit(what, value, stacklevel=4):
+    """Warn that a specific force of ``value`` (``what``: which one) is not in m/s² (gravity 9.81)."""
+    import warnings
+
+    warnings.warn(f"acc: {what} is {value:.3g}; the filter takes m/s² (gravity 9.81): readings in g need "
+                  "multiplying by 9.80665", UserWarning, stacklevel=stacklevel)
 
 
 def _coefficients(design: AttitudeDesign) -> tuple:
@@ -996,6 +1020,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
      started, miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
+    ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
     if gx * gx + gy * gy + gz * gz <= g_range2:
         lgx, lgy, lgz = gx, gy, gz
     else:
@@ -1032,7 +1057,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         if acc_ok:
             flx, fly, flz = ax, ay, az
         started = 2.0
-        ang = 0.0
         ux = uy = uz = 0.0
         first = True
     else:
@@ -1055,9 +1079,12 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     rest_time = rest_time + T if still else 0.0
     rest = rest_time >= rest_min
 
-    # the gyro: q <- q (x) exp((w - b) T / 2)
+    # the gyro: q <- q (x) exp(u / 2), u = (w - b) T plus the two-sample coning term (u_prev x u) / 12
     if not first:
         ux, uy, uz = (gx - bx) * T, (gy - by) * T, (gz - bz) * T
+        ox, oy, oz = (ox - bx) * T, (oy - by) * T, (oz - bz) * T
+        ux, uy, uz = (ux + (oy * uz - oz * uy) / 12.0, uy + (oz * ux - ox * uz) / 12.0,
+                      uz + (ox * uy - oy * ux) / 12.0)
         ang = math.sqrt(ux * ux + uy * uy + uz * uz)
         if ang > 1e-12:
             sc = math.sin(0.5 * ang) / ang
@@ -1190,7 +1217,10 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                     thn = tol * math.cos(dip_new)
                     if abs(norm_lp - norm_new) <= thn * norm_new and abs(dip_lp - dip_new) <= thn:
                         new_time += T
-                        new_turn += ang
+                        # turned: the rest detector's low-passed rate, whose noise (unlike the raw rate's)
+                        # does not add up faster at a higher rate
+                        new_turn += T * math.sqrt((glx - bx) * (glx - bx) + (gly - by) * (gly - by)
+                                                  + (glz - bz) * (glz - bz))
                         if new_time >= new_s and new_turn >= new_rot:
                             norm_ref, dip_ref, ref_n, dist = norm_new, dip_new, new_n, False
                             new_n = new_time = new_turn = 0.0
