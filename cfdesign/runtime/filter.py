@@ -681,6 +681,10 @@ def _snapshot(state, n, period, p, name, sha256):
     return x, int(phase), u_last
 
 
+#: :class:`_LtiBands` per (filter_sha256, output)
+_LTI = {}
+
+
 class _LtiBands:
     """A single-rate table as IIR filters, one per sensor, through scipy's lfilter.
 
@@ -709,9 +713,22 @@ class _LtiBands:
 
     @classmethod
     def of(cls, rt):
+        """The IIR form of ``rt``'s table, or None where it does not apply; built once per filter
+        (:func:`filter_sha256` and output: a runtime built again for the same table, one per log
+        or per call, reuses it)."""
         cached = getattr(rt, "_lti", False)
         if cached is not False:
             return cached
+        key = (rt._sha256, rt.output)
+        if key not in _LTI:
+            if len(_LTI) >= 64:
+                _LTI.clear()
+            _LTI[key] = cls._build(rt)
+        rt._lti = _LTI[key]
+        return rt._lti
+
+    @classmethod
+    def _build(cls, rt):
         ph = rt._phases[0]
         den = linear.characteristic_polynomial(ph.A)
         T = linear.output_adjugate(ph.A, ph.C[0], den)
@@ -734,7 +751,6 @@ class _LtiBands:
                 Tc = linear.output_adjugate(ph.A, np.array(c), den)  # the prior: C = c, D = 0
                 checks.append((rows, Tc, [np.concatenate([[0.0], Tc @ g]) for g in ph.G.T]))
             lti = cls(den, nums, T, np.linalg.inv(T), checks, from_post)
-        rt._lti = lti
         return lti
 
     def _filtered(self, nums, T, x, cols):
