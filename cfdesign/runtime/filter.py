@@ -780,8 +780,7 @@ class _LtiBands:
         last = np.zeros(n)  # the last n readings, newest first
         for num, col in zip(nums, cols, strict=True):
             last[: min(n, N)] = col[: -n - 1: -1] if N > n else col[::-1]
-            for i in range(n):
-                zf[i] += num[i + 1:] @ last[: n - i]
+            zf += np.correlate(num[1:], last, "full")[n - 1:]  # row i: sum_k num[i + 1 + k] last[k]
         return total, zf
 
     def run(self, rt, cols, read=None):
