@@ -426,7 +426,7 @@ class Runtime:
     def run(self, readings: dict, *, states: bool = False):
         """Run on whole arrays; the state carries over between calls.
 
-        The work is vectorised (the lifted form over blocks, or one IIR filter per sensor for a
+        The work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
         single-rate table) over every stretch where each scheduled measurement is present; the
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
         numbers.
@@ -489,8 +489,8 @@ class Runtime:
         return np.concatenate(pieces)
 
     def _run_clean(self, cols):
-        """Single-rate, every reading present and usable: one IIR filter per sensor on the
-        columns as they are (angle columns unwrapped), no copies into matrices; None when the
+        """Single-rate, every reading present and usable: the sensors' IIR bands on the columns
+        as they are (angle columns unwrapped), no copies into matrices; None when the
         IIR path does not apply or an angle innovation is not within pi (then the general path)."""
         lti = _LtiBands.of(self)
         if lti is None:
@@ -686,7 +686,8 @@ _LTI = {}
 
 
 class _LtiBands:
-    """A single-rate table as IIR filters, one per sensor, through scipy's lfilter.
+    """A single-rate table as IIR filters, one per sensor, sharing one denominator: run as one
+    recursion through scipy's lfilter (``_filtered``).
 
     The band of reading ``j`` is ``num_j / den`` with ``den = det(zI - A)`` and
     ``num_j = C_o adj(zI - A) G_j + D_j den`` (:func:`cfdesign.linear.band_polynomials`
@@ -699,7 +700,7 @@ class _LtiBands:
     closed-loop poles are clustered so near ``z = 1`` that the rounding of ``den``'s
     coefficients moves them by more than :data:`_POLE_RTOL` of their distance to the unit
     circle (fast sampling of a slow filter: the direct form then drifts from the recursion by
-    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
+    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per filter.
     """
 
     def __init__(self, den, nums, T, Tinv, priors=(), from_post=None):
