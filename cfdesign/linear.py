@@ -83,6 +83,9 @@ GAIN_FORMS = ("predictor", "filter", "continuous")
 OUTPUTS = ("prior", "posterior")
 
 _TWO_PI = 2.0 * math.pi
+#: entries per piece of the elementwise passes over long arrays (128 KB of doubles): the
+#: temporaries stay in cache, and a piece already within range is skipped
+CHUNK = 1 << 14
 
 
 # ---------------------------------------------------------------------------- angle wrap
@@ -150,20 +153,26 @@ def wrap_inplace(a: np.ndarray) -> np.ndarray:
     """
     if not a.size:
         return a
-    lo, hi = a.min(), a.max()
-    if lo > -math.pi and hi <= math.pi:  # all inside: nothing to do (NaN fails these comparisons)
-        return a
-    if not (np.isfinite(lo) and np.isfinite(hi)):  # inf has no turn count: NaN, as wrap_scalar gives
-        a[np.isinf(a)] = np.nan
+    rows = a.reshape(1) if a.ndim == 0 else a
+    step = max(1, CHUNK * len(rows) // max(1, rows.size))
     with np.errstate(invalid="ignore"):
-        t = np.subtract(a, math.pi)  # a - 2 pi ceil((a - pi) / (2 pi)); an entry inside gets 0 turns
-        np.divide(t, _TWO_PI, out=t)
-        np.ceil(t, out=t)
-        np.multiply(t, _TWO_PI, out=t)
-        np.subtract(a, t, out=a)
-        if np.nanmax(a, initial=-math.inf) > math.pi or np.nanmin(a, initial=math.inf) <= -math.pi:
-            a[a > math.pi] -= _TWO_PI  # a result rounded an ulp outside: one more turn
-            a[a <= -math.pi] += _TWO_PI
+        for start in range(0, len(rows), step):  # piece by piece: the temporaries stay in cache
+            b = rows[start:start + step]
+            lo, hi = b.min(), b.max()
+            if lo > -math.pi and hi <= math.pi:  # all inside: nothing to do (NaN fails these comparisons)
+                continue
+            if not (math.isfinite(lo) and math.isfinite(hi)):  # inf has no turn count: NaN, as wrap_scalar gives
+                b[np.isinf(b)] = np.nan
+            t = np.subtract(b, math.pi)  # a - 2 pi ceil((a - pi) / (2 pi)); an entry inside gets 0 turns
+            np.divide(t, _TWO_PI, out=t)
+            np.ceil(t, out=t)
+            np.multiply(t, _TWO_PI, out=t)
+            np.subtract(b, t, out=b)
+            # NaN-ignoring max and min (np.nanmax without its Python-level checks)
+            if np.fmax.reduce(b, axis=None, initial=-math.inf) > math.pi or \
+                    np.fmin.reduce(b, axis=None, initial=math.inf) <= -math.pi:
+                b[b > math.pi] -= _TWO_PI  # a result rounded an ulp outside: one more turn
+                b[b <= -math.pi] += _TWO_PI
     return a
 
 

@@ -230,7 +230,27 @@ def test_sparse_unwrap_equals_numpy(crossings):
     rng = np.random.default_rng(crossings)
     angle = np.cumsum(rng.normal(0, 0.05, 20000)) + np.linspace(0, 2 * np.pi * crossings, 20000)
     wrapped = wrap(angle)
-    assert np.allclose(_unwrap(wrapped), np.unwrap(wrapped), rtol=0, atol=1e-12)
+    assert np.allclose(_unwrap(wrapped, wrapped[0]), np.unwrap(wrapped), rtol=0, atol=1e-12)
+    # the first reading brought within pi of the estimate: every reading moves by the same turns
+    assert np.allclose(_unwrap(wrapped, wrapped[0] + 4 * np.pi), np.unwrap(wrapped) + 4 * np.pi, rtol=0, atol=1e-12)
+
+
+def test_step_adds_no_correction_to_a_state_no_gain_reaches(heading):
+    """A state no gain corrects at any phase is advanced by ``F x + B u`` alone: its line of the
+    compiled step has no correction term (it added 0.0, about 5 % of a 6-state chain's step), and
+    the step is still the recursion the batch path runs."""
+    import dataclasses
+
+    K = np.array(heading.K[0], dtype=float)
+    K[1] = 0.0  # the gyro correction: dead reckoning
+    table = dataclasses.replace(heading, K=[K])
+    rt = Runtime(table)
+    line = next(ln.strip() for ln in rt.step_source.splitlines() if ln.strip().startswith("n1 = "))
+    assert "e0" not in line and "e1" not in line and "0.0" not in line, line
+    data = readings(table, 500)
+    est, rt = stream(table, data, x0=[0.1, 0.01])
+    batch = Runtime(table, x0=[0.1, 0.01])
+    assert np.max(np.abs(wrap(batch.run(data) - est))) < 1e-9 and np.max(np.abs(batch.x - rt.x)) < 1e-9
 
 
 @pytest.mark.parametrize("names", [("unknown", "PI", "u0"), ("U", "S", "LIM"), ("x0", "e0", "est"),
@@ -254,6 +274,31 @@ def test_step_takes_sensors_named_like_its_own_variables(heading, names):
     assert np.array_equal(got, expected)
     rt.step(**dict.fromkeys(names, 10**400))                      # too large for a float: rejected, counted
     assert rt.counts == {"rejected": dict.fromkeys(names, 1)}
+
+
+def test_iir_path_on_runs_shorter_than_the_filter_equals_streaming():
+    """The IIR path runs one recursion on the sum of the bands' numerator outputs and forms the
+    final state from the last readings; a run of fewer readings than the filter has states
+    (readings before it count as zero) must still hand the next run the recursion's state."""
+    from cfdesign.runtime.filter import _LtiBands
+
+    spec = cfdesign.spec.parse_spec({"name": "p", "structure": "position", "gain_form": "filter", "sensors": {
+        "accelerometer": {"rate_hz": 1.0, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-4}},
+        "gps": {"rate_hz": 1.0, "noise": {"std": 2.0}}}})
+    table = cfdesign.design(spec)
+    assert _LtiBands.of(Runtime(table)) is not None and table.F.shape == (3, 3)  # the path under test
+    rng = np.random.default_rng(4)
+    N = 40
+    data = {s.name: np.sin(0.1 * np.arange(N)) + 0.1 * rng.standard_normal(N) for s in table.sensors}
+    x0 = [0.5, -0.2, 0.01]
+    expected, rt = stream(table, data, x0)
+    batch, est, start = Runtime(table, x0=x0), [], 0
+    for length in [1, 2, 3, 4, 1, 1, 5, 2, 21]:  # pieces shorter than, equal to and longer than n = 3
+        est.append(batch.run({k: v[start:start + length] for k, v in data.items()}))
+        start += length
+    assert start == N
+    assert np.max(np.abs(np.concatenate(est) - expected)) < 1e-9
+    assert np.max(np.abs(batch.x - rt.x)) < 1e-9
 
 
 @pytest.mark.parametrize("rate, N", [(1000.0, 30_000), (10_000.0, 200_000)])

@@ -426,7 +426,7 @@ class Runtime:
     def run(self, readings: dict, *, states: bool = False):
         """Run on whole arrays; the state carries over between calls.
 
-        The work is vectorised (the lifted form over blocks, or one IIR filter per sensor for a
+        The work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
         single-rate table) over every stretch where each scheduled measurement is present; the
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
         numbers.
@@ -489,8 +489,8 @@ class Runtime:
         return np.concatenate(pieces)
 
     def _run_clean(self, cols):
-        """Single-rate, every reading present and usable: one IIR filter per sensor on the
-        columns as they are (angle columns unwrapped), no copies into matrices; None when the
+        """Single-rate, every reading present and usable: the sensors' IIR bands on the columns
+        as they are (angle columns unwrapped), no copies into matrices; None when the
         IIR path does not apply or an angle innovation is not within pi (then the general path)."""
         lti = _LtiBands.of(self)
         if lti is None:
@@ -498,9 +498,7 @@ class Runtime:
         p = len(self.inputs)
         cols = list(cols)
         for i in np.flatnonzero(self._wrap_rows):
-            col = _unwrap(cols[p + i])
-            shift = 2 * np.pi * np.round((col[0] - float(self.H[i] @ self.x)) / (2 * np.pi))
-            cols[p + i] = col - shift if shift else col
+            cols[p + i] = _unwrap(cols[p + i], float(self.H[i] @ self.x))
         return lti.run(self, cols, _ALL if self._wrap_rows.any() else None)
 
     def _run_regular(self, u, y, states):
@@ -653,11 +651,8 @@ class Runtime:
         y = y.copy()
         for i in np.flatnonzero(self._wrap_rows):
             seen = np.flatnonzero(~np.isnan(y[:, i]))
-            if not seen.size:
-                continue
-            col = _unwrap(y[seen, i])
-            shift = 2 * np.pi * np.round((col[0] - (self.H @ self.x)[i]) / (2 * np.pi))
-            y[seen, i] = col - shift if shift else col
+            if seen.size:
+                y[seen, i] = _unwrap(y[seen, i], float(self.H[i] @ self.x))
         return y
 
 
@@ -686,8 +681,13 @@ def _snapshot(state, n, period, p, name, sha256):
     return x, int(phase), u_last
 
 
+#: :class:`_LtiBands` per (filter_sha256, output)
+_LTI = {}
+
+
 class _LtiBands:
-    """A single-rate table as IIR filters, one per sensor, through scipy's lfilter.
+    """A single-rate table as IIR filters, one per sensor, sharing one denominator: run as one
+    recursion through scipy's lfilter (``_filtered``).
 
     The band of reading ``j`` is ``num_j / den`` with ``den = det(zI - A)`` and
     ``num_j = C_o adj(zI - A) G_j + D_j den`` (:func:`cfdesign.linear.band_polynomials`
@@ -700,7 +700,7 @@ class _LtiBands:
     closed-loop poles are clustered so near ``z = 1`` that the rounding of ``den``'s
     coefficients moves them by more than :data:`_POLE_RTOL` of their distance to the unit
     circle (fast sampling of a slow filter: the direct form then drifts from the recursion by
-    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per runtime.
+    about that much, relative), use the blocked path instead.  Cost: ``O(n^3)`` once per filter.
     """
 
     def __init__(self, den, nums, T, Tinv, priors=(), from_post=None):
@@ -714,9 +714,22 @@ class _LtiBands:
 
     @classmethod
     def of(cls, rt):
+        """The IIR form of ``rt``'s table, or None where it does not apply; built once per filter
+        (:func:`filter_sha256` and output: a runtime built again for the same table, one per log
+        or per call, reuses it)."""
         cached = getattr(rt, "_lti", False)
         if cached is not False:
             return cached
+        key = (rt._sha256, rt.output)
+        if key not in _LTI:
+            if len(_LTI) >= 64:
+                _LTI.clear()
+            _LTI[key] = cls._build(rt)
+        rt._lti = _LTI[key]
+        return rt._lti
+
+    @classmethod
+    def _build(cls, rt):
         ph = rt._phases[0]
         den = linear.characteristic_polynomial(ph.A)
         T = linear.output_adjugate(ph.A, ph.C[0], den)
@@ -739,40 +752,44 @@ class _LtiBands:
                 Tc = linear.output_adjugate(ph.A, np.array(c), den)  # the prior: C = c, D = 0
                 checks.append((rows, Tc, [np.concatenate([[0.0], Tc @ g]) for g in ph.G.T]))
             lti = cls(den, nums, T, np.linalg.inv(T), checks, from_post)
-        rt._lti = lti
         return lti
 
     def _filtered(self, nums, T, x, cols):
         """``sum_j lfilter(nums[j], den, cols[j])`` started from the state ``x`` (through ``T``),
-        and the final filter state."""
+        and the final filter state (the sum of the filters' states), by one recursion.
+
+        The filters share ``den``: their sum is ``1 / den`` applied to
+        ``v = sum_j nums[j] * cols[j]`` (short convolutions), started from the same state.  The
+        sum of their direct-form-II-transposed states is that recursion's state plus the part of
+        the numerators still to come, ``sum_j sum_(m > i) nums[j][m] cols[j][N + i - m]`` in row
+        ``i`` (readings before the first count as zero)."""
         from scipy.signal import lfilter
 
-        zf = np.zeros(len(self.den) - 1)
-        total = None
-        for j, (num, col) in enumerate(zip(nums, cols, strict=True)):
-            zi = T @ x if j == 0 else np.zeros_like(zf)
-            out, z = lfilter(num, self.den, col, zi=zi)
-            total = out if total is None else np.add(total, out, out=total)
-            zf += z
+        N, n = len(cols[0]), len(self.den) - 1
+        terms = [(num, col) for num, col in zip(nums, cols, strict=True) if num.any()]
+        v = np.zeros(N) if not terms else np.empty(N)
+        for start in range(0, N, linear.CHUNK):  # piece by piece: the convolutions stay in cache
+            piece = v[start:start + linear.CHUNK]
+            for j, (num, col) in enumerate(terms):
+                window = col[start - n:start + len(piece)] if start else np.concatenate([np.zeros(n), col[:len(piece)]])
+                part = np.convolve(window, num, mode="valid")  # the piece's outputs of this numerator
+                if j:
+                    piece += part
+                else:
+                    piece[:] = part
+        total, zf = lfilter([1.0], self.den, v, zi=T @ x)
+        last = np.zeros(n)  # the last n readings, newest first
+        for num, col in zip(nums, cols, strict=True):
+            last[: min(n, N)] = col[: -n - 1: -1] if N > n else col[::-1]
+            zf += np.correlate(num[1:], last, "full")[n - 1:]  # row i: sum_k num[i + 1 + k] last[k]
         return total, zf
 
     def run(self, rt, cols, read=None):
         """The estimates, the runtime advanced; None (the runtime unchanged) when, with ``read``
         (where the angle readings are), an angle innovation is not within pi."""
         est, zf = self._filtered(self.nums, self.T, rt.x, cols)
-        p = len(rt.inputs)
-        shared = None
-        if read is not None and self.from_post is not None:  # the prior of state 0, from the estimate
-            L0, scale = self.from_post
-            shared = est - sum(g * c for g, c in zip(L0, cols[p:], strict=True) if g)
-            shared /= scale
-        for rows, Tc, nums in self.priors if read is not None else ():
-            prior = shared if shared is not None else (est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0])
-            for i in rows:
-                at = slice(None) if read is _ALL else read[:, i]
-                gap = cols[p + i][at] - prior[at]
-                if gap.size and (gap.max() >= np.pi or gap.min() <= -np.pi):
-                    return None
+        if read is not None and not self._within_pi(rt, est, cols, read):
+            return None
         rt.x = self.Tinv @ zf
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
@@ -781,6 +798,33 @@ class _LtiBands:
             rt.x = x
             linear.wrap_inplace(est)
         return est
+
+    def _within_pi(self, rt, est, cols, read) -> bool:
+        """Whether every angle innovation (an angle reading less the prior of its row) is within
+        pi wherever ``read`` has a reading (``_ALL``: everywhere).  Piece by piece: the prior
+        formed from the estimate (``from_post``) and the differences stay in cache."""
+        p, N = len(rt.inputs), len(est)
+        ys = cols[p:]
+        groups = [(rows, None if self.from_post is not None else
+                   est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0]) for rows, Tc, nums in self.priors]
+        work = np.empty((2, min(N, linear.CHUNK)))
+        for start in range(0, N, linear.CHUNK):
+            at = slice(start, start + linear.CHUNK)
+            shared, gap = work[:, : min(linear.CHUNK, N - start)]
+            if self.from_post is not None:  # the prior of state 0: (est - L0 y) / (1 - sum L0)
+                L0, scale = self.from_post
+                np.copyto(shared, est[at])
+                for g, y in zip(L0, ys, strict=True):
+                    if g:
+                        shared -= np.multiply(y[at], g, out=gap)
+                shared /= scale
+            for rows, prior in groups:
+                for i in rows:
+                    np.subtract(ys[i][at], shared if prior is None else prior[at], out=gap)
+                    d = gap if read is _ALL else gap[read[at, i]]
+                    if d.size and (d.max() >= np.pi or d.min() <= -np.pi):
+                        return False
+        return True
 
 
 #: largest pole displacement, relative to the pole's distance to the unit circle, that the
@@ -812,20 +856,33 @@ def _clean(col) -> bool:
     return bool(col.min() >= -READING_LIMIT and col.max() <= READING_LIMIT)
 
 
-def _unwrap(col):
-    """``np.unwrap`` for sparse jumps: only the samples after a jump of more than pi move."""
-    d = np.diff(col)
-    jumps = np.flatnonzero(np.abs(d) > np.pi)
+def _unwrap(col, near):
+    """``col`` made continuous and moved by whole turns so that its first value is within pi of
+    ``near``: ``np.unwrap`` for sparse jumps (a jump of more than pi between neighbours is a turn),
+    with the first value's turn folded into the same pass; ``col`` itself when nothing moves."""
+    shift = 2 * np.pi * np.round((col[0] - near) / (2 * np.pi))
+    jumps = _jumps(col)
     if not jumps.size:
-        return col
-    shifts = -2 * np.pi * np.round(d[jumps] / (2 * np.pi))
-    if jumps.size > 3:
-        edges = np.concatenate([[0], jumps + 1, [len(col)]])
-        return col + np.repeat(np.concatenate([[0.0], np.cumsum(shifts)]), np.diff(edges))
-    col = col.copy()
-    for j, shift in zip(jumps, shifts, strict=True):  # a few jumps: shift each tail in place
-        col[j + 1:] += shift
-    return col
+        return col - shift if shift else col
+    turns = -2 * np.pi * np.round((col[jumps + 1] - col[jumps]) / (2 * np.pi))
+    levels = np.concatenate([[0.0], np.cumsum(turns)])
+    levels -= shift
+    out = np.repeat(levels, np.diff(np.concatenate([[0], jumps + 1, [len(col)]])))
+    out += col
+    return out
+
+
+def _jumps(col) -> np.ndarray:
+    """The ``k`` where ``|col[k + 1] - col[k]| > pi``, found piece by piece in one cache-sized
+    buffer (no array of the length of ``col`` is made)."""
+    N = len(col) - 1
+    buf, found = np.empty(min(max(N, 0), linear.CHUNK)), []
+    for start in range(0, N, linear.CHUNK):
+        d = buf[: min(linear.CHUNK, N - start)]
+        np.subtract(col[start + 1:start + 1 + len(d)], col[start:start + len(d)], out=d)
+        if d.max() > np.pi or d.min() < -np.pi:
+            found.append(np.flatnonzero(np.abs(d, out=d) > np.pi) + start)
+    return np.concatenate(found) if found else np.empty(0, dtype=np.intp)
 
 
 def _boundary_states(Phi, C, x0):

@@ -17,6 +17,7 @@ enters it, and no text is evaluated as an expression.
 
 from __future__ import annotations
 
+import functools
 import keyword
 import math
 import numbers
@@ -28,6 +29,9 @@ from ..linear import gain_pair, wrap_scalar
 
 #: states up to this size are read and written element by element
 _UNROLLED = 16
+#: step sources up to this long keep their compiled code for the next runtime of the same table
+#: (a runtime per log, per call); larger ones (thousands of products) are compiled each time
+_CACHED_SOURCE = 100_000
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 #: the real scalar types other than float that readings have come as (int, bool, numpy's floats
 #: and ints, Fraction, ...): a reading of one of these is converted by ``float()`` without the
@@ -103,6 +107,12 @@ def _dot(coeffs, names, lookup=None) -> str:
         coef = f"{lookup}[{i}]" if lookup else (None if c == 1.0 else _num(c))
         terms.append(f"{coef}*{name}" if coef else name)
     return " + ".join(terms) or "0.0"
+
+
+@functools.lru_cache(maxsize=32)
+def _compiled(source: str, filename: str):
+    """``compile(source, filename, 'exec')``, kept for the tables built again."""
+    return compile(source, filename, "exec")
 
 
 def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
@@ -258,13 +268,14 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         terms = [_dot(F[r], xs)]
         if B[r].any():
             terms.append(_dot(B[r], us))
-        if m:
-            if single:
+        if m:  # a row no gain corrects at any phase adds nothing (not even + 0.0)
+            if single and Kp[0][r].any():
                 terms.append(_dot(Kp[0][r], es))
-            else:
+            elif not single:
                 used = [any(k[r, i] != 0 for k in Kp) for i in range(m)]
                 flat = [f"{K_}[{r * m + i}]*{es[i]}" for i in range(m) if used[i]]
-                terms.append(" + ".join(flat) or "0.0")
+                if flat:
+                    terms.append(" + ".join(flat))
         add(f"    {nx[r]} = " + " + ".join(f"({t})" for t in terms))
     if table.wrap_angle:
         add(f"    if {nx[0]} > {PI} or {nx[0]} <= -{PI}:")
@@ -302,6 +313,8 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
                  N["KP"]: [tuple(float(v) for v in k.reshape(-1)) for k in Kp],
                  N["LP"]: [tuple(float(v) for v in (l0[0] if l0 is not None else [0.0] * m)) for l0 in L],
                  N["AC"]: [tuple(bool(v) for v in row) for row in active]}
-    exec(compile(source, f"<cfdesign step of a {n}-state table>", "exec"), namespace)
+    filename = f"<cfdesign step of a {n}-state table>"
+    code = _compiled(source, filename) if len(source) <= _CACHED_SOURCE else compile(source, filename, "exec")
+    exec(code, namespace)
     step, step_values = namespace[N["make"]](S, U, REJ, UNS)
     return step, step_values, source
