@@ -3,6 +3,7 @@ documented outcome - a named error with exit status 2, a verify FAIL with exit 1
 result - never a traceback, a silent pass, a NaN that spreads, or a lost file."""
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -1064,3 +1065,48 @@ def test_a_table_c_prefix_with_a_leading_underscore_is_refused_as_the_attitude_e
     assert not (tmp_path / "c").exists()
     with pytest.raises(CfdesignError, match="starts with '_'"):
         render_attitude_c(AttitudeFilter(100.0), prefix=prefix)
+
+
+# ---------------------------------------------------------------------- C names: reserved or not significant
+#: spellings C99 reserves (7.1.3, 7.26; FE_ 7.6, FP_ 7.12), written here from the standard, not from the code
+_C_RESERVED = r"((str|mem|wcs|is|to)[a-z]|E[0-9A-Z]|LC_[A-Z]|SIG_?[A-Z]|(PRI|SCN)[a-zX]|F[EP]_[A-Z]|__|_[A-Z])"
+
+
+@settings(FUZZ, max_examples=60)
+@given(prefix=st.one_of(st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,40}", fullmatch=True),
+                        st.sampled_from(["string", "strf", "memo", "wcsx", "isx", "tox", "Ekf", "E1", "signal", "lc_x",
+                                         "pri", "scnx", "fp_x", "fe_x", "a" * 27, "b" * 26, "heading"])),
+       sensor=st.sampled_from(["compass", "min", "c", "max", "x" * 60, "y" * 50]),
+       attitude=st.booleans())
+def test_c_export_makes_only_names_c99_leaves_free_and_significant(heading, prefix, sensor, attitude):
+    """The export wrote string_init, isx_step (reserved for <string.h>, <ctype.h>), the macro EKF_N
+    (<errno.h>), INTEGRATOR_Y_MIN (<stdint.h>) and external names beyond 31 characters that C99
+    need not tell apart (a 30-character prefix: <prefix>_init and <prefix>_step); now each is
+    refused on one line naming the C name and the rule."""
+    import re
+
+    from cfdesign.codegen import render_c
+    from cfdesign.codegen.attitude import render_attitude_c
+
+    d = heading.to_dict()
+    d["sensors"] = [dict(s, name=sensor) if s["name"] == "compass" else s for s in d["sensors"]]
+    d["measured"] = [[sensor if x == "compass" else x for x in m] for m in d["measured"]]
+    table = GainTable.from_dict(d)
+    try:
+        files = render_attitude_c(_attitude(), prefix=prefix) if attitude else render_c(table, prefix=prefix)
+    except CfdesignError as e:
+        assert "\n" not in str(e) and ("C name" in str(e) or "C prefix" in str(e) or "header" in str(e)), str(e)
+        return
+    text = "\n".join(files.values())
+    names = set(re.findall(rf"\b(?:{prefix}|{prefix.upper()})_\w+\b(?!\.)", text))
+    assert {f"{prefix}_init", f"{prefix}_step"} <= names
+    for name in names:
+        assert not re.match(_C_RESERVED, name) and not re.match(r"U?INT\w*(_MAX|_MIN|_C)\Z", name), name
+        assert len(name) <= (31 if name in (f"{prefix}_init", f"{prefix}_step") else 63), name
+
+
+@functools.lru_cache(maxsize=1)
+def _attitude():
+    from cfdesign.nav import AttitudeFilter
+
+    return AttitudeFilter(100.0)
