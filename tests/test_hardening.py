@@ -1110,3 +1110,12 @@ def _attitude():
     from cfdesign.nav import AttitudeFilter
 
     return AttitudeFilter(100.0)
+
+
+@pytest.mark.parametrize("readings", ["abc", [[0.1, 0.2], [0.3]], None, np.full(4096, 0.01 + 1j)],
+                         ids=["text", "ragged", "None", "complex"])
+def test_noise_readings_that_are_not_real_numbers_are_named(readings):
+    """identify_noise gave numpy's ValueError for text or a ragged list, and cut complex readings
+    to their real part with only a ComplexWarning."""
+    with pytest.raises(cfdesign.errors.InputError, match="readings: real numbers are needed"):
+        cfdesign.identify_noise(readings, 100.0)
