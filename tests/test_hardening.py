@@ -1034,7 +1034,8 @@ def _bad_baseline_calls():
                                                                       initial_position=[np.inf, 0.0, 0.0])],
         "initial_bias": [lambda: pos.run(acc, quat, gps, initial_bias="abc")],
         "dt_s": [lambda: PlanarEKF(**planar).run(odo, odo, 0.0, gps[:, :2], mode),
-                 lambda: PlanarEKF(**planar).run(odo, odo, np.full(n, np.nan), gps[:, :2], mode)],
+                 lambda: PlanarEKF(**planar).run(odo, odo, np.full(n, np.nan), gps[:, :2], mode),
+                 lambda: PlanarEKF(**planar).run(odo, odo, [[0.1, 0.1], [0.1]], gps[:, :2], mode)],
         "gps_mode": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], np.full(n, "DGPS"))],
         "initial_state": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], mode, initial_state=[0, 0, 0])],
     }

@@ -231,7 +231,11 @@ class PlanarEKF:
         rho = rows("distance", distance, error=InputError)
         N = len(rho)
         omega = rows("gyro_z", gyro_z, n=N, error=InputError)
-        dt = rows("dt_s", np.broadcast_to(dt_s, (N,)) if np.ndim(dt_s) == 0 else dt_s, n=N, error=InputError)
+        try:
+            one = np.ndim(dt_s) == 0
+        except ValueError:  # a ragged list: rows names it
+            one = False
+        dt = rows("dt_s", np.broadcast_to(dt_s, (N,)) if one else dt_s, n=N, error=InputError)
         bad_dt = np.flatnonzero(~((dt > 0) & (dt <= 1.0 / MIN_RATE_HZ)))
         if bad_dt.size:
             raise InputError(f"dt_s must be a positive number of seconds up to {1.0 / MIN_RATE_HZ:g}, got "
