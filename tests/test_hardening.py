@@ -1120,3 +1120,71 @@ def test_noise_readings_that_are_not_real_numbers_are_named(readings):
     to their real part with only a ComplexWarning."""
     with pytest.raises(cfdesign.errors.InputError, match="readings: real numbers are needed"):
         cfdesign.identify_noise(readings, 100.0)
+
+
+def _planar_drive(n=300, seed=0):
+    """A robot on a circle at 2 m/s (10 Hz), odometer scale 1.05, 1-m GPS fixes at 1 Hz: the
+    readings and the true track."""
+    rng = np.random.default_rng(seed)
+    dt, w = 0.1, np.full(n, 0.1)
+    th = np.cumsum(w * dt)
+    truth = np.c_[np.cumsum(0.2 * np.cos(th - 0.005)), np.cumsum(0.2 * np.sin(th - 0.005))]
+    fixes = np.full((n, 2), np.nan)
+    fixes[::10] = truth[::10] + rng.normal(0.0, 1.0, (n // 10, 2))
+    readings = {"distance": 0.2 / 1.05 + rng.normal(0.0, 0.005, n), "gyro_z": w + rng.normal(0.0, 0.005, n),
+                "gps_xy": fixes}
+    return readings, truth
+
+
+_PLANAR = dict(odo_noise_std=0.005, gyro_noise_std=0.005, kappa_omega=0.1, kappa_rho=0.1, sigma_heading=0.1,
+               gps_std={"single": 1.0})
+
+
+@settings(FUZZ, max_examples=10)
+@given(which=st.sampled_from(["distance", "gyro_z", "gps_xy"]), row=st.integers(1, 29),
+       value=st.sampled_from([1e6, -1e6, 1e4, 1e3, -500.0]))
+def test_planar_ekf_takes_an_impossible_reading_as_missing(which, row, value):
+    """One odometer distance or yaw rate of 1e6 (or a fix 1e6 m off) was used: the odometer scale
+    ended 1.05 (distance) to 1e4 (fix) off and the position 25 m to 17 km; as in the other
+    filters, a reading the sensor or the vehicle cannot produce (beyond gyro_range_rps, beyond
+    speed_range_mps times its interval, a fix out of reach of the last one used) is missing and
+    counted: the run is the run with that reading missing."""
+    from cfdesign.nav.planar_ekf import PlanarEKF
+
+    readings, _ = _planar_drive()
+    bad = {k: v.copy() for k, v in readings.items()}
+    missing = {k: v.copy() for k, v in readings.items()}
+    at = 10 * row if which == "gps_xy" else 10 * row + 3
+    bad[which][at] = bad[which][at] + value
+    missing[which][at] = np.nan
+    mode = np.where(np.isnan(readings["gps_xy"][:, 0]), "", "single")
+    ekf = PlanarEKF(**_PLANAR)
+    est = ekf.run(bad["distance"], bad["gyro_z"], 0.1, bad["gps_xy"], mode)
+    ref = ekf.run(missing["distance"], missing["gyro_z"], 0.1, missing["gps_xy"], np.where(
+        np.isnan(missing["gps_xy"][:, 0]), "", "single"))
+    assert est.missing == {**dict.fromkeys(est.missing, 0), which: 1}
+    for key in ("x", "y", "theta", "alpha", "covariance"):
+        np.testing.assert_array_equal(getattr(est, key), getattr(ref, key), err_msg=key)
+
+
+@pytest.mark.parametrize("start", ["first fix", "initial state"])
+def test_planar_ekf_restarts_from_fixes_that_agree_when_the_first_was_wrong(start):
+    """The first fix (or the initial state given) 1e6 m off cannot be checked when it comes; the
+    next two fixes, out of its reach but within each other's, restart the position from the
+    second: the track ends as close to the truth as the run without it."""
+    from cfdesign.nav.planar_ekf import PlanarEKF
+
+    readings, truth = _planar_drive()
+    mode = np.where(np.isnan(readings["gps_xy"][:, 0]), "", "single")
+    args = (readings["distance"], readings["gyro_z"], 0.1)
+    clean = PlanarEKF(**_PLANAR).run(*args, readings["gps_xy"], mode)
+    fixes, kw = readings["gps_xy"].copy(), {}
+    if start == "first fix":
+        fixes[0] += 1e6
+    else:
+        kw["initial_state"] = [1e6, 0.0, 0.0, 1.0]
+    est = PlanarEKF(**_PLANAR).run(*args, fixes, mode, **kw)
+    assert est.missing["gps_xy"] == 1
+    error = np.hypot(est.x - truth[:, 0], est.y - truth[:, 1])[-50:].max()
+    assert error < 2 * np.hypot(clean.x - truth[:, 0], clean.y - truth[:, 1])[-50:].max()
+    assert abs(est.alpha[-1] - 1.05) < 0.05
