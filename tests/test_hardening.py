@@ -1073,7 +1073,7 @@ def test_a_table_c_prefix_with_a_leading_underscore_is_refused_as_the_attitude_e
 _C_RESERVED = r"((str|mem|wcs|is|to)[a-z]|E[0-9A-Z]|LC_[A-Z]|SIG_?[A-Z]|(PRI|SCN)[a-zX]|F[EP]_[A-Z]|__|_[A-Z])"
 
 
-@settings(FUZZ, max_examples=60)
+@settings(FUZZ, max_examples=30)
 @given(prefix=st.one_of(st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,40}", fullmatch=True),
                         st.sampled_from(["string", "strf", "memo", "wcsx", "isx", "tox", "Ekf", "E1", "signal", "lc_x",
                                          "pri", "scnx", "fp_x", "fe_x", "a" * 27, "b" * 26, "heading"])),
