@@ -1188,3 +1188,20 @@ def test_planar_ekf_restarts_from_fixes_that_agree_when_the_first_was_wrong(star
     error = np.hypot(est.x - truth[:, 0], est.y - truth[:, 1])[-50:].max()
     assert error < 2 * np.hypot(clean.x - truth[:, 0], clean.y - truth[:, 1])[-50:].max()
     assert abs(est.alpha[-1] - 1.05) < 0.05
+
+
+@pytest.mark.parametrize("table", ["continuous", "unstable"])
+def test_a_table_no_log_can_run_is_named_before_the_fleet_starts(position, tmp_path, cli, table):
+    """cfdesign run TABLE logs/ -o out/ with a continuous (or unstable) table started the Dask
+    workers (20 s), then printed the same refusal once per log, 'wrote 0 estimate files' and an
+    out/summary.csv of errors; the refusal is one line now, before any worker or file."""
+    d = position.to_dict() if table == "unstable" else single_rate_continuous().to_dict()
+    if table == "unstable":
+        d["F"][0][0] = 1e6
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    (tmp_path / "logs").mkdir()
+    for name in ("a", "b"):
+        (tmp_path / "logs" / f"{name}.csv").write_text("time,accelerometer,gps\n0.0,0.01,1.0\n0.02,0.01,\n")
+    code, out, err = cli("run", tmp_path / "g.json", tmp_path / "logs", "-o", tmp_path / "out/")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and ("continuous" in err or "unstable" in err), err
+    assert out == "" and not (tmp_path / "out").exists()
