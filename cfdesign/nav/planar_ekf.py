@@ -246,6 +246,8 @@ class PlanarEKF:
             length, an interval that is not a finite positive number of seconds up to 1000, a
             GPS mode other than those of ``gps_std`` and ``''``, or an ``initial_state`` that is
             not four finite numbers; the message names the argument (and the row).
+            Also an update the noise figures make singular or not finite
+            (:func:`~cfdesign.nav.kalman_update.joseph_update`).
 
         Notes
         -----
