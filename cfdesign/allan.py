@@ -487,7 +487,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
+        Readings that are not real numbers (text, None, complex, ragged), fewer than
+        :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
         noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
         recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
@@ -501,7 +502,13 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     >>> round(fit.white_density, 4), fit.random_walk_density   # 0.01 / sqrt(100)
     (0.001, None)
     """
-    y = np.asarray(x, dtype=float).ravel()
+    from .errors import CfdesignError
+    from .runtime.filter import real_array
+
+    try:
+        y = real_array(x, f"{name}: readings").ravel()
+    except CfdesignError as exc:  # text, None, complex or ragged readings
+        raise InputError(str(exc)) from None
     if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
             RATE_RANGE[0] <= rate_hz <= RATE_RANGE[1]):  # NaN too
         raise InputError(f"{name}: rate_hz must be a positive number of hertz from {RATE_RANGE[0]:g} to "

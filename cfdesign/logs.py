@@ -17,6 +17,7 @@ Reading and writing use pandas (CSV; Parquet through pyarrow), an optional depen
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import os
 import re
@@ -1493,7 +1494,9 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     ------
     CfdesignError
         Dask is not installed, ``workers`` and ``scheduler`` are both given, the scheduler
-        cannot be reached, or ``outdir`` cannot be created.
+        cannot be reached, ``outdir`` cannot be created, or the table cannot run any log (a
+        continuous or unstable table, as :func:`run_log` and
+        :class:`~cfdesign.runtime.Runtime` refuse it), named before the workers start.
     DataError
         Two logs of the same name (their estimates would overwrite each other), or a log
         that cannot be run (as :func:`run_log`).
@@ -1517,6 +1520,10 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     if same:
         raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
                         "or with another --format)")
+    from .runtime.filter import Runtime
+
+    # a table no log can run (continuous, unstable, no posterior) is named once, before the workers start
+    Runtime(table, output="prior" if options.get("prediction") else None)
     text = table.to_json()
     if scheduler:
         try:
@@ -1525,7 +1532,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
             raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=None, silence_logs=logging.ERROR)  # no shutdown warnings
         client = Client(cluster)
     try:
         try:  # once connected: an unreachable scheduler leaves no empty folder

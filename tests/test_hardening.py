@@ -3,6 +3,7 @@ documented outcome - a named error with exit status 2, a verify FAIL with exit 1
 result - never a traceback, a silent pass, a NaN that spreads, or a lost file."""
 
 import dataclasses
+import functools
 import json
 import math
 import os
@@ -1033,7 +1034,8 @@ def _bad_baseline_calls():
                                                                       initial_position=[np.inf, 0.0, 0.0])],
         "initial_bias": [lambda: pos.run(acc, quat, gps, initial_bias="abc")],
         "dt_s": [lambda: PlanarEKF(**planar).run(odo, odo, 0.0, gps[:, :2], mode),
-                 lambda: PlanarEKF(**planar).run(odo, odo, np.full(n, np.nan), gps[:, :2], mode)],
+                 lambda: PlanarEKF(**planar).run(odo, odo, np.full(n, np.nan), gps[:, :2], mode),
+                 lambda: PlanarEKF(**planar).run(odo, odo, [[0.1, 0.1], [0.1]], gps[:, :2], mode)],
         "gps_mode": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], np.full(n, "DGPS"))],
         "initial_state": [lambda: PlanarEKF(**planar).run(odo, odo, 0.1, gps[:, :2], mode, initial_state=[0, 0, 0])],
     }
@@ -1064,3 +1066,183 @@ def test_a_table_c_prefix_with_a_leading_underscore_is_refused_as_the_attitude_e
     assert not (tmp_path / "c").exists()
     with pytest.raises(CfdesignError, match="starts with '_'"):
         render_attitude_c(AttitudeFilter(100.0), prefix=prefix)
+
+
+# ---------------------------------------------------------------------- C names: reserved or not significant
+#: spellings C99 reserves (7.1.3, 7.26; FE_ 7.6, FP_ 7.12), written here from the standard, not from the code
+_C_RESERVED = r"((str|mem|wcs|is|to)[a-z]|E[0-9A-Z]|LC_[A-Z]|SIG_?[A-Z]|(PRI|SCN)[a-zX]|F[EP]_[A-Z]|__|_[A-Z])"
+
+
+@settings(FUZZ, max_examples=30)
+@given(prefix=st.one_of(st.from_regex(r"[A-Za-z][A-Za-z0-9_]{0,40}", fullmatch=True),
+                        st.sampled_from(["string", "strf", "memo", "wcsx", "isx", "tox", "Ekf", "E1", "signal", "lc_x",
+                                         "pri", "scnx", "fp_x", "fe_x", "a" * 27, "b" * 26, "heading"])),
+       sensor=st.sampled_from(["compass", "min", "c", "max", "x" * 60, "y" * 50]),
+       attitude=st.booleans())
+def test_c_export_makes_only_names_c99_leaves_free_and_significant(heading, prefix, sensor, attitude):
+    """The export wrote string_init, isx_step (reserved for <string.h>, <ctype.h>), the macro EKF_N
+    (<errno.h>), INTEGRATOR_Y_MIN (<stdint.h>) and external names beyond 31 characters that C99
+    need not tell apart (a 30-character prefix: <prefix>_init and <prefix>_step); now each is
+    refused on one line naming the C name and the rule."""
+    import re
+
+    from cfdesign.codegen import render_c
+    from cfdesign.codegen.attitude import render_attitude_c
+
+    d = heading.to_dict()
+    d["sensors"] = [dict(s, name=sensor) if s["name"] == "compass" else s for s in d["sensors"]]
+    d["measured"] = [[sensor if x == "compass" else x for x in m] for m in d["measured"]]
+    table = GainTable.from_dict(d)
+    try:
+        files = render_attitude_c(_attitude(), prefix=prefix) if attitude else render_c(table, prefix=prefix)
+    except CfdesignError as e:
+        assert "\n" not in str(e) and ("C name" in str(e) or "C prefix" in str(e) or "header" in str(e)), str(e)
+        return
+    text = "\n".join(files.values())
+    names = set(re.findall(rf"\b(?:{prefix}|{prefix.upper()})_\w+\b(?!\.)", text))
+    assert {f"{prefix}_init", f"{prefix}_step"} <= names
+    for name in names:
+        assert not re.match(_C_RESERVED, name) and not re.match(r"U?INT\w*(_MAX|_MIN|_C)\Z", name), name
+        assert len(name) <= (31 if name in (f"{prefix}_init", f"{prefix}_step") else 63), name
+
+
+@functools.lru_cache(maxsize=1)
+def _attitude():
+    from cfdesign.nav import AttitudeFilter
+
+    return AttitudeFilter(100.0)
+
+
+@pytest.mark.parametrize("readings", ["abc", [[0.1, 0.2], [0.3]], None, np.full(4096, 0.01 + 1j)],
+                         ids=["text", "ragged", "None", "complex"])
+def test_noise_readings_that_are_not_real_numbers_are_named(readings):
+    """identify_noise gave numpy's ValueError for text or a ragged list, and cut complex readings
+    to their real part with only a ComplexWarning."""
+    with pytest.raises(cfdesign.errors.InputError, match="readings: real numbers are needed"):
+        cfdesign.identify_noise(readings, 100.0)
+
+
+def _planar_drive(n=300, seed=0):
+    """A robot on a circle at 2 m/s (10 Hz), odometer scale 1.05, 1-m GPS fixes at 1 Hz: the
+    readings and the true track."""
+    rng = np.random.default_rng(seed)
+    dt, w = 0.1, np.full(n, 0.1)
+    th = np.cumsum(w * dt)
+    truth = np.c_[np.cumsum(0.2 * np.cos(th - 0.005)), np.cumsum(0.2 * np.sin(th - 0.005))]
+    fixes = np.full((n, 2), np.nan)
+    fixes[::10] = truth[::10] + rng.normal(0.0, 1.0, (n // 10, 2))
+    readings = {"distance": 0.2 / 1.05 + rng.normal(0.0, 0.005, n), "gyro_z": w + rng.normal(0.0, 0.005, n),
+                "gps_xy": fixes}
+    return readings, truth
+
+
+_PLANAR = dict(odo_noise_std=0.005, gyro_noise_std=0.005, kappa_omega=0.1, kappa_rho=0.1, sigma_heading=0.1,
+               gps_std={"single": 1.0})
+
+
+@settings(FUZZ, max_examples=10)
+@given(which=st.sampled_from(["distance", "gyro_z", "gps_xy"]), row=st.integers(1, 29),
+       value=st.sampled_from([1e6, -1e6, 1e4, 1e3, -500.0]))
+def test_planar_ekf_takes_an_impossible_reading_as_missing(which, row, value):
+    """One odometer distance or yaw rate of 1e6 (or a fix 1e6 m off) was used: the odometer scale
+    ended 1.05 (distance) to 1e4 (fix) off and the position 25 m to 17 km; as in the other
+    filters, a reading the sensor or the vehicle cannot produce (beyond gyro_range_rps, beyond
+    speed_range_mps times its interval, a fix out of reach of the last one used) is missing and
+    counted: the run is the run with that reading missing."""
+    from cfdesign.nav.planar_ekf import PlanarEKF
+
+    readings, _ = _planar_drive()
+    bad = {k: v.copy() for k, v in readings.items()}
+    missing = {k: v.copy() for k, v in readings.items()}
+    at = 10 * row if which == "gps_xy" else 10 * row + 3
+    bad[which][at] = bad[which][at] + value
+    missing[which][at] = np.nan
+    mode = np.where(np.isnan(readings["gps_xy"][:, 0]), "", "single")
+    ekf = PlanarEKF(**_PLANAR)
+    est = ekf.run(bad["distance"], bad["gyro_z"], 0.1, bad["gps_xy"], mode)
+    ref = ekf.run(missing["distance"], missing["gyro_z"], 0.1, missing["gps_xy"], np.where(
+        np.isnan(missing["gps_xy"][:, 0]), "", "single"))
+    assert est.missing == {**dict.fromkeys(est.missing, 0), which: 1}
+    for key in ("x", "y", "theta", "alpha", "covariance"):
+        np.testing.assert_array_equal(getattr(est, key), getattr(ref, key), err_msg=key)
+
+
+@pytest.mark.parametrize("start", ["first fix", "initial state"])
+def test_planar_ekf_restarts_from_fixes_that_agree_when_the_first_was_wrong(start):
+    """The first fix (or the initial state given) 1e6 m off cannot be checked when it comes; the
+    next two fixes, out of its reach but within each other's, restart the position from the
+    second: the track ends as close to the truth as the run without it."""
+    from cfdesign.nav.planar_ekf import PlanarEKF
+
+    readings, truth = _planar_drive()
+    mode = np.where(np.isnan(readings["gps_xy"][:, 0]), "", "single")
+    args = (readings["distance"], readings["gyro_z"], 0.1)
+    clean = PlanarEKF(**_PLANAR).run(*args, readings["gps_xy"], mode)
+    fixes, kw = readings["gps_xy"].copy(), {}
+    if start == "first fix":
+        fixes[0] += 1e6
+    else:
+        kw["initial_state"] = [1e6, 0.0, 0.0, 1.0]
+    est = PlanarEKF(**_PLANAR).run(*args, fixes, mode, **kw)
+    assert est.missing["gps_xy"] == 1
+    error = np.hypot(est.x - truth[:, 0], est.y - truth[:, 1])[-50:].max()
+    assert error < 2 * np.hypot(clean.x - truth[:, 0], clean.y - truth[:, 1])[-50:].max()
+    assert abs(est.alpha[-1] - 1.05) < 0.05
+
+
+@pytest.mark.parametrize("table", ["continuous", "unstable"])
+def test_a_table_no_log_can_run_is_named_before_the_fleet_starts(position, tmp_path, cli, table):
+    """cfdesign run TABLE logs/ -o out/ with a continuous (or unstable) table started the Dask
+    workers (20 s), then printed the same refusal once per log, 'wrote 0 estimate files' and an
+    out/summary.csv of errors; the refusal is one line now, before any worker or file."""
+    d = position.to_dict() if table == "unstable" else single_rate_continuous().to_dict()
+    if table == "unstable":
+        d["F"][0][0] = 1e6
+    (tmp_path / "g.json").write_text(json.dumps(d))
+    (tmp_path / "logs").mkdir()
+    for name in ("a", "b"):
+        (tmp_path / "logs" / f"{name}.csv").write_text("time,accelerometer,gps\n0.0,0.01,1.0\n0.02,0.01,\n")
+    code, out, err = cli("run", tmp_path / "g.json", tmp_path / "logs", "-o", tmp_path / "out/")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and ("continuous" in err or "unstable" in err), err
+    assert out == "" and not (tmp_path / "out").exists()
+
+
+_EKF_FIGURES = {"strapdown": ["gyro_noise_std", "accel_noise_std", "gyro_bias_density", "accel_bias_density",
+                              "scale_density", "gps_pos_std", "gps_vel_std", "triad_std", "norm_std"],
+                "planar": ["odo_noise_std", "gyro_noise_std", "kappa_omega", "kappa_rho", "sigma_heading",
+                           "alpha_noise_std", "gps_std", "initial_std"]}
+
+
+@settings(FUZZ, max_examples=30)
+@given(data=st.data(), which=st.sampled_from(sorted(_EKF_FIGURES)))
+def test_ekf_noise_figures_at_the_ends_of_their_range_are_named_or_run_finite(data, which):
+    """A GPS std of 5e-324 (its square 0), or 1e15 beside 1e-170, passed the figure checks and
+    raised numpy's LinAlgError 'Singular matrix' from the update, or left a covariance of inf and
+    NaN (88 of 300 random strapdown settings, 226 of 3000 planar ones); now the update names it."""
+    from cfdesign.nav.planar_ekf import PlanarEKF
+    from cfdesign.nav.strapdown_ekf import StrapdownEKF
+
+    names = data.draw(st.lists(st.sampled_from(_EKF_FIGURES[which]), min_size=1, max_size=3, unique=True))
+    values = data.draw(st.lists(st.sampled_from([5e-324, 1e-300, 1e-170, 1e-12, 1e10, 1e15]), min_size=len(names),
+                                max_size=len(names)))
+    readings, _ = _planar_drive(n=30)
+    base, rows = _BASELINES["strapdown"][1], slice(0, 30)
+    try:
+        if which == "planar":
+            kw = {**_PLANAR, **{k: ({"single": v} if k == "gps_std" else (v, v, v, v) if k == "initial_std" else v)
+                                for k, v in zip(names, values, strict=True)}}
+            mode = np.where(np.isnan(readings["gps_xy"][:, 0]), "", "single")
+            est = PlanarEKF(**kw).run(readings["distance"], readings["gyro_z"], 0.1, readings["gps_xy"], mode)
+            numbers = [est.x, est.y, est.theta, est.alpha, est.covariance]
+        else:
+            kw = dict(gyro_noise_std=1e-3, accel_noise_std=1e-2, gyro_bias_density=1e-5, accel_bias_density=1e-4,
+                      scale_density=1e-6, gps_pos_std=2.0, gps_vel_std=0.2, triad_std=0.02)
+            kw.update(zip(names, values, strict=True))
+            n = len(base["gyr"][rows])
+            mag = np.tile([0.0, 20.0, -40.0], (n, 1))
+            est = StrapdownEKF(10.0, **kw).run(base["gyr"][rows], base["acc"][rows], mag, base["gps_pos"][rows])
+            numbers = [est.states, est.final_covariance]
+    except cfdesign.errors.InputError as e:
+        assert "\n" not in str(e)
+        return
+    assert all(np.isfinite(a).all() for a in numbers), (names, values)

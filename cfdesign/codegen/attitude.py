@@ -30,7 +30,7 @@ from string import Template
 from .. import __version__
 from ..errors import CfdesignError
 from ..files import write_into
-from .c99 import _comment_text, check_c_prefix
+from .c99 import _comment_text, check_c_names, check_c_prefix
 
 __all__ = ["render_attitude_c", "write_attitude_c"]
 
@@ -83,7 +83,8 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     prefix : str
         Prefix of the C names (``<prefix>_state``, ``<prefix>_init``, ``<prefix>_step``) and of
         the file names; a C identifier, not starting with ``_``, not the name of a C99
-        standard header.
+        standard header, making no name C99 reserves or does not tell apart
+        (:func:`~cfdesign.codegen.check_c_names`).
 
     Returns
     -------
@@ -148,7 +149,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         name = f"{prefix}.{stem}"
         header = _header(name, what, attitude_filter, prefix)
         out[name] = Template(_template(f"attitude.{stem}.in")).substitute(fields, header=header)
-    return out
+    return check_c_names(out, prefix)
 
 
 #: the headers of the C99 standard library: a file ``<prefix>.h`` of one of these names, found

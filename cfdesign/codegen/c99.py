@@ -15,7 +15,7 @@ from ..errors import CfdesignError
 from ..files import write_into
 from ..runtime.filter import READING_LIMIT, filter_sha256
 
-__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "C99_KEYWORDS"]
+__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS"]
 
 #: the reserved words of ISO C99 (6.4.1)
 C99_KEYWORDS = frozenset("""
@@ -25,6 +25,21 @@ C99_KEYWORDS = frozenset("""
 """.split())
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+#: names C99 reserves by their spelling (7.1.3 with the future library directions of 7.26, and
+#: FE_/FP_ of 7.6 and 7.12): reserved where the header is included, and a user's file may include
+#: any of them beside the generated header (an <errno.h> macro EKF_N would replace ours)
+_RESERVED = (
+    (r"(str|mem|wcs)[a-z]", "names starting with str, mem or wcs and a lowercase letter (<string.h>, <stdlib.h>)"),
+    (r"(is|to)[a-z]", "names starting with is or to and a lowercase letter (<ctype.h>, <wctype.h>)"),
+    (r"E[0-9A-Z]", "names starting with E and a digit or a capital letter (<errno.h>)"),
+    (r"LC_[A-Z]", "names starting with LC_ and a capital letter (<locale.h>)"),
+    (r"SIG_?[A-Z]", "names starting with SIG or SIG_ and a capital letter (<signal.h>)"),
+    (r"(PRI|SCN)[a-zX]", "names starting with PRI or SCN and a lowercase letter or X (<inttypes.h>)"),
+    (r"U?INT\w*(_MAX|_MIN|_C)\Z", "names starting with INT or UINT and ending in _MAX, _MIN or _C (<stdint.h>)"),
+    (r"F[EP]_[A-Z]", "names starting with FE_ or FP_ and a capital letter (<fenv.h>, <math.h>)"),
+)
+#: significant initial characters C99 guarantees (5.2.4.1): external names, the others
+_SIGNIFICANT = {"external": 31, "internal": 63}
 #: precision -> (C type, ceil function, literal suffix)
 _PRECISIONS = {"double": ("double", "ceil", ""), "float": ("float", "ceilf", "f")}
 #: generated files, in the order returned: (template, what the file holds)
@@ -110,7 +125,63 @@ def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
         name = f"{fields['prefix']}_{stem}"
         header = _template("header").substitute(fields, file=name, what=what)
         out[name] = _template(stem).substitute(fields, header=header)
-    return out
+    return check_c_names(out, fields["prefix"])
+
+
+def check_c_names(files: dict, prefix: str) -> dict:
+    """Return ``files`` if every C name made from ``prefix`` in them is free and significant, else raise.
+
+    The names are ``<prefix>_*`` and ``<PREFIX>_*`` (the sensors' index macros among them).  A
+    name is refused when C99 keeps it for itself, by keyword or by spelling (7.1.3 and the
+    future library directions of 7.26: ``str``, ``mem``, ``wcs``, ``is`` or ``to`` and a
+    lowercase letter; macros of ``<errno.h>``, ``<locale.h>``, ``<signal.h>``, ``<inttypes.h>``,
+    ``<stdint.h>``, ``<fenv.h>``, ``<math.h>``), or when it is longer than the characters C99
+    guarantees significant (5.2.4.1): 31 for the external functions ``<prefix>_init`` and
+    ``<prefix>_step``, 63 for the other names.
+
+    Parameters
+    ----------
+    files : dict
+        ``{file name: C text}`` as generated.
+    prefix : str
+        The prefix the names were made with.
+
+    Returns
+    -------
+    dict
+        ``files``, unchanged.
+
+    Raises
+    ------
+    CfdesignError
+        One line naming the first such name and the rule it breaks.
+
+    Examples
+    --------
+    >>> from cfdesign.codegen import check_c_names
+    >>> check_c_names({"a.h": "void string_step(void);"}, "string")
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.CfdesignError: C name 'string_step' is reserved in C99: names starting with str, mem or wcs ...
+    """
+    external = {f"{prefix}_init", f"{prefix}_step"}
+    text = "\n".join(files.values())
+    found = re.findall(rf"\b(?:{re.escape(prefix)}|{re.escape(prefix.upper())})_\w+\b(?!\.)", text)  # not file names
+    for name in sorted(set(found), key=found.index):
+        rule = next((why for pattern, why in _RESERVED if re.match(pattern, name)), None)
+        if name in C99_KEYWORDS:
+            rule = "a keyword"
+        elif name.startswith("__") or re.match(r"_[A-Z]", name):
+            rule = "names starting with __ or _ and a capital letter"
+        what = "external" if name in external else "internal"
+        if rule is None and len(name) > _SIGNIFICANT[what]:
+            rule = (f"{len(name)} characters, beyond the {_SIGNIFICANT[what]} C99 guarantees significant in "
+                    f"{'an external name' if what == 'external' else 'a macro or internal name'}")
+            raise CfdesignError(f"C name {name!r} has {rule}; C code needs a shorter prefix or sensor name")
+        if rule is not None:
+            raise CfdesignError(f"C name {name!r} is reserved in C99: {rule}; C code needs another prefix or "
+                                "sensor name")
+    return files
 
 
 def check_c_identifier(name, what: str) -> str:

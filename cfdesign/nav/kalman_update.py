@@ -36,11 +36,31 @@ def joseph_update(x, P, innovation, H, R):
         ``x + K ν`` with ``K = P H^T (H P H^T + R)^-1``.
     P : ndarray, shape (n, n)
         ``(I - K H) P (I - K H)^T + K R K^T``, symmetrised.
+
+    Raises
+    ------
+    InputError
+        The innovation covariance ``H P H^T + R`` is singular or the update is not finite: the
+        filter's noise figures and initial standard deviations are too small, or too far apart,
+        for double precision (a GPS std of 1e-300 on a position known to 1e-12 m, an odometer
+        noise of 1e15 m beside a scale noise of 1e-170).
     """
+    from ..errors import InputError
+
     PHt = P @ H.T
-    K = np.linalg.solve(H @ PHt + R, PHt.T).T
-    P = posterior_covariance(P, H, K, R)
-    return x + K @ innovation, 0.5 * (P + P.T)
+    S = H @ PHt + R
+    try:
+        K = np.linalg.solve(S, PHt.T).T
+        P = posterior_covariance(P, H, K, R)
+        x = x + K @ innovation
+    except np.linalg.LinAlgError:
+        K = None
+    if K is None or not (np.isfinite(P).all() and np.isfinite(x).all()):
+        scale = np.abs(np.diag(S))
+        raise InputError(f"the innovation covariance H P H^T + R (diagonal from {scale.min():.3g} to "
+                         f"{scale.max():.3g}) is singular or its update not finite: the noise figures and initial "
+                         "standard deviations are too small, or too far apart, for double precision")
+    return x, 0.5 * (P + P.T)
 
 
 def first_finite(rows):

@@ -22,6 +22,17 @@ Our reading of eq. (13): ``Σ|ω| = Σ_k |ω_k| Δt_k`` is the absolute angle tu
 previous fix; ``σ_gps`` and ``σ_θ`` are chosen by the fix's GPS mode.  The chord heading is
 compared with ``θ`` at the current fix, the innovation wrapped to ``(-π, π]``; a fix with no
 previous fix gives a position-only update.
+
+Impossible readings are missing and counted, as in the other filters of :mod:`cfdesign.nav`
+(whose rates and specific forces are checked against the sensor's range): a yaw rate beyond
+``gyro_range_rps``, a distance beyond ``speed_range_mps`` times its interval, and a fix that the
+vehicle could not have reached from the last fix used at ``speed_range_mps``, with a margin of
+:data:`FIX_MARGIN` standard deviations of the two fixes' difference (the first fix: from the
+``initial_state`` given, its std ``initial_std``; by default nothing checks it, as it is the
+initial state).  A fix position has no range of its own (map coordinates reach millions of
+metres), so it is judged against the last fix used; when two fixes in a row are refused and
+agree with each other by the same test, the fix used before them was the wrong one (an
+unchecked first fix, or an initial state far off): the position restarts from the second.
 """
 
 from __future__ import annotations
@@ -37,7 +48,12 @@ from ..runtime.filter import usable
 from .attitude_inputs import MIN_RATE_HZ, finite_vector, held_rows, rows
 from .kalman_update import first_finite, joseph_update, noise_figure
 
-__all__ = ["PlanarEstimate", "PlanarEKF", "planar_step"]
+__all__ = ["PlanarEstimate", "PlanarEKF", "planar_step", "FIX_MARGIN"]
+
+#: standard deviations of the difference of two fixes a jump may exceed the distance the vehicle
+#: can travel between them by before the later fix is impossible (a 2-D normal beyond 6 sigma:
+#: a chance of 1.5e-8)
+FIX_MARGIN = 6.0
 
 
 @dataclass(frozen=True)
@@ -134,12 +150,19 @@ class PlanarEKF:
         ``σ_α`` of eq. (1), the scale's random walk per sample.
     initial_std : tuple of 4 floats
         Initial standard deviations of ``[x, y, θ, α]``.
+    gyro_range_rps : float
+        A yaw rate beyond it is impossible and treated as missing (default 100 rad/s, as
+        :class:`~cfdesign.nav.AttitudeParams`).
+    speed_range_mps : float
+        A speed beyond it is impossible (default 100 m/s): a distance beyond it times its
+        interval is missing, and so is a fix further than it allows from the last fix used
+        (module docstring).
 
     Raises
     ------
     InputError
         A noise figure, ``κ_ω``, ``κ_ρ``, ``σ_θ`` or initial std that is not a finite positive
-        number (``alpha_noise_std``: non-negative), a ``gps_std`` that names no mode or the
+        number (``alpha_noise_std``: non-negative; the two ranges: up to 1e15), a ``gps_std`` that names no mode or the
         mode ``''``, or a ``sigma_heading`` that does not give one value per GPS mode; the
         message names the argument.
 
@@ -150,7 +173,8 @@ class PlanarEKF:
 
     def __init__(self, *, odo_noise_std: float, gyro_noise_std: float, gps_std: dict | None = None,
                  kappa_omega: float, kappa_rho: float, sigma_heading, alpha_noise_std: float = 1e-5,
-                 initial_std=(10.0, 10.0, math.pi, 0.1)):
+                 initial_std=(10.0, 10.0, math.pi, 0.1), gyro_range_rps: float = 100.0,
+                 speed_range_mps: float = 100.0):
         if gps_std is not None and not isinstance(gps_std, dict):
             raise InputError(f"gps_std must be a dict {{mode: std}}, got {type(gps_std).__name__}")
         self.gps_std = {str(mode): noise_figure(f"gps_std[{mode!r}]", value)
@@ -172,6 +196,8 @@ class PlanarEKF:
         if stds.shape != (4,):
             raise InputError(f"initial_std must be 4 numbers (the stds of x, y, theta, alpha), got {stds.shape}")
         self.initial_std = np.array([noise_figure(f"initial_std[{i}]", v) for i, v in enumerate(stds)])
+        self.gyro_range_rps = noise_figure("gyro_range_rps", gyro_range_rps)
+        self.speed_range_mps = noise_figure("speed_range_mps", speed_range_mps)
 
     def heading_std(self, mode: str, turned: float, travelled: float) -> float:
         """GPS-heading standard deviation of eq. (13): ``σ_θ (Σ|ω| + κ_ω) / (Σρ + κ_ρ)``.
@@ -220,18 +246,25 @@ class PlanarEKF:
             length, an interval that is not a finite positive number of seconds up to 1000, a
             GPS mode other than those of ``gps_std`` and ``''``, or an ``initial_state`` that is
             not four finite numbers; the message names the argument (and the row).
+            Also an update the noise figures make singular or not finite
+            (:func:`~cfdesign.nav.kalman_update.joseph_update`).
 
         Notes
         -----
-        A distance or rate that is not finite or beyond
-        :data:`~cfdesign.runtime.filter.READING_LIMIT` is missing: it holds the last usable one
-        (before the first, the first); a fix given but unusable (inf, beyond the limit) is
-        skipped.  Both are counted in ``PlanarEstimate.missing``.
+        A distance or rate that is not finite, beyond
+        :data:`~cfdesign.runtime.filter.READING_LIMIT` or impossible (beyond ``speed_range_mps``
+        times its interval, beyond ``gyro_range_rps``) is missing: it holds the last usable one
+        (before the first, the first); a fix given but unusable (inf, beyond the limit) or
+        impossible (module docstring) is skipped.  All are counted in ``PlanarEstimate.missing``.
         """
         rho = rows("distance", distance, error=InputError)
         N = len(rho)
         omega = rows("gyro_z", gyro_z, n=N, error=InputError)
-        dt = rows("dt_s", np.broadcast_to(dt_s, (N,)) if np.ndim(dt_s) == 0 else dt_s, n=N, error=InputError)
+        try:
+            one = np.ndim(dt_s) == 0
+        except ValueError:  # a ragged list: rows names it
+            one = False
+        dt = rows("dt_s", np.broadcast_to(dt_s, (N,)) if one else dt_s, n=N, error=InputError)
         bad_dt = np.flatnonzero(~((dt > 0) & (dt <= 1.0 / MIN_RATE_HZ)))
         if bad_dt.size:
             raise InputError(f"dt_s must be a positive number of seconds up to {1.0 / MIN_RATE_HZ:g}, got "
@@ -244,12 +277,14 @@ class PlanarEKF:
         if unknown:
             raise InputError(f"gps_mode: unknown mode(s) {', '.join(map(repr, unknown[:5]))}; the modes are "
                              f"{', '.join(map(repr, self.gps_std))} and '' (no fix)")
-        rho, missing_rho = held_rows(rho)
-        omega, missing_omega = held_rows(omega)
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN, inf: held_rows's to count
+            rho, missing_rho = held_rows(rho, bad=~(np.abs(rho) <= self.speed_range_mps * dt))
+        omega, missing_omega = held_rows(omega, self.gyro_range_rps)
         bad_fix = ~usable(gps).all(axis=1)
         missing = {"distance": missing_rho, "gyro_z": missing_omega,
                    "gps_xy": int((bad_fix & ~np.isnan(gps).all(axis=1) & (mode != "")).sum())}
         gps = np.where(bad_fix[:, None], np.nan, gps)
+        given = initial_state is not None
         if initial_state is None:
             first = first_finite(gps)
             initial_state = [*(np.zeros(2) if first is None else first), 0.0, 1.0]
@@ -257,7 +292,12 @@ class PlanarEKF:
         out = np.empty((N, 4))
         cov = np.empty((N, 4, 4))
         used = np.full((N, 2), np.nan)
+        elapsed = 0.0                                           # since the last fix used (or the start)
+        # where the next fix must be reachable from, and its std: the initial position given (the
+        # default initial state is the first fix, which nothing checks), then the last fix used
+        ref = (state[:2].copy(), float(np.hypot(*self.initial_std[:2]))) if given else None
         last_fix, turned, travelled = None, 0.0, 0.0
+        refused = None                                          # (fix, its std, time since it)
         zeta = np.zeros((4, 4))
         zeta[3, 3] = self.alpha_var
         for k in range(N):
@@ -266,13 +306,32 @@ class PlanarEKF:
             P = 0.5 * (P + P.T)
             turned += abs(omega[k]) * dt[k]
             travelled += rho[k]
-            if np.isfinite(gps[k]).all() and mode[k] in self.gps_std:
-                state, P, used[k] = self._gps_update(state, P, gps[k], mode[k], last_fix, turned, travelled)
-                last_fix, turned, travelled = gps[k], 0.0, 0.0
+            elapsed += dt[k]
+            if refused is not None:
+                refused = (refused[0], refused[1], refused[2] + dt[k])
+            fix = gps[k] if np.isfinite(gps[k]).all() and mode[k] in self.gps_std else None
+            if fix is not None:
+                sg = self.gps_std[mode[k]]
+                if ref is None or self._reachable(fix, sg, *ref, elapsed):
+                    state, P, used[k] = self._gps_update(state, P, fix, mode[k], last_fix, turned, travelled)
+                elif refused is not None and self._reachable(fix, sg, *refused):
+                    state, P = _restart(state, P, fix, sg)  # the fix used before these two was the wrong one
+                    used[k, 0] = sg
+                else:                                      # impossible: missing, counted
+                    missing["gps_xy"] += 1
+                    refused, fix = (fix, sg, 0.0), None
+                if fix is not None:
+                    last_fix, ref, elapsed, refused, turned, travelled = fix, (fix, sg), 0.0, None, 0.0, 0.0
             state[2] = _wrap(state[2])
             out[k], cov[k] = state, P
         return PlanarEstimate(x=out[:, 0], y=out[:, 1], theta=out[:, 2], alpha=out[:, 3], covariance=cov,
                               heading_std=used[:, 1], gps_std_used=used[:, 0], missing=missing)
+
+    def _reachable(self, fix, std, other, other_std, elapsed) -> bool:
+        """Whether ``fix`` is within reach of ``other`` (a fix ``elapsed`` seconds earlier) at
+        ``speed_range_mps``, with :data:`FIX_MARGIN` standard deviations of their difference."""
+        gap = math.hypot(fix[0] - other[0], fix[1] - other[1])
+        return gap <= self.speed_range_mps * elapsed + FIX_MARGIN * math.hypot(std, other_std)
 
     def _gps_update(self, state, P, fix, mode, last_fix, turned, travelled):
         """GPS update, eqs. (6)-(13): position, plus the chord heading when a previous fix exists."""
@@ -288,6 +347,18 @@ class PlanarEKF:
             innovation = np.array([fix[0] - state[0], fix[1] - state[1], _wrap(chord - state[2])])
         state, P = joseph_update(state, P, innovation, H, R)
         return state, P, (sg, s_head)
+
+
+def _restart(state, P, fix, std):
+    """The position restarted from ``fix``: ``x, y`` the fix, their covariance the fix's, no
+    correlation with the heading and scale (the position they were correlated with was wrong)."""
+    state = state.copy()
+    state[:2] = fix
+    P = P.copy()
+    P[:2, :] = 0.0
+    P[:, :2] = 0.0
+    P[0, 0] = P[1, 1] = std**2
+    return state, P
 
 
 def _wrap(angle):

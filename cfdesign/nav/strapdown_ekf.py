@@ -407,6 +407,8 @@ class StrapdownEKF:
             An array that is not of real numbers or of the wrong shape, an initial position or
             velocity that is not three finite numbers, or unusable first accelerometer and
             magnetometer samples (the alignment fails); the message names the argument.
+            Also an update the noise figures make singular or not finite
+            (:func:`~cfdesign.nav.kalman_update.joseph_update`).
 
         Notes
         -----
