@@ -409,7 +409,7 @@ def read_log(path, columns=None, *, chunksize=None):
     pd = _pandas(kind == "parquet")
     try:
         if kind == "parquet":
-            return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
+            return _parquet_blocks(path, columns, chunksize) if chunksize else next(_parquet_blocks(path, columns))
         fmt = _csv_format(path, kind)
         hashed = fmt.pop("_hashed", False)
         reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
@@ -535,12 +535,42 @@ def _first_line(exc) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _parquet_blocks(path, columns, rows):
+def _parquet_names(schema) -> dict:
+    """``{field: column}``: the columns of a Parquet file as cfdesign reads them.
+
+    A frame saved by pandas keeps its index as a field: one with a name (``time``) is a column
+    like the others; an unnamed one (``__index_level_0__``) is the time column ``time`` when it
+    holds dates or durations and no column is named ``time`` or ``t`` (a frame indexed by a
+    DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out otherwise
+    (row labels).  It was asked for by its field name and not found: an internal error."""
+    import pyarrow as pa
+
+    index = {c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)}
+    unnamed = {f.name for f in schema if f.name in index and re.fullmatch(r"__index_level_\d+__", f.name)}
+    timed = any(f.name.strip().lower() in TIME_COLUMNS for f in schema if f.name not in unnamed)
+    names = {}
+    for f in schema:
+        if f.name not in unnamed:
+            names[f.name] = f.name
+        elif not timed and (pa.types.is_timestamp(f.type) or pa.types.is_duration(f.type)):
+            names[f.name], timed = "time", True
+    return names
+
+
+def _parquet_blocks(path, columns, rows=None):
+    """A Parquet log's blocks of ``rows`` rows (all of it in one when None), columns named as
+    :func:`_parquet_names` names them."""
     import pyarrow.parquet as pq
 
     with pq.ParquetFile(path) as f:
-        for batch in f.iter_batches(batch_size=rows, columns=columns):
-            yield batch.to_pandas()
+        names = _parquet_names(f.schema_arrow)
+        fields = {c: k for k, c in names.items()}
+        wanted = [fields.get(c, c) for c in columns] if columns is not None else list(names)
+        if rows is None:
+            yield f.read(columns=wanted).to_pandas(ignore_metadata=True).rename(columns=names)
+            return
+        for batch in f.iter_batches(batch_size=rows, columns=wanted):
+            yield batch.to_pandas(ignore_metadata=True).rename(columns=names)
 
 
 def _pipe(path) -> bool:
@@ -594,7 +624,7 @@ def _header(path) -> list:
         import pyarrow.parquet as pq
 
         try:
-            return list(pq.read_schema(path).names)
+            return list(_parquet_names(pq.read_schema(path)).values())
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
     fmt = _csv_format(path, kind)

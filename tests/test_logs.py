@@ -1175,3 +1175,22 @@ def test_std_follows_missed_readings_as_a_simulation_does(heading):
     assert during > 2 * np.sqrt(heading.P_filtered[0][0, 0])
     before = range(starts[0] - 1000, starts[0])  # all readings present: the table's own
     assert np.allclose(std[before], np.sqrt([heading.P_filtered[k % 100][0, 0] for k in before]), rtol=1e-12)
+
+
+def test_a_parquet_file_of_a_frame_indexed_by_time_runs_on_its_index(heading, tmp_path, cli):
+    """``frame.set_index(dates).to_parquet()`` keeps the DatetimeIndex as the field
+    ``__index_level_0__``: the run stopped with an internal error (KeyError).  It is the time
+    column, as the index of a DataFrame is; an unnamed index of row numbers is left out."""
+    log, _ = heading_log(3, 37, n=3000)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    dates = pd.Timestamp("2024-05-01T12:00:00") + pd.to_timedelta(log["time"] - log["time"].iloc[0], unit="s")
+    log.drop(columns="time").set_index(pd.DatetimeIndex(dates)).to_parquet(tmp_path / "idx.parquet")
+    log.set_index(log.index + 100).to_parquet(tmp_path / "rows.parquet")
+    table = heading.save(tmp_path / "g.json")
+    for name in ("idx", "rows"):
+        code, _, err = cli("run", table, tmp_path / f"{name}.parquet", "-o", tmp_path / f"{name}_est.parquet")
+        assert code == 0, err
+        est = pd.read_parquet(tmp_path / f"{name}_est.parquet")
+        assert np.allclose(est["heading"].to_numpy(), expected, atol=1e-12, rtol=0)
+        assert "__index_level_0__" not in est.columns and est.columns[0] == "time"
+    assert est["time"].equals(log["time"])
