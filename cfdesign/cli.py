@@ -260,7 +260,7 @@ def cmd_verify(args) -> int:
 
 def cmd_run(args) -> int:
     from .gains import load_gains
-    from .logs import run_log, run_logs
+    from .logs import INTERNAL, run_log, run_logs
 
     if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
         raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
@@ -288,7 +288,7 @@ def cmd_run(args) -> int:
             named = r["error"] if r["error"].startswith(r["log"]) else f"{r['log']}: {r['error']}"
             print(f"cfdesign: {named}", file=sys.stderr)
         print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}")
-        return 2 if failed else 0
+        return 3 if any(r["error"].startswith(INTERNAL) for r in failed) else 2 if failed else 0
     result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)
     for note in result.notes:
         print(f"cfdesign: {note}", file=sys.stderr)

@@ -30,7 +30,7 @@ from .files import check_distinct, is_dir, not_a_device, open_atomic, write_byte
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "TIME_UNITS",
-           "BLOCK_ROWS"]
+           "BLOCK_ROWS", "INTERNAL"]
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
@@ -38,6 +38,8 @@ TIME_COLUMNS = ("time", "t")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
 MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
+#: how the summary of :func:`run_logs` begins the error of a log that met a fault of cfdesign, not of the log
+INTERNAL = "internal error"
 #: rows read, run and written at a time (and ticks run at a time across a gap without rows)
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
@@ -1517,7 +1519,8 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     Returns
     -------
     list of dict
-        The summary rows, in the order of ``paths``.
+        The summary rows, in the order of ``paths``; a log that could not be run has ``error``:
+        its one-line message, beginning with :data:`INTERNAL` for a fault of cfdesign.
 
     Raises
     ------
@@ -1594,6 +1597,10 @@ def _run_one(table_json, path, target, options):
         return run_log(table, path, output=target, source=path, **options).summary()
     except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
         return {"log": path, "samples": 0, "error": _first_line(exc)}
+    except Exception as exc:  # noqa: BLE001 - a fault of cfdesign on one log: the others still run
+        # a failed task printed Dask's traceback of it and summarised it as the bare exception ("'__index_level_0__'")
+        return {"log": path, "samples": 0, "error": f"{INTERNAL} ({type(exc).__name__}: {_first_line(exc)}); "
+                                                    "please report it with the log"}
 
 
 def _summary_csv(rows) -> str:

@@ -1194,3 +1194,23 @@ def test_a_parquet_file_of_a_frame_indexed_by_time_runs_on_its_index(heading, tm
         assert np.allclose(est["heading"].to_numpy(), expected, atol=1e-12, rtol=0)
         assert "__index_level_0__" not in est.columns and est.columns[0] == "time"
     assert est["time"].equals(log["time"])
+
+
+def test_a_fault_of_cfdesign_on_one_log_of_a_fleet_is_one_summary_line_exit_3(heading, tmp_path, cli, monkeypatch):
+    """A log that met an internal error (the KeyError of a Parquet index) failed its Dask task:
+    the worker printed the traceback and the summary said only "'__index_level_0__'", exit 2 as
+    for a bad log.  The log's task returns a row naming an internal error; the others run; exit 3."""
+    import cfdesign.logs
+    from cfdesign.logs import INTERNAL, _run_one
+
+    def broken(table, path, **kw):
+        raise KeyError("__index_level_0__")
+
+    monkeypatch.setattr(cfdesign.logs, "run_log", broken)
+    row = _run_one(heading.to_json(), "a.parquet", str(tmp_path / "a.csv"), {})
+    assert row == {"log": "a.parquet", "samples": 0,
+                   "error": f"{INTERNAL} (KeyError: '__index_level_0__'); please report it with the log"}
+    monkeypatch.setattr(cfdesign.logs, "run_logs", lambda *a, **kw: [row, {"log": "b.csv", "samples": 10}])
+    heading_log(0, 0, n=300)[0].to_csv(tmp_path / "b.csv", index=False)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "b.csv", "-o", f"{tmp_path}/out/")
+    assert code == 3 and err.strip() == f"cfdesign: a.parquet: {row['error']}"
