@@ -128,7 +128,7 @@ class _Columns:
     references: dict       # state -> column
     extra: list            # passed through
     time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
-    first_line: int = 2      # the file line of the first row (after the header and the comments before it)
+    lines: object = None     # _Lines: the file line of each row (after the header, the comments before it, blank lines)
 
     @property
     def time_scale(self) -> float:
@@ -176,7 +176,7 @@ def _time_unit(source, time, time_unit) -> str:
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             first_line=2) -> _Columns:
+             lines=None) -> _Columns:
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -215,7 +215,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, first_line)
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, lines or _Lines())
 
 
 def _listed(header, limit=300) -> str:
@@ -242,8 +242,9 @@ def _references(table, reference, header, source) -> dict:
     return out
 
 
-def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
-    """The columns as float arrays; a cell that is not a number is an error naming its line.
+def _numeric(df, columns, source, line, time=None, time_scale=1.0):
+    """The columns as float arrays; a cell that is not a number is an error naming its line
+    (``line(i)``: the file line of row ``i`` of ``df``).
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
@@ -275,9 +276,16 @@ def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
             bad = [not_date]  # the first cell that is no date either
         if len(bad):
             what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
-            raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is {what}: {s.iloc[bad[0]]!r}")
+            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}")
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
+
+
+def _cell_text(cell, limit=40) -> str:
+    """A cell for a message: its repr, cut to about ``limit`` characters (a row of the NUL bytes a
+    log cut off by a power loss ends in printed thousands of ``\\x00``)."""
+    text = repr(cell)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(str(cell))} characters)"
 
 
 def _dates(text):
@@ -610,10 +618,55 @@ def _spooled(path, source):
     return copy()
 
 
-def _first_row_line(path) -> int:
-    """The file line of a log's first row: 2, after the comment lines of a CSV."""
+class _Lines:
+    """The file line of each row of a log (rows numbered from 0 as read): ``first`` for the
+    first, one more for each row after it, and, in a CSV file, one more for each blank line
+    between them, which pandas skips (a bad row after a blank line was named a line early).
+    The blank lines are looked for when a message first names a line (:meth:`__call__`)."""
+
+    def __init__(self, first=2, path=None, kind="csv", sep=","):
+        self.first, self.path, self.kind, self.sep = first, path, kind, sep
+        self._after = None  # the rows before each blank line
+
+    def __call__(self, row) -> int:
+        """The file line of row ``row``."""
+        if self.path is None:
+            return self.first + int(row)
+        if self._after is None:
+            self._after = self._blank_lines()
+        return self.first + int(row) + int(np.searchsorted(self._after, row, side="right"))
+
+    def _blank_lines(self):
+        """The rows before each blank line after the header: lines of nothing but spaces other
+        than the separator (a tab-separated line of tabs is a row of empty cells)."""
+        space = b"".join(re.escape(bytes([c])) for c in b" \t\r\f\v" if bytes([c]) != self.sep.encode())
+        blank = re.compile(rb"\n[" + space + rb"]*(?=\n)")
+        after, lines, carry = [], 0, b"\n"  # a newline before the first row's line: each match starts a line
+        with _open_csv(self.path, self.kind) as fh:
+            for _ in range(self.first - 1):
+                fh.readline()
+            while True:
+                chunk = fh.read(1 << 22)
+                text = carry + chunk
+                end = text.rfind(b"\n") if chunk else len(text)
+                pos = 0
+                for m in blank.finditer(text, 0, end + 1 if chunk else end):
+                    lines += text.count(b"\n", pos, m.start())
+                    pos = m.start()
+                    after.append(lines - len(after))
+                if not chunk:
+                    return np.array(after, dtype=np.int64)
+                lines += text.count(b"\n", pos, end)
+                carry = text[end:]
+
+
+def _lines(path) -> _Lines:
+    """The :class:`_Lines` of a log file: its first row on line 2, after the comment lines of a CSV."""
     kind = _kind(path)
-    return 2 if kind == "parquet" else 2 + _csv_format(path, kind).get("skiprows", 0)
+    if kind == "parquet":
+        return _Lines()
+    fmt = _csv_format(path, kind)
+    return _Lines(2 + fmt.get("skiprows", 0), path, kind, fmt.get("sep", ","))
 
 
 def _header(path) -> list:
@@ -681,7 +734,7 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
     scale = TIME_UNITS[_time_unit(path, time, time_unit)]
-    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time, time_scale=scale)
+    return _numeric(read_log(path, wanted), wanted, path, _lines(path), time=time, time_scale=scale)
 
 
 # ---------------------------------------------------------------------------- the run
@@ -713,7 +766,7 @@ class _Pass:
                 base &= read[s.name]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  first_line=self.cols.first_line + self.rows - len(tail_t),
+                  line=lambda i, start=self.rows - len(tail_t): self.cols.lines(start + i),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
                 # the grid of the first block's such rows (not its own jittered time; timing.grid_fit)
@@ -836,7 +889,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference, time_unit,
-                    2 if frame is not None else _first_row_line(data))
+                    _Lines() if frame is not None else _lines(data))
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
@@ -864,7 +917,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, cols.first_line + place.rows, cols.time, cols.time_scale)
+            values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines(start + i),
+                              cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -994,15 +1048,15 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          cols.first_line + place.rows, cols.time, cols.time_scale)
+                          lambda i, start=place.rows: cols.lines(start + i), cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
             _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
-        first_line = cols.first_line + place.rows
+        first_row = place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         for name, held in inputs.items():
-            held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_line)
+            held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_row)
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -1014,7 +1068,7 @@ def _lock(table, blocks, cols, source, types=False):
 
     lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
-                      if held.last is None else held.note(name, last, table.sample_time_s)
+                      if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
     return lock, place.rows, schemas or None
 
@@ -1042,14 +1096,14 @@ def _unique(a, return_index=False):
 
 class _Held:
     """The ticks at which an input sensor has no reading (its last reading is held there), counted
-    block by block: how many, and the longest gap with the log line it follows."""
+    block by block: how many, and the longest gap with the row it follows (rows numbered from 0)."""
 
     def __init__(self):
-        self.last = self.line = None  # tick and log line of the last reading so far
+        self.last = self.line = None  # tick and row of the last reading so far
         self.gaps = 0  # ticks without a reading between readings
-        self.longest = (0, 0)  # (ticks, log line of the reading before the gap)
+        self.longest = (0, 0)  # (ticks, row of the reading before the gap)
 
-    def add(self, ticks, read, first_line):
+    def add(self, ticks, read, first_row):
         rows = np.flatnonzero(read)
         if not rows.size:
             return
@@ -1059,17 +1113,19 @@ class _Held:
         if skip.size and skip.max() > self.longest[0]:
             k = int(np.argmax(skip))
             before = rows[ticks[rows] <= at[k]]  # the row of the reading before the gap (or the last block's)
-            self.longest = (int(skip[k]), first_line + int(before[-1]) if before.size else self.line)
+            self.longest = (int(skip[k]), first_row + int(before[-1]) if before.size else self.line)
         if self.last is None:
             self.gaps += int(at[0])  # ticks before the first reading
-        self.last, self.line = int(at[-1]), first_line + int(rows[-1])
+        self.last, self.line = int(at[-1]), first_row + int(rows[-1])
 
     def missing(self, last_tick) -> int:
         """Ticks of the log (``0 .. last_tick``) without a reading."""
         return self.gaps + (last_tick - self.last)
 
-    def note(self, name, last_tick, dt) -> str:
-        ticks, line = self.longest
+    def note(self, name, last_tick, dt, lines) -> str:
+        """The note on the held ticks; ``lines(row)`` gives a row's file line."""
+        ticks, row = self.longest
+        line = lines(row)
         longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
         return (f"{name} (an input) has no reading at {self.missing(last_tick)} of {last_tick + 1} ticks{longest}: "
                 "its last reading is held there")
@@ -1483,7 +1539,7 @@ def _time_axis(estimates, time, scale=1.0):
         return (raw - raw[0]).astype(float) * scale, f"{time} (s after the first row)"
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=float), f"{time} (s)"
-    x = _numeric(estimates, [time], "estimates", 2, time)[time]
+    x = _numeric(estimates, [time], "estimates", _Lines(), time)[time]
     return x - x[0], f"{time} (s after {col.iloc[0]})"
 
 

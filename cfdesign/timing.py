@@ -266,7 +266,7 @@ def _phase_origin(t, spacing):
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
-          readings=None):
+          readings=None, line=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -282,6 +282,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         Name of the log, for messages.
     first_line : int
         File line of the first row (messages name lines as a spreadsheet does).
+    line : callable, optional
+        ``line(i)``: the file line of row ``i``, where the rows are not one a line (a CSV with
+        blank lines between them); default ``first_line + i``.
     rate : bool
         Check the base rate (False: the caller checks it once over the whole log, with
         :func:`check_rate`; a block of a few rows cannot tell a jittered rate from a wrong one).
@@ -306,9 +309,10 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     t = np.asarray(time, dtype=float)
     if not t.size:
         return np.zeros(0, dtype=np.int64)
+    line = line or (lambda i: first_line + int(i))
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:  # an empty cell is NaN: say so (a spreadsheet's rows of empty cells below the data)
-        raise DataError(f"{source} line {first_line + bad[0]}: " + (
+        raise DataError(f"{source} line {line(bad[0])}: " + (
             "no time (an empty cell; every row needs one)" if np.isnan(t[bad[0]])
             else f"time {float(t[bad[0]])!r} is not a finite number of seconds"))
     d = np.diff(t)
@@ -325,7 +329,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if back.size:
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
+        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
                         "line before (times must increase" + (", and rows at one time must read different sensors)"
                                                              if readings is not None else ")"))
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
@@ -336,7 +340,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
                      for name, short, scale in _TIME_UNITS[1:]
                      if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
                     "are the times in seconds? Split the log at the gap")
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {step:.6g} s after the "
+        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} is {step:.6g} s after the "
                         f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
                         f"tick): {unit}")
     if rate:

@@ -1214,3 +1214,25 @@ def test_a_fault_of_cfdesign_on_one_log_of_a_fleet_is_one_summary_line_exit_3(he
     heading_log(0, 0, n=300)[0].to_csv(tmp_path / "b.csv", index=False)
     code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "b.csv", "-o", f"{tmp_path}/out/")
     assert code == 3 and err.strip() == f"cfdesign: a.parquet: {row['error']}"
+
+
+@pytest.mark.parametrize("blank", ["", "   ", "\t"])
+def test_lines_named_after_blank_lines_are_the_file_s_own(heading, tmp_path, blank):
+    """pandas skips blank lines (and lines of spaces): a bad cell, a time that goes back or the
+    row before a gap of the gyro, after blank lines, were named a line early for each of them."""
+    rows = heading_log(3, 37, n=1000)[0].to_csv(index=False, lineterminator="\n").splitlines()
+    text = [*rows[:301], blank, blank, *rows[301:500], *rows[560:]]  # rows 500..559 (gyro and all) left out
+    lines = {"cell": 303 + 200 + 1, "back": 303 + 200 + 1}  # the file line after the gap's
+    (tmp_path / "gap.csv").write_text("\n".join(text) + "\n")
+    note = next(n for n in run_log(heading, tmp_path / "gap.csv").notes if "gyro (an input)" in n)
+    assert f"after line {303 + 199}:" in note, note  # the last row before the gap
+    cell = text[lines["cell"] - 1].split(",")
+    bad = {"cell": ",".join([cell[0], "abc", *cell[2:]]), "back": ",".join(["0.5", *cell[1:]])}
+    for kind, row in bad.items():
+        path = tmp_path / f"{kind}.csv.gz"
+        import gzip
+
+        with gzip.open(path, "wt") as fh:
+            fh.write("\n".join([*text[:lines[kind] - 1], row, *text[lines[kind]:]]) + "\n")
+        with pytest.raises(DataError, match=rf"line {lines[kind]}: (column 'gyro' is not a number|time 0.5 goes back)"):
+            run_log(heading, path)
