@@ -16,7 +16,9 @@ Reading and writing use pandas (CSV; Parquet through pyarrow), an optional depen
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
 import math
 import os
 import re
@@ -392,7 +394,10 @@ def read_log(path, columns=None, *, chunksize=None):
     separator is a comma, or the semicolon or tab of its header line when that has no
     comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
     stripped of spaces, and a row with more cells than the header is an error naming its line
-    (it was read without its extra cells).
+    (it was read without its extra cells).  The end of a plain CSV cut off while it was written
+    (a power loss) is not read: the NUL bytes it may end in, and its last line when that has no
+    line end and has fewer cells than the header or NUL bytes after it (its last cell may have
+    lost digits); :func:`run_log` notes it.
 
     Parameters
     ----------
@@ -422,14 +427,88 @@ def read_log(path, columns=None, *, chunksize=None):
             return _parquet_blocks(path, columns, chunksize) if chunksize else next(_parquet_blocks(path, columns))
         fmt = _csv_format(path, kind)
         hashed = fmt.pop("_hashed", False)
-        reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
+        end = _tail(path)[0] if kind == "csv" else None
+        source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
+        reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
                              low_memory=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
-            return _csv_blocks(path, reader, columns, hashed)
-        return _stripped(reader, columns, hashed)
+            return _csv_blocks(path, reader, columns, hashed, closing=None if end is None else source)
+        with contextlib.closing(source) if end is not None else contextlib.nullcontext():
+            return _stripped(reader, columns, hashed)
     except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
             *_unpack_errors()) as exc:
         raise _read_error(path, exc) from None
+
+
+class _Upto(io.RawIOBase):
+    """The bytes of a file up to ``end`` (pandas reads a log without its cut end)."""
+
+    def __init__(self, path, end):
+        self._fh, self._left = open(path, "rb"), end
+
+    def readable(self):
+        return True
+
+    def readinto(self, b):
+        n = self._fh.readinto(memoryview(b)[:min(len(b), self._left)])
+        self._left -= n
+        return n
+
+    def close(self):
+        self._fh.close()
+        super().close()
+
+
+def _tail(path) -> tuple:
+    """``(end, nul, cells)`` of a plain CSV cut off while it was written: ``end`` the byte its
+    rows end at (None: the file is whole), ``nul`` the NUL bytes it ends in (a file system
+    that had given the file its space before a power loss), ``cells`` the ``(cells, header
+    cells)`` of a last line with no line end and fewer cells than the header or NUL bytes after
+    it (else None: a last line without its end is common in files written by hand)."""
+    size = os.path.getsize(path)
+    text_end = size
+    with open(path, "rb") as fh:
+        while text_end:  # the NUL bytes at the end, read backwards
+            step = min(text_end, 1 << 16)
+            fh.seek(text_end - step)
+            kept = fh.read(step).rstrip(b"\x00")
+            text_end -= step - len(kept)
+            if kept:
+                break
+        start = max(0, text_end - (1 << 16))
+        fh.seek(start)
+        last = fh.read(text_end - start)
+    end, cells = text_end, None
+    newline = last.rfind(b"\n")
+    if last and not last.endswith(b"\n") and newline >= 0:  # a last line without its end (not the header)
+        sep = _csv_format(path).get("sep", ",")
+        row = next(csv.reader([last[newline + 1:].decode("utf-8", "replace")], delimiter=sep), [])
+        header = len(_header(path))
+        if len(row) < header or text_end < size:  # fewer cells, or NUL bytes where the rest was not written
+            cells, end = (len(row), header), start + newline + 1
+    return (None if end == size else end), size - text_end, cells
+
+
+def _tail_note(path, source) -> list:
+    """The note on the cut end of a CSV that :func:`read_log` leaves out (:func:`_tail`), if any."""
+    if _kind(path) != "csv":
+        return []
+    end, nul, cells = _tail(path)
+    if end is None:
+        return []
+    what = []
+    if cells:
+        with open(path, "rb") as fh:  # the line's number: one after the line ends before it
+            line, left = 1, end
+            while left > 0:
+                chunk = fh.read(min(left, 1 << 22))
+                line, left = line + chunk.count(b"\n"), left - len(chunk)
+        what.append(f"its last line ({line}) is cut short ({cells[0]} of {cells[1]} cells, no line end)"
+                    if cells[0] < cells[1] else f"its last line ({line}) has no line end")
+    if nul:
+        what.append(f"it ends in {nul} NUL bytes")
+    return [f"{source} was cut off while it was written: {' and '.join(what)}; "
+            + ("that line is" if cells else "they are") + " not read"]
 
 
 def _unpack_errors() -> tuple:
@@ -481,7 +560,7 @@ def _csv_format(path, kind="csv") -> dict:
         raise
     except (OSError, EOFError, ValueError) as exc:  # a truncated or corrupt archive
         raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
-    if b"\x00" in line + rows:
+    if b"\x00" in (line + rows).rstrip(b"\x00"):  # NUL bytes after the text: a log cut off (_tail)
         what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
         raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
                         + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
@@ -527,10 +606,11 @@ def _stripped(frame, columns=None, hashed=False):
     return frame if columns is None else frame[list(columns)]
 
 
-def _csv_blocks(path, reader, columns, hashed=False):
-    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too."""
+def _csv_blocks(path, reader, columns, hashed=False, closing=None):
+    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too.  ``closing``:
+    the file the reader reads, closed with it."""
     pd = _pandas()
-    with reader:
+    with reader, contextlib.closing(closing) if closing is not None else contextlib.nullcontext():
         while True:
             try:
                 block = next(reader)
@@ -938,7 +1018,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
-                     _time_note(cols) + lock.notes, Path(output) if output else None, source)
+                     (_tail_note(data, source) if frame is None else []) + _time_note(cols) + lock.notes, Path(output) if output else None, source)
 
 
 def _check_bounded(table, states, ticks, source):

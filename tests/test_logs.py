@@ -1236,3 +1236,31 @@ def test_lines_named_after_blank_lines_are_the_file_s_own(heading, tmp_path, bla
             fh.write("\n".join([*text[:lines[kind] - 1], row, *text[lines[kind]:]]) + "\n")
         with pytest.raises(DataError, match=rf"line {lines[kind]}: (column 'gyro' is not a number|time 0.5 goes back)"):
             run_log(heading, path)
+
+
+@pytest.mark.parametrize("cut, rows, noted", [("cells", 399, "cut short"), ("nul", 400, "NUL"),
+                                              ("nul-digits", 399, "no line end"), ("digits", 400, None),
+                                              ("no-line-end", 400, None)])
+def test_a_log_cut_off_while_it_was_written_runs_without_its_cut_end(heading, tmp_path, cli, cut, rows, noted):
+    """A power loss leaves a last line without its end (its last cell may have lost digits: a
+    reading of 0.00 for 0.0041), and often NUL bytes where the file system had given the file its
+    space.  The cut line was run as a reading with its cells cut; NUL bytes stopped the run with a
+    message of thousands of '\\x00'.  The cut end is not read, and a note names it; a last line
+    without a line end and with all its cells (a file written by hand) is read."""
+    log = heading_log(3, 37, n=400)[0].drop(columns="lap")  # the truth last: digits to lose
+    text = log.to_csv(index=False, lineterminator="\n")
+    last = text.rstrip("\n").rsplit("\n", 1)[1]
+    body = text[:len(text) - len(last) - 1]  # up to the last line's start
+    data = {"cells": body + last[:12], "digits": body + last[:-3], "nul": text + "\0" * 70_000,
+            "nul-digits": body + last[:-3] + "\0" * 512, "no-line-end": text.rstrip("\n")}[cut]
+    (tmp_path / "log.csv").write_bytes(data.encode())
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 0, err
+    est = pd.read_csv(tmp_path / "e.csv")
+    assert len(est) == rows and np.array_equal(est["time"], log["time"].iloc[:rows])
+    expected = run_log(heading, log.iloc[:rows]).estimates["heading"].to_numpy()
+    assert np.allclose(est["heading"], expected, rtol=0, atol=1e-12)
+    notes = [line for line in err.splitlines() if "cut off while it was written" in line]
+    assert len(notes) == (noted is not None) and "\\x00" not in err, err
+    if noted:
+        assert noted in notes[0] and "not read" in notes[0] and ("(401)" in notes[0]) == (rows == 399), notes
