@@ -1693,8 +1693,10 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
             raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
+        # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
+        # warned on stderr when another cluster (another fleet run at the same time) had that port
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
         client = Client(cluster)
     try:
         try:  # once connected: an unreachable scheduler leaves no empty folder

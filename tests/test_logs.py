@@ -647,9 +647,16 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
     for i in range(3):
         heading_log(i, 10 * i, n=1500, seed=i)[0].to_csv(folder / f"robot{i}.csv", index=False)
     (folder / "broken.csv").write_text("time,gyro\n0,1\n")
-    code, _, err = cli("run", table, folder, "-o", tmp_path / "out", "--workers", "2", "--reference", "truth")
+    import contextlib
+    import socket
+
+    with socket.socket() as busy:  # Dask's default port taken (another cluster): it warned on stderr
+        with contextlib.suppress(OSError):  # taken already
+            busy.bind(("", 8787))
+            busy.listen()
+        code, _, err = cli("run", table, folder, "-o", tmp_path / "out", "--workers", "2", "--reference", "truth")
     assert code == 2 and "broken.csv: " in err and "missing column(s) compass, odometry" in err
-    # one line naming the log once; no worker's "Compute Failed" and traceback on the terminal
+    # one line naming the log once; no worker's "Compute Failed" and traceback, no warning on the terminal
     assert len(err.strip().splitlines()) == 1 and err.count("broken.csv") == 1, err
     assert "Compute Failed" not in capfd.readouterr().err
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
