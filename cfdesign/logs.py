@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import io
+import itertools
 import math
 import os
 import re
@@ -821,15 +822,18 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
 class _Pass:
     """Placement of rows on ticks, carried from block to block (times checked across blocks)."""
 
-    def __init__(self, table, cols, source):
+    def __init__(self, table, cols, source, blocks=None, grid=None):
         self.table, self.cols, self.source = table, cols, source
+        self.blocks = blocks  # the log's blocks, looked through for the grid when the first block has no input row
         self.t0 = None
         self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
+        self.grid = grid  # (t0, spacing) of tick 0, when known (the first pass's, for the second)
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.early = {}  # sensor -> readings logged before tick 0 (not used)
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
         self._sampled = 0
+        self.last_base = None  # the time of the last row so far where the inputs read
 
     def ticks(self, values):
         """Ticks of a block's rows (``row index`` when the log has no time column)."""
@@ -837,7 +841,7 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import grid_fit, nearest_tick, place
+            from .timing import place
 
             t = values[self.cols.time]
             read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
@@ -845,16 +849,17 @@ class _Pass:
             for s in self.table.inputs:
                 base &= read[s.name]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
+            start = self.rows - len(tail_t)
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  line=lambda i, start=self.rows - len(tail_t): self.cols.lines(start + i),
+                  line=lambda i: self.cols.lines(start + i),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
+            rows, pauses = self._pauses(t[base], np.flatnonzero(base))
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
-                # the grid of the first block's such rows (not its own jittered time; timing.grid_fit)
-                first = t[base]
-                self.t0, self.spacing = (grid_fit(first, self.table.sample_time_s) if first.size
-                                         else (t[0], self.spacing))
+                # the grid of the first such rows up to a pause (not its own jittered time; timing.grid_fit)
+                self.grid = self.grid or self._first_grid(t[base][:pauses[0] if pauses else None], t[0])
+                self.t0, self.spacing = self.grid
             self._sample(t[base])
-            ticks = nearest_tick((t - self.t0) / self.spacing).astype(np.int64)
+            ticks = self._placed(t, t[base], rows, pauses)
             early = ticks < 0  # logged more than half a tick before the first row where the inputs read:
             if early.any():  # no tick of the run is within S/2 of it, so it is counted, not used late
                 for name, col in self.cols.sensors.items():
@@ -872,6 +877,60 @@ class _Pass:
                     self.tail = (t[last], {s: r[last] for s, r in read.items()})
         self.rows += n
         return ticks
+
+    def _first_grid(self, first, t_first):
+        """``(t0, spacing)`` fitted to ``first``, the first rows where the inputs read up to a pause
+        (:func:`cfdesign.timing.grid_fit`); when the block has none, to those of the first block
+        that has (the log's blocks read again up to it: a log of more than a block of rows before
+        its first input row was placed on the grid of its first row, half a tick off the inputs'
+        at worst, and its readings before the inputs were used instead of counted), else the first row's time."""
+        from .timing import PAUSE_TICKS, grid_fit
+
+        if not first.size and self.blocks is not None:
+            sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
+            start = 0
+            for block in self.blocks():
+                values = _numeric(block, [self.cols.time, *sensors], self.source,
+                                  lambda i, start=start: self.cols.lines(start + i), self.cols.time,
+                                  self.cols.time_scale)
+                start += len(block)
+                base = np.ones(len(block), dtype=bool)
+                for c in sensors:
+                    base &= ~np.isnan(values[c])
+                first = values[self.cols.time][base]
+                if first.size:
+                    pause = np.flatnonzero(np.diff(first) > PAUSE_TICKS * self.spacing)
+                    first = first[:pause[0] + 1 if pause.size else None]
+                    break
+        return grid_fit(first, self.table.sample_time_s) if first.size else (t_first, self.spacing)
+
+    def _pauses(self, base_t, rows) -> tuple:
+        """``(rows, pauses)``: the rows of the block where the inputs read and the indices among them
+        of those that follow a pause (:data:`~cfdesign.timing.PAUSE_TICKS`; a block's first such row
+        after the previous block's, or the log's first one when its first rows had none)."""
+        from .timing import PAUSE_TICKS
+
+        if not base_t.size:
+            return rows, []
+        before = [] if self.last_base is None else [self.last_base]
+        steps = np.diff(np.concatenate([before, base_t]))
+        pauses = (np.flatnonzero(steps > PAUSE_TICKS * self.spacing) + (0 if before else 1)).tolist()
+        self.last_base = float(base_t[-1])
+        return rows, pauses
+
+    def _placed(self, t, base_t, rows, pauses):
+        """Ticks of a block's rows: on the grid, whose phase is fitted again at each pause
+        (:func:`cfdesign.timing.rephase`) for the rows from there on."""
+        from .timing import nearest_tick, rephase
+
+        cuts = [0, *(int(rows[p]) for p in pauses), len(t)]
+        starts = [0, *pauses, len(base_t)]
+        out = np.empty(len(t), dtype=np.int64)
+        for k, (a, b) in enumerate(itertools.pairwise(cuts)):
+            if k:  # the base rows from this pause to the next
+                self.t0 = rephase(base_t[starts[k]:starts[k + 1]], self.t0, self.spacing)
+            out[a:b] = nearest_tick((t[a:b] - self.t0) / self.spacing)
+        return out
 
     def _sample(self, times):
         if self._sampled < RATE_SAMPLE:
@@ -973,7 +1032,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, grid = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -985,7 +1044,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
-    place = _Pass(table, cols, source)
+    place = _Pass(table, cols, source, grid=grid)  # tick 0 where the first pass put it
 
     def run_rows(block, values, ticks):
         if len(ticks):
@@ -1017,8 +1076,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
-    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
-                     (_tail_note(data, source) if frame is None else []) + _time_note(cols) + lock.notes, Path(output) if output else None, source)
+    notes = (_tail_note(data, source) if frame is None else []) + _time_note(cols) + lock.notes
+    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
+                     Path(output) if output else None, source)
 
 
 def _check_bounded(table, states, ticks, source):
@@ -1119,7 +1179,7 @@ def _lock(table, blocks, cols, source, types=False):
     with ``types``, the Parquet types of the passed-through columns over every block)."""
     from .timing import lock_schedule
 
-    place = _Pass(table, cols, source)
+    place = _Pass(table, cols, source, blocks=blocks)
     arrivals = {s.name: [] for s in table.measurements}
     inputs = {s.name: _Held() for s in table.inputs}  # the ticks without a reading of each input sensor
     last = -1
@@ -1150,7 +1210,7 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None
+    return lock, place.rows, schemas or None, place.grid
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):

@@ -43,9 +43,8 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
-           "FIT_START",
-           "MAX_GAP_TICKS", "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate",
-           "Segment", "Lock", "lock_schedule"]
+           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "rephase", "date_seconds", "nearest_tick", "grid_origin",
+           "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -239,6 +238,45 @@ def grid_fit(time, dt: float) -> tuple:
     # the grid that puts the rows one a tick: fewest rows sharing a tick or ticks skipped (dt on a tie)
     spacing, origin = min(fits, key=lambda f: _irregular(t, f[1], f[0]))[:2]
     return origin, spacing
+
+
+#: a pause (in ticks) between rows where the inputs read after which the phase of a log's grid is
+#: fitted again (:func:`rephase`): a logger stopped and started again keeps its rate, not its phase
+PAUSE_TICKS = 50
+
+
+def rephase(time, origin: float, spacing: float) -> float:
+    """The origin of a log's grid for the rows after a pause: the phase of their times, fitted
+    as :func:`grid_fit` fits it, on the tick numbers of the grid before the pause.
+
+    A logger that stops for a while and starts again keeps its rate but not the phase of its
+    ticks: rows half a tick off the old grid, jittered, landed two on a tick and left the next
+    without one (one input reading in six not used after a 10 s pause of a log jittered by
+    +-0.3 tick).
+
+    Parameters
+    ----------
+    time : array_like
+        Times (s) of the rows where the input sensors read after the pause, ascending, at least one.
+    origin : float
+        The origin (s) of the grid before the pause.
+    spacing : float
+        The grid's spacing (s).
+
+    Returns
+    -------
+    float
+        The new origin: the fitted phase, moved by whole ticks to within half a tick of the old
+        grid, so that tick numbers carry on (rows placed on ``nearest_tick((t - origin) / spacing)``).
+
+    Examples
+    --------
+    >>> round(rephase([10.4, 11.4, 12.4], 0.0, 1.0), 9)   # restarted 0.4 tick off a 1 s grid
+    0.4
+    """
+    t = np.asarray(time, dtype=float)
+    new = _phase_origin(t, spacing)
+    return float(new - nearest_tick((new - origin) / spacing) * spacing)
 
 
 def _irregular(t, origin, spacing) -> int:

@@ -1271,3 +1271,39 @@ def test_a_log_cut_off_while_it_was_written_runs_without_its_cut_end(heading, tm
     assert len(notes) == (noted is not None) and "\\x00" not in err, err
     if noted:
         assert noted in notes[0] and "not read" in notes[0] and ("(401)" in notes[0]) == (rows == 399), notes
+
+
+def _jittered(n, seed=3):
+    log, psi = heading_log(3, 37, n=n, jitter=0.0)
+    log["time"] += np.random.default_rng(seed).uniform(-0.3, 0.3, n) * 0.01  # +-0.3 tick
+    return log, psi
+
+
+@pytest.mark.parametrize("block_rows", [None, 2500])
+def test_a_logger_paused_and_restarted_off_its_grid_puts_every_row_on_its_own_tick(heading, block_rows):
+    """A 10 s pause of every row, the clock back half a tick off the old grid (+-0.3 tick of
+    jitter): one gyro reading in six after it shared a tick with the next (3364 not used, the
+    arrival pattern 'changing' 671 times); the grid's phase is fitted again after a pause."""
+    log, _ = _jittered(12_000)
+    log = log.drop(index=range(4000, 5000))
+    same = run_log(heading, log, reference="truth")
+    log.loc[log.index >= 5000, "time"] += 0.005
+    moved = run_log(heading, log, reference="truth", block_rows=block_rows)
+    assert same.unused == {} and moved.unused == {}, moved.unused
+    assert not any("as they arrive" in n for n in moved.notes), moved.notes  # a shift of one tick at the pause
+    assert moved.rms["heading"] <= 1.05 * same.rms["heading"]
+
+
+def test_a_log_whose_first_block_has_no_input_row_is_placed_as_in_one_block(heading):
+    """3000 rows of another sensor, half a tick off the gyro's grid, one with a compass reading,
+    before the first gyro row: in blocks of 2000 rows the log was placed on the first row's grid
+    and its early compass reading used; with the grid of the first input rows, as in one block,
+    the estimates are the same and the early reading is counted (before_start)."""
+    log, _ = _jittered(8000)
+    pre = pd.DataFrame({"time": -30.0 + 0.005 + 0.01 * np.arange(3000), "other": 1.0})
+    pre.loc[100, "compass"] = 1.0
+    log = pd.concat([pre, log], ignore_index=True)
+    whole = run_log(heading, log, reference="truth")
+    blocks = run_log(heading, log, reference="truth", block_rows=2000)
+    assert whole.unused == blocks.unused == {"before_start": {"compass": 1}}
+    assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
