@@ -278,7 +278,8 @@ def _numeric(df, columns, source, line, time=None, time_scale=1.0):
                 continue
             bad = [not_date]  # the first cell that is no date either
         if len(bad):
-            what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
+            what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
+                    "(2024-05-01T12:00:00.010)" if c == time else "not a number")
             raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}")
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out

@@ -206,8 +206,13 @@ def test_dates_as_times_run_as_seconds(heading, tmp_path):
     assert run_log(heading, tmp_path / "iso.csv").estimates["time"].iloc[1] == iso["time"].iloc[1]
     iso.loc[5, "time"] = "soon"
     iso.to_csv(tmp_path / "bad.csv", index=False)
-    with pytest.raises(DataError, match="line 7: column 'time' is neither a number nor an ISO 8601 date: 'soon'"):
+    forms = r"neither a number \(seconds, or the --time-unit ms\|us\|ns\) nor an ISO 8601 date and time"
+    with pytest.raises(DataError, match=rf"line 7: column 'time' is {forms} \(2024-05-01T12:00:00.010\): 'soon'"):
         run_log(heading, tmp_path / "bad.csv")
+    for other in ("12:00:00.010", "2024/05/01 12:00:00", "01.05.2024 12:00:00"):  # named, with the forms read
+        iso.assign(time=other).to_csv(tmp_path / "other.csv", index=False)
+        with pytest.raises(DataError, match=f"line 2: column 'time' is {forms} .*: '{other}'"):
+            run_log(heading, tmp_path / "other.csv")
 
 
 def test_a_continuous_table_is_refused_saying_how_to_discretise_it():
@@ -772,7 +777,7 @@ def test_rows_of_different_sensors_may_share_a_time_a_sensor_read_twice_may_not(
             run_log(heading, dup, block_rows=rows)
 
 
-def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
+def test_a_second_reading_on_a_tick_is_the_one_not_used(heading, tmp_path, cli):
     """Two compass readings on one tick: the first is used and the second counted, in one block
     and with a block boundary between them."""
     log, _ = heading_log(0, 0, n=600, jitter=0.0)
@@ -785,6 +790,10 @@ def test_a_second_reading_on_a_tick_is_the_one_not_used(heading):
         r = run_log(heading, twice, block_rows=rows)
         assert r.unused == {"same_tick": {"compass": 1}}
         assert np.max(np.abs(r.estimates["heading"].to_numpy()[imu] - clean)) < 1e-9
+    twice.to_csv(tmp_path / "twice.csv", index=False)  # cfdesign run says it in words ('same_tick' alone said little)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "twice.csv", "-o", tmp_path / "e.csv")
+    assert code == 0 and ("1 readings were not used (a second reading of a sensor on one base tick, the first used "
+                          "(same_tick): compass 1)") in err, err
 
 
 def test_readings_logged_before_the_first_input_row_are_counted_not_used_late(heading):
