@@ -320,9 +320,6 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         Name of the log, for messages.
     first_line : int
         File line of the first row (messages name lines as a spreadsheet does).
-    line : callable, optional
-        ``line(i)``: the file line of row ``i``, where the rows are not one a line (a CSV with
-        blank lines between them); default ``first_line + i``.
     rate : bool
         Check the base rate (False: the caller checks it once over the whole log, with
         :func:`check_rate`; a block of a few rows cannot tell a jittered rate from a wrong one).
@@ -331,6 +328,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         are then allowed when no sensor reads in two of them (a log with one row per reading,
         the compass stamped at the time of a gyro sample); without it every repeated time is
         refused.
+    line : callable, optional
+        ``line(i)``: the file line of row ``i``, where the rows are not one a line (a CSV with
+        blank lines between them); default ``first_line + i``.
 
     Returns
     -------
