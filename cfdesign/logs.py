@@ -167,19 +167,21 @@ def _unit(name) -> tuple:
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
 
-def _time_unit(source, time, time_unit) -> str:
+def _time_unit(source, time, time_unit, units=None) -> str:
     """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
-    (``time [ms]``), else seconds; a given unit that contradicts the name is refused."""
+    (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
+    seconds; a given unit that contradicts the name or the row is refused."""
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
-    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
+    written = (units or {}).get(time, "").strip(" []()").lower()
+    named = (_unit(time)[1] or _UNIT_NAMES.get(written)) if time is not None else None  # in its name or units row
     if named in TIME_UNITS and time_unit not in (None, named):
         raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
     return time_unit or (named if named in TIME_UNITS else "s")
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             lines=None) -> _Columns:
+             lines=None, units=None) -> _Columns:
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -205,7 +207,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
             (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
-    time_unit = _time_unit(source, time, time_unit)
+    time_unit = _time_unit(source, time, time_unit, units)
     shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
     shared = {c: names for c, names in shared.items() if len(names) > 1}
     if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
@@ -429,6 +431,8 @@ def read_log(path, columns=None, *, chunksize=None):
             return _parquet_blocks(path, columns, chunksize) if chunksize else next(_parquet_blocks(path, columns))
         fmt = _csv_format(path, kind)
         hashed = fmt.pop("_hashed", False)
+        if fmt.pop("_units", None) is not None:  # the line under the header: units
+            fmt["skiprows"] = [*range(fmt.get("skiprows", 0)), fmt.get("skiprows", 0) + 1]
         end = _tail(path)[0] if kind == "csv" else None
         source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
         reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
@@ -491,6 +495,24 @@ def _tail(path) -> tuple:
     return (None if end == size else end), size - text_end, cells
 
 
+def _row_units(path) -> dict:
+    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``."""
+    kind = _kind(path)
+    units = None if kind == "parquet" else _csv_format(path, kind).get("_units")
+    return dict(zip(_header(path), units, strict=False)) if units else {}
+
+
+def _units_note(path, source) -> list:
+    """The note on a row of units under a CSV's header, which :func:`read_log` skips, if any."""
+    if _kind(path) == "parquet":
+        return []
+    fmt = _csv_format(path, _kind(path))
+    if "_units" not in fmt:
+        return []
+    return [f"{source} line {2 + fmt.get('skiprows', 0)} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
+            "units and not read; the readings are used as they are, in the units the table was designed in"]
+
+
 def _tail_note(path, source) -> list:
     """The note on the cut end of a CSV that :func:`read_log` leaves out (:func:`_tail`), if any."""
     if _kind(path) != "csv":
@@ -546,7 +568,9 @@ def _csv_format(path, kind="csv") -> dict:
     of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
     Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
     the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
-    ``# time,gyro``) and ``_hashed`` says so.  A file whose first 64 kB hold a NUL byte is not
+    ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
+    number or date (``s,rad/s,rad``) over a row with numbers is a row of units: ``_units`` holds
+    it (:func:`read_log` skips it).  A file whose first 64 kB hold a NUL byte is not
     text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
     try:
         with _open_csv(path, kind) as fh:
@@ -570,13 +594,51 @@ def _csv_format(path, kind="csv") -> dict:
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
-    if b"," in line:
-        return out
-    sep = ";" if b";" in line else "\t" if b"\t" in line else None
-    if sep is None:
-        return out
-    cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % ((re.escape(sep.encode()),) * 2)
-    return {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
+    sep = "," if b"," in line else ";" if b";" in line else "\t" if b"\t" in line else None
+    if sep in (";", "\t"):
+        cut = re.escape(sep.encode())
+        cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % (cut, cut)
+        out = {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
+    if not out.get("_hashed"):
+        units = _units_row(rows, line, sep or ",")
+        if units is not None:
+            out["_units"] = units
+    return out
+
+
+def _units_row(rows, header, sep):
+    """The cells of a row of units under a CSV's header (``s,rad/s,rad``: text in as many cells
+    as the header, no number, no date, and a row with a number after it), or None."""
+    from .timing import date_seconds
+
+    lines = rows.split(b"\n", 2)
+    if len(lines) < 3:
+        return None
+
+    def cells(line):
+        try:
+            return next(csv.reader([line.decode("utf-8-sig").strip("\r")], delimiter=sep), [])
+        except (UnicodeDecodeError, csv.Error):
+            return []
+
+    first, second, names = cells(lines[0]), cells(lines[1]), cells(header)
+    text = [c.strip() for c in first if c.strip().lower() not in MISSING]
+    if len(first) != len(names) or not text:
+        return None
+    for c in text:
+        for read in (lambda c: float(c.replace(",", ".")), date_seconds):
+            try:
+                read(c)
+                return None  # a number or a date: a row of data
+            except ValueError:
+                pass
+    for c in second:
+        try:
+            float(c.strip().replace(",", "."))
+            return [c.strip() for c in first]
+        except ValueError:
+            pass
+    return None
 
 
 def _numbers(line, header) -> bool:
@@ -748,7 +810,7 @@ def _lines(path) -> _Lines:
     if kind == "parquet":
         return _Lines()
     fmt = _csv_format(path, kind)
-    return _Lines(2 + fmt.get("skiprows", 0), path, kind, fmt.get("sep", ","))
+    return _Lines(2 + fmt.get("skiprows", 0) + ("_units" in fmt), path, kind, fmt.get("sep", ","))
 
 
 def _header(path) -> list:
@@ -815,7 +877,7 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
-    scale = TIME_UNITS[_time_unit(path, time, time_unit)]
+    scale = TIME_UNITS[_time_unit(path, time, time_unit, _row_units(path))]
     return _numeric(read_log(path, wanted), wanted, path, _lines(path), time=time, time_scale=scale)
 
 
@@ -1029,7 +1091,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference, time_unit,
-                    _Lines() if frame is not None else _lines(data))
+                    _Lines() if frame is not None else _lines(data), None if frame is not None else _row_units(data))
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
@@ -1077,7 +1139,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
-    notes = (_tail_note(data, source) if frame is None else []) + _time_note(cols) + lock.notes
+    notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
+    notes += lock.notes
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source)
 

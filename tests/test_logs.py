@@ -1335,3 +1335,30 @@ def test_a_log_whose_first_block_has_no_input_row_is_placed_as_in_one_block(head
     blocks = run_log(heading, log, reference="truth", block_rows=2000)
     assert whole.unused == blocks.unused == {"before_start": {"compass": 1}}
     assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
+
+
+def test_a_row_of_units_under_the_header_is_read_as_units(heading, tmp_path, cli):
+    """Loggers write a row of units under the header (``ms,rad/s,rad``): the run stopped on
+    line 2 ('not a number').  It is taken as the units and not read, with a note; the time's unit
+    there is the time column's (as in ``time [ms]``); lines are still the file's own.  A first row
+    of dates with its sensors empty is data."""
+    log = heading_log(3, 37, n=1000)[0]
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    rows = log.assign(time=(log["time"] * 1000).round(6)).to_csv(index=False, lineterminator="\n").splitlines()
+    for sep in (",", ";"):
+        units = sep.join(["ms", "rad/s", "rad", "rad", "rad", ""])
+        text = [rows[0], units, *rows[1:]]
+        if sep == ";":
+            text = [r.replace(",", ";") for r in text]
+        (tmp_path / "u.csv").write_text("\n".join(text) + "\n")
+        code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "u.csv", "-o", tmp_path / "e.csv")
+        assert code == 0 and "u.csv line 2 (ms, rad/s, rad, rad, rad, ) is taken as the columns' units" in err, err
+        assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-9)
+    text[300] = text[300].replace(text[300].split(";")[1], "abc", 1)
+    (tmp_path / "u.csv").write_text("\n".join(text) + "\n")
+    with pytest.raises(DataError, match="line 301: column 'gyro' is not a number: 'abc'"):
+        run_log(heading, tmp_path / "u.csv")
+    dated = log.assign(time=pd.Timestamp("2024-05-01") + pd.to_timedelta(log["time"], unit="s"))
+    dated.loc[0, ["gyro", "odometry", "compass", "truth", "lap"]] = np.nan  # a row of a date alone
+    dated.to_csv(tmp_path / "d.csv", index=False)
+    assert len(run_log(heading, tmp_path / "d.csv").estimates) == 1000
