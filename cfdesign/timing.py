@@ -389,22 +389,21 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
 def check_rate(t, dt, source):
     """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
 
-    The spacing is the span of ``t`` over the ticks it covers (the span in units of the median
-    step, rounded, so that a dropped row counts as the ticks it skips), not the median step
-    itself.  The median is that of the steps within half a step of it, found again three times:
-    the steps over dropped rows (two ticks or more) had pulled the median of all steps up, and a
-    log missing one row in twenty, jittered by +-0.2 tick, was refused as 98.8 Hz for 100 Hz
-    (one in ten with +-0.3 tick: 96.4 Hz); jitter of +-0.45 tick with a few percent of the rows
-    missing still blurs one tick into two.  The span, not the median step: time-stamp jitter of a
-    few percent of a tick moves a single step by as much, but the span only by the jitter of its
-    two ends.  That much (:data:`JITTER_TICKS` at each end) is
-    allowed on top of :data:`RATE_RTOL`, so a short log is not refused for its jitter.  The
-    ticks are counted over the whole span, not step by step: with rows jittered by more than a
-    quarter of a tick a single step can round to two ticks (1.6 -> 2) and its neighbour to none,
-    and counting every step as at least one tick made such a log 1.4 % too fast (jitter +-0.3
-    tick), beyond the tolerance.  Over a long span the count inherits the median step's own
-    error (``1.25 sigma / sqrt(N)`` for ``N`` steps of standard deviation ``sigma``: 0.3 % for
-    20,000 rows jittered by +-0.35 tick, 0.05 % for +-0.05 tick).
+    The spacing is the least-squares slope of the times over the ticks they fall on, fitted
+    first over the first 32 rows and then over a span doubled each time (the ticks of a span are
+    right while the spacing so far keeps its rows within half a tick), from the median of the
+    steps near it (those within half a step of the median, found again three times); the span
+    stops at :data:`FIT_ROWS` rows, as :func:`grid_fit`'s.  The ticks come from the times, not
+    from counting rows, so a row the IMU dropped counts as the ticks it skips: a log missing one
+    row in twenty with +-0.2 tick of jitter had been refused as 98.8 Hz for 100 Hz (the steps
+    over dropped rows pulled the median of all steps up, and the span was counted in that
+    median).  The fit is not the median step: time-stamp jitter of a few percent of a tick moves
+    a single step by as much, and with rows jittered by more than a quarter of a tick a single
+    step can round to two ticks (1.6 -> 2) and its neighbour to none (counting every step as at
+    least one tick made a log jittered by +-0.3 tick 1.4 % too fast).  The jitter of the two
+    ends (:data:`JITTER_TICKS` each) is allowed on top of :data:`RATE_RTOL`, so a short log is
+    not refused for its jitter.  Jitter of +-0.45 tick with a few percent of the rows missing
+    still blurs one tick into two.
 
     Parameters
     ----------
@@ -425,18 +424,26 @@ def check_rate(t, dt, source):
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return
-    steps = np.diff(t)
-    unit = float(np.median(steps))
+    steps = np.diff(t[:FIT_ROWS])
+    spacing = float(np.median(steps))
     for _ in range(3):  # the median of the one-tick steps: those of dropped rows (two ticks or more) left out
-        near = steps[(steps > 0.5 * unit) & (steps < 1.5 * unit)]
+        near = steps[(steps > 0.5 * spacing) & (steps < 1.5 * spacing)]
         if not near.size:
             break
-        unit = float(np.median(near))
-    if not unit > 0:
+        spacing = float(np.median(near))
+    if not spacing > 0:
         return
-    span = float(t[-1] - t[0])
-    ticks = max(float(np.rint(span / unit)), 1.0)
-    spacing = span / ticks
+    m, end = min(32, len(t)), min(len(t), FIT_ROWS)
+    while True:  # the slope of the times over their ticks, over a span doubled each time
+        part = t[:m]
+        k = nearest_tick((part - grid_origin(part, spacing)) / spacing)
+        k -= k.mean()
+        if np.dot(k, k) > 0:
+            spacing = float(np.dot(k, part - part.mean()) / np.dot(k, k))
+        if m == end:
+            break
+        m = min(2 * m, end)
+    ticks = max(float(t[-1] - t[0]) / spacing, 1.0)
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
         unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
                      for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
