@@ -1834,9 +1834,17 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
                 for p, f in zip(paths, futures, strict=True)]
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        import logging
+
+        dask_log = logging.getLogger("distributed")  # closing: a slow worker is killed after 4 s, which it
+        level = dask_log.level                          # logged as a WARNING on stderr (a busy machine, not a fault)
+        dask_log.setLevel(logging.ERROR)
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            dask_log.setLevel(level)
     write_text(outdir / "summary.csv", _summary_csv(rows))
     return rows
 

@@ -664,7 +664,7 @@ def test_estimates_to_stdout_or_a_zip_are_refused(output, heading, tmp_path, cli
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.json", "log.csv"]
 
 
-def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
+def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd, caplog, monkeypatch):
     table = heading.save(tmp_path / "g.json")
     folder = tmp_path / "logs"
     folder.mkdir()
@@ -672,8 +672,18 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
         heading_log(i, 10 * i, n=1500, seed=i)[0].to_csv(folder / f"robot{i}.csv", index=False)
     (folder / "broken.csv").write_text("time,gyro\n0,1\n")
     import contextlib
+    import logging
     import socket
 
+    from distributed import LocalCluster
+
+    close = LocalCluster.close
+
+    def slow_close(self, *a, **kw):  # a worker slow to stop is killed after 4 s: Dask warned on stderr
+        logging.getLogger("distributed.nanny").warning("Worker process still alive after 4.0 seconds, killing")
+        return close(self, *a, **kw)
+
+    monkeypatch.setattr(LocalCluster, "close", slow_close)
     with socket.socket() as busy:  # Dask's default port taken (another cluster): it warned on stderr
         with contextlib.suppress(OSError):  # taken already
             busy.bind(("", 8787))
@@ -683,6 +693,7 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd):
     # one line naming the log once; no worker's "Compute Failed" and traceback, no warning on the terminal
     assert len(err.strip().splitlines()) == 1 and err.count("broken.csv") == 1, err
     assert "Compute Failed" not in capfd.readouterr().err
+    assert not [r for r in caplog.records if "still alive" in r.getMessage()]  # Dask's handler writes them to stderr
     summary = pd.read_csv(tmp_path / "out" / "summary.csv")
     assert list(summary["log"].map(lambda p: p.split("/")[-1])) == ["broken.csv", "robot0.csv", "robot1.csv",
                                                                     "robot2.csv"]
