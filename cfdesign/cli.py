@@ -260,7 +260,7 @@ def cmd_verify(args) -> int:
 
 def cmd_run(args) -> int:
     from .gains import load_gains
-    from .logs import run_log, run_logs
+    from .logs import INTERNAL, run_log, run_logs
 
     if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
         raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
@@ -288,12 +288,12 @@ def cmd_run(args) -> int:
             named = r["error"] if r["error"].startswith(r["log"]) else f"{r['log']}: {r['error']}"
             print(f"cfdesign: {named}", file=sys.stderr)
         print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}")
-        return 2 if failed else 0
+        return 3 if any(r["error"].startswith(INTERNAL) for r in failed) else 2 if failed else 0
     result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)
     for note in result.notes:
         print(f"cfdesign: {note}", file=sys.stderr)
     if result.without_gain:
-        detail = "; ".join(f"{kind}: " + ", ".join(f"{k} {v}" for k, v in per.items())
+        detail = "; ".join(f"{UNUSED.get(kind, kind)} ({kind}): " + ", ".join(f"{k} {v}" for k, v in per.items())
                            for kind, per in result.unused.items())
         print(f"cfdesign: {result.without_gain} readings were not used ({detail})", file=sys.stderr)
     units = dict(zip(table.states, table.state_units(), strict=True))
@@ -305,6 +305,11 @@ def cmd_run(args) -> int:
     print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0
 
+
+#: why readings were not used, by their key in ``LogResult.unused``: the line ``cfdesign run`` prints says it in words
+UNUSED = {"rejected": "inf or beyond the reading limit", "unscheduled": "at a phase without a gain",
+          "same_tick": "a second reading of a sensor on one base tick, the first used",
+          "before_start": "more than half a tick before the first row where the inputs read"}
 
 #: the logs a folder given to ``cfdesign run`` holds (a compressed CSV as well)
 LOG_SUFFIXES = (".csv", ".parquet", ".pq", ".csv.gz", ".csv.bz2", ".csv.xz", ".csv.zip")

@@ -16,7 +16,10 @@ Reading and writing use pandas (CSV; Parquet through pyarrow), an optional depen
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import io
+import itertools
 import logging
 import math
 import os
@@ -31,7 +34,7 @@ from .files import check_distinct, is_dir, not_a_device, open_atomic, write_byte
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "TIME_UNITS",
-           "BLOCK_ROWS"]
+           "BLOCK_ROWS", "INTERNAL"]
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t")
@@ -39,6 +42,8 @@ TIME_COLUMNS = ("time", "t")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
 MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
+#: how the summary of :func:`run_logs` begins the error of a log that met a fault of cfdesign, not of the log
+INTERNAL = "internal error"
 #: rows read, run and written at a time (and ticks run at a time across a gap without rows)
 BLOCK_ROWS = 1_000_000
 #: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
@@ -127,7 +132,7 @@ class _Columns:
     references: dict       # state -> column
     extra: list            # passed through
     time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
-    first_line: int = 2      # the file line of the first row (after the header and the comments before it)
+    lines: object = None     # _Lines: the file line of each row (after the header, the comments before it, blank lines)
 
     @property
     def time_scale(self) -> float:
@@ -163,19 +168,21 @@ def _unit(name) -> tuple:
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
 
-def _time_unit(source, time, time_unit) -> str:
+def _time_unit(source, time, time_unit, units=None) -> str:
     """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
-    (``time [ms]``), else seconds; a given unit that contradicts the name is refused."""
+    (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
+    seconds; a given unit that contradicts the name or the row is refused."""
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
-    named = _unit(time)[1] if time is not None else None  # the unit in the time column's name
+    written = (units or {}).get(time, "").strip(" []()").lower()
+    named = (_unit(time)[1] or _UNIT_NAMES.get(written)) if time is not None else None  # in its name or units row
     if named in TIME_UNITS and time_unit not in (None, named):
         raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
     return time_unit or (named if named in TIME_UNITS else "s")
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             first_line=2) -> _Columns:
+             lines=None, units=None) -> _Columns:
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -201,7 +208,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
             (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
-    time_unit = _time_unit(source, time, time_unit)
+    time_unit = _time_unit(source, time, time_unit, units)
     shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
     shared = {c: names for c, names in shared.items() if len(names) > 1}
     if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
@@ -214,7 +221,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, first_line)
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, lines or _Lines())
 
 
 def _listed(header, limit=300) -> str:
@@ -241,8 +248,9 @@ def _references(table, reference, header, source) -> dict:
     return out
 
 
-def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
-    """The columns as float arrays; a cell that is not a number is an error naming its line.
+def _numeric(df, columns, source, line, time=None, time_scale=1.0):
+    """The columns as float arrays; a cell that is not a number is an error naming its line
+    (``line(i)``: the file line of row ``i`` of ``df``).
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
@@ -273,10 +281,18 @@ def _numeric(df, columns, source, first_line, time=None, time_scale=1.0):
                 continue
             bad = [not_date]  # the first cell that is no date either
         if len(bad):
-            what = "neither a number nor an ISO 8601 date" if c == time else "not a number"
-            raise DataError(f"{source} line {first_line + bad[0]}: column {c!r} is {what}: {s.iloc[bad[0]]!r}")
+            what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
+                    "(2024-05-01T12:00:00.010)" if c == time else "not a number")
+            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}")
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
+
+
+def _cell_text(cell, limit=40) -> str:
+    """A cell for a message: its repr, cut to about ``limit`` characters (a row of the NUL bytes a
+    log cut off by a power loss ends in printed thousands of ``\\x00``)."""
+    text = repr(cell)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(str(cell))} characters)"
 
 
 def _dates(text):
@@ -383,7 +399,10 @@ def read_log(path, columns=None, *, chunksize=None):
     separator is a comma, or the semicolon or tab of its header line when that has no
     comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
     stripped of spaces, and a row with more cells than the header is an error naming its line
-    (it was read without its extra cells).
+    (it was read without its extra cells).  The end of a plain CSV cut off while it was written
+    (a power loss) is not read: the NUL bytes it may end in, and its last line when that has no
+    line end and has fewer cells than the header or NUL bytes after it (its last cell may have
+    lost digits); :func:`run_log` notes it.
 
     Parameters
     ----------
@@ -410,17 +429,111 @@ def read_log(path, columns=None, *, chunksize=None):
     pd = _pandas(kind == "parquet")
     try:
         if kind == "parquet":
-            return _parquet_blocks(path, columns, chunksize) if chunksize else pd.read_parquet(path, columns=columns)
+            return _parquet_blocks(path, columns, chunksize) if chunksize else next(_parquet_blocks(path, columns))
         fmt = _csv_format(path, kind)
         hashed = fmt.pop("_hashed", False)
-        reader = pd.read_csv(path, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
+        if fmt.pop("_units", None) is not None:  # the line under the header: units
+            fmt["skiprows"] = [*range(fmt.get("skiprows", 0)), fmt.get("skiprows", 0) + 1]
+        end = _tail(path)[0] if kind == "csv" else None
+        source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
+        reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
                              low_memory=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
-            return _csv_blocks(path, reader, columns, hashed)
-        return _stripped(reader, columns, hashed)
+            return _csv_blocks(path, reader, columns, hashed, closing=None if end is None else source)
+        with contextlib.closing(source) if end is not None else contextlib.nullcontext():
+            return _stripped(reader, columns, hashed)
     except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
             *_unpack_errors()) as exc:
         raise _read_error(path, exc) from None
+
+
+class _Upto(io.RawIOBase):
+    """The bytes of a file up to ``end`` (pandas reads a log without its cut end)."""
+
+    def __init__(self, path, end):
+        self._fh, self._left = open(path, "rb"), end
+
+    def readable(self):
+        return True
+
+    def readinto(self, b):
+        n = self._fh.readinto(memoryview(b)[:min(len(b), self._left)])
+        self._left -= n
+        return n
+
+    def close(self):
+        self._fh.close()
+        super().close()
+
+
+def _tail(path) -> tuple:
+    """``(end, nul, cells)`` of a plain CSV cut off while it was written: ``end`` the byte its
+    rows end at (None: the file is whole), ``nul`` the NUL bytes it ends in (a file system
+    that had given the file its space before a power loss), ``cells`` the ``(cells, header
+    cells)`` of a last line with no line end and fewer cells than the header or NUL bytes after
+    it (else None: a last line without its end is common in files written by hand)."""
+    size = os.path.getsize(path)
+    text_end = size
+    with open(path, "rb") as fh:
+        while text_end:  # the NUL bytes at the end, read backwards
+            step = min(text_end, 1 << 16)
+            fh.seek(text_end - step)
+            kept = fh.read(step).rstrip(b"\x00")
+            text_end -= step - len(kept)
+            if kept:
+                break
+        start = max(0, text_end - (1 << 16))
+        fh.seek(start)
+        last = fh.read(text_end - start)
+    end, cells = text_end, None
+    newline = last.rfind(b"\n")
+    if last and not last.endswith(b"\n") and newline >= 0:  # a last line without its end (not the header)
+        sep = _csv_format(path).get("sep", ",")
+        row = next(csv.reader([last[newline + 1:].decode("utf-8", "replace")], delimiter=sep), [])
+        header = len(_header(path))
+        if len(row) < header or text_end < size:  # fewer cells, or NUL bytes where the rest was not written
+            cells, end = (len(row), header), start + newline + 1
+    return (None if end == size else end), size - text_end, cells
+
+
+def _row_units(path) -> dict:
+    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``."""
+    kind = _kind(path)
+    units = None if kind == "parquet" else _csv_format(path, kind).get("_units")
+    return dict(zip(_header(path), units, strict=False)) if units else {}
+
+
+def _units_note(path, source) -> list:
+    """The note on a row of units under a CSV's header, which :func:`read_log` skips, if any."""
+    if _kind(path) == "parquet":
+        return []
+    fmt = _csv_format(path, _kind(path))
+    if "_units" not in fmt:
+        return []
+    return [f"{source} line {2 + fmt.get('skiprows', 0)} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
+            "units and not read; the readings are used as they are, in the units the table was designed in"]
+
+
+def _tail_note(path, source) -> list:
+    """The note on the cut end of a CSV that :func:`read_log` leaves out (:func:`_tail`), if any."""
+    if _kind(path) != "csv":
+        return []
+    end, nul, cells = _tail(path)
+    if end is None:
+        return []
+    what = []
+    if cells:
+        with open(path, "rb") as fh:  # the line's number: one after the line ends before it
+            line, left = 1, end
+            while left > 0:
+                chunk = fh.read(min(left, 1 << 22))
+                line, left = line + chunk.count(b"\n"), left - len(chunk)
+        what.append(f"its last line ({line}) is cut short ({cells[0]} of {cells[1]} cells, no line end)"
+                    if cells[0] < cells[1] else f"its last line ({line}) has no line end")
+    if nul:
+        what.append(f"it ends in {nul} NUL bytes")
+    return [f"{source} was cut off while it was written: {' and '.join(what)}; "
+            + ("that line is" if cells else "they are") + " not read"]
 
 
 def _unpack_errors() -> tuple:
@@ -456,7 +569,9 @@ def _csv_format(path, kind="csv") -> dict:
     of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
     Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
     the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
-    ``# time,gyro``) and ``_hashed`` says so.  A file whose first 64 kB hold a NUL byte is not
+    ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
+    number or date (``s,rad/s,rad``) over a row with numbers is a row of units: ``_units`` holds
+    it (:func:`read_log` skips it).  A file whose first 64 kB hold a NUL byte is not
     text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
     try:
         with _open_csv(path, kind) as fh:
@@ -472,7 +587,7 @@ def _csv_format(path, kind="csv") -> dict:
         raise
     except (OSError, EOFError, ValueError) as exc:  # a truncated or corrupt archive
         raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
-    if b"\x00" in line + rows:
+    if b"\x00" in (line + rows).rstrip(b"\x00"):  # NUL bytes after the text: a log cut off (_tail)
         what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
         raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
                         + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
@@ -480,13 +595,51 @@ def _csv_format(path, kind="csv") -> dict:
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
-    if b"," in line:
-        return out
-    sep = ";" if b";" in line else "\t" if b"\t" in line else None
-    if sep is None:
-        return out
-    cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % ((re.escape(sep.encode()),) * 2)
-    return {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
+    sep = "," if b"," in line else ";" if b";" in line else "\t" if b"\t" in line else None
+    if sep in (";", "\t"):
+        cut = re.escape(sep.encode())
+        cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % (cut, cut)
+        out = {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
+    if not out.get("_hashed"):
+        units = _units_row(rows, line, sep or ",")
+        if units is not None:
+            out["_units"] = units
+    return out
+
+
+def _units_row(rows, header, sep):
+    """The cells of a row of units under a CSV's header (``s,rad/s,rad``: text in as many cells
+    as the header, no number, no date, and a row with a number after it), or None."""
+    from .timing import date_seconds
+
+    lines = rows.split(b"\n", 2)
+    if len(lines) < 3:
+        return None
+
+    def cells(line):
+        try:
+            return next(csv.reader([line.decode("utf-8-sig").strip("\r")], delimiter=sep), [])
+        except (UnicodeDecodeError, csv.Error):
+            return []
+
+    first, second, names = cells(lines[0]), cells(lines[1]), cells(header)
+    text = [c.strip() for c in first if c.strip().lower() not in MISSING]
+    if len(first) != len(names) or not text:
+        return None
+    for c in text:
+        for read in (lambda c: float(c.replace(",", ".")), date_seconds):
+            try:
+                read(c)
+                return None  # a number or a date: a row of data
+            except ValueError:
+                pass
+    for c in second:
+        try:
+            float(c.strip().replace(",", "."))
+            return [c.strip() for c in first]
+        except ValueError:
+            pass
+    return None
 
 
 def _numbers(line, header) -> bool:
@@ -518,10 +671,11 @@ def _stripped(frame, columns=None, hashed=False):
     return frame if columns is None else frame[list(columns)]
 
 
-def _csv_blocks(path, reader, columns, hashed=False):
-    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too."""
+def _csv_blocks(path, reader, columns, hashed=False, closing=None):
+    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too.  ``closing``:
+    the file the reader reads, closed with it."""
     pd = _pandas()
-    with reader:
+    with reader, contextlib.closing(closing) if closing is not None else contextlib.nullcontext():
         while True:
             try:
                 block = next(reader)
@@ -536,12 +690,42 @@ def _first_line(exc) -> str:
     return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
 
 
-def _parquet_blocks(path, columns, rows):
+def _parquet_names(schema) -> dict:
+    """``{field: column}``: the columns of a Parquet file as cfdesign reads them.
+
+    A frame saved by pandas keeps its index as a field: one with a name (``time``) is a column
+    like the others; an unnamed one (``__index_level_0__``) is the time column ``time`` when it
+    holds dates or durations and no column is named ``time`` or ``t`` (a frame indexed by a
+    DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out otherwise
+    (row labels).  It was asked for by its field name and not found: an internal error."""
+    import pyarrow as pa
+
+    index = {c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)}
+    unnamed = {f.name for f in schema if f.name in index and re.fullmatch(r"__index_level_\d+__", f.name)}
+    timed = any(f.name.strip().lower() in TIME_COLUMNS for f in schema if f.name not in unnamed)
+    names = {}
+    for f in schema:
+        if f.name not in unnamed:
+            names[f.name] = f.name
+        elif not timed and (pa.types.is_timestamp(f.type) or pa.types.is_duration(f.type)):
+            names[f.name], timed = "time", True
+    return names
+
+
+def _parquet_blocks(path, columns, rows=None):
+    """A Parquet log's blocks of ``rows`` rows (all of it in one when None), columns named as
+    :func:`_parquet_names` names them."""
     import pyarrow.parquet as pq
 
     with pq.ParquetFile(path) as f:
-        for batch in f.iter_batches(batch_size=rows, columns=columns):
-            yield batch.to_pandas()
+        names = _parquet_names(f.schema_arrow)
+        fields = {c: k for k, c in names.items()}
+        wanted = [fields.get(c, c) for c in columns] if columns is not None else list(names)
+        if rows is None:
+            yield f.read(columns=wanted).to_pandas(ignore_metadata=True).rename(columns=names)
+            return
+        for batch in f.iter_batches(batch_size=rows, columns=wanted):
+            yield batch.to_pandas(ignore_metadata=True).rename(columns=names)
 
 
 def _pipe(path) -> bool:
@@ -579,10 +763,55 @@ def _spooled(path, source):
     return copy()
 
 
-def _first_row_line(path) -> int:
-    """The file line of a log's first row: 2, after the comment lines of a CSV."""
+class _Lines:
+    """The file line of each row of a log (rows numbered from 0 as read): ``first`` for the
+    first, one more for each row after it, and, in a CSV file, one more for each blank line
+    between them, which pandas skips (a bad row after a blank line was named a line early).
+    The blank lines are looked for when a message first names a line (:meth:`__call__`)."""
+
+    def __init__(self, first=2, path=None, kind="csv", sep=","):
+        self.first, self.path, self.kind, self.sep = first, path, kind, sep
+        self._after = None  # the rows before each blank line
+
+    def __call__(self, row) -> int:
+        """The file line of row ``row``."""
+        if self.path is None:
+            return self.first + int(row)
+        if self._after is None:
+            self._after = self._blank_lines()
+        return self.first + int(row) + int(np.searchsorted(self._after, row, side="right"))
+
+    def _blank_lines(self):
+        """The rows before each blank line after the header: lines of nothing but spaces other
+        than the separator (a tab-separated line of tabs is a row of empty cells)."""
+        space = b"".join(re.escape(bytes([c])) for c in b" \t\r\f\v" if bytes([c]) != self.sep.encode())
+        blank = re.compile(rb"\n[" + space + rb"]*(?=\n)")
+        after, lines, carry = [], 0, b"\n"  # a newline before the first row's line: each match starts a line
+        with _open_csv(self.path, self.kind) as fh:
+            for _ in range(self.first - 1):
+                fh.readline()
+            while True:
+                chunk = fh.read(1 << 22)
+                text = carry + chunk
+                end = text.rfind(b"\n") if chunk else len(text)
+                pos = 0
+                for m in blank.finditer(text, 0, end + 1 if chunk else end):
+                    lines += text.count(b"\n", pos, m.start())
+                    pos = m.start()
+                    after.append(lines - len(after))
+                if not chunk:
+                    return np.array(after, dtype=np.int64)
+                lines += text.count(b"\n", pos, end)
+                carry = text[end:]
+
+
+def _lines(path) -> _Lines:
+    """The :class:`_Lines` of a log file: its first row on line 2, after the comment lines of a CSV."""
     kind = _kind(path)
-    return 2 if kind == "parquet" else 2 + _csv_format(path, kind).get("skiprows", 0)
+    if kind == "parquet":
+        return _Lines()
+    fmt = _csv_format(path, kind)
+    return _Lines(2 + fmt.get("skiprows", 0) + ("_units" in fmt), path, kind, fmt.get("sep", ","))
 
 
 def _header(path) -> list:
@@ -595,7 +824,7 @@ def _header(path) -> list:
         import pyarrow.parquet as pq
 
         try:
-            return list(pq.read_schema(path).names)
+            return list(_parquet_names(pq.read_schema(path)).values())
         except (OSError, ValueError) as exc:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
     fmt = _csv_format(path, kind)
@@ -649,23 +878,26 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
     dup = sorted({c for c in wanted if header.count(c) > 1})
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
-    scale = TIME_UNITS[_time_unit(path, time, time_unit)]
-    return _numeric(read_log(path, wanted), wanted, path, _first_row_line(path), time=time, time_scale=scale)
+    scale = TIME_UNITS[_time_unit(path, time, time_unit, _row_units(path))]
+    return _numeric(read_log(path, wanted), wanted, path, _lines(path), time=time, time_scale=scale)
 
 
 # ---------------------------------------------------------------------------- the run
 class _Pass:
     """Placement of rows on ticks, carried from block to block (times checked across blocks)."""
 
-    def __init__(self, table, cols, source):
+    def __init__(self, table, cols, source, blocks=None, grid=None):
         self.table, self.cols, self.source = table, cols, source
+        self.blocks = blocks  # the log's blocks, looked through for the grid when the first block has no input row
         self.t0 = None
         self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
+        self.grid = grid  # (t0, spacing) of tick 0, when known (the first pass's, for the second)
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.early = {}  # sensor -> readings logged before tick 0 (not used)
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
         self._sampled = 0
+        self.last_base = None  # the time of the last row so far where the inputs read
 
     def ticks(self, values):
         """Ticks of a block's rows (``row index`` when the log has no time column)."""
@@ -673,7 +905,7 @@ class _Pass:
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
-            from .timing import grid_fit, nearest_tick, place
+            from .timing import place
 
             t = values[self.cols.time]
             read = {s: ~np.isnan(values[c]) for s, c in self.cols.sensors.items()}
@@ -681,16 +913,17 @@ class _Pass:
             for s in self.table.inputs:
                 base &= read[s.name]
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
+            start = self.rows - len(tail_t)
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  first_line=self.cols.first_line + self.rows - len(tail_t),
+                  line=lambda i: self.cols.lines(start + i),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
+            rows, pauses = self._pauses(t[base], np.flatnonzero(base))
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
-                # the grid of the first block's such rows (not its own jittered time; timing.grid_fit)
-                first = t[base]
-                self.t0, self.spacing = (grid_fit(first, self.table.sample_time_s) if first.size
-                                         else (t[0], self.spacing))
+                # the grid of the first such rows up to a pause (not its own jittered time; timing.grid_fit)
+                self.grid = self.grid or self._first_grid(t[base][:pauses[0] if pauses else None], t[0])
+                self.t0, self.spacing = self.grid
             self._sample(t[base])
-            ticks = nearest_tick((t - self.t0) / self.spacing).astype(np.int64)
+            ticks = self._placed(t, t[base], rows, pauses)
             early = ticks < 0  # logged more than half a tick before the first row where the inputs read:
             if early.any():  # no tick of the run is within S/2 of it, so it is counted, not used late
                 for name, col in self.cols.sensors.items():
@@ -708,6 +941,60 @@ class _Pass:
                     self.tail = (t[last], {s: r[last] for s, r in read.items()})
         self.rows += n
         return ticks
+
+    def _first_grid(self, first, t_first):
+        """``(t0, spacing)`` fitted to ``first``, the first rows where the inputs read up to a pause
+        (:func:`cfdesign.timing.grid_fit`); when the block has none, to those of the first block
+        that has (the log's blocks read again up to it: a log of more than a block of rows before
+        its first input row was placed on the grid of its first row, half a tick off the inputs'
+        at worst, and its readings before the inputs were used instead of counted), else the first row's time."""
+        from .timing import PAUSE_TICKS, grid_fit
+
+        if not first.size and self.blocks is not None:
+            sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
+            start = 0
+            for block in self.blocks():
+                values = _numeric(block, [self.cols.time, *sensors], self.source,
+                                  lambda i, start=start: self.cols.lines(start + i), self.cols.time,
+                                  self.cols.time_scale)
+                start += len(block)
+                base = np.ones(len(block), dtype=bool)
+                for c in sensors:
+                    base &= ~np.isnan(values[c])
+                first = values[self.cols.time][base]
+                if first.size:
+                    pause = np.flatnonzero(np.diff(first) > PAUSE_TICKS * self.spacing)
+                    first = first[:pause[0] + 1 if pause.size else None]
+                    break
+        return grid_fit(first, self.table.sample_time_s) if first.size else (t_first, self.spacing)
+
+    def _pauses(self, base_t, rows) -> tuple:
+        """``(rows, pauses)``: the rows of the block where the inputs read and the indices among them
+        of those that follow a pause (:data:`~cfdesign.timing.PAUSE_TICKS`; a block's first such row
+        after the previous block's, or the log's first one when its first rows had none)."""
+        from .timing import PAUSE_TICKS
+
+        if not base_t.size:
+            return rows, []
+        before = [] if self.last_base is None else [self.last_base]
+        steps = np.diff(np.concatenate([before, base_t]))
+        pauses = (np.flatnonzero(steps > PAUSE_TICKS * self.spacing) + (0 if before else 1)).tolist()
+        self.last_base = float(base_t[-1])
+        return rows, pauses
+
+    def _placed(self, t, base_t, rows, pauses):
+        """Ticks of a block's rows: on the grid, whose phase is fitted again at each pause
+        (:func:`cfdesign.timing.rephase`) for the rows from there on."""
+        from .timing import nearest_tick, rephase
+
+        cuts = [0, *(int(rows[p]) for p in pauses), len(t)]
+        starts = [0, *pauses, len(base_t)]
+        out = np.empty(len(t), dtype=np.int64)
+        for k, (a, b) in enumerate(itertools.pairwise(cuts)):
+            if k:  # the base rows from this pause to the next
+                self.t0 = rephase(base_t[starts[k]:starts[k + 1]], self.t0, self.spacing)
+            out[a:b] = nearest_tick((t[a:b] - self.t0) / self.spacing)
+        return out
 
     def _sample(self, times):
         if self._sampled < RATE_SAMPLE:
@@ -805,11 +1092,11 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
     cols = _columns(table, header, source, time, mapping, reference, time_unit,
-                    2 if frame is not None else _first_row_line(data))
+                    _Lines() if frame is not None else _lines(data), None if frame is not None else _row_units(data))
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, grid = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -821,7 +1108,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
-    place = _Pass(table, cols, source)
+    place = _Pass(table, cols, source, grid=grid)  # tick 0 where the first pass put it
 
     def run_rows(block, values, ticks):
         if len(ticks):
@@ -833,7 +1120,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, cols.first_line + place.rows, cols.time, cols.time_scale)
+            values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines(start + i),
+                              cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -852,8 +1140,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
-    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts,
-                     _time_note(cols) + lock.notes, Path(output) if output else None, source)
+    notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
+    notes += lock.notes
+    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
+                     Path(output) if output else None, source)
 
 
 def _check_bounded(table, states, ticks, source):
@@ -954,7 +1244,7 @@ def _lock(table, blocks, cols, source, types=False):
     with ``types``, the Parquet types of the passed-through columns over every block)."""
     from .timing import lock_schedule
 
-    place = _Pass(table, cols, source)
+    place = _Pass(table, cols, source, blocks=blocks)
     arrivals = {s.name: [] for s in table.measurements}
     inputs = {s.name: _Held() for s in table.inputs}  # the ticks without a reading of each input sensor
     last = -1
@@ -963,15 +1253,15 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          cols.first_line + place.rows, cols.time, cols.time_scale)
+                          lambda i, start=place.rows: cols.lines(start + i), cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
             _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
-        first_line = cols.first_line + place.rows
+        first_row = place.rows
         ticks = place.ticks(values)
         for s in table.measurements:
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         for name, held in inputs.items():
-            held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_line)
+            held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_row)
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -983,9 +1273,9 @@ def _lock(table, blocks, cols, source, types=False):
 
     lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
-                      if held.last is None else held.note(name, last, table.sample_time_s)
+                      if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None
+    return lock, place.rows, schemas or None, place.grid
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):
@@ -1011,14 +1301,14 @@ def _unique(a, return_index=False):
 
 class _Held:
     """The ticks at which an input sensor has no reading (its last reading is held there), counted
-    block by block: how many, and the longest gap with the log line it follows."""
+    block by block: how many, and the longest gap with the row it follows (rows numbered from 0)."""
 
     def __init__(self):
-        self.last = self.line = None  # tick and log line of the last reading so far
+        self.last = self.line = None  # tick and row of the last reading so far
         self.gaps = 0  # ticks without a reading between readings
-        self.longest = (0, 0)  # (ticks, log line of the reading before the gap)
+        self.longest = (0, 0)  # (ticks, row of the reading before the gap)
 
-    def add(self, ticks, read, first_line):
+    def add(self, ticks, read, first_row):
         rows = np.flatnonzero(read)
         if not rows.size:
             return
@@ -1028,17 +1318,19 @@ class _Held:
         if skip.size and skip.max() > self.longest[0]:
             k = int(np.argmax(skip))
             before = rows[ticks[rows] <= at[k]]  # the row of the reading before the gap (or the last block's)
-            self.longest = (int(skip[k]), first_line + int(before[-1]) if before.size else self.line)
+            self.longest = (int(skip[k]), first_row + int(before[-1]) if before.size else self.line)
         if self.last is None:
             self.gaps += int(at[0])  # ticks before the first reading
-        self.last, self.line = int(at[-1]), first_line + int(rows[-1])
+        self.last, self.line = int(at[-1]), first_row + int(rows[-1])
 
     def missing(self, last_tick) -> int:
         """Ticks of the log (``0 .. last_tick``) without a reading."""
         return self.gaps + (last_tick - self.last)
 
-    def note(self, name, last_tick, dt) -> str:
-        ticks, line = self.longest
+    def note(self, name, last_tick, dt, lines) -> str:
+        """The note on the held ticks; ``lines(row)`` gives a row's file line."""
+        ticks, row = self.longest
+        line = lines(row)
         longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
         return (f"{name} (an input) has no reading at {self.missing(last_tick)} of {last_tick + 1} ticks{longest}: "
                 "its last reading is held there")
@@ -1452,7 +1744,7 @@ def _time_axis(estimates, time, scale=1.0):
         return (raw - raw[0]).astype(float) * scale, f"{time} (s after the first row)"
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=float), f"{time} (s)"
-    x = _numeric(estimates, [time], "estimates", 2, time)[time]
+    x = _numeric(estimates, [time], "estimates", _Lines(), time)[time]
     return x - x[0], f"{time} (s after {col.iloc[0]})"
 
 
@@ -1488,7 +1780,8 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     Returns
     -------
     list of dict
-        The summary rows, in the order of ``paths``.
+        The summary rows, in the order of ``paths``; a log that could not be run has ``error``:
+        its one-line message, beginning with :data:`INTERNAL` for a fault of cfdesign.
 
     Raises
     ------
@@ -1531,8 +1824,11 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
             raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
+        # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
+        # warned on stderr when another cluster (another fleet run at the same time) had that port
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)  # no shutdown warnings
+                               dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)  # no shutdown warnings
         client = Client(cluster)
     try:
         try:  # once connected: an unreachable scheduler leaves no empty folder
@@ -1546,9 +1842,15 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
                 for p, f in zip(paths, futures, strict=True)]
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        dask_log = logging.getLogger("distributed")  # closing: a slow worker is killed after 4 s, which it
+        level = dask_log.level                          # logged as a WARNING on stderr (a busy machine, not a fault)
+        dask_log.setLevel(logging.ERROR)
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            dask_log.setLevel(level)
     write_text(outdir / "summary.csv", _summary_csv(rows))
     return rows
 
@@ -1571,6 +1873,10 @@ def _run_one(table_json, path, target, options):
         return run_log(table, path, output=target, source=path, **options).summary()
     except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
         return {"log": path, "samples": 0, "error": _first_line(exc)}
+    except Exception as exc:  # noqa: BLE001 - a fault of cfdesign on one log: the others still run
+        # a failed task printed Dask's traceback of it and summarised it as the bare exception ("'__index_level_0__'")
+        return {"log": path, "samples": 0, "error": f"{INTERNAL} ({type(exc).__name__}: {_first_line(exc)}); "
+                                                    "please report it with the log"}
 
 
 def _summary_csv(rows) -> str:

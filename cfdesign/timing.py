@@ -43,9 +43,8 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
-           "FIT_START",
-           "MAX_GAP_TICKS", "date_seconds", "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate",
-           "Segment", "Lock", "lock_schedule"]
+           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "rephase", "date_seconds", "nearest_tick", "grid_origin",
+           "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -241,6 +240,45 @@ def grid_fit(time, dt: float) -> tuple:
     return origin, spacing
 
 
+#: a pause (in ticks) between rows where the inputs read after which the phase of a log's grid is
+#: fitted again (:func:`rephase`): a logger stopped and started again keeps its rate, not its phase
+PAUSE_TICKS = 50
+
+
+def rephase(time, origin: float, spacing: float) -> float:
+    """The origin of a log's grid for the rows after a pause: the phase of their times, fitted
+    as :func:`grid_fit` fits it, on the tick numbers of the grid before the pause.
+
+    A logger that stops for a while and starts again keeps its rate but not the phase of its
+    ticks: rows half a tick off the old grid, jittered, landed two on a tick and left the next
+    without one (one input reading in six not used after a 10 s pause of a log jittered by
+    +-0.3 tick).
+
+    Parameters
+    ----------
+    time : array_like
+        Times (s) of the rows where the input sensors read after the pause, ascending, at least one.
+    origin : float
+        The origin (s) of the grid before the pause.
+    spacing : float
+        The grid's spacing (s).
+
+    Returns
+    -------
+    float
+        The new origin: the fitted phase, moved by whole ticks to within half a tick of the old
+        grid, so that tick numbers carry on (rows placed on ``nearest_tick((t - origin) / spacing)``).
+
+    Examples
+    --------
+    >>> round(rephase([10.4, 11.4, 12.4], 0.0, 1.0), 9)   # restarted 0.4 tick off a 1 s grid
+    0.4
+    """
+    t = np.asarray(time, dtype=float)
+    new = _phase_origin(t, spacing)
+    return float(new - nearest_tick((new - origin) / spacing) * spacing)
+
+
 def _irregular(t, origin, spacing) -> int:
     """Rows that share a tick, and ticks skipped between rows, on a grid."""
     return int(np.sum(np.abs(np.diff(nearest_tick((t - origin) / spacing)) - 1)))
@@ -266,7 +304,7 @@ def _phase_origin(t, spacing):
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
-          readings=None):
+          readings=None, line=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -290,6 +328,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         are then allowed when no sensor reads in two of them (a log with one row per reading,
         the compass stamped at the time of a gyro sample); without it every repeated time is
         refused.
+    line : callable, optional
+        ``line(i)``: the file line of row ``i``, where the rows are not one a line (a CSV with
+        blank lines between them); default ``first_line + i``.
 
     Returns
     -------
@@ -306,9 +347,10 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     t = np.asarray(time, dtype=float)
     if not t.size:
         return np.zeros(0, dtype=np.int64)
+    line = line or (lambda i: first_line + int(i))
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:  # an empty cell is NaN: say so (a spreadsheet's rows of empty cells below the data)
-        raise DataError(f"{source} line {first_line + bad[0]}: " + (
+        raise DataError(f"{source} line {line(bad[0])}: " + (
             "no time (an empty cell; every row needs one)" if np.isnan(t[bad[0]])
             else f"time {float(t[bad[0]])!r} is not a finite number of seconds"))
     d = np.diff(t)
@@ -325,7 +367,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if back.size:
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
+        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
                         "line before (times must increase" + (", and rows at one time must read different sensors)"
                                                              if readings is not None else ")"))
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
@@ -336,7 +378,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
                      for name, short, scale in _TIME_UNITS[1:]
                      if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
                     "are the times in seconds? Split the log at the gap")
-        raise DataError(f"{source} line {first_line + i}: time {float(t[i])!r} is {step:.6g} s after the "
+        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} is {step:.6g} s after the "
                         f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
                         f"tick): {unit}")
     if rate:
@@ -347,17 +389,21 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
 def check_rate(t, dt, source):
     """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
 
-    The spacing is the span of ``t`` over the ticks it covers (the span in units of the median
-    step, rounded, so that a dropped row counts as the ticks it skips), not the median step
-    itself: time-stamp jitter of a few percent of a tick moves a single step by as much, but the
-    span only by the jitter of its two ends.  That much (:data:`JITTER_TICKS` at each end) is
-    allowed on top of :data:`RATE_RTOL`, so a short log is not refused for its jitter.  The
-    ticks are counted over the whole span, not step by step: with rows jittered by more than a
-    quarter of a tick a single step can round to two ticks (1.6 -> 2) and its neighbour to none,
-    and counting every step as at least one tick made such a log 1.4 % too fast (jitter +-0.3
-    tick), beyond the tolerance.  Over a long span the count inherits the median step's own
-    error (``1.25 sigma / sqrt(N)`` for ``N`` steps of standard deviation ``sigma``: 0.3 % for
-    20,000 rows jittered by +-0.35 tick, 0.05 % for +-0.05 tick).
+    The spacing is the least-squares slope of the times over the ticks they fall on, fitted
+    first over the first 32 rows and then over a span doubled each time (the ticks of a span are
+    right while the spacing so far keeps its rows within half a tick), from the median of the
+    steps near it (those within half a step of the median, found again three times); the span
+    stops at :data:`FIT_ROWS` rows, as :func:`grid_fit`'s.  The ticks come from the times, not
+    from counting rows, so a row the IMU dropped counts as the ticks it skips: a log missing one
+    row in twenty with +-0.2 tick of jitter had been refused as 98.8 Hz for 100 Hz (the steps
+    over dropped rows pulled the median of all steps up, and the span was counted in that
+    median).  The fit is not the median step: time-stamp jitter of a few percent of a tick moves
+    a single step by as much, and with rows jittered by more than a quarter of a tick a single
+    step can round to two ticks (1.6 -> 2) and its neighbour to none (counting every step as at
+    least one tick made a log jittered by +-0.3 tick 1.4 % too fast).  The jitter of the two
+    ends (:data:`JITTER_TICKS` each) is allowed on top of :data:`RATE_RTOL`, so a short log is
+    not refused for its jitter.  Jitter of +-0.45 tick with a few percent of the rows missing
+    still blurs one tick into two.
 
     Parameters
     ----------
@@ -378,13 +424,26 @@ def check_rate(t, dt, source):
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return
-    steps = np.diff(t)
-    unit = float(np.median(steps))
-    if not unit > 0:
+    steps = np.diff(t[:FIT_ROWS])
+    spacing = float(np.median(steps))
+    for _ in range(3):  # the median of the one-tick steps: those of dropped rows (two ticks or more) left out
+        near = steps[(steps > 0.5 * spacing) & (steps < 1.5 * spacing)]
+        if not near.size:
+            break
+        spacing = float(np.median(near))
+    if not spacing > 0:
         return
-    span = float(t[-1] - t[0])
-    ticks = max(float(np.rint(span / unit)), 1.0)
-    spacing = span / ticks
+    m, end = min(32, len(t)), min(len(t), FIT_ROWS)
+    while True:  # the slope of the times over their ticks, over a span doubled each time
+        part = t[:m]
+        k = nearest_tick((part - grid_origin(part, spacing)) / spacing)
+        k -= k.mean()
+        if np.dot(k, k) > 0:
+            spacing = float(np.dot(k, part - part.mean()) / np.dot(k, k))
+        if m == end:
+            break
+        m = min(2 * m, end)
+    ticks = max(float(t[-1] - t[0]) / spacing, 1.0)
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
         unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
                      for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
