@@ -600,13 +600,13 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     segments = _merged(segments)
     main = dict(max(life, key=life.get)) if life else {}
     late = {k: v for k, v in main.items() if v}
-    if late:
+    varying = faster or (recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments))
+    if late:  # (what runs: a drifting sensor's log runs the Kalman filter, not the locked schedule)
         notes.insert(0, "readings arrive " + ", ".join(f"{k} {v} ticks" for k, v in late.items())
                      + " after the table's schedule: " + (
-                         "they are used as they arrive, by the Kalman filter of the table's model" if faster
+                         "they are used as they arrive, by the Kalman filter of the table's model" if varying
                          else "gains recomputed for the arrival pattern (periodic DARE of the table's model)"
                          if any(s.offsets for s in segments) else "the schedule is locked to the arrivals"))
-    varying = faster or (recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments))
     if varying and not faster:
         notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
                      "sensor): the log runs the Kalman filter of the table's model with gains from the readings "
