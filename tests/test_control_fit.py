@@ -149,3 +149,25 @@ def test_transfer_functions_of_ordinary_tables_do_not_warn(dckf3, recwarn):
     dckf3.transfer_functions()
     cfdesign.design(cfdesign.load_spec(cfdesign.example_path("tilt"))).transfer_functions()
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_complex_matrices_and_unreadable_gains_are_named():
+    """A complex system matrix raised float()'s raw TypeError in from_statespace, and a complex F given to
+    Observer was taken: its proof failed ('the bands do not sum to one') for no fault of the
+    filter; sympy's multi-line reason for a gain that is no matrix is one line."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    k = [[sp.Symbol("k")]]
+    sys = control.ss([[0]], [[1]], [[1]], [[0]])
+    sys.A = np.array([[1j]])  # control.ss refuses complex matrices; its attributes take them
+    with pytest.raises(StructureError, match=r"A\[0\]\[0\] is complex"):
+        Observer.from_statespace(sys, k, sensors)
+    for F in ([[1j]], np.array([[2j]]), [[sp.I]]):
+        with pytest.raises(StructureError, match=r"F\[0\]\[0\] is complex"):
+            Observer(F, [[1]], [[1]], k, sensors)
+    sys.A = np.array([[0j]])  # complex dtype, real values
+    assert Observer.from_statespace(sys, k, sensors).proof().holds
+    with pytest.raises(StructureError, match="K is not a matrix") as err:
+        Observer([[0]], [[1]], [[1]], 1.0, sensors)
+    assert "\n" not in str(err.value)

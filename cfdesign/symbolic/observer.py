@@ -340,10 +340,14 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
-        raise StructureError(f"{name} is not a matrix: {exc}") from None
+        reason = " ".join(str(exc).split())  # sympy's message spans lines
+        raise StructureError(f"{name} is not a matrix: {reason}") from None
     for (i, j), e in np.ndenumerate(np.array(M.tolist(), dtype=object).reshape(M.shape)):
         if isinstance(e, sp.Basic) and e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
             raise GainError(f"{name}[{i}][{j}] must be finite, got {e}")
+        if isinstance(e, sp.Basic) and e.is_number and e.is_real is False:
+            # a complex entry gave bands that do not sum to one: a proof that failed for no fault of the filter
+            raise StructureError(f"{name}[{i}][{j}] is complex ({e}); the model, gains and output are real")
     if M.shape == (0, 0) and rows:
         M = sp.zeros(rows, cols or 0)
     if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
@@ -444,7 +448,7 @@ class Observer:
     Raises
     ------
     StructureError
-        Shapes that do not fit, an unknown domain or gain form, a sample time for a
+        Shapes that do not fit, a complex entry, an unknown domain or gain form, a sample time for a
         continuous observer, sensors that do not cover every column of ``B`` and row of
         ``H`` exactly once, two different symbols with the sample time's name (a sympy symbol
         is its name and its assumptions: they would print alike and never cancel).
@@ -534,8 +538,8 @@ class Observer:
         Raises
         ------
         StructureError
-            ``sys`` is not a state-space system, has a feedthrough or an unspecified sample time
-            (``dt=True``); or its inputs and outputs carry names of their own
+            ``sys`` is not a state-space system, has a complex entry, a feedthrough or an unspecified
+            sample time (``dt=True``); or its inputs and outputs carry names of their own
             (not python-control's ``u[i]`` / ``y[i]``) that differ from the sensors' names at
             the same column of ``B`` or row of ``C``.
         GainError
@@ -570,7 +574,13 @@ class Observer:
         discrete = bool(sys.dt)
 
         def to_exact(label, M):
-            return [[exact_number(float(v), f"{label} entry") for v in row] for row in np.asarray(M)]
+            M = np.asarray(M)
+            if np.iscomplexobj(M):  # float() of a complex entry raised a raw TypeError
+                if np.any(M.imag != 0):
+                    i, j = np.argwhere(M.imag != 0)[0]
+                    raise StructureError(f"{sys.name}: {label}[{i}][{j}] is complex ({M[i, j]}); the model is real")
+                M = M.real
+            return [[exact_number(float(v), f"{label} entry") for v in row] for row in M]
 
         return cls(to_exact("A", sys.A), to_exact("B", sys.B), to_exact("C", sys.C), K, sensors,
                    domain="z" if discrete else "s", sample_time=float(sys.dt) if discrete else None,
