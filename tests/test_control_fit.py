@@ -171,3 +171,18 @@ def test_complex_matrices_and_unreadable_gains_are_named():
     with pytest.raises(StructureError, match="K is not a matrix") as err:
         Observer([[0]], [[1]], [[1]], 1.0, sensors)
     assert "\n" not in str(err.value)
+
+
+def test_filter_gain_form_of_a_continuous_observer_is_refused():
+    """gain_form='filter' for a continuous system was dropped without a word (its K taken as the
+    continuous gain), as a design file's is refused ('applies to discrete filters only')."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    sys = control.ss([[0]], [[1]], [[1]], [[0]])
+    with pytest.raises(StructureError, match="'filter' applies to discrete observers only"):
+        Observer.from_statespace(sys, [[0.5]], sensors, gain_form="filter")
+    obs = Observer([[0]], [[1]], [[1]], [[sp.Symbol("k")]], sensors)
+    with pytest.raises(StructureError, match="'filter' applies to discrete observers only"):
+        obs.with_gain_matrix([[0.5]], gain_form="filter")
+    assert Observer.from_statespace(control.c2d(sys, 0.1), [[0.5]], sensors, gain_form="filter").proof().holds

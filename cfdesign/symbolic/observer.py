@@ -434,8 +434,9 @@ class Observer:
         Discrete only; defaults to the symbol named ``T`` in the matrices, whatever its
         assumptions (``sp.Symbol("T")``), else to cfdesign's ``T`` (positive).
     gain_form : {'predictor', 'filter'}
-        Discrete only.  ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the
-        estimate is ``C x`` (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
+        Discrete only (``'filter'`` for a continuous observer is a StructureError).
+        ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the estimate is ``C x``
+        (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
         ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
     name : str
         Label used in reports.
@@ -448,8 +449,8 @@ class Observer:
     Raises
     ------
     StructureError
-        Shapes that do not fit, a complex entry, an unknown domain or gain form, a sample time for a
-        continuous observer, sensors that do not cover every column of ``B`` and row of
+        Shapes that do not fit, a complex entry, an unknown domain or gain form, a sample time or
+        the ``filter`` gain form for a continuous observer, sensors that do not cover every column of ``B`` and row of
         ``H`` exactly once, two different symbols with the sample time's name (a sympy symbol
         is its name and its assumptions: they would print alike and never cancel).
     GainError
@@ -497,6 +498,10 @@ class Observer:
         else:
             if sample_time is not None:
                 raise StructureError("a continuous observer has no sample time")
+            if gain_form not in ("predictor", "continuous"):  # the default, or the form a continuous gain has
+                # a filter-form K was taken as x' = F x + B u + K (y - H x) without a word
+                raise StructureError(f"gain_form {gain_form!r} applies to discrete observers only; a continuous "
+                                     "observer's gain is that of x' = F x + B u + K (y - H x)")
             gain_form = "continuous"
         self.F, self.B, self.H, self.K = F, B, H, K
         self.domain, self.sample_time, self.gain_form, self.name = domain, sample_time, gain_form, name
@@ -526,7 +531,7 @@ class Observer:
         sensors : sequence of Sensor
             One per input (column of ``B``) and per output (row of ``C``).
         gain_form : {'predictor', 'filter'}
-            Discrete systems only.
+            Discrete systems only (``'filter'`` for a continuous one is a StructureError).
         name : str, optional
             Label (default: the system's name).
 
