@@ -59,7 +59,10 @@ Method (:func:`identify_noise`):
    :data:`~cfdesign.allan.RAMP_EVIDENCE`): the common gyro term, and the one a design file takes;
    likewise a reported bias instability or random walk gives way to the other where the other fits
    the same octaves clearly better (the two split the last octaves, and whichever is dropped
-   first leaves the other to claim them);
+   first leaves the other to claim them); and white noise alone is reported where it fits as well:
+   every other term must lower the weighted chi-square by ``RAMP_EVIDENCE`` (a few dozen readings
+   of white noise, whose last octaves have a degree of freedom or two, were read as a bias
+   instability, a quantisation noise or a random walk in place of white noise);
 6. confidence intervals (95 %) from the chi-square distribution with the term's own EDF,
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit, counting the correlation of the
    overlapping estimates at neighbouring octaves (strong for a random walk: a fit of its
@@ -540,6 +543,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                                     "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
             fit = walk
     fit = _swap_long_terms(tau, adev, m, len(y), float(rate_hz), fit)
+    fit = _white_alone(tau, adev, m, len(y), float(rate_hz), fit)
     coef, terms, missing, edf = fit
     coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
@@ -626,6 +630,29 @@ def _swap_long_terms(tau, adev, m, n, rate_hz, fit):
                          f"{here:.3g})")
             return alt
     return fit
+
+
+def _white_alone(tau, adev, m, n, rate_hz, fit):
+    """White noise alone where the terms reported beside or instead of it do not earn their place
+    (each must lower the weighted chi-square by :data:`~cfdesign.allan.RAMP_EVIDENCE`), or where
+    nothing is reported.  A term that takes most of the first octaves leaves white noise 'not
+    significant', and the elimination then dropped white noise first, ending on a model that fitted
+    worse than white noise alone, or on none: 20 to 64 readings of white noise reported a bias
+    instability, a quantisation noise or a random walk (in a design file's bias) in place of N in
+    38 % to 1 % of recordings, and no term at all in up to 11 %."""
+    extra = len(set(fit[1]) - {"white"})
+    if "white" in fit[1] and not extra:
+        return fit
+    alt = _eliminate(tau, adev, m, n, rate_hz, ["white"])
+    here, there = _misfit(tau, adev, fit, 1.0 / rate_hz), _misfit(tau, adev, alt, 1.0 / rate_hz)
+    if "white" not in alt[1] or there >= here + RAMP_EVIDENCE * extra:
+        return fit
+    for key in fit[1]:
+        if key != "white":
+            alt[2][key] = (f"white noise alone fits the recording as well (weighted chi-square {there:.3g} against "
+                           f"{here:.3g} with it; each further term must lower it by {RAMP_EVIDENCE:g})"
+                           + _longer_hint(key, n / rate_hz))
+    return alt
 
 
 def _misfit(tau, adev, fit, dt) -> float:
