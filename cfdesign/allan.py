@@ -114,7 +114,8 @@ MIN_SAMPLES = 16
 DOMINANCE = 0.5
 #: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
 #: for the ramp to be reported instead (about a 2-sigma preference for the ramp); likewise how much
-#: better a bias instability must fit than a random walk (or the other way) to take its place
+#: better a bias instability must fit than a random walk (or the other way) to take its place, and
+#: how much each term reported beside white noise must lower it against white noise alone
 RAMP_EVIDENCE = 4.0
 #: confidence level of the intervals
 CONFIDENCE = 0.95
