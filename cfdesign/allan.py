@@ -650,8 +650,8 @@ def _white_alone(tau, adev, m, n, rate_hz, fit):
         return fit
     for key in fit[1]:
         if key != "white":
-            alt[2][key] = (f"white noise alone fits the recording as well (weighted chi-square {there:.3g} against "
-                           f"{here:.3g} with it; each further term must lower it by {RAMP_EVIDENCE:g})"
+            alt[2][key] = (f"white noise alone fits the recording about as well (weighted chi-square {there:.3g}, "
+                           f"{here:.3g} with the other terms: each must lower it by {RAMP_EVIDENCE:g})"
                            + _longer_hint(key, n / rate_hz))
     return alt
 
