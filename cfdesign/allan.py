@@ -82,6 +82,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -506,10 +507,13 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     (0.001, None)
     """
     y = np.asarray(x, dtype=float).ravel()
-    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
+    # numbers.Real: numpy's scalars too (a rate of np.float32(100) from a float32 time column was
+    # refused as 'not a positive number of hertz')
+    if isinstance(rate_hz, (bool, np.bool_)) or not isinstance(rate_hz, numbers.Real) or not (
             RATE_RANGE[0] <= rate_hz <= RATE_RANGE[1]):  # NaN too
         raise InputError(f"{name}: rate_hz must be a positive number of hertz from {RATE_RANGE[0]:g} to "
                          f"{RATE_RANGE[1]:g} (the rates a design file takes), got {rate_hz!r}")
+    rate_hz = float(rate_hz)  # a float32 rate would keep every 1 / rate_hz in single precision
     if len(y) < MIN_SAMPLES:
         raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation (at least {MIN_SAMPLES})")
     bad = np.flatnonzero(~np.isfinite(y))

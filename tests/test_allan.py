@@ -478,3 +478,15 @@ def test_a_few_dozen_readings_of_white_noise_are_white_noise(n, seed, claimed):
     assert lo <= N <= hi
     if claimed:
         assert "white noise alone fits the recording about as well" in fit.missing[claimed]
+
+
+def test_numpy_scalar_rates_are_rates():
+    """A rate of np.float32(100) or np.int64(100) (read from an array) was refused as 'not a
+    positive number of hertz'; it is the rate, taken in double precision."""
+    y = gyro(60, K=0, seed=5)
+    expected = identify_noise(y, 100.0)
+    for rate in (np.float32(100.0), np.int64(100)):
+        fit = identify_noise(y, rate)
+        assert type(fit.rate_hz) is float and fit.white_density == expected.white_density
+    with pytest.raises(InputError, match="positive number of hertz"):
+        identify_noise(y, np.bool_(True))
