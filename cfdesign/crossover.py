@@ -328,10 +328,12 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
         return _log_ratios(structure, model, dt, form, output, hz, gains_for(math.exp(logwn)))[0]
 
     wc = 2 * math.pi * hz[0]
-    # around the continuous solution (far below wc for a large damping: wc / (2 zeta))
+    # three decades around both wc and the continuous solution (far below wc for a large damping:
+    # wc / (2 zeta)), at the same density of 20 points a decade whatever the span
     wn_c = math.log(_natural_frequency(wc, zeta))
-    lo, hi = wn_c + math.log(1e-3), min(wn_c + math.log(1e3), math.log(10 * math.pi / dt))
-    grid = np.linspace(lo, hi, 121)
+    lo = min(wn_c, math.log(wc)) - math.log(1e3)
+    hi = min(max(wn_c, math.log(wc)) + math.log(1e3), math.log(10 * math.pi / dt))
+    grid = np.linspace(lo, hi, max(121, int(20 * (hi - lo) / math.log(10)) + 1))
     with np.errstate(all="ignore"):
         vals = np.array([f(x) for x in grid])
     idx = np.flatnonzero(np.isfinite(vals[:-1]) & np.isfinite(vals[1:]) & (np.sign(vals[:-1]) != np.sign(vals[1:])))

@@ -197,3 +197,14 @@ def test_large_damping_crossover_designs(damping, discrete):
         s = np.log1p(np.linalg.eigvals((table.F - np.eye(2)) - Kp @ table.H)) / table.sample_time_s
         assert np.all(np.abs(s.imag) == 0)
         assert -s.real.sum() / (2 * math.sqrt(np.prod(s.real))) == pytest.approx(damping, rel=1e-6)
+
+
+@pytest.mark.parametrize(("output", "hz", "damping"), [("posterior", 45.0, 300.0), ("prior", 20.0, 30.0)])
+def test_discrete_damped_search_spans_both_the_continuous_w_n_and_w_c(output, hz, damping):
+    """The search for w_n spans three decades around w_c and around the continuous w_n (~ w_c / (2
+    zeta)): around w_c alone it missed the root of damping 300 at 45 Hz (of 100 Hz), around the
+    continuous w_n alone that of damping 30 at 20 Hz for the prior output (w_n ~ 20 w_c)."""
+    table = design(cf2_spec(crossover={"hz": hz, "damping": damping}, discrete=True, output=output))
+    mag = magnitudes(table, [hz])
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-6)
+    assert table.checks["stable"]
