@@ -496,7 +496,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Fewer than :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
+        Readings of more than one axis (an array of shape (n, 3)), fewer than
+        :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
         noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
         recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
@@ -510,7 +511,11 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     >>> round(fit.white_density, 4), fit.random_walk_density   # 0.01 / sqrt(100)
     (0.001, None)
     """
-    y = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(x, dtype=float)
+    if sum(size > 1 for size in y.shape) > 1:  # raveled, three axes became one interleaved recording
+        raise InputError(f"{name}: readings of shape {y.shape} hold more than one axis; identify_noise takes one "
+                         "(one call per column: identify_noise(x[:, i], rate_hz) for i in range(x.shape[1]))")
+    y = y.ravel()
     # numbers.Real: numpy's scalars too (a rate of np.float32(100) from a float32 time column was
     # refused as 'not a positive number of hertz')
     if isinstance(rate_hz, (bool, np.bool_)) or not isinstance(rate_hz, numbers.Real) or not (

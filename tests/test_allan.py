@@ -490,3 +490,18 @@ def test_numpy_scalar_rates_are_rates():
         assert type(fit.rate_hz) is float and fit.white_density == expected.white_density
     with pytest.raises(InputError, match="positive number of hertz"):
         identify_noise(y, np.bool_(True))
+
+
+def test_a_three_axis_array_is_refused_not_interleaved():
+    """An (n, 3) gyro array was raveled into one recording of 3n readings: three axes of N = 0.1,
+    0.2 and 0.3 at 100 Hz for 60 s came back as one of 180 s with N = 0.216. One axis per call; a
+    single column or row is one axis."""
+    rng = np.random.default_rng(0)
+    g = rng.standard_normal((6000, 3)) * np.array([1.0, 2.0, 3.0])
+    for x in (g, g.T):
+        with pytest.raises(InputError, match=r"shape \(\d+, \d+\) hold more than one axis"):
+            identify_noise(x, 100.0)
+    one = identify_noise(g[:, 1], 100.0)
+    for x in (g[:, 1:2], g[:, 1:2].T):
+        fit = identify_noise(x, 100.0)
+        assert fit.duration_s == 60.0 and fit.white_density == one.white_density
