@@ -496,7 +496,7 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     Raises
     ------
     InputError
-        Readings of more than one axis (an array of shape (n, 3)), fewer than
+        Readings that are not real numbers or of more than one axis (an array of shape (n, 3)), fewer than
         :data:`~cfdesign.allan.MIN_SAMPLES` readings, a value that is not finite or
         beyond ``MAX_READING``, a constant recording or one whose spread is below the smallest
         noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
@@ -511,7 +511,13 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     >>> round(fit.white_density, 4), fit.random_walk_density   # 0.01 / sqrt(100)
     (0.001, None)
     """
-    y = np.asarray(x, dtype=float)
+    try:  # text raised numpy's ValueError, complex values lost their imaginary part with a warning
+        y = np.asarray(x)
+        if y.dtype.kind == "c":
+            raise TypeError("complex values")
+        y = y.astype(float)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: the readings must be real numbers ({exc})") from None
     if sum(size > 1 for size in y.shape) > 1:  # raveled, three axes became one interleaved recording
         raise InputError(f"{name}: readings of shape {y.shape} hold more than one axis; identify_noise takes one "
                          "(one call per column: identify_noise(x[:, i], rate_hz) for i in range(x.shape[1]))")

@@ -144,6 +144,9 @@ def test_white_noise_closed_form():
     (np.r_[np.zeros(50), np.nan], 100.0, "not finite"),
     (np.zeros(100), 100.0, "constant"),
     (np.arange(100.0), 0.0, "rate_hz"),
+    (["0.1"] * 10 + ["a"] * 10, 100.0, "must be real numbers"),  # numpy's ValueError
+    ([1j] * 20, 100.0, "must be real numbers"),  # float()'s TypeError
+    (np.arange(20.0) * 1j, 100.0, "must be real numbers"),  # the imaginary part dropped with a warning
 ])
 def test_bad_recordings(x, rate, message):
     with pytest.raises(InputError, match=message):
