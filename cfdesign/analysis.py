@@ -40,6 +40,8 @@ def transfer_functions(observer) -> dict:
     ------
     GainError
         The observer still has symbolic parameters.
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
 
     Examples
     --------
@@ -48,9 +50,26 @@ def transfer_functions(observer) -> dict:
     >>> sorted(tfs), tfs["angle"].name, tfs["angle"].input_labels
     (['angle', 'rate', 'sum'], 'T_angle', ['angle'])
     """
+    _require_observer(observer, "transfer_functions")
+    coefficients = observer.band_coefficients()  # first: a symbolic sample time gave float()'s TypeError
     dt = float(observer.sample_time) if observer.discrete else 0
-    return named_transfer_functions(observer.band_coefficients(), dt, observer.name,
-                                    observer.sum_coefficients())
+    return named_transfer_functions(coefficients, dt, observer.name, observer.sum_coefficients())
+
+
+def _require_observer(observer, what: str) -> None:
+    """StructureError unless ``observer`` is a cfdesign Observer (its attributes were read first:
+    a python-control system, a gain table or None raised a raw AttributeError)."""
+    if hasattr(observer, "band_coefficients") and hasattr(observer, "sample_time"):
+        return
+    from .errors import StructureError
+
+    if hasattr(observer, "dt") and hasattr(observer, "ninputs"):
+        hint = "; build one from a control.StateSpace with Observer.from_statespace(sys, K, sensors)"
+    elif hasattr(observer, "transfer_functions") and hasattr(observer, "K"):
+        hint = "; a gain table has its own: table.transfer_functions(), table.bode(), table.observer()"
+    else:
+        hint = ""
+    raise StructureError(f"{what} takes a cfdesign Observer with numeric gains, got {type(observer).__name__}{hint}")
 
 
 def named_transfer_functions(coefficients: dict, dt, label: str = "", total=None) -> dict:
@@ -258,7 +277,10 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
     GainError
         The observer still has symbolic parameters, or the responses overflow (gains too
         large, or a pole on the grid).
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
     """
+    _require_observer(observer, "frequency_response")
     coefficients = observer.band_coefficients()
     dt = float(observer.sample_time) if observer.discrete else None
     if omega is None:

@@ -35,6 +35,14 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     -------
     matplotlib.figure.Figure
         The figure: magnitude (dB) and phase (deg) axes.
+
+    Raises
+    ------
+    GainError
+        The observer still has symbolic parameters.
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table: its own
+        ``table.bode()``).
     """
     resp = frequency_response(observer, omega)
     return _draw_bands(resp, hz, title or _default_title(observer), fig)

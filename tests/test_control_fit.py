@@ -186,3 +186,22 @@ def test_filter_gain_form_of_a_continuous_observer_is_refused():
     with pytest.raises(StructureError, match="'filter' applies to discrete observers only"):
         obs.with_gain_matrix([[0.5]], gain_form="filter")
     assert Observer.from_statespace(control.c2d(sys, 0.1), [[0.5]], sensors, gain_form="filter").proof().holds
+
+
+def test_band_functions_name_what_is_not_an_observer():
+    """cfdesign.transfer_functions, bode_plot and frequency_response read their argument's
+    attributes first: a python-control system, a gain table or None raised a raw AttributeError,
+    and an observer with a symbolic sample time float()'s TypeError."""
+    import control
+
+    from cfdesign.analysis import frequency_response
+    from cfdesign.errors import GainError
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.spec.example_path("tilt")))
+    for fn in (cfdesign.transfer_functions, cfdesign.bode_plot, frequency_response):
+        for arg, hint in ((control.tf([1], [1, 1]), "from_statespace"), (table, "table.transfer_functions"),
+                          (None, "got NoneType")):
+            with pytest.raises(StructureError, match=hint):
+                fn(arg)
+        with pytest.raises(GainError, match="substitute numbers first"):
+            fn(cfdesign.dckf3())
