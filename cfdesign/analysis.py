@@ -154,12 +154,18 @@ class FrequencyResponse:
         Sample time in seconds (discrete) or None (continuous).
     coefficients : dict
         ``{sensor: (num, den)}`` band polynomials (highest power first).
+    evaluate : callable, optional
+        ``evaluate(omega) -> {sensor: complex ndarray}``, the responses ``bands`` were computed
+        with, for :meth:`crossovers` to refine on; default: the band polynomials.  A gain table's
+        Bode plot passes its state-space responses, which stay accurate where the polynomials do
+        not (poles within rounding of ``z = 1``).
     """
 
     omega: np.ndarray
     bands: dict
     dt: float | None
     coefficients: dict
+    evaluate: object = None
 
     @property
     def total(self) -> np.ndarray:
@@ -216,7 +222,7 @@ class FrequencyResponse:
         Bands are taken in :meth:`dominant_order`; each hands over to the next band that ever
         reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).  The
         first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method on
-        the exact band polynomials.
+        the responses the grid was computed with (``evaluate``; by default the band polynomials).
 
         Returns
         -------
@@ -240,6 +246,12 @@ class FrequencyResponse:
         return found
 
     def _log_ratio(self, a, b, w):
+        # refined on the responses the grid holds: polynomials that had lost poles near z = 1 had
+        # no sign change where the state-space grid had one (brentq's 'f(a) and f(b) must have
+        # different signs' from a gain table's Bode plot)
+        if self.evaluate is not None:
+            bands = self.evaluate(np.array([w], dtype=float))
+            return float(np.log(np.abs(bands[a][0])) - np.log(np.abs(bands[b][0])))
         return (np.log(np.abs(response(*self.coefficients[a], w, self.dt)))
                 - np.log(np.abs(response(*self.coefficients[b], w, self.dt))))
 

@@ -150,8 +150,12 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
         # the state-space responses: the polynomials lose poles that lie within rounding of z = 1
         from .verify import phase_realisation
 
-        bands = linear.band_responses(phase_realisation(table), table.sensors, table.domain, dt, omega)
-        resp = FrequencyResponse(omega, bands, dt, coefficients)
+        real = phase_realisation(table)
+
+        def evaluate(w):
+            return linear.band_responses(real, table.sensors, table.domain, dt, w)
+
+        resp = FrequencyResponse(omega, evaluate(omega), dt, coefficients, evaluate)
         kind = f"discrete, T = {dt:g} s, {table.output}" if dt else "continuous"
         return _draw_bands(resp, hz, title or f"Bode diagram of {table.name} ({kind})", fig)
     return _multirate_figure(table, omega, hz, title, fig)

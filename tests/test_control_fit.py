@@ -143,6 +143,13 @@ def test_transfer_functions_warn_where_polynomials_lose_the_filter_and_bode_does
     fig = table.bode(omega=[w / 10, w, w * 10])
     mags = {line.get_label(): line.get_ydata() for line in fig.axes[0].get_lines()}
     assert mags["T_angle"][1] == pytest.approx(mags["T_rate"][1], abs=1e-6)  # dB: equal at the crossover
+    # the crossover the plot marks is refined on the state-space responses its grid holds: on the
+    # polynomials, which have no sign change there, Brent's method raised 'f(a) and f(b) must
+    # have different signs'
+    fig = table.bode()
+    marked = [line.get_xdata()[0] for line in fig.axes[0].get_lines() if line.get_marker() == "o"
+              and len(line.get_xdata())]
+    assert marked == [pytest.approx(w, rel=1e-6)]
 
 
 def test_transfer_functions_of_ordinary_tables_do_not_warn(dckf3, recwarn):
