@@ -1071,8 +1071,9 @@ def adev_plot(fits, ax=None, unit: str = "u"):
 
 
 # ---------------------------------------------------------------------------- reading a log
-#: a rate from a time column is the shortest decimal this close to the measured one (relative):
-#: timestamp jitter and a crystal's tolerance (tens of ppm) are not the sensor's nominal rate
+#: a rate from a time column is the shortest decimal (of the rate or of the period) this close to the
+#: measured one (relative, :func:`nominal_rate`): timestamp jitter and a crystal's tolerance (tens of
+#: ppm) are not the sensor's nominal rate
 RATE_RTOL = 1e-4
 #: largest CSV read for noise identification (bytes)
 MAX_LOG_BYTES = 2_000_000_000
@@ -1083,8 +1084,9 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
     every row; with ``time_column`` the rate is that of the even grid that fits the times best,
-    written as the shortest decimal within ``RATE_RTOL`` of it (jittered stamps of a 100 Hz
-    sensor give 100, not 99.9999855, a rate no other sensor of a design file is a fraction of),
+    its :func:`nominal_rate` (the shortest decimal rate or period within ``RATE_RTOL`` of it:
+    jittered stamps of a 100 Hz sensor give 100, not 99.9999855, a rate no other sensor of a
+    design file is a fraction of; stamps 3 ms apart 1000/3, not 333.3),
     and the times must increase steadily: no gap longer than 1.5 steps and no step shorter than
     half of one, unless every time is within half a step of its own tick of the even grid that
     fits them best (time stamps jittered by up to half a step, as ``cfdesign run`` takes them).
@@ -1190,7 +1192,12 @@ def _grid_break(t, step) -> int:
 
 
 def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:
-    """The shortest decimal within ``rtol`` (relative) of a measured rate.
+    """The nominal rate a measured one stands for: the shortest decimal within ``rtol`` (relative)
+    of the rate, or of the sample period where that is shorter.
+
+    A sensor read every 3 ms runs at 1000/3 Hz: its shortest decimal rate within ``rtol``, 333.3 Hz,
+    beside a 1 kHz sensor in a design file, made a schedule of 10,000 steps (ratio 10000/3333)
+    instead of 3, and a 3.5 ms period (BROAD's IMU) gave 285.7 Hz.
 
     Parameters
     ----------
@@ -1202,16 +1209,23 @@ def nominal_rate(rate_hz: float, rtol: float = RATE_RTOL) -> float:
     Returns
     -------
     float
-        The nominal rate, written with the fewest significant digits.
+        The nominal rate: the rate or the period written with the fewest significant digits
+        (the rate on a tie), as a rate in Hz.
 
     Examples
     --------
     >>> from cfdesign.allan import nominal_rate
     >>> nominal_rate(99.99998552563129), nominal_rate(99.5), nominal_rate(104.0016)
     (100.0, 99.5, 104.0)
+    >>> nominal_rate(333.3331), 1 / nominal_rate(285.7148)   # periods of 3 ms and 3.5 ms
+    (333.3333333333333, 0.0035)
     """
-    for digits in range(1, 18):
-        r = float(f"{rate_hz:.{digits}g}")
-        if abs(r - rate_hz) <= rtol * rate_hz:
-            return r
-    return rate_hz
+    def shortest(value):
+        for digits in range(1, 18):
+            r = float(f"{value:.{digits}g}")
+            if abs(r - value) <= rtol * value:
+                return digits, r
+        return 18, value
+
+    (rate_digits, rate), (period_digits, period) = shortest(rate_hz), shortest(1.0 / rate_hz)
+    return 1.0 / period if period_digits < rate_digits else rate

@@ -508,3 +508,17 @@ def test_a_three_axis_array_is_refused_not_interleaved():
     for x in (g[:, 1:2], g[:, 1:2].T):
         fit = identify_noise(x, 100.0)
         assert fit.duration_s == 60.0 and fit.white_density == one.white_density
+
+
+def test_the_nominal_rate_of_a_sensor_read_every_few_milliseconds_is_its_period_s():
+    """A sensor read every 3 ms (1000/3 Hz) was written as 333.3 Hz, the shortest decimal within
+    1e-4: beside a 1 kHz gyro in a design file that rate made a schedule of 10,000 base steps (ratio
+    10000/3333) instead of 3. The period is the shorter decimal there, and the rate is taken from it."""
+    from cfdesign.allan import nominal_rate
+    from cfdesign.designer import multirate_schedule
+
+    rate = nominal_rate(1000.0 / 3.0 * (1 + 3e-6))
+    assert rate == 1000.0 / 3.0 and nominal_rate(1 / 0.0035 * (1 - 2e-6)) == 1 / 0.0035
+    assert (nominal_rate(100.00002), nominal_rate(99.5), nominal_rate(104.0016), nominal_rate(128.0)) == (
+        100.0, 99.5, 104.0, 128.0)
+    assert multirate_schedule({"gyro": 1000.0, "compass": rate}, ["gyro"])[1].period == 3
