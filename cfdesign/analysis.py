@@ -40,6 +40,8 @@ def transfer_functions(observer) -> dict:
     ------
     GainError
         The observer still has symbolic parameters.
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
 
     Examples
     --------
@@ -48,9 +50,26 @@ def transfer_functions(observer) -> dict:
     >>> sorted(tfs), tfs["angle"].name, tfs["angle"].input_labels
     (['angle', 'rate', 'sum'], 'T_angle', ['angle'])
     """
+    _require_observer(observer, "transfer_functions")
+    coefficients = observer.band_coefficients()  # first: a symbolic sample time gave float()'s TypeError
     dt = float(observer.sample_time) if observer.discrete else 0
-    return named_transfer_functions(observer.band_coefficients(), dt, observer.name,
-                                    observer.sum_coefficients())
+    return named_transfer_functions(coefficients, dt, observer.name, observer.sum_coefficients())
+
+
+def _require_observer(observer, what: str) -> None:
+    """StructureError unless ``observer`` is a cfdesign Observer (its attributes were read first:
+    a python-control system, a gain table or None raised a raw AttributeError)."""
+    if hasattr(observer, "band_coefficients") and hasattr(observer, "sample_time"):
+        return
+    from .errors import StructureError
+
+    if hasattr(observer, "dt") and hasattr(observer, "ninputs"):
+        hint = "; build one from a control.StateSpace with Observer.from_statespace(sys, K, sensors)"
+    elif hasattr(observer, "transfer_functions") and hasattr(observer, "K"):
+        hint = "; a gain table has its own: table.transfer_functions(), table.bode(), table.observer()"
+    else:
+        hint = ""
+    raise StructureError(f"{what} takes a cfdesign Observer with numeric gains, got {type(observer).__name__}{hint}")
 
 
 def named_transfer_functions(coefficients: dict, dt, label: str = "", total=None) -> dict:
@@ -135,12 +154,18 @@ class FrequencyResponse:
         Sample time in seconds (discrete) or None (continuous).
     coefficients : dict
         ``{sensor: (num, den)}`` band polynomials (highest power first).
+    evaluate : callable, optional
+        ``evaluate(omega) -> {sensor: complex ndarray}``, the responses ``bands`` were computed
+        with, for :meth:`crossovers` to refine on; default: the band polynomials.  A gain table's
+        Bode plot passes its state-space responses, which stay accurate where the polynomials do
+        not (poles within rounding of ``z = 1``).
     """
 
     omega: np.ndarray
     bands: dict
     dt: float | None
     coefficients: dict
+    evaluate: object = None
 
     @property
     def total(self) -> np.ndarray:
@@ -197,7 +222,7 @@ class FrequencyResponse:
         Bands are taken in :meth:`dominant_order`; each hands over to the next band that ever
         reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).  The
         first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method on
-        the exact band polynomials.
+        the responses the grid was computed with (``evaluate``; by default the band polynomials).
 
         Returns
         -------
@@ -221,6 +246,12 @@ class FrequencyResponse:
         return found
 
     def _log_ratio(self, a, b, w):
+        # refined on the responses the grid holds: polynomials that had lost poles near z = 1 had
+        # no sign change where the state-space grid had one (brentq's 'f(a) and f(b) must have
+        # different signs' from a gain table's Bode plot)
+        if self.evaluate is not None:
+            bands = self.evaluate(np.array([w], dtype=float))
+            return float(np.log(np.abs(bands[a][0])) - np.log(np.abs(bands[b][0])))
         return (np.log(np.abs(response(*self.coefficients[a], w, self.dt)))
                 - np.log(np.abs(response(*self.coefficients[b], w, self.dt))))
 
@@ -258,7 +289,10 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
     GainError
         The observer still has symbolic parameters, or the responses overflow (gains too
         large, or a pole on the grid).
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
     """
+    _require_observer(observer, "frequency_response")
     coefficients = observer.band_coefficients()
     dt = float(observer.sample_time) if observer.discrete else None
     if omega is None:

@@ -14,7 +14,10 @@ Continuous closed forms (``docs/derivations.md``, section "Design by crossover";
 * ``cf2`` order 2, ``T_angle = (k1 s + k2)/d``, ``T_rate = s^2/d``: with the closed-loop poles of
   damping ``zeta`` (``k1 = 2 zeta w_n``, ``k2 = w_n^2``), ``k2^2 + k1^2 w_c^2 = w_c^4`` gives
 
-  .. math:: w_n = w_c \sqrt{\sqrt{1 + 4\zeta^4} - 2\zeta^2};
+  .. math:: w_n = w_c \sqrt{\sqrt{1 + 4\zeta^4} - 2\zeta^2}
+                = \frac{w_c}{\sqrt{\sqrt{1 + 4\zeta^4} + 2\zeta^2}}
+
+  (the second form is the one computed: the first cancels for a large damping);
 
 * ``cfn`` / ``cf3`` (the sparse pattern of Carreira et al. eq. (13) extended),
   ``T_j = k_{n-1-j} s^j / d``: ``|T_j| = |T_{j+1}|`` at ``w_j`` gives
@@ -114,7 +117,7 @@ def continuous_crossover_gains(structure, hz, damping=None) -> dict:
         return {names[0]: w[0]}
     if kind == "cf2-2":
         zeta = DEFAULT_DAMPING if damping is None else damping
-        wn = w[0] * math.sqrt(math.sqrt(1 + 4 * zeta**4) - 2 * zeta**2)
+        wn = _natural_frequency(w[0], zeta)
         return {names[0]: 2 * zeta * wn, names[1]: wn**2}
     # chain: k_i = w_{m-1} ... w_{m-i}, name of k_i = last[m - i] (m = number of states)
     m = len(names)
@@ -123,6 +126,24 @@ def continuous_crossover_gains(structure, hz, damping=None) -> dict:
         prod *= w[m - i]
         out[names[m - i]] = prod
     return out
+
+
+def _natural_frequency(wc, zeta):
+    """``w_n`` of the cf2 order 2 poles of damping ``zeta`` crossing over at ``wc`` (rad/s):
+    ``wc / sqrt(sqrt(1 + 4 zeta^4) + 2 zeta^2)``, equal to ``wc sqrt(sqrt(1 + 4 zeta^4) - 2 zeta^2)``
+    without its cancellation (a damping of 1000 lost every digit, 1e6 gave ``w_n = 0``)."""
+    return wc / math.sqrt(math.hypot(1.0, 2 * zeta**2) + 2 * zeta**2)
+
+
+def _poles(zeta, wn):
+    """Roots of ``s^2 + 2 zeta wn s + wn^2`` to full relative accuracy: for ``zeta > 1`` the slow
+    root is ``wn^2`` over the fast one, not their difference (``numpy.roots`` gave the slow root of
+    a damping of 1e6 with an absolute error of the fast one's rounding)."""
+    if zeta >= 1:
+        fast = -wn * (zeta + math.sqrt((zeta - 1) * (zeta + 1)))
+        return np.array([fast, wn**2 / fast], dtype=complex)
+    im = wn * math.sqrt((1 - zeta) * (1 + zeta))
+    return np.array([complex(-zeta * wn, im), complex(-zeta * wn, -im)])
 
 
 def _count(structure, hz):
@@ -299,8 +320,7 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
     F, H = model["F"], model["H"]
 
     def gains_for(wn):
-        s = np.roots([1.0, 2 * zeta * wn, wn**2])
-        Kp = _ackermann(F, H, np.expm1(s * dt))
+        Kp = _ackermann(F, H, np.expm1(_poles(zeta, wn) * dt))
         K = linear.gain_in_form(F, Kp, form)
         return dict(zip(names, (float(v) for v in K[:, 0]), strict=True))
 
@@ -308,8 +328,12 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
         return _log_ratios(structure, model, dt, form, output, hz, gains_for(math.exp(logwn)))[0]
 
     wc = 2 * math.pi * hz[0]
-    lo, hi = math.log(wc * 1e-3), math.log(min(wc * 1e3, 10 * math.pi / dt))
-    grid = np.linspace(lo, hi, 121)
+    # three decades around both wc and the continuous solution (far below wc for a large damping:
+    # wc / (2 zeta)), at the same density of 20 points a decade whatever the span
+    wn_c = math.log(_natural_frequency(wc, zeta))
+    lo = min(wn_c, math.log(wc)) - math.log(1e3)
+    hi = min(max(wn_c, math.log(wc)) + math.log(1e3), math.log(10 * math.pi / dt))
+    grid = np.linspace(lo, hi, max(121, int(20 * (hi - lo) / math.log(10)) + 1))
     with np.errstate(all="ignore"):
         vals = np.array([f(x) for x in grid])
     idx = np.flatnonzero(np.isfinite(vals[:-1]) & np.isfinite(vals[1:]) & (np.sign(vals[:-1]) != np.sign(vals[1:])))
@@ -317,7 +341,6 @@ def _discrete_damped(structure, model, dt, form, output, hz, damping, names):
         raise SpecError(f"crossover.hz: no damping-{zeta:g} gains of {structure.name} put the crossover at "
                         f"{hz[0]:g} Hz at this sample rate")
     # the root nearest the continuous solution
-    wn_c = math.log(wc * math.sqrt(math.sqrt(1 + 4 * zeta**4) - 2 * zeta**2))
     i = idx[np.argmin(np.abs(grid[idx] - wn_c))]
     return gains_for(math.exp(brentq(f, grid[i], grid[i + 1], xtol=1e-14)))
 

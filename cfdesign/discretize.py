@@ -28,6 +28,7 @@ numpy and scipy only.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import replace
 
 import numpy as np
@@ -92,10 +93,11 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     if table.domain != "s":
         raise GainTableError(f"{table.name} is already discrete (T = {table.sample_time_s:g} s); discretize "
                              "takes a continuous table")
-    if isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float)) or not (
-            1 / MAX_RATE_HZ <= rate_hz <= MAX_RATE_HZ):
+    if isinstance(rate_hz, (bool, np.bool_)) or not isinstance(rate_hz, numbers.Real) or not (
+            1 / MAX_RATE_HZ <= rate_hz <= MAX_RATE_HZ):  # numpy's scalars are numbers.Real too
         raise GainTableError(f"--rate-hz must be a positive number of hertz (from {1 / MAX_RATE_HZ:g} to "
                              f"{MAX_RATE_HZ:g}), got {rate_hz!r}")
+    rate_hz = float(rate_hz)
     if gain_form not in ("predictor", "filter"):
         raise GainTableError(f"gain form must be predictor or filter, got {gain_form!r}")
     _check_single_rate(table)

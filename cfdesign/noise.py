@@ -23,6 +23,7 @@ exponential", IEEE TAC 23(3), 1978):
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,8 +38,10 @@ FIGURE_RANGE = (1e-100, 1e100)
 
 
 def _positive(value, field, allow_zero=True):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):  # numpy's scalars are Real
         raise SpecError(f"{field} must be a number, got {value!r}")
+    if isinstance(value, np.generic):  # compared as itself, a float32 overflowed casting the range's 1e100
+        value = float(value)
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
         kind = "non-negative" if allow_zero else "positive"
         raise SpecError(f"{field} must be a finite {kind} number, got {value!r}")
@@ -84,10 +87,11 @@ class WhiteNoise:
     def __post_init__(self):
         if (self.density is None) == (self.std is None):
             raise SpecError(f"{self.field}: give exactly one of 'density' (u/sqrt(Hz)) and 'std' (u per sample)")
+        # stored as doubles: a figure of np.float32 kept psd() and variance() in single precision
         if self.density is not None:
-            _positive(self.density, f"{self.field}.density")
+            object.__setattr__(self, "density", _positive(self.density, f"{self.field}.density"))
         else:
-            _positive(self.std, f"{self.field}.std")
+            object.__setattr__(self, "std", _positive(self.std, f"{self.field}.std"))
 
     def psd(self, rate_hz: float) -> float:
         """Continuous PSD ``q`` (u^2/Hz): ``density**2`` or ``std**2 / rate_hz``.
@@ -151,9 +155,11 @@ class Bias:
     def __post_init__(self):
         if self.model not in ("constant", "random_walk"):
             raise SpecError(f"{self.field}.model must be 'constant' or 'random_walk', got {self.model!r}")
-        _positive(self.density, f"{self.field}.density")
-        if isinstance(self.value, bool) or not isinstance(self.value, (int, float)) or not math.isfinite(self.value):
+        object.__setattr__(self, "density", _positive(self.density, f"{self.field}.density"))
+        if (isinstance(self.value, (bool, np.bool_)) or not isinstance(self.value, numbers.Real)
+                or not math.isfinite(self.value)):
             raise SpecError(f"{self.field}.value must be a finite number, got {self.value!r}")
+        object.__setattr__(self, "value", float(self.value))
         if self.model == "random_walk" and self.density == 0:
             raise SpecError(f"{self.field}: a random-walk bias needs a positive density (u/sqrt(s))")
 

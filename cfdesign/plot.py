@@ -35,6 +35,14 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     -------
     matplotlib.figure.Figure
         The figure: magnitude (dB) and phase (deg) axes.
+
+    Raises
+    ------
+    GainError
+        The observer still has symbolic parameters.
+    StructureError
+        ``observer`` is not a cfdesign Observer (a python-control system, a gain table: its own
+        ``table.bode()``).
     """
     resp = frequency_response(observer, omega)
     return _draw_bands(resp, hz, title or _default_title(observer), fig)
@@ -142,8 +150,12 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
         # the state-space responses: the polynomials lose poles that lie within rounding of z = 1
         from .verify import phase_realisation
 
-        bands = linear.band_responses(phase_realisation(table), table.sensors, table.domain, dt, omega)
-        resp = FrequencyResponse(omega, bands, dt, coefficients)
+        real = phase_realisation(table)
+
+        def evaluate(w):
+            return linear.band_responses(real, table.sensors, table.domain, dt, w)
+
+        resp = FrequencyResponse(omega, evaluate(omega), dt, coefficients, evaluate)
         kind = f"discrete, T = {dt:g} s, {table.output}" if dt else "continuous"
         return _draw_bands(resp, hz, title or f"Bode diagram of {table.name} ({kind})", fig)
     return _multirate_figure(table, omega, hz, title, fig)

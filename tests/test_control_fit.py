@@ -143,9 +143,72 @@ def test_transfer_functions_warn_where_polynomials_lose_the_filter_and_bode_does
     fig = table.bode(omega=[w / 10, w, w * 10])
     mags = {line.get_label(): line.get_ydata() for line in fig.axes[0].get_lines()}
     assert mags["T_angle"][1] == pytest.approx(mags["T_rate"][1], abs=1e-6)  # dB: equal at the crossover
+    # the crossover the plot marks is refined on the state-space responses its grid holds: on the
+    # polynomials, which have no sign change there, Brent's method raised 'f(a) and f(b) must
+    # have different signs'
+    fig = table.bode()
+    marked = [line.get_xdata()[0] for line in fig.axes[0].get_lines() if line.get_marker() == "o"
+              and len(line.get_xdata())]
+    assert marked == [pytest.approx(w, rel=1e-6)]
 
 
 def test_transfer_functions_of_ordinary_tables_do_not_warn(dckf3, recwarn):
     dckf3.transfer_functions()
     cfdesign.design(cfdesign.load_spec(cfdesign.example_path("tilt"))).transfer_functions()
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+def test_complex_matrices_and_unreadable_gains_are_named():
+    """A complex system matrix raised float()'s raw TypeError in from_statespace, and a complex F given to
+    Observer was taken: its proof failed ('the bands do not sum to one') for no fault of the
+    filter; sympy's multi-line reason for a gain that is no matrix is one line."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    k = [[sp.Symbol("k")]]
+    sys = control.ss([[0]], [[1]], [[1]], [[0]])
+    sys.A = np.array([[1j]])  # control.ss refuses complex matrices; its attributes take them
+    with pytest.raises(StructureError, match=r"A\[0\]\[0\] is complex"):
+        Observer.from_statespace(sys, k, sensors)
+    for F in ([[1j]], np.array([[2j]]), [[sp.I]]):
+        with pytest.raises(StructureError, match=r"F\[0\]\[0\] is complex"):
+            Observer(F, [[1]], [[1]], k, sensors)
+    sys.A = np.array([[0j]])  # complex dtype, real values
+    assert Observer.from_statespace(sys, k, sensors).proof().holds
+    with pytest.raises(StructureError, match="K is not a matrix") as err:
+        Observer([[0]], [[1]], [[1]], 1.0, sensors)
+    assert "\n" not in str(err.value)
+
+
+def test_filter_gain_form_of_a_continuous_observer_is_refused():
+    """gain_form='filter' for a continuous system was dropped without a word (its K taken as the
+    continuous gain), as a design file's is refused ('applies to discrete filters only')."""
+    import control
+
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    sys = control.ss([[0]], [[1]], [[1]], [[0]])
+    with pytest.raises(StructureError, match="'filter' applies to discrete observers only"):
+        Observer.from_statespace(sys, [[0.5]], sensors, gain_form="filter")
+    obs = Observer([[0]], [[1]], [[1]], [[sp.Symbol("k")]], sensors)
+    with pytest.raises(StructureError, match="'filter' applies to discrete observers only"):
+        obs.with_gain_matrix([[0.5]], gain_form="filter")
+    assert Observer.from_statespace(control.c2d(sys, 0.1), [[0.5]], sensors, gain_form="filter").proof().holds
+
+
+def test_band_functions_name_what_is_not_an_observer():
+    """cfdesign.transfer_functions, bode_plot and frequency_response read their argument's
+    attributes first: a python-control system, a gain table or None raised a raw AttributeError,
+    and an observer with a symbolic sample time float()'s TypeError."""
+    import control
+
+    from cfdesign.analysis import frequency_response
+    from cfdesign.errors import GainError
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.spec.example_path("tilt")))
+    for fn in (cfdesign.transfer_functions, cfdesign.bode_plot, frequency_response):
+        for arg, hint in ((control.tf([1], [1, 1]), "from_statespace"), (table, "table.transfer_functions"),
+                          (None, "got NoneType")):
+            with pytest.raises(StructureError, match=hint):
+                fn(arg)
+        with pytest.raises(GainError, match="substitute numbers first"):
+            fn(cfdesign.dckf3())

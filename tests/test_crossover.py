@@ -176,3 +176,35 @@ def test_continuous_three_bands_with_crossovers_far_apart_design_and_verify():
     mag = magnitudes(table, [0.05, 9000.0])
     assert mag["position"][0] == pytest.approx(mag["velocity"][0], rel=1e-6)
     assert mag["velocity"][1] == pytest.approx(mag["acceleration"][1], rel=1e-6)
+
+
+@pytest.mark.parametrize("damping", [1e3, 1e6])
+@pytest.mark.parametrize("discrete", [False, True])
+def test_large_damping_crossover_designs(damping, discrete):
+    """The damping range (up to 1e6) designs: w_n = w_c sqrt(sqrt(1 + 4 zeta^4) - 2 zeta^2)
+    cancelled (a damping of 1000: 'no gains put the crossover', 1e6: 'do not stabilise'), and the
+    discrete search for w_n started three decades below w_c, above w_n ~ w_c / (2 zeta)."""
+    table = design(cf2_spec(crossover={"hz": 0.5, "damping": damping}, **({"discrete": True} if discrete else {})))
+    mag = magnitudes(table, [0.5])
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-6)
+    assert table.checks["stable"]
+    if not discrete:
+        k1, k2 = table.gains["k1"], table.gains["k2"]
+        assert k1 / (2 * math.sqrt(k2)) == pytest.approx(damping, rel=1e-9)
+    elif damping == 1e3:
+        Kp = linear.gain_pair(table.F, table.K[0], table.gain_form)[0]
+        # the closed-loop eigenvalues 1 + expm1(s_i T): s_i real, of damping -(s1 + s2) / (2 sqrt(s1 s2))
+        s = np.log1p(np.linalg.eigvals((table.F - np.eye(2)) - Kp @ table.H)) / table.sample_time_s
+        assert np.all(np.abs(s.imag) == 0)
+        assert -s.real.sum() / (2 * math.sqrt(np.prod(s.real))) == pytest.approx(damping, rel=1e-6)
+
+
+@pytest.mark.parametrize(("output", "hz", "damping"), [("posterior", 45.0, 300.0), ("prior", 20.0, 30.0)])
+def test_discrete_damped_search_spans_both_the_continuous_w_n_and_w_c(output, hz, damping):
+    """The search for w_n spans three decades around w_c and around the continuous w_n (~ w_c / (2
+    zeta)): around w_c alone it missed the root of damping 300 at 45 Hz (of 100 Hz), around the
+    continuous w_n alone that of damping 30 at 20 Hz for the prior output (w_n ~ 20 w_c)."""
+    table = design(cf2_spec(crossover={"hz": hz, "damping": damping}, discrete=True, output=output))
+    mag = magnitudes(table, [hz])
+    assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-6)
+    assert table.checks["stable"]

@@ -84,3 +84,15 @@ def test_the_built_in_tilt_example_discretises_and_verifies(tmp_path, cli):
     code, out, err = cli("discretize", tmp_path / "c.json", "--rate-hz", 200, "-o", tmp_path / "d.json")
     assert code == 0 and "K = [[" in out, err
     assert all(c.ok for c in verify_table(load_gains(tmp_path / "d.json")))
+
+
+def test_numpy_scalar_rates_are_rates(continuous):
+    """np.int64(200) or np.float32(200) (a rate read from an array) was refused as 'not a positive
+    number of hertz'; a numpy bool still is."""
+    expected = discretize_table(continuous, 200.0)
+    for rate in (np.int64(200), np.float32(200.0)):
+        table = discretize_table(continuous, rate)
+        assert table.sample_time_s == expected.sample_time_s and type(table.sample_time_s) is float
+        np.testing.assert_array_equal(table.K[0], expected.K[0])
+    with pytest.raises(GainTableError, match="positive number of hertz"):
+        discretize_table(continuous, np.bool_(True))

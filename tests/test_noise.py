@@ -61,3 +61,15 @@ def test_bias_errors_and_psd():
         Bias("random_walk")
     with pytest.raises(SpecError, match="model"):
         Bias("flicker")
+
+
+def test_numpy_scalar_figures_are_figures_in_double_precision():
+    """WhiteNoise(density=np.float32(2e-3)) was refused ('must be a number'); a numpy scalar is a
+    number, stored as a double (psd() of a float32 figure stayed in single precision)."""
+    w = WhiteNoise(density=np.float32(2e-3))
+    assert type(w.density) is float and w.psd(100.0) == float(np.float32(2e-3)) ** 2
+    assert type(WhiteNoise(std=np.int64(1)).std) is float
+    b = Bias("random_walk", density=np.float32(1e-5), value=np.int64(0))
+    assert type(b.density) is float and type(b.value) is float
+    with pytest.raises(SpecError, match="must be a number"):
+        WhiteNoise(density=np.bool_(True))

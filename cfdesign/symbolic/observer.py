@@ -340,10 +340,14 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
-        raise StructureError(f"{name} is not a matrix: {exc}") from None
+        reason = " ".join(str(exc).split())  # sympy's message spans lines
+        raise StructureError(f"{name} is not a matrix: {reason}") from None
     for (i, j), e in np.ndenumerate(np.array(M.tolist(), dtype=object).reshape(M.shape)):
         if isinstance(e, sp.Basic) and e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
             raise GainError(f"{name}[{i}][{j}] must be finite, got {e}")
+        if isinstance(e, sp.Basic) and e.is_number and e.is_real is False:
+            # a complex entry gave bands that do not sum to one: a proof that failed for no fault of the filter
+            raise StructureError(f"{name}[{i}][{j}] is complex ({e}); the model, gains and output are real")
     if M.shape == (0, 0) and rows:
         M = sp.zeros(rows, cols or 0)
     if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
@@ -430,8 +434,9 @@ class Observer:
         Discrete only; defaults to the symbol named ``T`` in the matrices, whatever its
         assumptions (``sp.Symbol("T")``), else to cfdesign's ``T`` (positive).
     gain_form : {'predictor', 'filter'}
-        Discrete only.  ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the
-        estimate is ``C x`` (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
+        Discrete only (``'filter'`` for a continuous observer is a StructureError).
+        ``'predictor'``: ``x[k+1] = F x + B u + K (y - H x)`` and the estimate is ``C x``
+        (Carreira et al. eq. (25)); ``'filter'``: ``x+ = x- + K (y - H x-)``,
         ``x-[k+1] = F x+ + B u``, the estimate is ``C x+``.
     name : str
         Label used in reports.
@@ -444,8 +449,8 @@ class Observer:
     Raises
     ------
     StructureError
-        Shapes that do not fit, an unknown domain or gain form, a sample time for a
-        continuous observer, sensors that do not cover every column of ``B`` and row of
+        Shapes that do not fit, a complex entry, an unknown domain or gain form, a sample time or
+        the ``filter`` gain form for a continuous observer, sensors that do not cover every column of ``B`` and row of
         ``H`` exactly once, two different symbols with the sample time's name (a sympy symbol
         is its name and its assumptions: they would print alike and never cancel).
     GainError
@@ -493,6 +498,10 @@ class Observer:
         else:
             if sample_time is not None:
                 raise StructureError("a continuous observer has no sample time")
+            if gain_form not in ("predictor", "continuous"):  # the default, or the form a continuous gain has
+                # a filter-form K was taken as x' = F x + B u + K (y - H x) without a word
+                raise StructureError(f"gain_form {gain_form!r} applies to discrete observers only; a continuous "
+                                     "observer's gain is that of x' = F x + B u + K (y - H x)")
             gain_form = "continuous"
         self.F, self.B, self.H, self.K = F, B, H, K
         self.domain, self.sample_time, self.gain_form, self.name = domain, sample_time, gain_form, name
@@ -522,7 +531,7 @@ class Observer:
         sensors : sequence of Sensor
             One per input (column of ``B``) and per output (row of ``C``).
         gain_form : {'predictor', 'filter'}
-            Discrete systems only.
+            Discrete systems only (``'filter'`` for a continuous one is a StructureError).
         name : str, optional
             Label (default: the system's name).
 
@@ -534,8 +543,8 @@ class Observer:
         Raises
         ------
         StructureError
-            ``sys`` is not a state-space system, has a feedthrough or an unspecified sample time
-            (``dt=True``); or its inputs and outputs carry names of their own
+            ``sys`` is not a state-space system, has a complex entry, a feedthrough or an unspecified
+            sample time (``dt=True``); or its inputs and outputs carry names of their own
             (not python-control's ``u[i]`` / ``y[i]``) that differ from the sensors' names at
             the same column of ``B`` or row of ``C``.
         GainError
@@ -570,7 +579,13 @@ class Observer:
         discrete = bool(sys.dt)
 
         def to_exact(label, M):
-            return [[exact_number(float(v), f"{label} entry") for v in row] for row in np.asarray(M)]
+            M = np.asarray(M)
+            if np.iscomplexobj(M):  # float() of a complex entry raised a raw TypeError
+                if np.any(M.imag != 0):
+                    i, j = np.argwhere(M.imag != 0)[0]
+                    raise StructureError(f"{sys.name}: {label}[{i}][{j}] is complex ({M[i, j]}); the model is real")
+                M = M.real
+            return [[exact_number(float(v), f"{label} entry") for v in row] for row in M]
 
         return cls(to_exact("A", sys.A), to_exact("B", sys.B), to_exact("C", sys.C), K, sensors,
                    domain="z" if discrete else "s", sample_time=float(sys.dt) if discrete else None,
