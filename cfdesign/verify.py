@@ -294,7 +294,7 @@ def covariance_check(table) -> Check:
     and a continuous one ``(F - K H) P + P (F - K H)' + Q + K R K' = 0``; ``(Kp_k, L_k)`` from
     :func:`cfdesign.linear.gain_pair`, ``H_k, R_k`` the rows measured at phase ``k``.  The
     residual is a backward error: its Frobenius norm relative to the norms of the terms
-    (``2 |A| |P| + |W|`` for the continuous equation), :data:`COVARIANCE_RTOL`.
+    (``2 |A| |P| + |W|`` for the continuous equation), within ``COVARIANCE_RTOL`` (1e-7).
 
     Parameters
     ----------

@@ -1,11 +1,24 @@
 """Shared fixtures and helpers for the cfdesign tests."""
 
+import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = REPO.parent / "shared"
+
+
+def pytest_configure(config):
+    """One BLAS thread per xdist worker: ``-n auto`` already runs a worker per core, and each
+    worker's OpenBLAS threads on top of that (a 20-state verify: 0.4 s alone, 16 s beside another
+    worker) made the suite wait on oversubscribed cores."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        try:
+            from threadpoolctl import threadpool_limits
+        except ImportError:
+            return
+        config._cfdesign_blas_limit = threadpool_limits(limits=1, user_api="blas")
 
 
 @pytest.fixture
