@@ -301,9 +301,28 @@ def cmd_run(args) -> int:
         if rms != rms:  # NaN: every reference reading was empty, inf or beyond the reading limit
             print(f"RMS error of {state}: none (no row has a finite reference to compare with)")
             continue
-        print(f"RMS error of {state}: {rms:.6g}" + (f" {units[state]}" if units.get(state) else ""))
+        print(_rms_line(state, result, f" {units[state]}" if units.get(state) else ""))
     print(f"wrote {args.output} ({result.samples} samples)" + (f" and {args.plot}" if args.plot else ""))
     return 0
+
+
+def _rms_line(state, result, unit="") -> str:
+    """``RMS error of STATE: X over all rows; Y after the start-up (first S s); predicted Z``: the
+    error over every row, over the rows after the start-up (the settled filter), and the predicted
+    standard deviation the settled figure should come to (``LogResult.predicted_std``)."""
+    settled = result.rms_settled.get(state, float("nan"))
+    startup = result.startup_s
+    if settled == settled:
+        after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s)"
+    elif startup == float("inf"):
+        after = "none after the start-up (the table's error does not die away: a state no sensor corrects)"
+    elif result.settled_samples:
+        after = f"none after the start-up (first {startup:.3g} s): no row after it has a finite reference"
+    else:
+        after = f"none after the start-up (the log ends within it: its first {startup:.3g} s)"
+    predicted = result.predicted_std.get(state, float("nan"))
+    return (f"RMS error of {state}: {result.rms[state]:.6g}{unit} over all rows; {after}"
+            + (f"; predicted {predicted:.6g}{unit}" if predicted == predicted else ""))
 
 
 #: why readings were not used, by their key in ``LogResult.unused``: the line ``cfdesign run`` prints says it in words
@@ -484,7 +503,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                         "the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
-                   help="a true value to compare with: prints the RMS error (repeatable)")
+                   help="a true value to compare with: prints the RMS error over all rows and after the filter's "
+                        "start-up, beside the predicted std (repeatable)")
     p.add_argument("--std", action="store_true", help="also write <state>_std, the predicted standard deviations")
     p.add_argument("--plot", metavar="FILE.png", help="draw the estimates (against the references, with the "
                                                      "predicted +-2 sigma band)")

@@ -57,6 +57,8 @@ __all__ = [
     "has_posterior",
     "closed_loop",
     "loop_radius",
+    "STARTUP_DECAY",
+    "startup_steps",
     "Realisation",
     "realisation",
     "posterior_covariance",
@@ -78,6 +80,9 @@ __all__ = [
 
 #: the named gain forms of a table
 GAIN_FORMS = ("predictor", "filter", "continuous")
+#: the factor by which the slowest mode of a filter's error has shrunk at the end of its start-up
+#: (:func:`startup_steps`): to 1 %
+STARTUP_DECAY = 100.0
 #: what a discrete filter can output: the prediction before this step's readings, or the
 #: estimate after them
 OUTPUTS = ("prior", "posterior")
@@ -377,6 +382,66 @@ def loop_radius(F, H, gains, form: str) -> float:
         for K in gains:
             Phi = closed_loop(F, H, K, form) @ Phi
     return float(np.abs(np.linalg.eigvals(Phi)).max()) if np.all(np.isfinite(Phi)) else math.inf
+
+
+def startup_steps(F, H, gains, form: str, decay: float = STARTUP_DECAY) -> float:
+    """Base steps a discrete table's start-up takes: its slowest error mode shrinking ``decay`` times.
+
+    A filter started from a wrong state (the first reading's noise, a velocity or a bias it has
+    yet to learn) forgets that error at the pace of its closed loop.  Over one period of ``p``
+    phases the error's slowest mode shrinks by the spectral radius ``r`` of the monodromy
+    matrix (:func:`loop_radius`; the closed loop itself when ``p = 1``), so per base step by
+    ``rho = r ** (1 / p)``, and it has shrunk ``decay`` times after
+
+    .. math::
+
+        n = \\frac{\\ln(\\mathrm{decay})}{-\\ln \\rho} = \\frac{p \\ln(\\mathrm{decay})}{-\\ln r}
+
+    base steps.  Within a period the decay is not uniform (a multirate table's error drops at
+    its slow readings), and a repeated pole adds a factor growing like the step count, so the
+    figure is the slowest mode's time scale, not a bound on every state's error.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        Transition matrix.
+    H : array_like, shape (m, n)
+        Measurement matrix.
+    gains : sequence of array_like, each (n, m)
+        The gain of every phase, in ``form``.
+    form : {'predictor', 'filter'}
+        The gain form.
+    decay : float
+        How many times the slowest mode shrinks (default :data:`STARTUP_DECAY`, to 1 %).
+
+    Returns
+    -------
+    float
+        Base steps (not rounded); 0 when the error dies in finite time (radius 0), ``inf``
+        when it does not die (radius 1 or more).
+
+    Raises
+    ------
+    ValueError
+        ``decay`` is not a number greater than 1, or ``form`` is not a discrete gain form.
+
+    Examples
+    --------
+    >>> from cfdesign.linear import startup_steps
+    >>> round(startup_steps([[1.0]], [[1.0]], [[[0.1]]], "filter"), 2)  # 0.9 a step: ln 100 / -ln 0.9
+    43.71
+    """
+    if not (isinstance(decay, (int, float)) and not isinstance(decay, bool) and decay > 1):
+        raise ValueError(f"decay must be a number greater than 1, got {decay!r}")
+    if form not in ("predictor", "filter"):
+        raise ValueError(f"the start-up is counted in the steps of a discrete gain form (predictor, filter), "
+                         f"not {form!r}")
+    radius = loop_radius(F, H, gains, form)
+    if radius >= 1:
+        return math.inf
+    if radius == 0:
+        return 0.0
+    return len(gains) * math.log(decay) / -math.log(radius)
 
 
 @dataclass(frozen=True)

@@ -81,8 +81,9 @@ class LogResult:
     samples : int
         Rows run.
     rms : dict
-        ``{state: RMS error against the reference column}`` (angles wrapped to (-pi, pi]); NaN
-        when no row has a finite reference to compare with.
+        ``{state: RMS error against the reference column}`` over every row (angles wrapped to
+        (-pi, pi]); NaN when no row has a finite reference to compare with.  It includes the
+        start-up, where the error of the initial state is still dying away.
     unused : dict
         Readings not used, by reason and sensor: ``rejected`` (inf, or beyond the runtime's
         :data:`~cfdesign.runtime.filter.READING_LIMIT`), ``unscheduled`` (no gain at its
@@ -94,6 +95,22 @@ class LogResult:
         The file written.
     source : str
         The log's name (its path, or the name given).
+    rms_settled : dict
+        ``{state: RMS error}`` over the rows after the start-up (``startup_s``); NaN when no
+        row after it has a finite reference (the log ends within it).
+    predicted_std : dict
+        ``{state: predicted standard deviation}`` of the estimate that ran, over the rows of
+        ``rms_settled`` (over every compared row when none is after the start-up): the root
+        mean square of the ``<state>_std`` column there (the table's figure; a multirate
+        table's averaged over its phases; widened through missed readings; of the gains
+        recomputed for the log where they were).  What ``rms_settled`` should come to.
+    startup_s : float
+        The start-up's length in seconds: :func:`~cfdesign.linear.startup_steps` of the table
+        (its slowest error mode shrunk :data:`~cfdesign.linear.STARTUP_DECAY` times), rounded up
+        to whole base ticks; ``inf`` when the error does not die away (a state no sensor
+        corrects).  NaN when the log was run without a reference.
+    settled_samples : int
+        Rows after the start-up.
     """
 
     estimates: object
@@ -103,6 +120,10 @@ class LogResult:
     notes: list = field(default_factory=list)
     output: Path | None = None
     source: str = ""
+    rms_settled: dict = field(default_factory=dict)
+    predicted_std: dict = field(default_factory=dict)
+    startup_s: float = math.nan
+    settled_samples: int = 0
 
     @property
     def without_gain(self) -> int:
@@ -115,10 +136,14 @@ class LogResult:
         Returns
         -------
         dict
-            ``log``, ``samples``, ``readings_not_used`` and ``rms_<state>`` for each reference.
+            ``log``, ``samples``, ``readings_not_used``, and for each reference ``rms_<state>``
+            (over every row) beside ``rms_settled_<state>`` (after the start-up, ``startup_s``).
         """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
-        row.update({f"rms_{k}": v for k, v in self.rms.items()})
+        for k, v in self.rms.items():
+            row.update({f"rms_{k}": v, f"rms_settled_{k}": self.rms_settled.get(k, math.nan)})
+        if self.rms:
+            row["startup_s"] = self.startup_s
         return row
 
 
@@ -1032,7 +1057,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         ``{sensor: column}`` where the log names a sensor differently.
     reference : str or list of str, optional
         ``COLUMN`` (a reference for the first state, e.g. the true heading) or
-        ``STATE=COLUMN`` items: the RMS error of each is in the result.
+        ``STATE=COLUMN`` items: the RMS error of each is in the result, over every row and after
+        the start-up, beside the predicted standard deviation.
     std : bool
         Add ``<state>_std`` columns: the predicted standard deviation at each row's phase.
     prediction : bool
@@ -1057,8 +1083,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     Returns
     -------
     LogResult
-        The estimates (None when written to ``output``), the RMS error of each reference, the unused
-        readings and notes.
+        The estimates (None when written to ``output``), the RMS error of each reference (over every
+        row, and after the start-up beside the predicted standard deviation), the unused readings
+        and notes.
 
     Raises
     ------
@@ -1109,12 +1136,13 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
     place = _Pass(table, cols, source, grid=grid)  # tick 0 where the first pass put it
+    startup = _startup_ticks(table)
 
     def run_rows(block, values, ticks):
         if len(ticks):
             states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
             _check_bounded(table, states, ticks, source)
-            writer.write(_estimates(table, block, cols, values, states, stds, std))
+            writer.write(_estimates(table, block, cols, values, states, stds, std), ticks >= startup)
             bar.update(len(ticks))
 
     with _progress(n_rows, progress) as bar, writer:
@@ -1142,8 +1170,20 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         _merge(runner.counts, {"before_start": place.early})
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
     notes += lock.notes
+    settled, predicted = writer.settled()
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
-                     Path(output) if output else None, source)
+                     Path(output) if output else None, source, settled, predicted,
+                     startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows)
+
+
+def _startup_ticks(table) -> float:
+    """The start-up of ``table`` in whole base ticks (:func:`~cfdesign.linear.startup_steps`
+    rounded up; ``inf`` when its error does not die away): rows on a tick before it are the
+    start-up's."""
+    from .linear import startup_steps
+
+    steps = startup_steps(table.F, table.H, table.K, table.gain_form)
+    return float(math.ceil(steps)) if math.isfinite(steps) else math.inf
 
 
 def _check_bounded(table, states, ticks, source):
@@ -1564,6 +1604,9 @@ class _Writer:
     def __init__(self, path, keep, types=None):
         self.path, self.keep = (Path(path) if path else None), keep
         self.frames, self.errors = [], {}
+        self._settled = {}  # state -> (squared errors, their count, variances predicted) after the start-up
+        self._predicted = {}  # state -> (variances predicted, their count) over every compared row
+        self.settled_rows = 0
         self._ctx = self._fh = self._parquet = self._packed = None
         self._types = types  # Parquet types of the log's passed-through columns over the whole log
         self._blocks = 0  # CSV blocks written
@@ -1591,8 +1634,9 @@ class _Writer:
             self._ctx.__exit__(*exc)
         return False
 
-    def write(self, frame):
-        self._errors(frame)
+    def write(self, frame, settled):
+        """Write a block of estimates (``settled``: a boolean per row, the rows after the start-up)."""
+        self._errors(frame, settled)
         shown = frame.drop(columns=frame.attrs["hidden"])
         if self.keep:
             self.frames.append(frame)
@@ -1628,17 +1672,32 @@ class _Writer:
             raise OutputError(f"cannot write Parquet: a column changes type between blocks of the log "
                               f"({_first_line(exc)}); write CSV, or give the column one type") from None
 
-    def _errors(self, frame):
+    def _errors(self, frame, settled):
         from .runtime.filter import usable
 
+        self.settled_rows += int(np.count_nonzero(settled))
         for state in frame.attrs.get("references", ()):
             ref = frame[f"{state}_reference"].to_numpy(dtype=float)
             err = frame[state].to_numpy() - ref
             if frame.attrs.get("wrap") == state:
                 err = wrap(err)
             ok = np.isfinite(err) & usable(ref)  # a reference of 1e308 squared to an RMS error of inf
+            var = frame[f"{state}_std"].to_numpy() ** 2
             s, n = self.errors.get(state, (0.0, 0))
             self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
+            v, n = self._predicted.get(state, (0.0, 0))
+            self._predicted[state] = (v + float(np.sum(var[ok])), n + int(ok.sum()))
+            ok &= settled
+            s, n, v = self._settled.get(state, (0.0, 0, 0.0))
+            self._settled[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()), v + float(np.sum(var[ok])))
+
+    def settled(self) -> tuple:
+        """``({state: RMS error after the start-up}, {state: RMS of the predicted std over those
+        rows, or over every compared row when none is after the start-up})``."""
+        rms = _rms({k: (s, n) for k, (s, n, _) in self._settled.items()})
+        predicted = {k: math.sqrt(v / n) if n else math.sqrt(self._predicted[k][0] / self._predicted[k][1])
+                     if self._predicted[k][1] else math.nan for k, (_, n, v) in self._settled.items()}
+        return rms, predicted
 
     def frame(self):
         if not self.frames:
@@ -1676,6 +1735,10 @@ def _progress(total, show):
 def plot_log(table, estimates, references=None, time=None, time_unit="s"):
     """Every state over time with its predicted +-2 sigma band; against its reference where given.
 
+    The error panels shade the start-up (:func:`~cfdesign.linear.startup_steps`): the error of
+    the initial state, dying away at the closed loop's pace, is not in the band, which is the
+    filter's steady state.  Their titles give the RMS error over every row and after the start-up.
+
     Parameters
     ----------
     table : GainTable
@@ -1701,6 +1764,10 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s"):
     rows = sum(2 if s in refs else 1 for s in table.states)
     fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), sharex=True, squeeze=False)
     x, xlabel = _time_axis(estimates, time, TIME_UNITS[time_unit])
+    startup = _startup_ticks(table) if table.domain == "z" and len(x) else None  # (logs run discrete tables)
+    if startup is not None:  # where it ends on the x axis: without a time column, a row is a base tick
+        startup_s = startup * table.sample_time_s
+        end = x[0] + (startup_s if time else startup)
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
     units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
@@ -1715,12 +1782,20 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s"):
             err = est - estimates[f"{name}_reference"].to_numpy()
             err = wrap(err) if table.wrap_angle and name == table.states[0] else err
             band = 2 * estimates[f"{name}_std"].to_numpy() if f"{name}_std" in estimates else None
+            if startup is not None:  # the start-up: the error of the initial state dying away, outside the band
+                ax2.axvspan(x[0], min(end, x[-1]), color="#fde9b5", lw=0, zorder=0,
+                            label=f"start-up (first {startup_s:.3g} s)" if math.isfinite(startup_s)
+                            else "start-up (the error does not die away)")
             ax2.plot(x, err, lw=0.6, color="C3", label="error")
             if band is not None:
                 ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
             ok = np.isfinite(err)
+            after = ok & (x >= end) if startup is not None else None
+            title = f"RMS {np.sqrt(np.mean(err[ok] ** 2)):.3g}"
+            if after is not None and after.any():
+                title += f"; after the start-up {np.sqrt(np.mean(err[after] ** 2)):.3g}"
             ax2.set_ylabel(f"{name} error{units[name]}")
-            ax2.set_title(f"RMS {np.sqrt(np.mean(err[ok] ** 2)):.3g}", fontsize=9, loc="right")
+            ax2.set_title(title, fontsize=9, loc="right")
             ax2.legend(loc="upper right", fontsize=8)
         elif f"{name}_std" in estimates:
             band = 2 * estimates[f"{name}_std"].to_numpy()

@@ -702,6 +702,9 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd, caplog,
     assert list(summary["log"].map(lambda p: p.split("/")[-1])) == ["broken.csv", "robot0.csv", "robot1.csv",
                                                                     "robot2.csv"]
     assert summary["samples"].tolist() == [0, 1500, 1500, 1500] and summary["rms_heading"].notna().sum() == 3
+    columns = list(summary.columns)  # the settled RMS beside the RMS over every row: none, 15 s in a 45.5 s start-up
+    assert columns[columns.index("rms_heading") + 1] == "rms_settled_heading"
+    assert summary["rms_settled_heading"].isna().all() and summary["startup_s"].iloc[1:].tolist() == [45.46] * 3
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["robot0.csv", "robot1.csv", "robot2.csv",
                                                                     "summary.csv"]
 
