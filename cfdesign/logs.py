@@ -1142,7 +1142,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if len(ticks):
             states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
             _check_bounded(table, states, ticks, source)
-            writer.write(_estimates(table, block, cols, values, states, stds, std), ticks >= startup)
+            writer.write(_estimates(table, block, cols, values, states, stds, std), runner.settled(ticks, startup))
             bar.update(len(ticks))
 
     with _progress(n_rows, progress) as bar, writer:
@@ -1165,11 +1165,12 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
             from .plot import figure_bytes
 
-            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit), plot))
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit,
+                                                          restarts=runner.restarts), plot))
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
-    notes += lock.notes
+    notes += lock.notes + [n for n in [runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
@@ -1390,6 +1391,10 @@ class _Runner:
         self.counts = {}
         self.x, self.u_last = None, None
         self.next_tick = 0
+        self.quiet = 0  # ticks since an input sensor last read (carried from call to call)
+        self.pauses = []  # (first tick without an input reading, ticks) of each pause
+        self.restarts = []  # ticks where a pause ended (state 0 started again from a direct reading)
+        self.pending = False  # a pause ended, no direct reading since: start again at the first one
 
     def _runtime(self, seg):
         key = (seg.rotation, seg.offsets) if seg.offsets else ("rotation",)
@@ -1432,18 +1437,120 @@ class _Runner:
 
     def _ticks(self, ticks, readings, last):
         """Ticks ``next_tick .. last`` (those of the rows at ``ticks`` and the ones between, without
-        a row): the estimates at ``ticks``."""
+        a row): the estimates at ``ticks``.  After a pause (:meth:`_restart_ticks`) the ticks from
+        the first direct reading on run from state 0 started again from it."""
         first = self.next_tick
         dense = self._dense(ticks, readings, first, last)
         if self.x is None and self.from_reading:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
-        if self.lock.varying:
-            out, phases, stds = self._run_arrivals(dense, first, last)
-        else:
-            out, phases, stds = self._run_segments(dense, first, last)
+        parts, shifts = [], []
+        restarts = self._restart_ticks(dense, first)
+        cuts = [first, *(r for _, r in restarts), last + 1]
+        for k, (a, b) in enumerate(itertools.pairwise(cuts)):
+            if k:
+                shifts.append((max(restarts[k - 1][0], first), a, *self._restart(dense, a - first)))
+                self.restarts.append(restarts[k - 1][0])
+            if a < b:
+                part = {name: v[a - first:b - first] for name, v in dense.items()}
+                parts.append(self._run_arrivals(part, a, b - 1) if self.lock.varying
+                             else self._run_segments(part, a, b - 1))
+        out, phases, stds = (np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        F = self.table.F
+        if np.array_equal(F[:, 0], np.eye(len(F))[0]):  # state 0 feeds no other state: a shift of it stays
+            for e, r, delta, std in shifts:  # the ticks from the pause's end to the reading, moved onto it
+                out[e - first:r - first, 0] += delta
+                stds[e - first:r - first, 0] = np.maximum(stds[e - first:r - first, 0], std)
+            if self.table.wrap_angle and shifts:
+                out[:, 0] = wrap(out[:, 0])
         self.next_tick = last + 1
         self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
         return out[ticks - first], phases[ticks - first], stds[ticks - first]
+
+    def settled(self, ticks, startup):
+        """Whether each of ``ticks`` is after the start-up (``startup`` ticks) of the log and of the
+        restart after every pause so far."""
+        out = np.asarray(ticks) >= startup
+        for e in self.restarts:
+            out &= ~((ticks >= e) & (ticks < e + startup))
+        return out
+
+    def pause_note(self, dt):
+        """One line on the pauses, or None."""
+        from .timing import PAUSE_TICKS
+
+        if not self.pauses:
+            return None
+        start, longest = max(self.pauses, key=lambda p: p[1])
+        return (f"the inputs have no reading for more than {PAUSE_TICKS} ticks {len(self.pauses)} time"
+                f"{'s' * (len(self.pauses) > 1)} (a logger paused), the longest {longest * dt:.3g} s from "
+                f"{start * dt:.6g} s: after each, {self.table.states[0]} starts again from the first direct "
+                "reading, its start-up shaded and left out of the settled RMS")
+
+    def _direct(self):
+        """Indices (in the table's measurements) of the sensors that read state 0 directly."""
+        e0 = np.eye(self.table.F.shape[0])[0]
+        return [i for i, s in enumerate(self.table.measurements) if np.array_equal(self.table.H[s.index], e0)]
+
+    def _restart_ticks(self, dense, first) -> list:
+        """Ticks (ascending) of the direct readings that start state 0 again: the first one at or
+        after the end of each pause (more than :data:`~cfdesign.timing.PAUSE_TICKS` ticks without
+        a reading of any input sensor: the logger stopped, the vehicle moved on, and what it did
+        meanwhile is unknown), pauses counted in :attr:`pauses`."""
+        from .runtime.filter import usable
+        from .timing import PAUSE_TICKS
+
+        inputs, direct = self.table.inputs, self._direct()
+        if not inputs or not direct:
+            return []
+        n = len(dense[inputs[0].name])
+        have = np.zeros(n, dtype=bool)
+        for s in inputs:
+            have |= usable(dense[s.name])
+        at = np.flatnonzero(have)
+        before = np.concatenate([[at[0] + self.quiet] if at.size else [], np.diff(at) - 1]).astype(np.int64)
+        ends = at[before >= PAUSE_TICKS]
+        self.pauses += [(first + int(e - q), int(q)) for e, q in zip(ends, before[before >= PAUSE_TICKS], strict=True)]
+        self.quiet = int(n - 1 - at[-1]) if at.size else self.quiet + n
+        read = np.zeros(n, dtype=bool)
+        for i in direct:
+            read |= usable(dense[self.table.measurements[i].name])
+        due, out, self.pending = ([0] if self.pending else []) + ends.tolist(), [], False
+        for e in due:
+            if out and out[-1][1] >= e:  # the reading that ends an earlier pause ends this one too
+                continue
+            r = np.flatnonzero(read[e:])
+            if not r.size:  # no direct reading yet: at the first one of a later call
+                self.pending = True
+                break
+            out.append((e, e + int(r[0])))
+        return [(first + e, first + r) for e, r in out]
+
+    def _restart(self, dense, k):
+        """State 0 started again from the direct reading at index ``k`` of ``dense`` (the most
+        precise one there), as at the log's start; its error is that reading's noise, independent
+        of the other states' errors, so the covariance carried (grown over the pause) gets row and
+        column 0 of that: variance ``R`` of the sensor, no correlation.  The other states carry on.
+        Returns ``(delta, std)``: the move of state 0 and the reading's noise std."""
+        from .runtime.filter import usable
+
+        ms, R = self.table.measurements, self.table.R
+        here = [i for i in self._direct() if usable(dense[ms[i].name][k:k + 1])[0]]
+        best = min(here, key=lambda i: R[i, i] if R is not None else 0.0)
+        kf = getattr(self, "_arrivals", None)  # the Kalman filter over the arrivals carries its own state
+        x = np.zeros(self.table.F.shape[0]) if (kf.x if kf is not None else self.x) is None else \
+            (kf.x if kf is not None else self.x).copy()
+        delta = dense[ms[best].name][k] - x[0]
+        x[0] += delta
+        if kf is not None:
+            kf.x = x
+        else:
+            self.x = x
+        for P in (self.P_missed, None if kf is None else kf.P):
+            if P is not None and R is not None:
+                P[0, :] = P[:, 0] = 0.0
+                P[0, 0] = R[best, best]
+        return (float(wrap(delta)) if self.table.wrap_angle else delta,
+                math.sqrt(R[best, best]) if R is not None else 0.0)
 
     def _run_arrivals(self, dense, first, last):
         """Ticks ``first..last`` through the Kalman filter over the actual arrivals
@@ -1732,7 +1839,7 @@ def _progress(total, show):
 
 
 # ---------------------------------------------------------------------------- plots
-def plot_log(table, estimates, references=None, time=None, time_unit="s"):
+def plot_log(table, estimates, references=None, time=None, time_unit="s", restarts=()):
     """Every state over time with its predicted +-2 sigma band; against its reference where given.
 
     The error panels shade the start-up (:func:`~cfdesign.linear.startup_steps`): the error of
@@ -1752,6 +1859,9 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s"):
         The time column (else the row number is the x axis).
     time_unit : {'s', 'ms', 'us', 'ns'}
         The unit of a numeric time column (:data:`TIME_UNITS`); the axis is in seconds.
+    restarts : sequence of int
+        Base ticks (from the log's first) where a pause of the logger ended and state 0 started
+        again (:func:`run_log`): the start-up after each is shaded too.
 
     Returns
     -------
@@ -1786,11 +1896,17 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s"):
                 ax2.axvspan(x[0], min(end, x[-1]), color="#fde9b5", lw=0, zorder=0,
                             label=f"start-up (first {startup_s:.3g} s)" if math.isfinite(startup_s)
                             else "start-up (the error does not die away)")
+                for e in restarts:  # and the start-up after each pause
+                    at = x[0] + e * (table.sample_time_s if time else 1)
+                    ax2.axvspan(at, min(at + end - x[0], x[-1]), color="#fde9b5", lw=0, zorder=0)
             ax2.plot(x, err, lw=0.6, color="C3", label="error")
             if band is not None:
                 ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
             ok = np.isfinite(err)
             after = ok & (x >= end) if startup is not None else None
+            for e in restarts if startup is not None else ():
+                at = x[0] + e * (table.sample_time_s if time else 1)
+                after &= ~((x >= at) & (x < at + end - x[0]))
             title = f"RMS {np.sqrt(np.mean(err[ok] ** 2)):.3g}"
             if after is not None and after.any():
                 title += f"; after the start-up {np.sqrt(np.mean(err[after] ** 2)):.3g}"
