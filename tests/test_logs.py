@@ -1380,3 +1380,34 @@ def test_a_row_of_units_under_the_header_is_read_as_units(heading, tmp_path, cli
     dated.loc[0, ["gyro", "odometry", "compass", "truth", "lap"]] = np.nan  # a row of a date alone
     dated.to_csv(tmp_path / "d.csv", index=False)
     assert len(run_log(heading, tmp_path / "d.csv").estimates) == 1000
+
+
+@pytest.mark.parametrize("faster_compass", [False, True])  # the table's gains / the Kalman filter over the arrivals
+def test_after_a_pause_of_the_logger_the_heading_starts_again_and_the_band_covers_it(heading, faster_compass):
+    """A 10 s pause of every row while the robot turns: the gyro held over it left the heading
+    0.1 rad off for tens of seconds after it (the predicted std back at 0.0014 within seconds).
+    After a pause the heading starts again from the first direct reading, the band covers the
+    error after it, the start-up after it is left out of the settled RMS, and a note says so."""
+    log, psi = heading_log(3, 37, n=8000, jitter=0.1)
+    if faster_compass:
+        log.loc[7::10, "compass"] = wrap(psi[7::10] + 0.05 * np.random.default_rng(1).standard_normal(800))
+    paused = log.drop(index=range(2000, 3000)).reset_index(drop=True)
+    whole = run_log(heading, log, reference="truth", std=True)
+    res = run_log(heading, paused, reference="truth", std=True, block_rows=2500)
+    after = res.estimates["time"].to_numpy() >= 30.0
+    err = wrap(res.estimates["heading"].to_numpy() - paused["truth"].to_numpy())[after]
+    same = wrap(whole.estimates["heading"].to_numpy() - log["truth"].to_numpy())[3000:]
+    assert np.sqrt(np.mean(err ** 2)) <= 1.5 * np.sqrt(np.mean(same ** 2)) + 1e-3
+    assert np.mean(np.abs(err) <= 2 * res.estimates["heading_std"].to_numpy()[after]) > 0.85
+    notes = [n for n in res.notes if "logger paused" in n]
+    assert len(notes) == 1 and "1 time " in notes[0] and "the longest 10 s from 20 s" in notes[0], res.notes
+    startup = int(np.ceil(res.startup_s / heading.sample_time_s))
+    ticks = np.round(paused["time"].to_numpy() / 0.01)
+    assert res.settled_samples == np.sum((ticks >= startup) & ((ticks < 3000) | (ticks >= 3000 + startup)))
+
+
+def test_a_log_without_a_pause_runs_as_before(heading):
+    """Inputs that read at most 50 ticks apart are no pause: no restart, no note."""
+    log, _ = heading_log(3, 37, n=3000)
+    res = run_log(heading, log.drop(index=range(1000, 1049)), reference="truth")
+    assert not any("logger paused" in n for n in res.notes)
