@@ -313,7 +313,8 @@ def _rms_line(state, result, unit="") -> str:
     settled = result.rms_settled.get(state, float("nan"))
     startup = result.startup_s
     if settled == settled:
-        after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s)"
+        after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s" + (
+            f", and as long after each of {result.pauses} pauses)" if result.pauses else ")")
     elif startup == float("inf"):
         after = "none after the start-up (the table's error does not die away: a state no sensor corrects)"
     elif result.settled_samples:

@@ -110,7 +110,11 @@ class LogResult:
         to whole base ticks; ``inf`` when the error does not die away (a state no sensor
         corrects).  NaN when the log was run without a reference.
     settled_samples : int
-        Rows after the start-up.
+        Rows after the start-up (and after the start-up that follows each pause).
+    pauses : int
+        Pauses of the logger: more than :data:`~cfdesign.timing.PAUSE_TICKS` ticks without a
+        reading of an input sensor, after each of which the first state starts again from the
+        first direct reading (its start-up left out of ``rms_settled``).
     """
 
     estimates: object
@@ -124,6 +128,7 @@ class LogResult:
     predicted_std: dict = field(default_factory=dict)
     startup_s: float = math.nan
     settled_samples: int = 0
+    pauses: int = 0
 
     @property
     def without_gain(self) -> int:
@@ -1174,7 +1179,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     settled, predicted = writer.settled()
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
-                     startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows)
+                     startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
+                     len(runner.pauses))
 
 
 def _startup_ticks(table) -> float:

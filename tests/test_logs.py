@@ -1400,7 +1400,8 @@ def test_after_a_pause_of_the_logger_the_heading_starts_again_and_the_band_cover
     assert np.sqrt(np.mean(err ** 2)) <= 1.5 * np.sqrt(np.mean(same ** 2)) + 1e-3
     assert np.mean(np.abs(err) <= 2 * res.estimates["heading_std"].to_numpy()[after]) > 0.85
     notes = [n for n in res.notes if "logger paused" in n]
-    assert len(notes) == 1 and "1 time " in notes[0] and "the longest 10 s from 20 s" in notes[0], res.notes
+    assert res.pauses == 1 and len(notes) == 1, res.notes
+    assert "1 time " in notes[0] and "the longest 10 s from 20 s" in notes[0], notes
     startup = int(np.ceil(res.startup_s / heading.sample_time_s))
     ticks = np.round(paused["time"].to_numpy() / 0.01)
     assert res.settled_samples == np.sum((ticks >= startup) & ((ticks < 3000) | (ticks >= 3000 + startup)))
@@ -1410,4 +1411,4 @@ def test_a_log_without_a_pause_runs_as_before(heading):
     """Inputs that read at most 50 ticks apart are no pause: no restart, no note."""
     log, _ = heading_log(3, 37, n=3000)
     res = run_log(heading, log.drop(index=range(1000, 1049)), reference="truth")
-    assert not any("logger paused" in n for n in res.notes)
+    assert res.pauses == 0 and not any("logger paused" in n for n in res.notes)
