@@ -314,7 +314,8 @@ def _rms_line(state, result, unit="") -> str:
     startup = result.startup_s
     if settled == settled:
         after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s" + (
-            f", and as long after each of {result.pauses} pauses)" if result.pauses else ")")
+            (", and as long after the pause)" if result.pauses == 1
+             else f", and as long after each of {result.pauses} pauses)") if result.pauses else ")")
     elif startup == float("inf"):
         after = "none after the start-up (the table's error does not die away: a state no sensor corrects)"
     elif result.settled_samples:

@@ -1887,17 +1887,24 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s", restar
     ax_iter = iter(axes[:, 0])
     wrapped = table.states[0] if table.wrap_angle else None
     units = dict(zip(table.states, (f" ({u})" if u else "" for u in table.state_units()), strict=True))
+    gaps = _gaps(x)
+
+    def cut(values):  # lines and bands break at a gap of the log (a pause) instead of bridging it
+        out = np.array(values, dtype=float)
+        out[gaps] = np.nan
+        return out
+
     for name in table.states:
         ax = next(ax_iter)
         est = estimates[name].to_numpy()
-        ax.plot(x, _broken(est) if name == wrapped else est, lw=0.8, label=f"{name} (estimate)")
+        ax.plot(x, cut(_broken(est) if name == wrapped else est), lw=0.8, label=f"{name} (estimate)")
         if name in refs:
             ref = estimates[f"{name}_reference"].to_numpy()
-            ax.plot(x, _broken(ref) if name == wrapped else ref, lw=0.8, ls="--", label="reference")
+            ax.plot(x, cut(_broken(ref) if name == wrapped else ref), lw=0.8, ls="--", label="reference")
             ax2 = next(ax_iter)
             err = est - estimates[f"{name}_reference"].to_numpy()
             err = wrap(err) if table.wrap_angle and name == table.states[0] else err
-            band = 2 * estimates[f"{name}_std"].to_numpy() if f"{name}_std" in estimates else None
+            band = cut(2 * estimates[f"{name}_std"].to_numpy()) if f"{name}_std" in estimates else None
             if startup is not None:  # the start-up: the error of the initial state dying away, outside the band
                 ax2.axvspan(x[0], min(end, x[-1]), color="#fde9b5", lw=0, zorder=0,
                             label=f"start-up (first {startup_s:.3g} s)" if math.isfinite(startup_s)
@@ -1905,7 +1912,7 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s", restar
                 for e in restarts:  # and the start-up after each pause
                     at = x[0] + e * (table.sample_time_s if time else 1)
                     ax2.axvspan(at, min(at + end - x[0], x[-1]), color="#fde9b5", lw=0, zorder=0)
-            ax2.plot(x, err, lw=0.6, color="C3", label="error")
+            ax2.plot(x, cut(err), lw=0.6, color="C3", label="error")
             if band is not None:
                 ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
             ok = np.isfinite(err)
@@ -1921,7 +1928,7 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s", restar
             ax2.legend(loc="upper right", fontsize=8)
         elif f"{name}_std" in estimates:
             band = 2 * estimates[f"{name}_std"].to_numpy()
-            ax.fill_between(x, est - band, est + band, color="0.85", label="predicted ±2σ")
+            ax.fill_between(x, cut(est - band), cut(est + band), color="0.85", label="predicted ±2σ")
         ax.set_ylabel(f"{name}{units[name]}")
         ax.legend(loc="upper right", fontsize=8)
     axes[-1, 0].set_xlabel(xlabel)
@@ -1943,6 +1950,16 @@ def _time_axis(estimates, time, scale=1.0):
         return col.to_numpy(dtype=float), f"{time} (s)"
     x = _numeric(estimates, [time], "estimates", _Lines(), time)[time]
     return x - x[0], f"{time} (s after {col.iloc[0]})"
+
+
+def _gaps(x):
+    """Rows that follow a gap of the x axis of more than ten median steps (a logger's pause):
+    the plot's lines and bands break there rather than draw a straight line across it."""
+    out = np.zeros(len(x), dtype=bool)
+    if len(x) > 2:
+        step = np.diff(np.asarray(x, dtype=float))
+        out[1:] = step > 10 * np.median(step)
+    return out
 
 
 def _broken(angle):

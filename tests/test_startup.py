@@ -181,6 +181,22 @@ def test_the_plot_shades_the_startup(slow, biased_log):
     plt.close(fig)
 
 
+def test_the_plot_breaks_its_lines_at_a_pause_of_the_log(slow, biased_log):
+    """Rows missing for 10 s (a logger's pause): the estimate, error and band stop at the pause
+    and start again after it, instead of a straight line across it."""
+    paused = biased_log[(biased_log["time"] < 20.0) | (biased_log["time"] >= 30.0)].reset_index(drop=True)
+    result = run_log(slow, paused, reference="truth", std=True)
+    fig = plot_log(slow, result.estimates, {"heading": "truth"}, "time")
+    first = np.flatnonzero(result.estimates["time"].to_numpy() >= 30.0)[0]
+    for line in (fig.axes[0].lines[0], fig.axes[1].lines[0]):
+        y = np.asarray(line.get_ydata(), dtype=float)
+        assert np.isnan(y[first]) and np.isfinite(y[first - 1]) and np.isfinite(y[first + 1])
+    assert np.isfinite(np.asarray(fig.axes[1].lines[0].get_ydata(), dtype=float)[100:first]).all()
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
 def test_the_fleet_summary_has_the_settled_rms_beside_the_rms():
     """``summary.csv``'s row: ``rms_<state>`` then ``rms_settled_<state>``, and the start-up's length;
     a result without references has none of them."""
