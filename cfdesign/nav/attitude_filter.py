@@ -24,9 +24,11 @@ gyro propagates the attitude and four designed complementary channels correct it
   ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_tilt / sigma_v)``: a second-order
   Butterworth low-pass of the inertial specific force, derived rather than chosen.
   It starts after a start-up of one time constant of that low-pass (``1 / omega``): from the
-  tilt of the first specific force, the tilt is turned by the gyro and moved to the running mean
-  of the tilts of the specific forces so far, and the tilt channel (below) waits, so the settling
-  of a first reading's noise is not read as gyro bias (not with a given initial attitude).
+  tilt of the first specific force, the tilt is turned by the gyro and set upright on the running
+  mean of the specific forces so far (of the vectors: a moving sensor's mean specific force is
+  gravity plus its velocity change over the time, its mean direction is not), and the tilt channel
+  (below) waits, so the settling of a first reading's noise is not read as gyro bias (no start-up
+  with a given initial attitude).
 * **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
   frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
   noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
@@ -134,6 +136,7 @@ STATE_FIELDS = (
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
     "tilt_n",                            # start-up: specific forces the initial tilt averages
+    "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
 )
@@ -661,7 +664,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (54, 1.0, 0.0)
+        (55, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -754,6 +757,9 @@ class AttitudeFilter:
             p00, p01, p11 = v[c + "00"], v[c + "01"], v[c + "11"]
             if not (p00 >= 0.0 and p11 >= 0.0 and p01 * p01 <= p00 * p11):
                 return f"{c}00, {c}01, {c}11 is not a covariance (positive semi-definite)"
+        if not 0.0 <= v["tilt_f"] <= p.accel_range_mps2 * tol:
+            return (f"tilt_f = {v['tilt_f']!r} is not the norm of a mean specific force (from 0 to "
+                    f"{p.accel_range_mps2:g})")
         for name in ("rest_time", "new_time", "new_turn"):
             if v[name] < 0.0:
                 return f"{name} = {v[name]!r} must not be negative"
@@ -1016,8 +1022,8 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
      use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
-     started, miss_g, miss_a, miss_m) = s
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
+     lgz, started, miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
@@ -1052,7 +1058,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 qw, qx, qy, qz = 0.0, 1.0, 0.0, 0.0                   # upside down
             n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
-            tilt_n = 1.0
+            tilt_n, tilt_f = 1.0, fn
         glx, gly, glz = gx, gy, gz
         if acc_ok:
             flx, fly, flz = ax, ay, az
@@ -1109,17 +1115,23 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     # velocity channel (tilt): v += T f_E; e = -v; v += k1 e; tilt turned by k2 e / g
     cx = cy = cz = 0.0
     if acc_ok and 0.0 < tilt_n * tilt_alpha < 1.0:
-        # start-up (from the first specific force, not a given attitude): the tilt is the running mean
-        # of the tilts of the specific forces so far, turned by the gyro (one reading is as noisy as
-        # the accelerometer); the velocity channel starts from zero velocity after it
+        # start-up (from the first specific force, not a given attitude): the tilt turns the running mean
+        # of the specific forces so far (the gyro's nearly inertial frame: gravity plus the mean
+        # acceleration, the velocity change over the time) upright; kept upright, the mean is its norm
+        # tilt_f. A mean of the vectors, not of their directions: a moving sensor's accelerations
+        # average out as velocity changes, their directions do not. The velocity channel starts from
+        # zero velocity after it
         if not first:
             tilt_n += 1.0
             fex = r0 * ax + r1 * ay + r2 * az
             fey = r3 * ax + r4 * ay + r5 * az
             fez = r6 * ax + r7 * ay + r8 * az
             fh = math.sqrt(fex * fex + fey * fey)
+            mean_z = tilt_f + (fez - tilt_f) / tilt_n
+            mean_h = fh / tilt_n
+            tilt_f = math.sqrt(mean_z * mean_z + mean_h * mean_h)
             if fh > 0.0:
-                w = math.atan2(fh, fez) / (tilt_n * fh)
+                w = math.atan2(mean_h, mean_z) / fh
                 cx, cy = w * fey, -w * fex
         vx = vy = 0.0
         jv = 1 if rest else 0
@@ -1307,6 +1319,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
-            started, miss_g, miss_a, miss_m)
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
+            lgz, started, miss_g, miss_a, miss_m)
     return jv
