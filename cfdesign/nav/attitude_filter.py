@@ -28,7 +28,11 @@ gyro propagates the attitude and four designed complementary channels correct it
   mean of the specific forces so far (of the vectors: a moving sensor's mean specific force is
   gravity plus its velocity change over the time, its mean direction is not), and the tilt channel
   (below) waits, so the settling of a first reading's noise is not read as gyro bias (no start-up
-  with a given initial attitude).
+  with a given initial attitude).  A sensor moving at the start leaves the start-up's tilt off by
+  its velocity change over it (up to ``max_speed_mps``), which the velocity channel removes with
+  the envelope ``exp(-omega t / sqrt(2))``: over its 2 % settling time ``4 sqrt(2) / omega`` the
+  tilt channel takes that decaying error as reading noise (its reading variance widened by it, as
+  white noise of the same correlation time), not as gyro bias.
 * **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
   frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
   noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
@@ -114,6 +118,10 @@ GRAVITY = 9.80665
 #: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
 #: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
 DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
+#: the velocity channel's settling after its start-up, in its time constants ``1 / omega`` from the first
+#: specific force: the start-up (one) and the 2 % settling time ``4 / (zeta omega)`` (``zeta = 1/sqrt(2)``)
+#: in which it removes what the start-up left of a sensor that was moving (the velocity it had)
+TILT_SETTLE = 1.0 + 4.0 * math.sqrt(2.0)
 
 #: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
 STATE_FIELDS = (
@@ -219,7 +227,9 @@ class AttitudeParams:
         sensor turned by ``mag_new_field_rotation_rad`` (default pi/2).
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
-        sustained acceleration and the tilt corrections are weighted down (default 4).
+        sustained acceleration and the tilt corrections are weighted down (default 4); also the
+        largest velocity change a start in motion leaves in the start-up's tilt, which the tilt
+        channel takes as reading noise while the velocity channel settles.
     max_reach_m : float
         How far a hand-held device moves in one stroke (m, default 1: an arm's reach; chosen, not
         tuned).  A speed beyond ``max_speed_mps`` engages the acceleration-disturbance designs only
@@ -1009,7 +1019,24 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
-            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"])
+            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design))
+
+
+def _settle_ratio(design: AttitudeDesign) -> float:
+    """How much the start-up's error adds to the tilt channel's reading variance as the velocity channel's
+    settling begins, relative to the reading's own (``docs/derivations.md``).
+
+    A sensor moving when the filter starts leaves the start-up's tilt (its mean specific force over
+    ``1 / omega``) off by its velocity change over that time: std ``omega v / g`` with ``v`` up to
+    ``max_speed_mps``.  The velocity channel removes it with the envelope ``exp(-zeta omega t)``: an error
+    correlated over ``1 / (zeta omega)``, whose variance as white noise is ``2 / (zeta omega)`` times its
+    own per unit bandwidth, against the reading's ``tilt_noise_density²`` (the tilt table's ``R T``).
+    """
+    c, p = design.constants, design.params
+    omega = c["tilt_alpha"] / c["T"]
+    density2 = design.channels["tilt"][3] * c["T"]
+    error2 = (omega * p.max_speed_mps / GRAVITY) ** 2
+    return 2.0 * math.sqrt(2.0) / omega * error2 / density2
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -1019,7 +1046,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = coef
+     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
      ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
@@ -1167,7 +1194,13 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         vy += k1v * evy
         cx = -k2v * evy / GRAVITY
         cy = k2v * evx / GRAVITY
-        # tilt channel (gyro bias during motion): reads the tilt the velocity channel gives
+        # tilt channel (gyro bias during motion): reads the tilt the velocity channel gives; while that settles
+        # from its start-up, the reading carries what the start-up left (a moving sensor's start-up tilt errs
+        # by its velocity change over the start-up), a decaying error taken as reading noise, not gyro bias
+        settle = 1.0
+        if 0.0 < tilt_n * tilt_alpha < TILT_SETTLE:
+            tilt_n += 1.0
+            settle += settle_ratio * math.exp(-math.sqrt(2.0) * (tilt_n * tilt_alpha - 1.0))
         if use_motion_bias and not rest:
             # its attitude error, kept in the body frame (where the bias is constant), moves against
             # the velocity channel's correction; its tilt (ENU x, y) is the reading
@@ -1176,7 +1209,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             ez -= r2 * cx + r5 * cy
             q00, q01, q11, rr, kal, k1t, k2t = tilt
             if kal:
-                den = t00 + rr
+                den = t00 + rr * settle
                 k1t, k2t = t00 / den, t01 / den
                 t00, t01, t11 = (1.0 - k1t) * t00, (1.0 - k1t) * t01, t11 - k2t * t01
                 t11 = t11 if t11 > 0.0 else 0.0   # a variance, not negative by rounding
