@@ -29,10 +29,11 @@ gyro propagates the attitude and four designed complementary channels correct it
   gravity plus its velocity change over the time, its mean direction is not), and the tilt channel
   (below) waits, so the settling of a first reading's noise is not read as gyro bias (no start-up
   with a given initial attitude).  A sensor moving at the start leaves the start-up's tilt off by
-  its velocity change over it (up to ``max_speed_mps``), which the velocity channel removes with
-  the envelope ``exp(-omega t / sqrt(2))``: over its 2 % settling time ``4 sqrt(2) / omega`` the
-  tilt channel takes that decaying error as reading noise (its reading variance widened by it, as
-  white noise of the same correlation time), not as gyro bias.
+  its velocity change over it (up to ``max_speed_mps``, taken as three standard deviations),
+  which the velocity channel removes with the envelope ``exp(-omega t / sqrt(2))``: over its 2 %
+  settling time ``4 sqrt(2) / omega`` the tilt channel takes that decaying error as reading noise
+  (its reading variance widened by it, as white noise of the same correlation time), not as gyro
+  bias.
 * **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
   frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
   noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
@@ -1027,15 +1028,16 @@ def _settle_ratio(design: AttitudeDesign) -> float:
     settling begins, relative to the reading's own (``docs/derivations.md``).
 
     A sensor moving when the filter starts leaves the start-up's tilt (its mean specific force over
-    ``1 / omega``) off by its velocity change over that time: std ``omega v / g`` with ``v`` up to
-    ``max_speed_mps``.  The velocity channel removes it with the envelope ``exp(-zeta omega t)``: an error
-    correlated over ``1 / (zeta omega)``, whose variance as white noise is ``2 / (zeta omega)`` times its
-    own per unit bandwidth, against the reading's ``tilt_noise_density²`` (the tilt table's ``R T``).
+    ``1 / omega``) off by its velocity change ``v`` over that time: ``omega v / g``, ``v`` up to
+    ``max_speed_mps`` taken as three standard deviations.  The velocity channel removes it with the
+    envelope ``exp(-zeta omega t)``: an error correlated over ``1 / (zeta omega)``, whose variance as
+    white noise is ``2 / (zeta omega)`` times its own per unit bandwidth, against the reading's
+    ``tilt_noise_density²`` (the tilt table's ``R T``).
     """
     c, p = design.constants, design.params
     omega = c["tilt_alpha"] / c["T"]
     density2 = design.channels["tilt"][3] * c["T"]
-    error2 = (omega * p.max_speed_mps / GRAVITY) ** 2
+    error2 = (omega * p.max_speed_mps / (3.0 * GRAVITY)) ** 2
     return 2.0 * math.sqrt(2.0) / omega * error2 / density2
 
 
