@@ -107,7 +107,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     >>> "void imu_att_init(imu_att_state *s);" in files["imu_att.h"]
     True
     """
-    from ..nav.attitude_filter import STATE_FIELDS, AttitudeFilter, _coefficients
+    from ..nav.attitude_filter import STATE_FIELDS, TILT_SETTLE, AttitudeFilter, _coefficients
 
     if not isinstance(attitude_filter, AttitudeFilter):
         raise CfdesignError(f"an AttitudeFilter is needed, got {type(attitude_filter).__name__}")
@@ -115,7 +115,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     design = attitude_filter.design
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
      new_s, new_rot, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels, use_bias,
-     inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = _coefficients(design)
+     inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -131,6 +131,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "rest_bias_th2": _hex(th_b2), "rest_time": _hex(rest_min), "mag_alpha": _hex(m_alpha),
         "mag_ref_alpha": _hex(ref_alpha), "north": _hex(north), "speed2": _hex(speed2),
         "max_accel_time": _hex(max_acc_s), "accel_hold": _hex(hold_s), "tilt_alpha": _hex(tilt_alpha),
+        "tilt_settle": _hex(TILT_SETTLE), "settle_ratio": _hex(settle_ratio),
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "hold_var": _hex(hold_var),
         "rest_lp_var": _hex(lp_var),

@@ -24,9 +24,16 @@ gyro propagates the attitude and four designed complementary channels correct it
   ``1/sqrt(2)`` and the natural frequency ``sqrt(g sigma_tilt / sigma_v)``: a second-order
   Butterworth low-pass of the inertial specific force, derived rather than chosen.
   It starts after a start-up of one time constant of that low-pass (``1 / omega``): from the
-  tilt of the first specific force, the tilt is turned by the gyro and moved to the running mean
-  of the tilts of the specific forces so far, and the tilt channel (below) waits, so the settling
-  of a first reading's noise is not read as gyro bias (not with a given initial attitude).
+  tilt of the first specific force, the tilt is turned by the gyro and set upright on the running
+  mean of the specific forces so far (of the vectors: a moving sensor's mean specific force is
+  gravity plus its velocity change over the time, its mean direction is not), and the tilt channel
+  (below) waits, so the settling of a first reading's noise is not read as gyro bias (no start-up
+  with a given initial attitude).  A sensor moving at the start leaves the start-up's tilt off by
+  its velocity change over it (up to ``max_speed_mps``, taken as three standard deviations),
+  which the velocity channel removes with the envelope ``exp(-omega t / sqrt(2))``: over its 2 %
+  settling time ``4 sqrt(2) / omega`` the tilt channel takes that decaying error as reading noise
+  (its reading variance widened by it, as white noise of the same correlation time), not as gyro
+  bias.
 * **gyro bias during motion: a tilt channel** (``cf2``: its attitude error kept in the body
   frame, where the bias is constant, moved by the gyro and read as the velocity channel's tilt,
   noise ``tilt_noise_density``), whose rate correction is the gyro bias: learnt slowly, over
@@ -112,6 +119,10 @@ GRAVITY = 9.80665
 #: velocity-noise factors of the acceleration-disturbance designs (levels 1, 2, ...: the speed squared
 #: beyond max_speed_mps² doubling per level; each level quarters the tilt bandwidth)
 DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
+#: the velocity channel's settling after its start-up, in its time constants ``1 / omega`` from the first
+#: specific force: the start-up (one) and the 2 % settling time ``4 / (zeta omega)`` (``zeta = 1/sqrt(2)``)
+#: in which it removes what the start-up left of a sensor that was moving (the velocity it had)
+TILT_SETTLE = 1.0 + 4.0 * math.sqrt(2.0)
 
 #: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
 STATE_FIELDS = (
@@ -134,6 +145,7 @@ STATE_FIELDS = (
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
     "tilt_n",                            # start-up: specific forces the initial tilt averages
+    "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
 )
@@ -216,7 +228,9 @@ class AttitudeParams:
         sensor turned by ``mag_new_field_rotation_rad`` (default pi/2).
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
-        sustained acceleration and the tilt corrections are weighted down (default 4).
+        sustained acceleration and the tilt corrections are weighted down (default 4); also the
+        largest velocity change a start in motion leaves in the start-up's tilt, which the tilt
+        channel takes as reading noise while the velocity channel settles.
     max_reach_m : float
         How far a hand-held device moves in one stroke (m, default 1: an arm's reach; chosen, not
         tuned).  A speed beyond ``max_speed_mps`` engages the acceleration-disturbance designs only
@@ -661,7 +675,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (54, 1.0, 0.0)
+        (55, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -754,6 +768,9 @@ class AttitudeFilter:
             p00, p01, p11 = v[c + "00"], v[c + "01"], v[c + "11"]
             if not (p00 >= 0.0 and p11 >= 0.0 and p01 * p01 <= p00 * p11):
                 return f"{c}00, {c}01, {c}11 is not a covariance (positive semi-definite)"
+        if not 0.0 <= v["tilt_f"] <= p.accel_range_mps2 * tol:
+            return (f"tilt_f = {v['tilt_f']!r} is not the norm of a mean specific force (from 0 to "
+                    f"{p.accel_range_mps2:g})")
         for name in ("rest_time", "new_time", "new_turn"):
             if v[name] < 0.0:
                 return f"{name} = {v[name]!r} must not be negative"
@@ -1003,7 +1020,25 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
-            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"])
+            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design))
+
+
+def _settle_ratio(design: AttitudeDesign) -> float:
+    """How much the start-up's error adds to the tilt channel's reading variance as the velocity channel's
+    settling begins, relative to the reading's own (``docs/derivations.md``).
+
+    A sensor moving when the filter starts leaves the start-up's tilt (its mean specific force over
+    ``1 / omega``) off by its velocity change ``v`` over that time: ``omega v / g``, ``v`` up to
+    ``max_speed_mps`` taken as three standard deviations.  The velocity channel removes it with the
+    envelope ``exp(-zeta omega t)``: an error correlated over ``1 / (zeta omega)``, whose variance as
+    white noise is ``2 / (zeta omega)`` times its own per unit bandwidth, against the reading's
+    ``tilt_noise_density²`` (the tilt table's ``R T``).
+    """
+    c, p = design.constants, design.params
+    omega = c["tilt_alpha"] / c["T"]
+    density2 = design.channels["tilt"][3] * c["T"]
+    error2 = (omega * p.max_speed_mps / (3.0 * GRAVITY)) ** 2
+    return 2.0 * math.sqrt(2.0) / omega * error2 / density2
 
 
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
@@ -1013,11 +1048,11 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
-     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var) = coef
+     use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = coef
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
-     started, miss_g, miss_a, miss_m) = s
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
+     lgz, started, miss_g, miss_a, miss_m) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
@@ -1052,7 +1087,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 qw, qx, qy, qz = 0.0, 1.0, 0.0, 0.0                   # upside down
             n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
-            tilt_n = 1.0
+            tilt_n, tilt_f = 1.0, fn
         glx, gly, glz = gx, gy, gz
         if acc_ok:
             flx, fly, flz = ax, ay, az
@@ -1109,17 +1144,23 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     # velocity channel (tilt): v += T f_E; e = -v; v += k1 e; tilt turned by k2 e / g
     cx = cy = cz = 0.0
     if acc_ok and 0.0 < tilt_n * tilt_alpha < 1.0:
-        # start-up (from the first specific force, not a given attitude): the tilt is the running mean
-        # of the tilts of the specific forces so far, turned by the gyro (one reading is as noisy as
-        # the accelerometer); the velocity channel starts from zero velocity after it
+        # start-up (from the first specific force, not a given attitude): the tilt turns the running mean
+        # of the specific forces so far (the gyro's nearly inertial frame: gravity plus the mean
+        # acceleration, the velocity change over the time) upright; kept upright, the mean is its norm
+        # tilt_f. A mean of the vectors, not of their directions: a moving sensor's accelerations
+        # average out as velocity changes, their directions do not. The velocity channel starts from
+        # zero velocity after it
         if not first:
             tilt_n += 1.0
             fex = r0 * ax + r1 * ay + r2 * az
             fey = r3 * ax + r4 * ay + r5 * az
             fez = r6 * ax + r7 * ay + r8 * az
             fh = math.sqrt(fex * fex + fey * fey)
+            mean_z = tilt_f + (fez - tilt_f) / tilt_n
+            mean_h = fh / tilt_n
+            tilt_f = math.sqrt(mean_z * mean_z + mean_h * mean_h)
             if fh > 0.0:
-                w = math.atan2(fh, fez) / (tilt_n * fh)
+                w = math.atan2(mean_h, mean_z) / fh
                 cx, cy = w * fey, -w * fex
         vx = vy = 0.0
         jv = 1 if rest else 0
@@ -1155,7 +1196,13 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         vy += k1v * evy
         cx = -k2v * evy / GRAVITY
         cy = k2v * evx / GRAVITY
-        # tilt channel (gyro bias during motion): reads the tilt the velocity channel gives
+        # tilt channel (gyro bias during motion): reads the tilt the velocity channel gives; while that settles
+        # from its start-up, the reading carries what the start-up left (a moving sensor's start-up tilt errs
+        # by its velocity change over the start-up), a decaying error taken as reading noise, not gyro bias
+        settle = 1.0
+        if 0.0 < tilt_n * tilt_alpha < TILT_SETTLE:
+            tilt_n += 1.0
+            settle += settle_ratio * math.exp(-math.sqrt(2.0) * (tilt_n * tilt_alpha - 1.0))
         if use_motion_bias and not rest:
             # its attitude error, kept in the body frame (where the bias is constant), moves against
             # the velocity channel's correction; its tilt (ENU x, y) is the reading
@@ -1164,7 +1211,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             ez -= r2 * cx + r5 * cy
             q00, q01, q11, rr, kal, k1t, k2t = tilt
             if kal:
-                den = t00 + rr
+                den = t00 + rr * settle
                 k1t, k2t = t00 / den, t01 / den
                 t00, t01, t11 = (1.0 - k1t) * t00, (1.0 - k1t) * t01, t11 - k2t * t01
                 t11 = t11 if t11 > 0.0 else 0.0   # a variance, not negative by rounding
@@ -1307,6 +1354,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, lgx, lgy, lgz,
-            started, miss_g, miss_a, miss_m)
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
+            lgz, started, miss_g, miss_a, miss_m)
     return jv
