@@ -1383,6 +1383,11 @@ class _Held:
                 "its last reading is held there")
 
 
+#: a pause of the logger restarts state 0 when the first direct reading after it is more than
+#: this many standard deviations of the innovation from the state carried over the pause
+RESTART_GATE = 3.0
+
+
 class _Runner:
     """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
 
@@ -1453,8 +1458,9 @@ class _Runner:
         restarts = self._restart_ticks(dense, first)
         cuts = [first, *(r for _, r in restarts), last + 1]
         for k, (a, b) in enumerate(itertools.pairwise(cuts)):
-            if k:
-                shifts.append((max(restarts[k - 1][0], first), a, *self._restart(dense, a - first)))
+            moved = self._restart(dense, a - first) if k else None
+            if moved is not None:
+                shifts.append((max(restarts[k - 1][0], first), a, *moved))
                 self.restarts.append(restarts[k - 1][0])
             if a < b:
                 part = {name: v[a - first:b - first] for name, v in dense.items()}
@@ -1489,8 +1495,9 @@ class _Runner:
         start, longest = max(self.pauses, key=lambda p: p[1])
         return (f"the inputs have no reading for more than {PAUSE_TICKS} ticks {len(self.pauses)} time"
                 f"{'s' * (len(self.pauses) > 1)} (a logger paused), the longest {longest * dt:.3g} s from "
-                f"{start * dt:.6g} s: after each, {self.table.states[0]} starts again from the first direct "
-                "reading, its start-up shaded and left out of the settled RMS")
+                f"{start * dt:.6g} s: {self.table.states[0]} started again from the first direct reading after "
+                f"{len(self.restarts)} of them (where it disagreed with the state carried over the pause by more "
+                f"than {RESTART_GATE:g} sigma), each start-up shaded and left out of the settled RMS")
 
     def _direct(self):
         """Indices (in the table's measurements) of the sensors that read state 0 directly."""
@@ -1536,7 +1543,12 @@ class _Runner:
         precise one there), as at the log's start; its error is that reading's noise, independent
         of the other states' errors, so the covariance carried (grown over the pause) gets row and
         column 0 of that: variance ``R`` of the sensor, no correlation.  The other states carry on.
-        Returns ``(delta, std)``: the move of state 0 and the reading's noise std."""
+        Only where the reading disagrees with the state carried over the pause by more than
+        :data:`RESTART_GATE` standard deviations of the innovation (``P00 + R``, the prior grown
+        over the pause): a short gap of a fast IMU, bridged well by the held inputs, would
+        otherwise swap a precise heading for one noisy compass reading.
+        Returns ``(delta, std)``: the move of state 0 and the reading's noise std, or None
+        (no restart)."""
         from .runtime.filter import usable
 
         ms, R = self.table.measurements, self.table.R
@@ -1546,6 +1558,12 @@ class _Runner:
         x = np.zeros(self.table.F.shape[0]) if (kf.x if kf is not None else self.x) is None else \
             (kf.x if kf is not None else self.x).copy()
         delta = dense[ms[best].name][k] - x[0]
+        if self.table.wrap_angle:
+            delta = float(wrap(delta))
+        P = kf.P if kf is not None else self.P_missed  # the prior grown over the pause
+        var0 = float(P[0, 0]) if P is not None else max(float(c[0, 0]) for c in self.table.P)
+        if R is not None and delta ** 2 <= RESTART_GATE ** 2 * (var0 + R[best, best]):
+            return None  # the inputs held over the pause still agree with the reading: carry on
         x[0] += delta
         if kf is not None:
             kf.x = x
@@ -1555,8 +1573,7 @@ class _Runner:
             if P is not None and R is not None:
                 P[0, :] = P[:, 0] = 0.0
                 P[0, 0] = R[best, best]
-        return (float(wrap(delta)) if self.table.wrap_angle else delta,
-                math.sqrt(R[best, best]) if R is not None else 0.0)
+        return delta, math.sqrt(R[best, best]) if R is not None else 0.0
 
     def _run_arrivals(self, dense, first, last):
         """Ticks ``first..last`` through the Kalman filter over the actual arrivals

@@ -1407,6 +1407,23 @@ def test_after_a_pause_of_the_logger_the_heading_starts_again_and_the_band_cover
     assert res.settled_samples == np.sum((ticks >= startup) & ((ticks < 3000) | (ticks >= 3000 + startup)))
 
 
+def test_a_short_pause_bridged_by_the_held_gyro_does_not_restart_the_heading(heading):
+    """A 0.61 s pause (61 ticks: a pause by count) of a smoothly turning robot: the held gyro
+    carries the heading within the innovation's 3 sigma of the first odometry reading after it, so
+    the heading carries on (no restart: swapping it for one reading would throw away its
+    precision), the pause is still counted, and every row after the start-up counts as settled."""
+    log, _ = heading_log(3, 37, n=6000, jitter=0.1)
+    paused = log.drop(index=range(2000, 2061)).reset_index(drop=True)
+    res = run_log(heading, paused, reference="truth", std=True)
+    assert res.pauses == 1
+    note = next(n for n in res.notes if "logger paused" in n)
+    assert "after 0 of them" in note, note
+    ticks = np.round(paused["time"].to_numpy() / 0.01)
+    assert res.settled_samples == np.sum(ticks >= int(np.ceil(res.startup_s / heading.sample_time_s)))
+    err = wrap(res.estimates["heading"].to_numpy() - paused["truth"].to_numpy())[2000:2300]
+    assert np.sqrt(np.mean(err ** 2)) < 3 * res.predicted_std["heading"]
+
+
 def test_a_log_without_a_pause_runs_as_before(heading):
     """Inputs that read at most 50 ticks apart are no pause: no restart, no note."""
     log, _ = heading_log(3, 37, n=3000)
