@@ -1023,31 +1023,12 @@ def column_order(ports) -> tuple:
 
 
 def _model_exact(M):
-    """Model matrices as exact rationals: the simplest rational within two ulp of each double.
+    """Model matrices as exact rationals: the simplest rational within two ulp of each double
+    (:func:`cfdesign.symbolic.observer.model_number`: a sampled model's rounded entries as the
+    exact ones of its structure)."""
+    from .symbolic.observer import model_number
 
-    A sampled model's entries are rounded values of exact ones (``T^3/6`` at ``T = 0.01`` is
-    stored as 1.6666666666666668e-07); taken by their decimal value, ``B`` no longer equals the
-    integral of ``F`` and the exact proof of a complementary table fails by 1e-17.  Entries
-    that are not rounded rationals (``exp(-T/tau)``) move by at most two ulp.
-    """
-    from fractions import Fraction
-
-    import sympy as sp
-
-    def simplest(lo, hi):  # the rational of smallest denominator in [lo, hi], 0 < lo <= hi
-        n = math.floor(lo)
-        if n == lo or n + 1 <= hi:
-            return Fraction(n if n == lo else n + 1)
-        return n + 1 / simplest(1 / (hi - n), 1 / (lo - n))
-
-    def entry(v):
-        if v == 0 or v == int(v):
-            return sp.Integer(int(v))
-        x, tol = Fraction(abs(v)), Fraction(2 * math.ulp(v))
-        q = simplest(x - tol, x + tol)
-        return sp.Rational(math.copysign(1, v) * q.numerator, q.denominator)
-
-    return [[entry(float(v)) for v in row] for row in np.asarray(M, dtype=float)]
+    return [[model_number(float(v)) for v in row] for row in np.asarray(M, dtype=float)]
 
 
 def _exact(M):

@@ -212,3 +212,44 @@ def test_band_functions_name_what_is_not_an_observer():
                 fn(arg)
         with pytest.raises(GainError, match="substitute numbers first"):
             fn(cfdesign.dckf3())
+
+
+@pytest.mark.parametrize("T", [0.013, 1 / 3, 0.07])
+def test_from_statespace_proves_a_c2d_model_with_a_dlqe_gain(T):
+    """A MIMO model sampled by control.c2d (B = 0.012999999999999999 at 0.013 s) with a numpy
+    gain from control.dlqe: the bands sum to one exactly (they summed to X/X - 5.6e-17)."""
+    import control
+
+    sysd = control.c2d(control.ss([[0, -1], [0, 0]], [[1], [0]], [[1, 0], [1, 0]], [[0], [0]],
+                                  inputs=["gyro"], outputs=["compass", "odometry"]), T)
+    K = control.dlqe(sysd.A, np.eye(2), sysd.C, np.diag([1e-4, 1e-6]), np.diag([0.1, 0.2]))[0]
+    sensors = [Sensor.input("gyro", "rate", bias_state=1), Sensor.measurement("compass", "angle", 0),
+               Sensor.measurement("odometry", "angle", 1)]
+    for form in ("predictor", "filter"):
+        obs = Observer.from_statespace(sysd, K, sensors, gain_form=form)
+        proof = obs.proof()
+        assert proof.holds and proof.residual == 0
+        assert float(obs.sample_time) == T
+        tfs = cfdesign.transfer_functions(obs)
+        assert tfs["odometry"].input_labels == ["odometry"] and tfs["sum"].dt == T
+
+
+def test_float_gains_of_a_discrete_observer_are_exact():
+    """numpy floats in any matrix are the decimals they print as, not sympy Floats whose rounding
+    failed the exact proof of a discrete observer."""
+    T = sp.Rational(1, 100)
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0),
+               Sensor.measurement("odometry", "angle", 1)]
+    K = np.array([[0.1, 0.2], [0.3, 0.05]])
+    obs = Observer([[1, -T], [0, 1]], [[T], [0]], [[1, 0], [1, 0]], K, sensors, domain="z", sample_time=T)
+    assert obs.K[0, 0] == sp.Rational(1, 10) and obs.proof().holds
+    cont = Observer(np.array([[0.0]]), [[1]], [[1]], np.array([[2.0]]), sensors[:2])
+    assert cont.bands["compass"] == 2 / (sp.Symbol("s") + 2)
+
+
+def test_with_gains_takes_numpy_scalars():
+    """np.float32 (a raw TypeError from Fraction) and 0-d arrays (refused) are real numbers."""
+    for k in (np.float32(0.5), np.array(0.5), np.float64(0.5)):
+        assert sp.simplify(cfdesign.cf2().with_gains(k=k).bands["angle"] - 1 / (2 * sp.Symbol("s") + 1)) == 0
+    with pytest.raises(cfdesign.GainError, match="real number"):
+        cfdesign.cf2().with_gains(k=np.array([0.5]))

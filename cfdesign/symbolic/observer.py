@@ -345,6 +345,11 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     for (i, j), e in np.ndenumerate(np.array(M.tolist(), dtype=object).reshape(M.shape)):
         if isinstance(e, sp.Basic) and e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
             raise GainError(f"{name}[{i}][{j}] must be finite, got {e}")
+    # floats (a numpy gain from control.dlqe, 0.5 * k) as the exact numbers they print as: with
+    # sympy Floats the bands of a discrete observer summed to (X)/(X) - 5.6e-17 and the proof failed
+    M = M.applyfunc(lambda e: e.xreplace({f: exact_number(float(f)) for f in e.atoms(sp.Float)})
+                    if isinstance(e, sp.Basic) and e.has(sp.Float) else e)
+    for (i, j), e in np.ndenumerate(np.array(M.tolist(), dtype=object).reshape(M.shape)):
         if isinstance(e, sp.Basic) and e.is_number and e.is_real is False:
             # a complex entry gave bands that do not sum to one: a proof that failed for no fault of the filter
             raise StructureError(f"{name}[{i}][{j}] is complex ({e}); the model, gains and output are real")
@@ -378,14 +383,59 @@ def exact_number(value, name: str = "value"):
         if not value.is_number or not value.is_real:
             raise GainError(f"{name} must be a real number, got {value}")
         return value
+    if isinstance(value, np.ndarray) and value.ndim == 0:  # a 0-d array: float(K @ h), K[i, j] of a product
+        value = value[()]
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise GainError(f"{name} must be a real number, got {value!r}")
     if isinstance(value, numbers.Integral):
         return sp.Integer(int(value))
     if not math.isfinite(float(value)):
         raise GainError(f"{name} must be finite, got {value!r}")
-    fr = Fraction(repr(float(value))) if isinstance(value, float) else Fraction(value)
+    # every binary float (np.float32 too, which Fraction() refused with a raw TypeError) by its shortest repr
+    fr = Fraction(repr(float(value))) if isinstance(value, (float, np.floating)) else Fraction(value)
     return sp.Rational(fr.numerator, fr.denominator)
+
+
+def model_number(value, name: str = "value"):
+    """A model entry as an exact rational: the simplest rational within two ulp of the double.
+
+    A sampled model's entries are rounded values of exact ones (``T^3/6`` at ``T = 0.01`` is
+    stored as 1.6666666666666668e-07; ``control.c2d`` of an integrator at 0.013 s gives
+    ``B = 0.012999999999999999``); taken by their decimal value, ``B`` no longer equals the
+    integral of ``F`` over the sample time and the exact proof of a complementary filter fails
+    by 1e-17.  Entries that are not rounded rationals (``exp(-T/tau)``) move by at most two ulp.
+
+    Parameters
+    ----------
+    value : float
+        A finite real number (integers are returned as they are).
+    name : str
+        How an error names the entry.
+
+    Returns
+    -------
+    sympy.Rational
+        The rational of smallest denominator within ``2 ulp(value)`` of ``value``.
+
+    Raises
+    ------
+    GainError
+        ``value`` is not a finite real number.
+    """
+    exact = exact_number(value, name)  # the checks: real, finite
+    if exact.is_Integer:
+        return exact
+    v = float(value)
+
+    def simplest(lo, hi):  # the rational of smallest denominator in [lo, hi], 0 < lo <= hi
+        n = math.floor(lo)
+        if n == lo or n + 1 <= hi:
+            return Fraction(n if n == lo else n + 1)
+        return n + 1 / simplest(1 / (hi - n), 1 / (lo - n))
+
+    x, tol = Fraction(abs(v)), Fraction(2 * math.ulp(v))
+    q = simplest(x - tol, x + tol) if x > tol else x
+    return sp.Rational(int(math.copysign(1, v)) * q.numerator, q.denominator)
 
 
 def parse_number(text: str, name: str = "value"):
@@ -525,9 +575,14 @@ class Observer:
         Parameters
         ----------
         sys : control.StateSpace
-            The model; its entries are taken as exact numbers.
+            The model: continuous (``dt = 0``) or discrete (``dt`` in seconds), any number of
+            inputs and outputs.  Each entry is taken as the simplest rational within two ulp of
+            its double, so that a model sampled by ``control.c2d`` (``B = 0.012999999999999999``
+            for an integrator at 0.013 s) is the exact sampled chain its bands are proved for.
         K : array_like
-            The gain (symbols or numbers), shape (n, outputs).
+            The gain (sympy symbols or numbers; a numpy array from ``control.lqe`` or
+            ``control.dlqe`` too, each float taken as the decimal it prints as), shape
+            (states, outputs).
         sensors : sequence of Sensor
             One per input (column of ``B``) and per output (row of ``C``).
         gain_form : {'predictor', 'filter'}
@@ -544,7 +599,8 @@ class Observer:
         ------
         StructureError
             ``sys`` is not a state-space system, has a complex entry, a feedthrough or an unspecified
-            sample time (``dt=True``); or its inputs and outputs carry names of their own
+            sample time (``dt=True``); ``K`` is not (states x outputs); the sensors do not cover
+            every input and output exactly once; or its inputs and outputs carry names of their own
             (not python-control's ``u[i]`` / ``y[i]``) that differ from the sensors' names at
             the same column of ``B`` or row of ``C``.
         GainError
@@ -585,10 +641,11 @@ class Observer:
                     i, j = np.argwhere(M.imag != 0)[0]
                     raise StructureError(f"{sys.name}: {label}[{i}][{j}] is complex ({M[i, j]}); the model is real")
                 M = M.real
-            return [[exact_number(float(v), f"{label} entry") for v in row] for row in M]
+            return [[model_number(float(v), f"{label} entry") for v in row] for row in M]
 
         return cls(to_exact("A", sys.A), to_exact("B", sys.B), to_exact("C", sys.C), K, sensors,
-                   domain="z" if discrete else "s", sample_time=float(sys.dt) if discrete else None,
+                   domain="z" if discrete else "s",
+                   sample_time=model_number(float(sys.dt), "dt") if discrete else None,  # as the entries
                    gain_form=gain_form, name=name or sys.name)
 
     # ------------------------------------------------------------------ structure
