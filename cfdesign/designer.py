@@ -40,7 +40,7 @@ from .errors import CfdesignError, SpecError
 from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
-from .spec import QUANTITY_ORDERS, FilterSpec
+from .spec import QUANTITY_ORDERS, FilterSpec, require_spec
 from .timing import nearest_tick
 
 #: structures stored for use without the symbolic engine (:meth:`Structure.load`)
@@ -645,8 +645,9 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     Raises
     ------
     SpecError
-        The spec does not fit the structure (a missing or extra sensor, a rate, a bias the
-        structure cannot estimate); the message names the field.
+        ``spec`` is not a FilterSpec (a path: read it with :func:`~cfdesign.spec.load_spec`), or
+        does not fit the structure (a missing or extra sensor, a rate, a bias the structure
+        cannot estimate); the message names the field.
     RiccatiError
         No stabilising optimal gain exists (a :class:`~cfdesign.errors.NotDetectableError`
         names the mode the sensors cannot see).
@@ -664,6 +665,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     [[0.6342 0.0198]
      [0.8039 0.    ]]
     """
+    require_spec(spec, "design")
     if observer is None:
         structure = numeric_structure(spec)
     else:

@@ -35,7 +35,7 @@ import numpy as np
 
 from . import linear
 from .errors import GainTableError
-from .gains import MAX_RATE_HZ, GainTable, Schedule, SensorPort
+from .gains import MAX_RATE_HZ, GainTable, Schedule, SensorPort, require_table
 from .noise import van_loan, zoh
 
 __all__ = ["discretize_table", "innovation_hold"]
@@ -88,6 +88,7 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
         the rate is not a positive number, or the gains do not stabilise the filter at that rate
         (the step is too long for the continuous gains).
     """
+    require_table(table, "discretize_table")
     from .designer import _covariances, _numerically_checked
 
     if table.domain != "s":

@@ -7,6 +7,7 @@ import csv
 from pathlib import Path
 
 from .files import open_atomic
+from .gains import require_table
 
 __all__ = ["write_gain_csv"]
 
@@ -37,9 +38,12 @@ def write_gain_csv(table, path) -> Path:
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     OutputError
         The file cannot be written; an existing file is left as it was.
     """
+    require_table(table, "write_gain_csv")
     rows = [["phase", "state", *table.sensor_names("measurement")]]
     for k, K in enumerate(table.K):
         rows += [[k, i, *(repr(float(v)) for v in K[i])] for i in range(K.shape[0])]

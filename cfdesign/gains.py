@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import keyword
 import math
+import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -1067,6 +1068,33 @@ def _no_duplicates(pairs) -> dict:
         dup = next(k for k, _ in pairs if k in seen or seen.add(k))
         raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
     return out
+
+
+def require_table(value, what: str) -> None:
+    """Refuse anything but a :class:`GainTable` where a function needs one.
+
+    A path passed as a table used to fail deep inside with a raw ``AttributeError``.
+
+    Parameters
+    ----------
+    value : object
+        What the caller was given.
+    what : str
+        The function, as the message names it (``'Runtime'``).
+
+    Raises
+    ------
+    GainTableError
+        ``value`` is not a GainTable; for a path the message says to read it with
+        :func:`load_gains`.
+    """
+    if isinstance(value, GainTable):
+        return
+    if isinstance(value, (str, bytes, os.PathLike)):
+        hint = f": read the table file with cfdesign.load_gains({os.fsdecode(value)!r})"
+    else:
+        hint = " (cfdesign.design(spec) makes one, cfdesign.load_gains(path) reads one)"
+    raise GainTableError(f"{what} takes a GainTable, got {type(value).__name__}{hint}")
 
 
 def load_gains(path) -> GainTable:

@@ -31,6 +31,7 @@ import numpy as np
 
 from .errors import CfdesignError, DataError, OutputError
 from .files import check_distinct, is_dir, not_a_device, open_atomic, write_bytes, write_text
+from .gains import require_table
 from .linear import wrap
 
 __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot_log", "TIME_COLUMNS", "TIME_UNITS",
@@ -1094,6 +1095,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         A continuous-time table (logs run discrete tables).
     DataError
@@ -1102,6 +1105,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     OutputError
         The output cannot be written; nothing is left half-written.
     """
+    require_table(table, "run_log")
     if table.domain != "z":
         from .runtime.filter import DISCRETE_HINT
 
@@ -2016,6 +2020,8 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         Dask is not installed, ``workers`` and ``scheduler`` are both given, the scheduler
         cannot be reached, ``outdir`` cannot be created, or the table cannot run any log (a
@@ -2025,6 +2031,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         Two logs of the same name (their estimates would overwrite each other), or a log
         that cannot be run (as :func:`run_log`).
     """
+    require_table(table, "run_logs")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
     if workers is not None and scheduler:

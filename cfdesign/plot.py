@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .analysis import frequency_response
+from .gains import require_table
 
 __all__ = ["bode_plot", "table_bode_plot", "lifted_system", "figure_bytes", "FIGURE_FORMATS"]
 
@@ -129,6 +130,11 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     matplotlib.figure.Figure
         The figure: magnitude (dB) and phase (deg) axes.
 
+    Raises
+    ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
+
     Examples
     --------
     >>> import cfdesign
@@ -138,6 +144,7 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     >>> len(fig.axes)
     2
     """
+    require_table(table, "table_bode_plot")
     from .analysis import FrequencyResponse, default_frequencies
     from .verify import band_polynomials
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 import hashlib
 import keyword
 import math
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -243,6 +244,35 @@ GAIN_RANGE = (1e-100, 1e100)
 #: most sensors a design may have: the exact proof grows faster than cubically with them (32: 5 s;
 #: 100: 4 min; 1000, a 60 kB file: 17 GB and no end)
 MAX_SENSORS = 32
+
+
+def require_spec(value, what: str) -> None:
+    """Refuse anything but a :class:`FilterSpec` where a function needs one.
+
+    A path or a dict passed as a spec used to fail deep inside with a raw ``AttributeError``.
+
+    Parameters
+    ----------
+    value : object
+        What the caller was given.
+    what : str
+        The function, as the message names it (``'design'``).
+
+    Raises
+    ------
+    SpecError
+        ``value`` is not a FilterSpec; the message says how to make one from a path
+        (:func:`load_spec`) or a dict (:func:`parse_spec`).
+    """
+    if isinstance(value, FilterSpec):
+        return
+    if isinstance(value, (str, bytes, os.PathLike)):
+        hint = f": read the design file with cfdesign.load_spec({os.fsdecode(value)!r})"
+    elif isinstance(value, dict):
+        hint = ": validate the dict with cfdesign.parse_spec(data)"
+    else:
+        hint = " (cfdesign.load_spec(path) reads a design file)"
+    raise SpecError(f"{what} takes a FilterSpec, got {type(value).__name__}{hint}")
 
 
 def load_spec(path) -> FilterSpec:

@@ -485,8 +485,11 @@ def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     SpecError
-        Re-designing from ``spec`` fails (the spec does not fit a structure).
+        ``spec`` is not a FilterSpec (a path: read it with :func:`~cfdesign.spec.load_spec`), or
+        re-designing from it fails (the spec does not fit a structure).
     InputError
         ``rtol`` is not a number from 0 up to (not including) 1.
 
@@ -508,6 +511,12 @@ def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
     if isinstance(rtol, bool) or not isinstance(rtol, (int, float)) or not 0 <= rtol < 1:  # NaN too
         raise InputError(f"rtol (--rtol) must be a relative tolerance from 0 up to (not including) 1, got {rtol!r}: "
                          "NaN or inf passed tables that run another filter (a sample time 1.5 times the spec's)")
+    from .gains import require_table
+    from .spec import require_spec
+
+    require_table(table, "verify_table")
+    if spec is not None:
+        require_spec(spec, "verify_table")
     checks = numeric_checks(table)
     if spec is not None:
         checks += _same_design(table, spec, rtol)

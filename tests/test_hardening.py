@@ -1246,3 +1246,43 @@ def test_ekf_noise_figures_at_the_ends_of_their_range_are_named_or_run_finite(da
         assert "\n" not in str(e)
         return
     assert all(np.isfinite(a).all() for a in numbers), (names, values)
+
+
+def _table_consumers():
+    from cfdesign.codegen import render_c, write_c
+    from cfdesign.discretize import discretize_table
+    from cfdesign.export import write_gain_csv
+    from cfdesign.logs import run_log, run_logs
+    from cfdesign.plot import table_bode_plot
+    from cfdesign.sim.gaussian import model_log
+
+    return {"Runtime": Runtime, "verify_table": verify_table, "render_c": render_c, "table_bode_plot": table_bode_plot,
+            "write_c": lambda t: write_c(t, "c_out"), "write_gain_csv": lambda t: write_gain_csv(t, "g.csv"),
+            "discretize_table": lambda t: discretize_table(t, 100), "run_log": lambda t: run_log(t, "log.csv"),
+            "run_logs": lambda t: run_logs(t, ["log.csv"], "out"), "model_log": lambda t: model_log(t, 10)}
+
+
+@pytest.mark.parametrize("name", sorted(_table_consumers()))
+@pytest.mark.parametrize("value", ["gains.json", os.path.join("firmware", "gains.json"), None, {"K": []}])
+def test_a_path_or_other_value_for_a_table_is_named(name, value, tmp_path, monkeypatch):
+    """A path (or None, a dict) where a GainTable is needed: one GainTableError naming the function
+    and load_gains, not a raw AttributeError from deep inside; nothing is written."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(GainTableError, match=rf"^{name} takes a GainTable, got {type(value).__name__}") as err:
+        _table_consumers()[name](value)
+    if isinstance(value, str):
+        assert f"cfdesign.load_gains({value!r})" in str(err.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("value", ["heading.toml", {"structure": "cf2"}, None])
+def test_a_path_or_dict_for_a_spec_is_named(value, heading):
+    """design(path) and verify_table(table, path) name load_spec (or parse_spec for a dict)."""
+    hint = "load_spec('heading.toml')" if isinstance(value, str) else "parse_spec" if isinstance(value, dict) else ""
+    calls = [(lambda: cfdesign.design(value), "design")]
+    if value is not None:  # verify_table's spec=None: no spec to compare with
+        calls.append((lambda: verify_table(heading, value), "verify_table"))
+    for call, name in calls:
+        with pytest.raises(SpecError, match=rf"^{name} takes a FilterSpec, got {type(value).__name__}") as err:
+            call()
+        assert hint in str(err.value)

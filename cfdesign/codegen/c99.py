@@ -13,6 +13,7 @@ import numpy as np
 from .. import __version__, linear
 from ..errors import CfdesignError
 from ..files import write_into
+from ..gains import require_table
 from ..runtime.filter import READING_LIMIT, filter_sha256
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS"]
@@ -78,6 +79,8 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         The table cannot run (continuous), a name is not a C identifier, or a value is not
         finite.
@@ -92,6 +95,7 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
     >>> [p.name for p in write_c(table, tempfile.mkdtemp(), prefix="heading")]
     ['heading_gains.h', 'heading_filter.h', 'heading_filter.c']
     """
+    require_table(table, "write_c")
     return write_into(directory, render_c(table, prefix=prefix, precision=precision, output=output))
 
 
@@ -116,9 +120,12 @@ def render_c(table, *, prefix=None, precision="double", output=None) -> dict:
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         As :func:`write_c`.
     """
+    require_table(table, "render_c")
     fields = _fields(table, prefix, precision, output)
     out = {}
     for stem, what in _FILES:

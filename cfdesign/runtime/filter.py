@@ -183,6 +183,8 @@ class Runtime:
 
     Raises
     ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         A continuous-time table, an unstable one (error dynamics growing by more than
         ``1 + UNSTABLE_RTOL`` a period), or a gain the requested output cannot be formed from
@@ -205,6 +207,9 @@ class Runtime:
     """
 
     def __init__(self, table, x0=None, output=None):
+        from ..gains import require_table  # numpy only, as this module
+
+        require_table(table, "Runtime")
         if table.domain != "z":
             raise CfdesignError(f"{table.name} is a continuous-time table; the runtime runs discrete tables "
                                 f"({DISCRETE_HINT})")
@@ -365,7 +370,9 @@ class Runtime:
         Raises
         ------
         CfdesignError
-            A sensor the table does not have.
+            A sensor the table does not have (the message names those it has), or a reading
+            that is not a real number (text, None, a complex number, an array); raised before
+            the step changes anything.
 
         Notes
         -----
@@ -434,7 +441,8 @@ class Runtime:
         Parameters
         ----------
         readings : dict
-            ``{sensor: (N,) array}`` for every sensor of the table, in the sensors' units.  NaN
+            ``{sensor: (N,) array}`` for every sensor of the table, in the sensors' units (other
+            keys, such as a DataFrame's time column, are not read).  NaN
             marks a missing sample (a slow sensor's column is NaN between its readings); inf and
             readings beyond :data:`~cfdesign.runtime.filter.READING_LIMIT` are treated as missing and counted in
             :attr:`counts` (``rejected``); readings at phases the schedule does not read have no

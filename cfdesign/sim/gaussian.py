@@ -27,6 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..gains import require_table
+
 __all__ = ["model_log"]
 
 
@@ -49,7 +51,13 @@ def model_log(table, n_steps: int, *, seed: int = 0, input_amplitude: float = 0.
     tuple
         ``(x, readings)``: the (n_steps, n) true states and ``{sensor: (n_steps,) array}`` with
         NaN where a measurement is not read (its schedule), ready for ``Runtime.run``.
+
+    Raises
+    ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     """
+    require_table(table, "model_log")
     rng = np.random.default_rng(seed)
     F, B, H = (np.asarray(a, dtype=float) for a in (table.F, table.B, table.H))
     n, p, m = F.shape[0], B.shape[1], H.shape[0]
