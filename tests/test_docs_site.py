@@ -270,3 +270,35 @@ def test_every_design_file_a_page_gives_designs(page, n, block):
         return
     table = cfdesign.design(cfdesign.parse_spec(data))
     assert table.checks["complementary"] and table.checks["stable"], (page, n)
+
+
+
+def _python_blocks(page) -> list:
+    return re.findall(r"^```python\n(.*?)^```", page.read_text(), re.M | re.S)
+
+
+@pytest.mark.parametrize("page", [p for p in _pages() if _python_blocks(p)],
+                         ids=lambda p: p.relative_to(DOCS.parent).as_posix())
+def test_every_name_a_python_block_uses_is_defined_on_its_page(page):
+    """A reader pastes a page's Python blocks in order: every name a block reads is a builtin or
+    defined (assigned, imported, a function) by that block or an earlier one of the page
+    (``rt.run({"gyro": w, ...})`` with ``w`` never defined, ``estimate_attitude(gyr, acc, mag,
+    rate_hz)`` with none of them, failed with a NameError)."""
+    import ast
+    import builtins
+
+    defined, undefined = set(dir(builtins)), []
+    for n, block in enumerate(_python_blocks(page)):
+        tree = ast.parse(block)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                defined.add(node.id)
+            elif isinstance(node, ast.alias):
+                defined.add((node.asname or node.name).split(".")[0])
+            elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                defined.add(node.name)
+            elif isinstance(node, ast.arg):
+                defined.add(node.arg)
+        undefined += [(n, node.id) for node in ast.walk(tree)
+                      if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Load) and node.id not in defined]
+    assert not undefined, f"names a reader's paste leaves undefined (block, name): {undefined}"
