@@ -87,7 +87,8 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     Raises
     ------
     SpecError
-        Naming the sensor: an input slower than the base rate, a rate faster than the base
+        Naming the sensor: a rate that is not a positive number, an input slower than the base
+        rate, a rate faster than the base
         rate, a rate slower than ``base / MAX_PERIOD`` (one reading a period at most), or rates
         whose period exceeds :data:`~cfdesign.gains.MAX_PERIOD` steps.
 
@@ -98,6 +99,9 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     >>> T, schedule.period, schedule.phases("gps")
     (0.01, 100, (0, 33, 67))
     """
+    for name, rate in rates_hz.items():  # 0 raised a raw ZeroDivisionError, a negative rate gave a schedule
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+            raise SpecError(f"sensors.{name}.rate_hz must be a positive number of hertz, got {rate!r}")
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
     offsets_s = offsets_s or {}
     ratios = {}

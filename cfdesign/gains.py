@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import keyword
 import math
+import numbers
 import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -215,8 +216,7 @@ def _check_schedule(t, source):
 
 
 def _check_output(t, source):
-    if t.output not in linear.OUTPUTS:
-        raise GainTableError(f"{source}: output must be one of {', '.join(linear.OUTPUTS)}, got {t.output!r}")
+    _require_output(t.output, source)
     if t.output == "posterior" and (t.domain == "s" or any(linear.gain_pair(t.F, K, t.gain_form)[1] is None
                                                            for K in t.K)):
         raise GainTableError(f"{source}: a posterior output needs a discrete table with an invertible F")
@@ -723,6 +723,12 @@ class GainTable:
         float
             Standard deviation in the state's unit (rad, m, ...).
 
+        Raises
+        ------
+        GainTableError
+            ``output`` is not ``'posterior'`` or ``'prior'`` (any other word gave the prior's),
+            or ``state`` is not a state index.
+
         Examples
         --------
         >>> import cfdesign
@@ -730,6 +736,11 @@ class GainTable:
         >>> table.predicted_std_of("posterior") <= table.predicted_std_of("prior")
         True
         """
+        _require_output(output, self.name)
+        n = self.F.shape[0]
+        if isinstance(state, bool) or not isinstance(state, numbers.Integral) or not 0 <= state < n:
+            raise GainTableError(f"{self.name}: state must be an index from 0 to {n - 1} ({', '.join(self.states)}), "
+                                 f"got {state!r}")
         covs = self.P_filtered if output == "posterior" else self.P
         return float(np.sqrt(max(c[state, state] for c in covs)))
 
@@ -795,7 +806,8 @@ class GainTable:
         ------
         GainTableError
             A multirate table (its bands change with the phase: see :meth:`bode` and
-            :func:`cfdesign.plot.lifted_system`).
+            :func:`cfdesign.plot.lifted_system`), or an ``output`` other than ``'posterior'`` and
+            ``'prior'``.
 
         Examples
         --------
@@ -807,6 +819,8 @@ class GainTable:
         from .analysis import named_transfer_functions
         from .verify import IDENTITY_RTOL, band_polynomials, polynomial_error
 
+        if output is not None:
+            _require_output(output, self.name)
         if self.period != 1:
             raise GainTableError(f"{self.name} is multirate (period {self.period}): its bands change with the phase; "
                                  "cfdesign.plot.lifted_system(table) gives the lifted system at the period rate")
@@ -1068,6 +1082,12 @@ def _no_duplicates(pairs) -> dict:
         dup = next(k for k, _ in pairs if k in seen or seen.add(k))
         raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
     return out
+
+
+def _require_output(output, name: str) -> None:
+    """GainTableError unless ``output`` names an estimate (``linear.OUTPUTS``)."""
+    if not isinstance(output, str) or output not in linear.OUTPUTS:
+        raise GainTableError(f"{name}: output must be one of {', '.join(linear.OUTPUTS)}, got {output!r}")
 
 
 def require_table(value, what: str) -> None:

@@ -1286,3 +1286,26 @@ def test_a_path_or_dict_for_a_spec_is_named(value, heading):
         with pytest.raises(SpecError, match=rf"^{name} takes a FilterSpec, got {type(value).__name__}") as err:
             call()
         assert hint in str(err.value)
+
+
+def test_words_and_numbers_that_name_nothing_are_refused(heading):
+    """A misspelt output gave the prior's predicted std in silence; a structure's name for an
+    observer, a rate of 0 raised raw AttributeError / ZeroDivisionError, a negative rate gave a
+    schedule; an unknown output of transfer_functions a raw ValueError."""
+    from cfdesign.designer import multirate_schedule
+    from cfdesign.errors import StructureError
+
+    assert heading.predicted_std_of("posterior") < heading.predicted_std_of("prior")
+    for output in ("posterier", None, 0):
+        with pytest.raises(GainTableError, match="output must be one of prior, posterior"):
+            heading.predicted_std_of(output)
+    with pytest.raises(GainTableError, match="output must be one of"):
+        heading.transfer_functions("Posterior")
+    for state in (2, -1, 1.0, True):
+        with pytest.raises(GainTableError, match=r"state must be an index from 0 to 1 \(heading, gyro_correction\)"):
+            heading.predicted_std_of("prior", state)
+    with pytest.raises(StructureError, match=r"prove takes an Observer, got str: .*cfdesign\.structure\('cf2'\)"):
+        cfdesign.prove("cf2")
+    for rate in (0, -50.0, math.nan, math.inf, "100", True):
+        with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz must be a positive number of hertz"):
+            multirate_schedule({"imu": 100.0, "gps": rate}, inputs=("imu",))

@@ -152,6 +152,12 @@ class Sensor:
         Sensor
             The input sensor (role ``input``).
 
+        Raises
+        ------
+        StructureError
+            A name that is not an identifier, an unknown quantity, a negative column or a
+            ``bias_state`` that is not a state index.
+
         Examples
         --------
         >>> from cfdesign import Sensor
@@ -180,6 +186,17 @@ class Sensor:
         -------
         Sensor
             The measurement sensor (role ``measurement``).
+
+        Raises
+        ------
+        StructureError
+            A name that is not an identifier, an unknown quantity or a negative row.
+
+        Examples
+        --------
+        >>> from cfdesign import Sensor
+        >>> Sensor.measurement("compass", "angle", 0).order
+        0
         """
         return cls(name, measures, "measurement", row, relation)
 

@@ -152,6 +152,12 @@ def prove(observer) -> Proof:
     Proof
         The outcome; ``holds`` is True when the bands sum to exactly one.
 
+    Raises
+    ------
+    StructureError
+        ``observer`` is not an Observer (a structure's name: ``cfdesign.structure(name)``
+        builds it).
+
     Examples
     --------
     >>> import cfdesign
@@ -159,6 +165,13 @@ def prove(observer) -> Proof:
     >>> proof.holds, proof.residual
     (True, 0)
     """
+    from .observer import Observer
+
+    if not isinstance(observer, Observer):  # a name or a python-control system raised a raw AttributeError
+        from ..errors import StructureError
+
+        hint = f": build it with cfdesign.structure({observer!r})" if isinstance(observer, str) else ""
+        raise StructureError(f"prove takes an Observer, got {type(observer).__name__}{hint}")
     if observer.relations_follow_the_model or observer.residual_numerator == 0:  # holds, no band reduced
         return Proof(observer.name, observer.variable, _Bands(observer), sp.Integer(1), sp.Integer(0),
                      observer.parameters)
