@@ -14,7 +14,7 @@ import numpy as np
 from .linear import response
 
 __all__ = ["transfer_functions", "named_transfer_functions", "FrequencyResponse", "frequency_response",
-           "default_frequencies"]
+           "default_frequencies", "angular_frequencies"]
 
 
 def transfer_functions(observer) -> dict:
@@ -70,6 +70,38 @@ def _require_observer(observer, what: str) -> None:
     else:
         hint = ""
     raise StructureError(f"{what} takes a cfdesign Observer with numeric gains, got {type(observer).__name__}{hint}")
+
+
+def angular_frequencies(omega) -> np.ndarray:
+    """A frequency grid given by a caller, checked: text gave numpy's raw ValueError, a matrix a
+    broadcast error deep in the plot.
+
+    Parameters
+    ----------
+    omega : array_like
+        Angular frequencies (rad/s).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        ``omega`` as floats.
+
+    Raises
+    ------
+    InputError
+        ``omega`` is not a non-empty 1-D array of finite real numbers.
+    """
+    from .errors import InputError
+
+    try:
+        w = np.asarray(omega, dtype=float)
+    except (TypeError, ValueError):
+        w = None
+    if w is None or w.ndim != 1 or w.size == 0 or not np.isfinite(w).all():
+        shape = "" if w is None else f" of shape {w.shape}"
+        raise InputError(f"omega must be a non-empty 1-D array of finite angular frequencies (rad/s), got "
+                         f"{type(omega).__name__}{shape}")
+    return w
 
 
 def named_transfer_functions(coefficients: dict, dt, label: str = "", total=None) -> dict:
@@ -291,13 +323,15 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
         large, or a pole on the grid).
     StructureError
         ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
+    InputError
+        ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
     """
     _require_observer(observer, "frequency_response")
     coefficients = observer.band_coefficients()
     dt = float(observer.sample_time) if observer.discrete else None
     if omega is None:
         omega = default_frequencies(coefficients, dt, points)
-    omega = np.asarray(omega, dtype=float)
+    omega = angular_frequencies(omega)
     bands = {name: response(num, den, omega, dt) for name, (num, den) in coefficients.items()}
     if not all(np.all(np.isfinite(b)) for b in bands.values()):
         from .errors import GainError

@@ -865,6 +865,11 @@ class GainTable:
         -------
         matplotlib.figure.Figure
             The figure: magnitude (dB) and phase (deg) axes.
+
+        Raises
+        ------
+        InputError
+            ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
         """
         from .plot import table_bode_plot
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .analysis import frequency_response
+from .analysis import angular_frequencies, frequency_response
 from .gains import require_table
 
 __all__ = ["bode_plot", "table_bode_plot", "lifted_system", "figure_bytes", "FIGURE_FORMATS"]
@@ -44,6 +44,8 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
     StructureError
         ``observer`` is not a cfdesign Observer (a python-control system, a gain table: its own
         ``table.bode()``).
+    InputError
+        ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
     """
     resp = frequency_response(observer, omega)
     return _draw_bands(resp, hz, title or _default_title(observer), fig)
@@ -134,6 +136,8 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     ------
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
+    InputError
+        ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
 
     Examples
     --------
@@ -145,13 +149,15 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     2
     """
     require_table(table, "table_bode_plot")
+    if omega is not None:
+        omega = angular_frequencies(omega)
     from .analysis import FrequencyResponse, default_frequencies
     from .verify import band_polynomials
 
     if table.period == 1:
         coefficients = band_polynomials(table)[0]
         dt = table.sample_time_s if table.domain == "z" else None
-        omega = default_frequencies(coefficients, dt) if omega is None else np.asarray(omega, dtype=float)
+        omega = default_frequencies(coefficients, dt) if omega is None else omega
         from . import linear
 
         # the state-space responses: the polynomials lose poles that lie within rounding of z = 1

@@ -253,3 +253,16 @@ def test_with_gains_takes_numpy_scalars():
         assert sp.simplify(cfdesign.cf2().with_gains(k=k).bands["angle"] - 1 / (2 * sp.Symbol("s") + 1)) == 0
     with pytest.raises(cfdesign.GainError, match="real number"):
         cfdesign.cf2().with_gains(k=np.array([0.5]))
+
+
+@pytest.mark.parametrize("omega", ["abc", [[1.0, 2.0]], [], [1.0, np.nan], 5.0])
+def test_a_frequency_grid_that_is_not_one_is_named(omega, dckf3):
+    """Text gave numpy's raw ValueError, a matrix a broadcast error inside the plot."""
+    from cfdesign.errors import InputError
+
+    for call in (lambda: cfdesign.bode_plot(cfdesign.cf2().with_gains(k=2), omega=omega),
+                 lambda: cfdesign.frequency_response(cfdesign.cf2().with_gains(k=2), omega=omega),
+                 lambda: dckf3.bode(omega=omega)):
+        with pytest.raises(InputError, match=r"omega must be a non-empty 1-D array of finite angular frequencies"):
+            call()
+    assert len(cfdesign.frequency_response(cfdesign.cf2().with_gains(k=2), omega=[0.1, 1.0]).omega) == 2
