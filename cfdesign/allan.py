@@ -262,7 +262,7 @@ class NoiseTerm:
     ci : (float, float)
         95 % confidence interval.
     tau_range_s : (float, float)
-        The averaging times over which the term dominates and was checked.
+        The averaging times (s) over which the term dominates and was checked.
     slope : float
         The measured log-log slope over that range (the term's own is ``nominal_slope``).
     nominal_slope : float

@@ -71,7 +71,7 @@ class PlanarEstimate:
     covariance : ndarray (N, 4, 4)
         A posteriori covariance.
     heading_std : ndarray (N,)
-        Standard deviation of the chord-heading measurement used at that sample (eq. (13)), NaN
+        Standard deviation (rad) of the chord-heading measurement used at that sample (eq. (13)), NaN
         when there was none.
     gps_std_used : ndarray (N,)
         GPS position standard deviation used at that sample (by mode), NaN without a fix.
@@ -149,7 +149,7 @@ class PlanarEKF:
     alpha_noise_std : float
         ``σ_α`` of eq. (1), the scale's random walk per sample.
     initial_std : tuple of 4 floats
-        Initial standard deviations of ``[x, y, θ, α]``.
+        Initial standard deviations of ``[x, y, θ, α]`` (m, m, rad, unitless scale).
     gyro_range_rps : float
         A yaw rate beyond it is impossible and treated as missing (default 100 rad/s, as
         :class:`~cfdesign.nav.AttitudeParams`).

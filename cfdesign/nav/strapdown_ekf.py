@@ -245,11 +245,11 @@ class StrapdownEKF:
     triad_std : float
         TRIAD attitude noise per axis (rad).
     mag_rate_hz : float, optional
-        Magnetometer (TRIAD) rate; must divide ``rate_hz``.  Default: ``rate_hz``.
+        Magnetometer (TRIAD) rate (Hz); must divide ``rate_hz``.  Default: ``rate_hz``.
     mag_reference_enu : array_like (3,)
         Earth magnetic field in ENU (direction only matters; default magnetic North).
     norm_std : float
-        Noise of the norm pseudo-observation (eq. (9)).
+        Noise (standard deviation, unitless) of the norm pseudo-observation (eq. (9)).
     initial_std : dict, optional
         Initial standard deviations; keys ``gyro_bias`` (rad/s, default 1°/s), ``accel_bias``
         (m/s², 0.2), ``scale`` (0.02), ``velocity`` (m/s, 10 unless given/measured).

@@ -347,7 +347,7 @@ def interval_mean_readings(t_s, means, bias, noise_std, prefix, seed) -> np.ndar
     bias : sequence of 3 floats
         Constant bias per axis.
     noise_std : float
-        White noise per sample.
+        White noise per sample (standard deviation, in the readings' unit).
     prefix : str
         Sensor name prefix (``gyro``): axis ``x`` draws from the stream of ``gyro_x``.
     seed : int
