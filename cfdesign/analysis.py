@@ -325,6 +325,15 @@ def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResp
         ``observer`` is not a cfdesign Observer (a python-control system, a gain table).
     InputError
         ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> resp = cfdesign.frequency_response(cfdesign.cf2().with_gains(k=2), omega=[0.2, 2.0, 20.0])
+    >>> bool(abs(resp.bands["angle"][0]) > abs(resp.bands["rate"][0]))   # the angle band below the crossover
+    True
+    >>> resp.crossovers()                                          # (band, band, rad/s)
+    [('angle', 'rate', 2.0)]
     """
     _require_observer(observer, "frequency_response")
     coefficients = observer.band_coefficients()

@@ -1141,6 +1141,14 @@ def load_gains(path) -> GainTable:
         The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
         Infinity tokens and keys given twice in one object included), fails the schema, or its
         parts do not fit together; the message names the file and the field.
+
+    Examples
+    --------
+    >>> import cfdesign, tempfile, pathlib
+    >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("robot-heading")))
+    >>> loaded = cfdesign.load_gains(table.save(pathlib.Path(tempfile.mkdtemp()) / "gains.json"))
+    >>> loaded.sensor_names(), bool((loaded.K[0] == table.K[0]).all())
+    (['odometry_rate', 'gyro_heading', 'compass'], True)
     """
     path = Path(path)
     try:

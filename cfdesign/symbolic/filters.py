@@ -274,6 +274,13 @@ def ckf3() -> Observer:
     -------
     Observer
         Continuous; sensors ``acceleration`` (input), ``velocity`` and ``position``.
+
+    Examples
+    --------
+    >>> import cfdesign
+    >>> f = cfdesign.ckf3()
+    >>> f.gains, f.proof().holds
+    (('k11', 'k12', 'k21', 'k22'), True)
     """
     obs = cfn(3, full=True)
     obs.name = "ckf3"
