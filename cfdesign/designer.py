@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import numbers
 import platform
 import warnings
 from dataclasses import dataclass, replace
@@ -100,7 +101,7 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     (0.01, 100, (0, 33, 67))
     """
     for name, rate in rates_hz.items():  # 0 raised a raw ZeroDivisionError, a negative rate gave a schedule
-        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not 0 < rate < math.inf:
+        if isinstance(rate, bool) or not isinstance(rate, numbers.Real) or not 0 < rate < math.inf:
             raise SpecError(f"sensors.{name}.rate_hz must be a positive number of hertz, got {rate!r}")
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
     offsets_s = offsets_s or {}

@@ -1309,3 +1309,4 @@ def test_words_and_numbers_that_name_nothing_are_refused(heading):
     for rate in (0, -50.0, math.nan, math.inf, "100", True):
         with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz must be a positive number of hertz"):
             multirate_schedule({"imu": 100.0, "gps": rate}, inputs=("imu",))
+    assert multirate_schedule({"imu": np.int64(100), "gps": np.float32(1.0)}, inputs=("imu",))[1].period == 100
