@@ -569,8 +569,9 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
     for name in sched.measurements:
         ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
         if not len(ticks):
-            notes.append(f"{name} has no reading in the log: the gains are still those designed with it "
-                         "(re-design without it for the best estimate)")
+            notes.append(f"{name} has no reading in the log: " + (
+                "the log runs the Kalman filter of the table's model over the readings that arrive" if recompute
+                else "the gains are still those designed with it (re-design without it for the best estimate)"))
         phases, step = _pattern(sched, name)
         expected = len(phases) / (P * dt)
         if len(ticks) >= 10:
