@@ -77,14 +77,19 @@ GPS3 = {"name": "imu 100 Hz + gps 3 Hz", "structure": "position", "gain_form": "
     "gps": {"rate_hz": 3.0, "noise": {"std": 2.0}}}}
 
 
-def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, tmp_path, cli):
+@pytest.fixture(scope="module")
+def gps3():
+    return cfdesign.design(parse_spec(GPS3))
+
+
+def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, gps3, tmp_path, cli):
     """A GPS at 3.3 Hz into a table designed for 3 Hz (a 10 Hz compass into a 1 Hz table): a table
     with a model runs its Kalman filter over the arrivals, every reading used (on the schedule
     only 1 reading in 13 had a gain: 21 m RMS where 0.52 m was designed); a table without one
     (fixed gains) counts the readings off its schedule, on stderr and in the result."""
     import dataclasses
 
-    table = cfdesign.design(parse_spec(GPS3))
+    table = gps3
     x, readings = model_log(table, 12_000, seed=3)
     fix = np.unique(np.rint(np.arange(0, 12_000, 100 / 3.3)).astype(int))
     gps = np.full(12_000, np.nan)
@@ -106,6 +111,25 @@ def test_a_sensor_faster_than_the_table_has_every_reading_used(heading, tmp_path
     r = run_log(heading, log)
     assert r.unused == {} and any("odometry 3 ticks" in n and "as they arrive" in n for n in r.notes)
     assert not any("recomputed" in n or "locked" in n for n in r.notes)
+
+
+def test_a_rate_a_few_percent_off_the_design_is_named(gps3):
+    """A GPS at 2.94 or 3.06 Hz into a table designed for 3 Hz (its rate_hz 2 % off): a note names
+    both rates, none claims a fixed offset for it (it said 'readings arrive gps 74 ticks after the
+    table's schedule' and nothing on the rate), and every reading is used."""
+    table = gps3
+    x, readings = model_log(table, 9000, seed=3)
+    rng = np.random.default_rng(4)
+    for rate, sign in ((2.94, "-2.0 %"), (3.06, "+2.0 %")):
+        fix = np.rint(np.arange(0, 9000, 100 / rate)).astype(int)
+        gps = np.full(9000, np.nan)
+        gps[fix] = x[fix, 0] + 2.0 * rng.standard_normal(len(fix))
+        r = run_log(table, pd.DataFrame({"time": np.arange(9000) * 0.01, "accelerometer": readings["accelerometer"],
+                                         "gps": gps}))
+        assert r.unused == {}
+        assert any(n.startswith(f"gps arrives at {rate:.3g}") and f"the table reads it at 3 Hz ({sign}" in n
+                   for n in r.notes), r.notes
+        assert not any("ticks after" in n for n in r.notes), r.notes
 
 
 def test_rates_that_are_not_integer_ratios_design_verify_and_run(tmp_path, cli):
