@@ -134,8 +134,20 @@ def _ratio(name, ratio, base, rate) -> Fraction:
     frac = Fraction(ratio).limit_denominator(MAX_PERIOD)
     if abs(frac - ratio) > _RATE_RTOL * ratio or frac.numerator > MAX_PERIOD:
         raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not a fraction of the base rate {base:g} Hz "
-                        f"with a period of at most {MAX_PERIOD} steps (ratio {ratio:.9g})")
+                        f"with a period of at most {MAX_PERIOD} steps (ratio {ratio:.9g})" + _nearest_rate(ratio, base))
     return frac
+
+
+def _nearest_rate(ratio, base) -> str:
+    """The advice on a rate without a short period (a GPS declared at 3.333 Hz beside 100 Hz): the
+    rate within 1 % of it whose period is shortest, written with the digits that design it."""
+    for bound in (10, 100, 1000, MAX_PERIOD):
+        near = Fraction(1 / ratio).limit_denominator(bound)  # rate / base = q / p with p <= bound
+        if near and abs(near * ratio - 1) <= 0.01:
+            return (f"; rate_hz = {float(base * near):.12g} is {100 * abs(near * ratio - 1):.2g} % from it, with a "
+                    f"period of {near.denominator} steps (cfdesign run follows a sensor whose arrivals differ "
+                    "from its rate_hz)")
+    return ""
 
 
 @dataclass(frozen=True)

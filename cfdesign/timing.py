@@ -565,12 +565,13 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         The segments, offsets, measured rates and notes.
     """
     sched, P, dt = table.schedule, table.period, table.sample_time_s
-    notes, rates, patterns, faster = [], {}, {}, False
+    notes, rates, patterns, faster, drifting = [], {}, {}, False, set()
     for name in sched.measurements:
         ticks = np.asarray(arrivals.get(name, ()), dtype=np.int64)
         if not len(ticks):
-            notes.append(f"{name} has no reading in the log: the gains are still those designed with it "
-                         "(re-design without it for the best estimate)")
+            notes.append(f"{name} has no reading in the log: " + (
+                "the log runs the Kalman filter of the table's model over the readings that arrive" if recompute
+                else "the gains are still those designed with it (re-design without it for the best estimate)"))
         phases, step = _pattern(sched, name)
         expected = len(phases) / (P * dt)
         if len(ticks) >= 10:
@@ -586,6 +587,11 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
             notes.append(f"{name} has {rates[name]:.4g} readings a second where the table reads it at "
                          f"{expected:.4g} Hz (missed readings or a slower sensor): every reading is used, the "
                          "estimate is less accurate than designed")
+        elif name in rates and abs(rates[name] / expected - 1) > RATE_RTOL:  # a rate_hz a few percent off
+            notes.append(f"{name} arrives at {rates[name]:.4g} Hz but the table reads it at {expected:.4g} Hz "
+                         f"({100 * (rates[name] / expected - 1):+.1f} %: is its rate in the design file right?): "
+                         "its arrivals slip through the schedule" + (", every reading is used" if recompute else ""))
+            drifting.add(name)
         patterns[name] = (ticks, phases, step)
     runs = {name: _offset_runs(t, ph, st, P) for name, (t, ph, st) in patterns.items() if len(t) and st < P + 1}
     breaks = sorted({t for r in runs.values() for t, _ in r} | {0})
@@ -599,7 +605,7 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         life[tuple(sorted(offs.items()))] = life.get(tuple(sorted(offs.items())), 0) + (b - a)
     segments = _merged(segments)
     main = dict(max(life, key=life.get)) if life else {}
-    late = {k: v for k, v in main.items() if v}
+    late = {k: v for k, v in main.items() if v and k not in drifting}  # a sensor off its rate has no one offset
     varying = faster or (recompute and len(segments) > 1 and n_ticks < STEADY_PERIODS * P * len(segments))
     if late:  # (what runs: a drifting sensor's log runs the Kalman filter, not the locked schedule)
         notes.insert(0, "readings arrive " + ", ".join(f"{k} {v} ticks" for k, v in late.items())

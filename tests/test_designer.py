@@ -1,6 +1,7 @@
 """Design: spec -> noise -> Riccati -> GainTable, against independent computations."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -126,6 +127,14 @@ def test_multirate_schedule_lcm_and_errors():
     assert s.period == 100 and s.phases("gps") == (0, 33, 67) and s.phases("baro")[:2] == (3, 13)
     with pytest.raises(SpecError, match=r"sensors\.gps\.rate_hz.*not a fraction of the base rate"):
         multirate_schedule({"imu": 50.0, "gps": 50.0 / 3.14159265358979}, inputs=["imu"])
+    # a GPS declared at 3.333 Hz (one fix every 0.3 s) is refused with a rate that designs, and that rate does
+    for typed, period in ((3.333, 30), (1.003, 100), (0.13, 7692)):
+        imu = 1000.0 if typed == 0.13 else 100.0
+        with pytest.raises(SpecError, match=r"rate_hz = ([0-9.]+) is .* % from it, with a period of") as info:
+            multirate_schedule({"imu": imu, "gps": typed}, inputs=["imu"])
+        advised = float(re.search(r"rate_hz = ([0-9.]+)", str(info.value)).group(1))
+        assert abs(advised / typed - 1) <= 0.01
+        assert multirate_schedule({"imu": imu, "gps": advised}, inputs=["imu"])[1].period == period
     with pytest.raises(SpecError, match=r"input sensor imu must run at the base rate"):
         multirate_schedule({"imu": 10.0, "gps": 20.0}, inputs=["imu"])
     # the slowest rate the cap allows runs; slower ones are named as too slow (they were called "not a
