@@ -15,6 +15,7 @@ import numpy as np
 
 from ..blas import small_problem
 from ..errors import AccuracyError, NoStabilisingSolutionError, NotDetectableError, NotStabilisableError, RiccatiError
+from .api import dare
 from .fallbacks import compose, sda
 from .lyapunov import stein
 from .problem import EPS, herm, rel
@@ -111,6 +112,25 @@ def _periodic_checks(Phi, Wo, Wc):
                                    f"not excited by the process noise Q (lifted PBH test): no stabilising solution")
 
 
+def _lifted_dare(A, G, H):
+    """Stabilising fixed point of the period's map ``P = A P (I + G P)^-1 A' + H`` by :func:`dare`.
+
+    Doubling computes the map's iterates from ``P = 0``; on an unstable mode that the noise
+    ``H`` does not excite they stay at 0, the fixed point of an unstable closed loop, although
+    the stabilising one exists when the mode is observable.  With ``G = L L'`` (the lifted
+    measurement term, positive semidefinite) the map is the standard filter DARE
+    ``dare(A', L, H, I)``, whose Schur estimate and Newton refinement find the stabilising
+    solution.
+    """
+    w, V = np.linalg.eigh(G)
+    keep = w > G.shape[0] * EPS * max(w[-1], 0.0)
+    if not np.any(keep):
+        raise NoStabilisingSolutionError("the periodic closed loop is not stable and nothing is measured over the "
+                                         "period")
+    L = V[:, keep] * np.sqrt(w[keep])
+    return dare(A.conj().T, L, H, np.eye(L.shape[1])).X
+
+
 def _propagate(As, Cs, Qs, Rs, P0):
     r"""One period of the recursion from P[0]: P[0..N], K_filter, P_filtered and Phi.
 
@@ -167,6 +187,9 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
     ``G_k = C_k' R_k^-1 C_k``; the N maps are composed pairwise (a tree of batched
     compositions) into one map over the period, i.e. the lifted problem at phase 0, whose
     fixed point ``P[0]`` is found by structure-preserving doubling (quadratic convergence).
+    Where the doubling's fixed point does not stabilise the period (an unstable mode that ``Q``
+    does not excite: the iterates from ``P = 0`` stay at 0 on it), ``P[0]`` is instead the
+    stabilising solution of the lifted map as a standard DARE (:func:`~cfdesign.riccati.dare`).
     One sweep of the recursion gives ``P[1..N-1]``; if ``P[N]`` misses ``P[0]`` by more than
     ``tol``, Newton steps on ``P[0]`` (one Stein equation with the closed-loop monodromy
     matrix each) polish it against the recursion itself.
@@ -220,7 +243,13 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         raise RiccatiError(f"the product of A over the {N} phases (the monodromy matrix) overflows a double "
                            f"(entries of A up to {max(np.abs(M).max() for M in As):.3g})")
     _periodic_checks(Phi, folded[1], folded[2])
-    P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, sda(*folded, tol)[0])
+    try:
+        P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, sda(*folded, tol)[0])
+        stable = np.max(np.abs(np.linalg.eigvals(Phi))) < 1
+    except NoStabilisingSolutionError:
+        stable = False
+    if not stable:  # doubling from P = 0 stays at 0 on an unstable mode that Q does not excite
+        P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, _lifted_dare(*folded))
     steps = 0
     while rel(P[-1] - P[0], P[0]) > tol and steps < 4:
         P0 = herm(P[0] + stein(Phi.conj().T - np.eye(n), P[-1] - P[0]))
