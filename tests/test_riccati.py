@@ -445,6 +445,43 @@ def test_unstabilisable_mode_is_named():
         care([[0.0, 1.0], [-1.0, 0.0]], [[0.0], [0.0]], np.eye(2), 1)
 
 
+def test_slightly_unstable_mode_is_not_called_a_boundary_mode():
+    """s = 1e-10 and z = 1 + 1e-10 are unstable by far more than the PBH test's tolerance
+    (4e-14); the message called them 'on the imaginary axis' / 'on the unit circle' (an absolute
+    1e-9 decided it, and z printed as 1.0)."""
+    B = np.array([[0.0], [1.0]])
+    with pytest.raises(NotStabilisableError, match=r"mode at s = 1e-10 is unstable and"):
+        care(np.diag([1e-10, -1.0]), B, np.eye(2), 1)
+    with pytest.raises(NotStabilisableError, match=r"z = 1\.0 is unstable \(\|z\| - 1 = 1e-10\) and"):
+        dare(np.diag([1 + 1e-10, 0.5]), B, np.eye(2), 1)
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_stiff_closed_loop_with_a_slow_stable_mode_is_certified(coupled):
+    """A = diag(1e7, -2e-8): the slow mode is stable, so (A, B) is stabilisable whatever B does to
+    it.  The closed loop's eigenvalue -2e-8 was compared with a normwise uncertainty
+    10 eps ||A - BK|| = 2.2e-8, so the solution was 'marginal', and the PBH test, whose tolerance
+    scales with the spectrum (4.4e-7), then called the mode 'on the imaginary axis and not
+    reachable from B' (uncoupled) or the solution was returned flagged marginal (coupled), while
+    scipy returns the exact X.  The eigenvalue's uncertainty is now also bounded a posteriori,
+    from the residual of its eigenpair and the entrywise rounding of A - BK."""
+    if coupled:
+        A, B = np.array([[1e7, 1.0], [0.0, -2e-8]]), np.array([[1.0], [1e-9]])
+    else:
+        A, B = np.diag([1e7, -2e-8]), np.array([[1.0], [0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        sol = care(A, B, np.eye(2), 1)
+    assert not sol.marginal and sol.stability_margin == pytest.approx(2e-8, rel=0.02)
+    if not coupled:  # decoupled: x1 solves 2e7 x - x^2 + 1 = 0, x2 = 1 / 4e-8
+        assert _rel(sol.X, np.diag([1e7 + np.sqrt(1e14 + 1), 2.5e7])) <= 1e-15
+    assert _relres(_case_dict("care", A, B, np.eye(2), np.eye(1)), sol.X) <= 1e-15
+
+
+def _case_dict(kind, A, B, Q, R):
+    return {"kind": kind, "A": A, "B": B, "Q": Q, "R": R, "S": None, "E": None}
+
+
 def test_nearly_unstabilisable_is_not_rejected():
     """B = [1e-8, 0]: stabilisable, only ill-conditioned (CAREX 2.1 with eps = 1e-8)."""
     sol = care(np.diag([1.0, -2.0]), [[1e-8], [0.0]], np.ones((2, 2)), 1)

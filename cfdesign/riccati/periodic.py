@@ -20,7 +20,7 @@ from .fallbacks import compose, sda
 from .lyapunov import stein
 from .problem import EPS, herm, rel
 from .results import PeriodicSolution
-from .validation import fmt_mode, is_psd, matrix, min_eig, unreachable_mode
+from .validation import fmt_mode, is_psd, matrix, min_eig, mode_position, unreachable_mode
 
 __all__ = ["periodic_dare"]
 
@@ -102,14 +102,15 @@ def _periodic_checks(Phi, Wo, Wc):
     """
     hit = unreachable_mode("dare", Phi.conj().T, None, Wo)
     if hit is not None:
-        mu, d = hit
-        where = "unstable" if d < 0 else "on the unit circle"
-        raise NotDetectableError(f"monodromy multiplier at {fmt_mode('dare', np.conj(mu))} is {where} and not "
-                                 f"observable from C over the period (lifted PBH test)")
+        mu = np.conj(hit[0])
+        where = mode_position("dare", mu, *hit[1:])
+        raise NotDetectableError(f"monodromy multiplier at {fmt_mode('dare', mu)} is {where} and not observable from C "
+                                 f"over the period (lifted PBH test)")
     hit = unreachable_mode("dare", Phi, None, Wc, boundary_only=True)
     if hit is not None:
-        raise NotStabilisableError(f"monodromy multiplier at {fmt_mode('dare', hit[0])} is on the unit circle and "
-                                   f"not excited by the process noise Q (lifted PBH test): no stabilising solution")
+        where = mode_position("dare", *hit)
+        raise NotStabilisableError(f"monodromy multiplier at {fmt_mode('dare', hit[0])} is {where} and not excited by "
+                                   f"the process noise Q (lifted PBH test): no stabilising solution")
 
 
 def _lifted_dare(A, G, H):
