@@ -232,3 +232,28 @@ def test_unstable_dynamics_with_a_slow_precise_sensor(period):
     assert abs(sol.P[0][0, 0] - exact) <= 1e-12 * exact
     # the posterior after the measurement is R P / (P + R), just below R
     assert abs(sol.P_filtered[0][0, 0] - exact / (exact + 1)) <= 1e-14
+
+
+@pytest.mark.parametrize("period", [1, 5])
+def test_unstable_mode_without_process_noise_has_a_stabilising_solution(period):
+    """x[k+1] = 1.2 x[k] with no process noise, measured once a period (R = 1): the unstable
+    mode is observable, so the stabilising solution exists (P = a^(2N) P R / (P + R), i.e.
+    P = a^(2N) - 1 for Q = 0) although the noise does not excite it.  Doubling from P = 0 found
+    the other fixed point, P = 0 (its closed loop is A itself), and the solver reported
+    'the periodic closed loop is not stable'.  Also with a second, excited and stable state."""
+    a = 1.2
+    C = [np.ones((1, 1))] + [np.zeros((0, 1))] * (period - 1)
+    R = [np.ones((1, 1))] + [None] * (period - 1)
+    sol = periodic_dare(np.array([[a]]), C, np.zeros((1, 1)), R)
+    assert sol.P[0][0, 0] == pytest.approx(a ** (2 * period) - 1, rel=1e-13)
+    assert np.max(np.abs(sol.monodromy_multipliers)) < 1
+    A2, Q2 = np.diag([a, 0.5]), np.diag([0.0, 1.0])
+    C2 = [np.array([[1.0, 1.0]])] + [np.zeros((0, 2))] * (period - 1)
+    sol2 = periodic_dare(A2, C2, Q2, R)
+    if period == 1:  # the standard filter DARE
+        assert max(rel(P, kalman_discrete(A2, C2[0], Q2, R[0]).P) for P in sol2.P) <= 1e-12
+    for k in range(period):  # every phase satisfies the recursion
+        P, Cn, Rn = sol2.P[k], C2[k], R[k]
+        Pp = P - P @ Cn.T @ np.linalg.solve(Cn @ P @ Cn.T + Rn, Cn @ P) if Cn.shape[0] else P
+        assert rel(A2 @ Pp @ A2.T + Q2, sol2.P[(k + 1) % period]) <= 1e-12
+    assert np.max(np.abs(sol2.monodromy_multipliers)) < 1

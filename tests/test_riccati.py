@@ -298,6 +298,33 @@ def test_complex_hermitian_solution():
     assert np.all(sol.closed_loop_eigenvalues.real < 0)
 
 
+def _scaled_similarity(n=4, seed=0):
+    """A random CARE under the diagonal similarity diag(1e-4 .. 1e4): X has entries from 1e-8 to 1e8."""
+    rng = np.random.default_rng(seed)
+    d = np.logspace(-4, 4, n)
+    A = rng.standard_normal((n, n)) / np.sqrt(n) * d[:, None] / d[None, :]
+    return A, d[:, None] * rng.standard_normal((n, 2)), np.diag(1 / d**2), np.eye(2), None, None
+
+
+_COMPLEX_E_S = (np.array([[0.3 + 0.5j, 1], [0.2j, -0.4]]), np.array([[1.0], [1j]]), np.eye(2), np.array([[2.0]]),
+                np.array([[0.1j], [0.2]]), np.array([[1.0, 0.2j], [0.0, 2.0]]))
+
+
+@pytest.mark.parametrize(("kind", "args"), [("dare", _COMPLEX_E_S), ("care", _COMPLEX_E_S),
+                                            ("care", _scaled_similarity()), ("dare", _scaled_similarity(seed=1))])
+def test_last_small_correction_is_applied(kind, args):
+    """A Newton correction of one to four units in the last place was computed and dropped, so X
+    stayed scipy's (the badly scaled CARE: entries of 1e-8 wrong from the 13th digit) or
+    came out less accurate than scipy's (the complex DARE with E and S: 2.7 eps normwise, scipy
+    1.6 eps; its residual in long double 3.3e-16 against scipy's 2.2e-16).  Applied, X is the
+    exact solution rounded, entry by entry."""
+    sol = (care if kind == "care" else dare)(*args)
+    A, B, Q, R, S, E = args
+    ref = mp_newton(kind, A, B, Q, R, sol.X, S, E, iters=2, dps=60)
+    assert np.max(np.abs(sol.X - ref) / np.abs(ref)) <= 2 * np.finfo(float).eps
+    assert sol.forward_error <= 4 * np.finfo(float).eps and sol.relative_residual <= 1e-16
+
+
 def test_fallbacks_when_scipy_fails(monkeypatch):
     """Matrix sign function (CARE) and doubling (DARE) take over when scipy raises."""
     def broken(*args, **kwargs):
@@ -416,6 +443,43 @@ def test_unstabilisable_mode_is_named():
         dare(np.diag([1.5, 0.5]), B, np.eye(2), 1)
     with pytest.raises(NotStabilisableError, match="on the imaginary axis"):
         care([[0.0, 1.0], [-1.0, 0.0]], [[0.0], [0.0]], np.eye(2), 1)
+
+
+def test_slightly_unstable_mode_is_not_called_a_boundary_mode():
+    """s = 1e-10 and z = 1 + 1e-10 are unstable by far more than the PBH test's tolerance
+    (4e-14); the message called them 'on the imaginary axis' / 'on the unit circle' (an absolute
+    1e-9 decided it, and z printed as 1.0)."""
+    B = np.array([[0.0], [1.0]])
+    with pytest.raises(NotStabilisableError, match=r"mode at s = 1e-10 is unstable and"):
+        care(np.diag([1e-10, -1.0]), B, np.eye(2), 1)
+    with pytest.raises(NotStabilisableError, match=r"z = 1\.0 is unstable \(\|z\| - 1 = 1e-10\) and"):
+        dare(np.diag([1 + 1e-10, 0.5]), B, np.eye(2), 1)
+
+
+@pytest.mark.parametrize("coupled", [False, True])
+def test_stiff_closed_loop_with_a_slow_stable_mode_is_certified(coupled):
+    """A = diag(1e7, -2e-8): the slow mode is stable, so (A, B) is stabilisable whatever B does to
+    it.  The closed loop's eigenvalue -2e-8 was compared with a normwise uncertainty
+    10 eps ||A - BK|| = 2.2e-8, so the solution was 'marginal', and the PBH test, whose tolerance
+    scales with the spectrum (4.4e-7), then called the mode 'on the imaginary axis and not
+    reachable from B' (uncoupled) or the solution was returned flagged marginal (coupled), while
+    scipy returns the exact X.  The eigenvalue's uncertainty is now also bounded a posteriori,
+    from the residual of its eigenpair and the entrywise rounding of A - BK."""
+    if coupled:
+        A, B = np.array([[1e7, 1.0], [0.0, -2e-8]]), np.array([[1.0], [1e-9]])
+    else:
+        A, B = np.diag([1e7, -2e-8]), np.array([[1.0], [0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        sol = care(A, B, np.eye(2), 1)
+    assert not sol.marginal and sol.stability_margin == pytest.approx(2e-8, rel=0.02)
+    if not coupled:  # decoupled: x1 solves 2e7 x - x^2 + 1 = 0, x2 = 1 / 4e-8
+        assert _rel(sol.X, np.diag([1e7 + np.sqrt(1e14 + 1), 2.5e7])) <= 1e-15
+    assert _relres(_case_dict("care", A, B, np.eye(2), np.eye(1)), sol.X) <= 1e-15
+
+
+def _case_dict(kind, A, B, Q, R):
+    return {"kind": kind, "A": A, "B": B, "Q": Q, "R": R, "S": None, "E": None}
 
 
 def test_nearly_unstabilisable_is_not_rejected():

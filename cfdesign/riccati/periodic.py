@@ -15,11 +15,12 @@ import numpy as np
 
 from ..blas import small_problem
 from ..errors import AccuracyError, NoStabilisingSolutionError, NotDetectableError, NotStabilisableError, RiccatiError
+from .api import dare
 from .fallbacks import compose, sda
 from .lyapunov import stein
 from .problem import EPS, herm, rel
 from .results import PeriodicSolution
-from .validation import fmt_mode, is_psd, matrix, min_eig, unreachable_mode
+from .validation import fmt_mode, is_psd, matrix, min_eig, mode_position, unreachable_mode
 
 __all__ = ["periodic_dare"]
 
@@ -101,14 +102,34 @@ def _periodic_checks(Phi, Wo, Wc):
     """
     hit = unreachable_mode("dare", Phi.conj().T, None, Wo)
     if hit is not None:
-        mu, d = hit
-        where = "unstable" if d < 0 else "on the unit circle"
-        raise NotDetectableError(f"monodromy multiplier at {fmt_mode('dare', np.conj(mu))} is {where} and not "
-                                 f"observable from C over the period (lifted PBH test)")
+        mu = np.conj(hit[0])
+        where = mode_position("dare", mu, *hit[1:])
+        raise NotDetectableError(f"monodromy multiplier at {fmt_mode('dare', mu)} is {where} and not observable from C "
+                                 f"over the period (lifted PBH test)")
     hit = unreachable_mode("dare", Phi, None, Wc, boundary_only=True)
     if hit is not None:
-        raise NotStabilisableError(f"monodromy multiplier at {fmt_mode('dare', hit[0])} is on the unit circle and "
-                                   f"not excited by the process noise Q (lifted PBH test): no stabilising solution")
+        where = mode_position("dare", *hit)
+        raise NotStabilisableError(f"monodromy multiplier at {fmt_mode('dare', hit[0])} is {where} and not excited by "
+                                   f"the process noise Q (lifted PBH test): no stabilising solution")
+
+
+def _lifted_dare(A, G, H):
+    """Stabilising fixed point of the period's map ``P = A P (I + G P)^-1 A' + H`` by :func:`dare`.
+
+    Doubling computes the map's iterates from ``P = 0``; on an unstable mode that the noise
+    ``H`` does not excite they stay at 0, the fixed point of an unstable closed loop, although
+    the stabilising one exists when the mode is observable.  With ``G = L L'`` (the lifted
+    measurement term, positive semidefinite) the map is the standard filter DARE
+    ``dare(A', L, H, I)``, whose Schur estimate and Newton refinement find the stabilising
+    solution.
+    """
+    w, V = np.linalg.eigh(G)
+    keep = w > G.shape[0] * EPS * max(w[-1], 0.0)
+    if not np.any(keep):
+        raise NoStabilisingSolutionError("the periodic closed loop is not stable and nothing is measured over the "
+                                         "period")
+    L = V[:, keep] * np.sqrt(w[keep])
+    return dare(A.conj().T, L, H, np.eye(L.shape[1])).X
 
 
 def _propagate(As, Cs, Qs, Rs, P0):
@@ -167,6 +188,9 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
     ``G_k = C_k' R_k^-1 C_k``; the N maps are composed pairwise (a tree of batched
     compositions) into one map over the period, i.e. the lifted problem at phase 0, whose
     fixed point ``P[0]`` is found by structure-preserving doubling (quadratic convergence).
+    Where the doubling's fixed point does not stabilise the period (an unstable mode that ``Q``
+    does not excite: the iterates from ``P = 0`` stay at 0 on it), ``P[0]`` is instead the
+    stabilising solution of the lifted map as a standard DARE (:func:`~cfdesign.riccati.dare`).
     One sweep of the recursion gives ``P[1..N-1]``; if ``P[N]`` misses ``P[0]`` by more than
     ``tol``, Newton steps on ``P[0]`` (one Stein equation with the closed-loop monodromy
     matrix each) polish it against the recursion itself.
@@ -220,7 +244,13 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         raise RiccatiError(f"the product of A over the {N} phases (the monodromy matrix) overflows a double "
                            f"(entries of A up to {max(np.abs(M).max() for M in As):.3g})")
     _periodic_checks(Phi, folded[1], folded[2])
-    P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, sda(*folded, tol)[0])
+    try:
+        P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, sda(*folded, tol)[0])
+        stable = np.max(np.abs(np.linalg.eigvals(Phi))) < 1
+    except NoStabilisingSolutionError:
+        stable = False
+    if not stable:  # doubling from P = 0 stays at 0 on an unstable mode that Q does not excite
+        P, Kf, Pf, Phi = _propagate(As, Cs, Qs, Rs, _lifted_dare(*folded))
     steps = 0
     while rel(P[-1] - P[0], P[0]) > tol and steps < 4:
         P0 = herm(P[0] + stein(Phi.conj().T - np.eye(n), P[-1] - P[0]))

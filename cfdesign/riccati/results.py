@@ -66,7 +66,9 @@ class RiccatiSolution:
         bounds the relative forward error to first order.
     forward_error : float
         Estimated relative forward error ``||X - X_exact||_F / ||X||_F``: the size of the Newton
-        correction computed from the accurate residual at the returned ``X``.
+        correction computed from the accurate residual at the returned ``X`` or, when that
+        correction was below four units in the last place and has been applied, its size (a
+        bound of the error left).
     refinement_steps : int
         Newton steps accepted.
     kind : {'care', 'dare'}

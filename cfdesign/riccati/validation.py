@@ -15,8 +15,8 @@ from ..errors import NotDetectableError, NotStabilisableError, RiccatiError
 from ..gains import MAX_ENTRY
 from .problem import EPS, TINY, distance, herm
 
-__all__ = ["matrix", "min_eig", "is_psd", "covariance_data", "problem_data", "fmt_mode", "unreachable_mode",
-           "check_modes"]
+__all__ = ["matrix", "min_eig", "is_psd", "covariance_data", "problem_data", "fmt_mode", "mode_position",
+           "unreachable_mode", "check_modes"]
 
 
 def matrix(name, value, shape=(None, None), *, hermitian=False):
@@ -264,8 +264,10 @@ def unreachable_mode(kind, A, E, B, boundary_only=False):
 
     Returns
     -------
-    (complex, float) or None
-        The first such mode and its distance to the boundary.
+    (complex, float, float) or None
+        The first such mode, its distance to the boundary and the tolerance within which a
+        distance counts as on the boundary (``100 n eps``, times the largest ``|lam|`` for the
+        CARE).
     """
     n = A.shape[0]
     Eref = np.eye(n) if E is None else E
@@ -283,14 +285,55 @@ def unreachable_mode(kind, A, E, B, boundary_only=False):
         M = np.hstack([(A - lam_i * Eref) / max(anorm, abs(lam_i) * enorm, TINY), Bs])
         smin = np.linalg.svd(M, compute_uv=False)[-1] if n else 1.0
         if smin <= 100 * n * EPS * np.linalg.norm(M):
-            return lam_i, d_i
+            return lam_i, float(d_i), float(tol_b)
     return None
 
 
-def _raise_mode(cls, kind, lam, d, what):
-    where = "unstable" if d < 0 and abs(d) > 1e-9 else (
-        "on the imaginary axis" if kind == "care" else "on the unit circle")
-    raise cls(f"mode at {fmt_mode(kind, lam)} is {where} and {what} (PBH test)")
+def mode_position(kind, lam, d, tol):
+    """Where a mode lies, in words: unstable, or on the stability boundary (to within rounding).
+
+    A mode counts as unstable when it is beyond the boundary by more than the tolerance of the
+    test that found it, and as on the boundary otherwise; a boundary mode not exactly on it is
+    named with its distance and that tolerance, so that a stable mode of a stiff system
+    (``s = -2e-8`` beside ``|s| = 1e7``) is not simply said to be on the axis, nor a slightly
+    unstable one (``s = 1e-10``) said to be on it.
+
+    Parameters
+    ----------
+    kind : {'care', 'dare'}
+        ``care`` (continuous-time equation) or ``dare`` (discrete-time).
+    lam : complex
+        The mode.
+    d : float
+        Its distance to the boundary, positive inside (:func:`~cfdesign.riccati.problem.distance`).
+    tol : float
+        The distance within which the test counted it as on the boundary.
+
+    Returns
+    -------
+    str
+        ``"unstable"``, ``"on the unit circle"``, ``"on the imaginary axis to within rounding
+        (...)"``, ...
+
+    Examples
+    --------
+    >>> from cfdesign.riccati.validation import mode_position
+    >>> mode_position("care", 1e-10, -1e-10, 4e-14), mode_position("dare", 1.0, 0.0, 4e-14)
+    ('unstable', 'on the unit circle')
+    >>> mode_position("dare", 1 + 1e-10, -1e-10, 4e-14)
+    'unstable (|z| - 1 = 1e-10)'
+    """
+    if d < -tol:
+        return "unstable" + (f" (|z| - 1 = {-d:.3g})" if kind == "dare" and -d < 1e-4 else "")
+    boundary = "the imaginary axis" if kind == "care" else "the unit circle"
+    if d == 0:
+        return f"on {boundary}"
+    off = f"|Re s| = {abs(complex(lam).real):.3g}" if kind == "care" else f"||z| - 1| = {abs(d):.3g}"
+    return f"on {boundary} to within rounding ({off}, within the tolerance {tol:.3g})"
+
+
+def _raise_mode(cls, kind, lam, d, tol, what):
+    raise cls(f"mode at {fmt_mode(kind, lam)} is {mode_position(kind, lam, d, tol)} and {what} (PBH test)")
 
 
 def check_modes(kind, A, B, Q, R, S, E, dual):
@@ -325,9 +368,9 @@ def check_modes(kind, A, B, Q, R, S, E, dual):
     Eh = None if E is None else E.conj().T
     hit = unreachable_mode(kind, Ar.conj().T, Eh, Qr, boundary_only=True)
     if hit is not None:
-        lam, d = hit
+        lam, d, tol = hit
         if dual:
-            _raise_mode(NotStabilisableError, kind, np.conj(lam), d,
+            _raise_mode(NotStabilisableError, kind, np.conj(lam), d, tol,
                         "not excited by the process noise Q, so no stabilising solution exists")
-        _raise_mode(NotDetectableError, kind, np.conj(lam), d,
+        _raise_mode(NotDetectableError, kind, np.conj(lam), d, tol,
                     "not observable from the weight Q, so no stabilising solution exists")
