@@ -67,7 +67,15 @@ Method (:func:`identify_noise`):
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit, counting the correlation of the
    overlapping estimates at neighbouring octaves (strong for a random walk: a fit of its
    octaves has fewer degrees of freedom than its first octave alone), at most the EDF of the
-   term's best single point.
+   term's best single point;
+7. band-limited readings: a low-pass filter in the sensor (an IMU's digital low-pass or
+   anti-alias filter), or readings held over several rows (a sensor logged faster than it
+   updates), lowers the Allan deviation of the white noise at the first octaves below ``N^2 /
+   tau``, which no term of the model does.  The first octaves are left out of the fit (steps 3-6)
+   while each lies below the model of the octaves after it beyond its chi-square interval
+   (:data:`~cfdesign.allan.DEPARTURE_LEVEL`) and that model holds white noise from the next
+   octave on (``NoiseFit.band_limit_s`` says from where; the summary and the design-file
+   entries say so).
 
 Why not allantools: its ``oadev`` computes the same deviation (the tests and
 ``benchmarks/bench_noise.py`` hold the two against each other to 1e-12), but the package has
@@ -111,6 +119,8 @@ TERMS = {
 _ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": -2, "rate_ramp": -2}
 #: fewest samples a recording must have
 MIN_SAMPLES = 16
+#: fewest octave points the fit keeps when it leaves out the first, band-limited ones
+MIN_FIT_OCTAVES = 4
 #: share of the fitted variance a term must reach to dominate
 DOMINANCE = 0.5
 #: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
@@ -327,6 +337,10 @@ class NoiseFit:
         ``{term name: reason}`` for the terms of the model that are not reported.
     coefficients : dict
         ``{term name: coefficient}`` of the fitted Allan variance model (:data:`TERMS`).
+    band_limit_s : float or None
+        Where the octaves below this ``tau`` were left out of the fit, as band-limited (a low-pass
+        filter in the sensor, or readings held over several rows, lowers them below the white
+        noise line); None when every octave was fitted.
 
     Examples
     --------
@@ -349,6 +363,7 @@ class NoiseFit:
     terms: dict
     missing: dict
     coefficients: dict = field(default_factory=dict)
+    band_limit_s: float | None = None
 
     # the three figures of a design file
     @property
@@ -441,6 +456,8 @@ class NoiseFit:
         unit = _comment(unit)
         lines = [f"{_comment(self.name)}: {self.duration_s:.6g} s at {self.rate_hz:.6g} Hz, Allan deviation at "
                  f"{len(self.tau_s)} octave-spaced tau from {self.tau_s[0]:.3g} to {self.tau_s[-1]:.3g} s"]
+        if self.band_limit_s is not None:
+            lines.append(f"  {_band_limit_text(self.band_limit_s)}")
         for key in TERMS:
             if key in self.terms:
                 lines.append(f"  {_LABELS[key]}: {self.terms[key].line(unit)}")
@@ -464,6 +481,11 @@ class NoiseFit:
             The figure drawn into.
         """
         return adev_plot([self], ax=ax, unit=unit)
+
+
+def _band_limit_text(tau_s):
+    return (f"octaves below tau {tau_s:.3g} s left out of the fit: the Allan deviation there lies below the white "
+            "noise of the octaves after them (a low-pass filter in the sensor, or readings held over several rows)")
 
 
 _LABELS = {"quantization": "quantization noise Q", "white": "white noise density N",
@@ -549,25 +571,70 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
-    fit = _eliminate(tau, adev, m, len(y), float(rate_hz), list(TERMS))
+    start, fit = _band_limit(tau, adev, m, len(y), float(rate_hz))
+    edf = np.concatenate([np.maximum(edf_simple(len(y) + 1, m[:start], 0), 1.0), fit[3]])
+    coefficients = {k: fit[0][i] for i, k in enumerate(TERMS) if k in fit[1]}
+    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, fit[1], fit[2], coefficients,
+                    float(tau[start]) if start else None)
+
+
+def _band_limit(tau, adev, m, n, rate_hz):
+    """``(start, fit)``: the octaves from ``start`` on fitted (:func:`_identify`), those before it
+    left out where the readings are band-limited: a sensor's low-pass filter, or readings held
+    over several rows (a sensor logged faster than it updates), lowers the Allan deviation of its
+    white noise at the first octaves (by about ``1.5 tau_c / tau`` in variance for a filter of time
+    constant ``tau_c``), below the ``N^2 / tau`` of every term of the model.  Fitted with them, a
+    1 kHz gyro behind a 2nd-order low-pass at 350 Hz or below, or one held over two rows, had no
+    term identified at all, and at 400 Hz ``N`` came out 8 % low.  An octave is left out while it
+    lies below the model of the octaves after it beyond its chi-square interval
+    (:data:`~cfdesign.allan.DEPARTURE_LEVEL`) and that model holds white noise from the next
+    octave on; at most half the octaves, and all but :data:`~cfdesign.allan.MIN_FIT_OCTAVES`."""
+    from scipy.stats import chi2
+
+    fits = {}
+
+    def fit_from(s):
+        if s not in fits:
+            fits[s] = _identify(tau[s:], adev[s:], m[s:], n, rate_hz)
+        return fits[s]
+
+    def below(s, upto):  # octaves before ``upto`` all below the model of those from ``s`` on
+        fit = fit_from(s)
+        white = fit[1].get("white")
+        if white is None or white.tau_range_s[0] != tau[s]:
+            return False
+        model = _basis(tau[:upto], 1.0 / rate_hz) @ fit[0]
+        edf = np.maximum(edf_simple(n + 1, m[:upto], 0), 1.0)
+        return bool(np.all(adev[:upto] ** 2 < model * chi2.ppf(1 - DEPARTURE_LEVEL, edf) / edf))
+
+    last = min(len(tau) // 2, len(tau) - MIN_FIT_OCTAVES)
+    for start in range(last + 1):
+        if (below(start, start) if start else "white" in fit_from(0)[1]):
+            while start < last and below(start + 1, start + 1):  # the next octave is band-limited too
+                start += 1
+            return start, fit_from(start)
+    return 0, fit_from(0)
+
+
+def _identify(tau, adev, m, n, rate_hz):
+    """The terms the octave points show (method steps 3-5 of the module docstring):
+    ``(coef, terms, missing, edf)``."""
+    fit = _eliminate(tau, adev, m, n, rate_hz, list(TERMS))
     terms = fit[1]
     if "rate_ramp" in terms and "random_walk" not in terms:
         # over the last few octaves of a recording one realisation of a rate random walk can
         # look like a ramp; where the random walk explains the same octaves in place of the ramp,
         # it is the model kept (the common gyro term, and the one a design file takes)
         active = [k for k in TERMS if k in terms or k == "random_walk"]
-        walk = _eliminate(tau, adev, m, len(y), float(rate_hz), [k for k in active if k != "rate_ramp"])
+        walk = _eliminate(tau, adev, m, n, rate_hz, [k for k in active if k != "rate_ramp"])
         worse = _misfit(tau, adev, walk, 1.0 / rate_hz) - _misfit(tau, adev, fit, 1.0 / rate_hz)
         if "random_walk" in walk[1] and worse < RAMP_EVIDENCE:
             walk[2]["rate_ramp"] = (f"a rate random walk explains the same octaves (from "
                                     f"{walk[1]['random_walk'].tau_range_s[0]:.3g} s); the recording cannot tell "
-                                    "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
+                                    "a ramp from it" + _longer_hint("rate_ramp", n / rate_hz))
             fit = walk
-    fit = _swap_long_terms(tau, adev, m, len(y), float(rate_hz), fit)
-    fit = _white_alone(tau, adev, m, len(y), float(rate_hz), fit)
-    coef, terms, missing, edf = fit
-    coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
-    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+    fit = _swap_long_terms(tau, adev, m, n, rate_hz, fit)
+    return _white_alone(tau, adev, m, n, rate_hz, fit)
 
 
 def _check_still(y, rate_hz, name):
@@ -994,6 +1061,8 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     for fit, key in zip(fits, _keys(fit.name for fit in fits), strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
+        if fit.band_limit_s is not None:
+            lines.append(f"# {_band_limit_text(fit.band_limit_s)}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
         if white is not None:
             lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz); "

@@ -522,3 +522,39 @@ def test_the_nominal_rate_of_a_sensor_read_every_few_milliseconds_is_its_period_
     assert (nominal_rate(100.00002), nominal_rate(99.5), nominal_rate(104.0016), nominal_rate(128.0)) == (
         100.0, 99.5, 104.0, 128.0)
     assert multirate_schedule({"gyro": 1000.0, "compass": rate}, ["gyro"])[1].period == 3
+
+
+@pytest.mark.parametrize(("cutoff_hz", "hold"), [(20.0, 1), (350.0, 1), (None, 3)],
+                         ids=["low-pass 20 Hz", "low-pass 350 Hz", "held over 3 rows"])
+def test_band_limited_readings_give_the_white_noise_of_the_octaves_after_the_band_limit(cutoff_hz, hold):
+    """A 1 kHz gyro behind a 2nd-order low-pass (an IMU's digital low-pass filter) at 350 Hz or
+    below, or logged three times faster than it updates, had no term identified at all: its first
+    octaves lie below the white noise line N^2 / tau, which no term of the model does. They are
+    left out of the fit, said so, and N comes back from the octaves after them."""
+    from scipy.signal import butter, lfilter
+
+    rate, N = 1000.0, 1.7e-4
+    rng = np.random.default_rng(3)
+    y = N * math.sqrt(rate / hold) * rng.standard_normal(60_000 // hold)
+    if hold > 1:
+        y = np.repeat(y, hold)
+    else:
+        y = lfilter(*butter(2, cutoff_hz / (rate / 2)), y)
+    fit = identify_noise(y, rate, "gyro_x")
+    assert fit.white_density == pytest.approx(N, rel=0.05)
+    assert set(fit.terms) == {"white"}
+    assert fit.band_limit_s is not None and fit.terms["white"].tau_range_s[0] == fit.band_limit_s
+    # the octaves left out are below the white noise line; the first one fitted is on it
+    on_line = fit.adev * np.sqrt(fit.tau_s) / N
+    first = int(np.flatnonzero(fit.tau_s == fit.band_limit_s)[0])
+    assert on_line[0] < 0.7 and on_line[first] == pytest.approx(1.0, abs=0.1)
+    assert "left out of the fit" in fit.summary()
+    text = noise_toml([fit])
+    assert "left out of the fit" in text
+    assert tomllib.loads(text)["sensors"]["gyro_x"]["noise"]["density"] == pytest.approx(N, rel=0.05)
+
+
+def test_white_noise_fitted_over_every_octave_has_no_band_limit():
+    fit = identify_noise(gyro(600, K=0, seed=4), RATE)
+    assert fit.band_limit_s is None and fit.terms["white"].tau_range_s[0] == 1 / RATE
+    assert "left out" not in fit.summary()
