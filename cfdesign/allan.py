@@ -117,8 +117,10 @@ TERMS = {
 }
 #: the noise type (power-law exponent alpha of the frequency PSD) each term is, for the EDF
 _ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": -2, "rate_ramp": -2}
-#: fewest samples a recording must have
-MIN_SAMPLES = 16
+#: fewest samples a recording must have: 17 give the octaves m = 1, 2, 4, 8, over which the slope of
+#: white noise is resolved (standard error 0.23, at most ``SLOPE_RESOLUTION``); 16 give three octaves
+#: and a standard error of 0.29, over which no term can be reported
+MIN_SAMPLES = 17
 #: fewest octave points the fit keeps when it leaves out the first, band-limited ones
 MIN_FIT_OCTAVES = 4
 #: share of the fitted variance a term must reach to dominate
@@ -553,7 +555,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                          f"{RATE_RANGE[1]:g} (the rates a design file takes), got {rate_hz!r}")
     rate_hz = float(rate_hz)  # a float32 rate would keep every 1 / rate_hz in single precision
     if len(y) < MIN_SAMPLES:
-        raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation (at least {MIN_SAMPLES})")
+        raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation whose slopes tell the noise "
+                         f"terms apart (at least {MIN_SAMPLES})")
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
         raise InputError(f"{name}: reading {bad[0]} is not finite ({y[bad[0]]}); the Allan deviation needs a "

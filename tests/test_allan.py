@@ -558,3 +558,20 @@ def test_white_noise_fitted_over_every_octave_has_no_band_limit():
     fit = identify_noise(gyro(600, K=0, seed=4), RATE)
     assert fit.band_limit_s is None and fit.terms["white"].tau_range_s[0] == 1 / RATE
     assert "left out" not in fit.summary()
+
+
+def test_the_shortest_recording_taken_can_show_white_noise():
+    """16 readings give three octaves (m = 1, 2, 4), whose log-log slope no recording resolves to
+    SLOPE_RESOLUTION: 200 of 200 seeds of white noise came back with no term at all and the reason
+    'not significant'. The fewest readings taken are the fewest that can show white noise."""
+    from cfdesign.allan import MIN_SAMPLES, SLOPE_RESOLUTION, _slope_se, octave_taus
+
+    def slope_se(n):
+        m = octave_taus(n, 1.0)
+        return _slope_se(m.astype(float), np.maximum(edf_simple(n + 1, m, 0), 1.0))
+
+    assert slope_se(MIN_SAMPLES) <= SLOPE_RESOLUTION < slope_se(MIN_SAMPLES - 1)
+    with pytest.raises(InputError, match=rf"too few .* \(at least {MIN_SAMPLES}\)"):
+        identify_noise(gyro(1, K=0)[:MIN_SAMPLES - 1], RATE)
+    found = sum(identify_noise(gyro(1, K=0, seed=s)[:MIN_SAMPLES], RATE).white_density is not None for s in range(20))
+    assert found >= 15
