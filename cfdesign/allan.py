@@ -1092,7 +1092,8 @@ def _ci_text(term):
 
 
 def adev_plot(fits, ax=None, unit: str = "u"):
-    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes.
+    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes (over the octaves
+    fitted; those left out as band-limited shaded).
 
     Parameters
     ----------
@@ -1120,6 +1121,10 @@ def adev_plot(fits, ax=None, unit: str = "u"):
                           label=f"{fit.name}: overlapping ADEV")
         color = pts[0].get_color()
         grid = np.logspace(np.log10(fit.tau_s[0]), np.log10(fit.tau_s[-1]), 200)
+        if fit.band_limit_s is not None:  # the band-limited octaves left out of the fit
+            ax.axvspan(fit.tau_s[0] / 1.2, fit.band_limit_s / 1.2, color=color, alpha=0.08,
+                       label=f"{fit.name}: left out (band-limited)")
+            grid = grid[grid >= fit.band_limit_s]
         if fit.terms:
             ax.loglog(grid, fit.model_adev(grid), "-", color=color, lw=1.5, alpha=0.7, label=f"{fit.name}: fit")
         for key, term in fit.terms.items():
