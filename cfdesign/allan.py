@@ -121,6 +121,11 @@ _ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": 
 #: white noise is resolved (standard error 0.23, at most ``SLOPE_RESOLUTION``); 16 give three octaves
 #: and a standard error of 0.29, over which no term can be reported
 MIN_SAMPLES = 17
+#: least white noise per reading, in steps of the readings' resolution, whose density is read: a
+#: quantiser's output has the variance of its input plus step^2 / 12 once the input's spread is
+#: about half a step or more (0.45 step: sqrt(0.45^2 + 1/12) = 0.535); below it the readings'
+#: spread depends on where the true value sits between two levels, not on the sensor's noise
+RESOLVED_NOISE = 0.535
 #: fewest octave points the fit keeps when it leaves out the first, band-limited ones
 MIN_FIT_OCTAVES = 4
 #: share of the fitted variance a term must reach to dominate
@@ -527,7 +532,9 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
         noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
         recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
         adjacent block means beyond :data:`~cfdesign.allan.JUMP_FALSE_ALARM` holding at least
-        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where).
+        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where), or readings
+        whose white noise per reading is below :data:`~cfdesign.allan.RESOLVED_NOISE` of their
+        resolution (quantisation hides the sensor's noise).
 
     Examples
     --------
@@ -575,10 +582,29 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
     start, fit = _band_limit(tau, adev, m, len(y), float(rate_hz))
+    _check_resolved(y, float(rate_hz), fit[1].get("white"), name)
     edf = np.concatenate([np.maximum(edf_simple(len(y) + 1, m[:start], 0), 1.0), fit[3]])
     coefficients = {k: fit[0][i] for i, k in enumerate(TERMS) if k in fit[1]}
     return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, fit[1], fit[2], coefficients,
                     float(tau[start]) if start else None)
+
+
+def _check_resolved(y, rate_hz, white, name):
+    """InputError where the white noise per reading is below :data:`RESOLVED_NOISE` steps of the
+    readings' resolution (the smallest change between adjacent readings): the readings hold too few
+    levels for their spread to be the sensor's noise.  With a spread per reading of 0.1 to 0.35 steps
+    the density came out 0.2 to 5 times the sensor's, with a tight interval, depending only on where
+    the true value sat between two levels."""
+    if white is None:
+        return
+    d = np.diff(y)
+    step = float(np.min(np.abs(d[d != 0]))) if d.any() else 0.0
+    sigma = white.value * math.sqrt(rate_hz)
+    if sigma < RESOLVED_NOISE * step:
+        raise InputError(f"{name}: the readings' white noise, {sigma:.3g} per reading, is below {RESOLVED_NOISE:g} of "
+                         f"their resolution ({step:.4g} between levels): quantisation hides the sensor's noise and no "
+                         "density can be read from them; record at a finer resolution (a smaller range, more "
+                         "digits in the log)")
 
 
 def _band_limit(tau, adev, m, n, rate_hz):

@@ -401,9 +401,10 @@ def test_an_outlier_a_step_or_a_wrapped_integer_is_named_not_read_as_noise():
 
 @pytest.mark.parametrize("kind", ["white", "walk", "flicker", "quantised", "held", "heavy-tailed"])
 def test_still_recordings_are_not_refused_as_jumping(kind):
-    """Recordings of the model's noises, a coarsely quantised one (mostly one level), one logged
+    """Recordings of the model's noises, a coarsely quantised one (a few levels), one logged
     faster than the sensor reads (each value held over three rows) and one with rare 10-sigma
-    readings (moving its Allan deviation by a few percent) are read, not refused."""
+    readings (moving its Allan deviation by a few percent) are read, not refused.  (Mostly one
+    level, 0.2 steps per reading, is refused, but as quantised: test below.)"""
     rng = np.random.default_rng(11)
     n = 60_000
     if kind == "white":
@@ -414,14 +415,14 @@ def test_still_recordings_are_not_refused_as_jumping(kind):
         f = np.fft.rfftfreq(2 * n)
         y = np.fft.irfft(np.fft.rfft(rng.standard_normal(2 * n)) / np.sqrt(np.maximum(f, f[1])))[:n]
     elif kind == "quantised":
-        y = np.round(0.2 * rng.standard_normal(n))
+        y = np.round(0.6 * rng.standard_normal(n))
     elif kind == "held":
         y = np.repeat(rng.standard_normal(n // 3), 3)
     else:
         y = rng.standard_normal(n)
         y[rng.choice(n, 6, replace=False)] += 10.0
     fit = identify_noise(y, RATE)  # no InputError
-    assert fit.terms or kind == "held"  # held values are not white at the log's rate: no term need fit
+    assert fit.terms
 
 
 def test_columns_whose_names_clash_get_distinct_sensor_tables(cli, tmp_path):
@@ -575,3 +576,18 @@ def test_the_shortest_recording_taken_can_show_white_noise():
         identify_noise(gyro(1, K=0)[:MIN_SAMPLES - 1], RATE)
     found = sum(identify_noise(gyro(1, K=0, seed=s)[:MIN_SAMPLES], RATE).white_density is not None for s in range(20))
     assert found >= 15
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.25, 0.5])
+@pytest.mark.parametrize("spread", [0.15, 0.35])
+def test_readings_whose_noise_is_below_their_resolution_are_refused(spread, offset):
+    """Readings quantised to steps of 1 whose noise is 0.15 or 0.35 steps per reading: the density
+    came out 0.2 to 3.3 times (0.15) or 1.1 to 1.5 times (0.35) the sensor's, with a tight interval,
+    depending only on where the true value sat between two levels. Refused, naming the resolution;
+    0.6 steps and more are read, within 20 %."""
+    rng = np.random.default_rng(5)
+    noise = spread * rng.standard_normal(60_000)
+    with pytest.raises(InputError, match=r"below 0.535 of their resolution \(1 between levels\)"):
+        identify_noise(np.round(offset + noise), RATE)
+    fit = identify_noise(np.round(offset + noise * 0.6 / spread), RATE)
+    assert fit.white_density == pytest.approx(0.6 / math.sqrt(RATE), rel=0.2)
