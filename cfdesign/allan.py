@@ -1073,21 +1073,22 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
         The fits to write, one ``[sensor]`` table each.
     source : str
         The log's name, for the header comment.
-    unit : str
-        The columns' unit (``rad/s``), for the comments.
+    unit : str or sequence of str
+        The columns' unit (``rad/s``), for the comments: one for every fit, or one per fit (a
+        gyro's ``rad/s`` beside an accelerometer's ``m/s^2``).
 
     Returns
     -------
     str
         TOML text.
     """
-    unit = _comment(unit)
+    units = _units(unit, len(fits))
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
              "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
              "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
              "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
              "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
-    for fit, key in zip(fits, _keys(fit.name for fit in fits), strict=True):
+    for fit, key, unit in zip(fits, _keys(fit.name for fit in fits), units, strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
         if fit.band_limit_s is not None:
@@ -1112,6 +1113,14 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     return "\n".join(lines)
 
 
+def _units(unit, count) -> list:
+    """One unit per fit (``_comment``-safe) from one unit or a sequence of ``count``."""
+    units = [unit] * count if isinstance(unit, str) else list(unit)
+    if len(units) != count:
+        raise InputError(f"give one unit, or one per column ({count}), not {len(units)}: {', '.join(units)}")
+    return [_comment(u) for u in units]
+
+
 def _ci_text(term):
     return (f"95% CI {term.ci[0]:.4g} to {term.ci[1]:.4g}, fitted over tau {term.tau_range_s[0]:.3g} to "
             f"{term.tau_range_s[1]:.3g} s")
@@ -1127,8 +1136,14 @@ def adev_plot(fits, ax=None, unit: str = "u"):
         The fits to draw, one curve (and its fitted terms) each.
     ax : matplotlib.axes.Axes, optional
         Axes to draw into (default: a new figure).
-    unit : str
-        The sensors' unit, for the axis label.
+    unit : str or sequence of str
+        The sensors' unit, for the axis label: one for every fit, or one per fit (then named in
+        each curve's label).
+
+    Raises
+    ------
+    InputError
+        A sequence of units whose length is not the number of fits.
 
     Returns
     -------
@@ -1137,14 +1152,16 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     """
     import matplotlib.pyplot as plt
 
+    units = _units(unit, len(fits))
+    mixed = len(set(units)) > 1
     if ax is None:
         fig, ax = plt.subplots(figsize=(7.5, 5))
     else:
         fig = ax.figure
-    for fit in fits:
+    for fit, u in zip(fits, units, strict=True):
         lo, hi = fit.adev_ci()
         pts = ax.errorbar(fit.tau_s, fit.adev, yerr=[fit.adev - lo, hi - fit.adev], fmt="o", ms=4, capsize=2,
-                          label=f"{fit.name}: overlapping ADEV")
+                          label=f"{fit.name}{f' ({u})' if mixed else ''}: overlapping ADEV")
         color = pts[0].get_color()
         grid = np.logspace(np.log10(fit.tau_s[0]), np.log10(fit.tau_s[-1]), 200)
         if fit.band_limit_s is not None:  # the band-limited octaves left out of the fit
@@ -1166,7 +1183,8 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("averaging time tau (s)")
-    ax.set_ylabel(f"Allan deviation ({unit})")
+    ax.set_ylabel("Allan deviation (each column's unit)" if mixed
+                  else f"Allan deviation ({units[0] if units else 'u'})")
     ax.set_title("Allan deviation and fitted asymptotes (x: N read at 1 s, K at 3 s)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)

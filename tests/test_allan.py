@@ -591,3 +591,22 @@ def test_readings_whose_noise_is_below_their_resolution_are_refused(spread, offs
         identify_noise(np.round(offset + noise), RATE)
     fit = identify_noise(np.round(offset + noise * 0.6 / spread), RATE)
     assert fit.white_density == pytest.approx(0.6 / math.sqrt(RATE), rel=0.2)
+
+
+def test_cli_a_unit_per_column(cli, tmp_path):
+    """A gyro beside an accelerometer in one call: --unit rad/s wrote the accelerometer's density as
+    rad/s/sqrt(Hz) in noise.toml and the summary. One unit per column is taken (and a count that
+    matches neither is refused before the log is read)."""
+    rng = np.random.default_rng(8)
+    log = _log(tmp_path / "imu.csv", {"gyro_z": gyro(60, K=0), "acc_z": 9.81 + 0.02 * rng.standard_normal(6000)})
+    code, out, err = cli("noise", log, "--column", "gyro_z,acc_z", "--time", "time", "--unit", "rad/s, m/s^2",
+                         "-o", tmp_path / "n.toml", "--plot", tmp_path / "a.png")
+    assert code == 0, err
+    text = (tmp_path / "n.toml").read_text()
+    gyro_part, acc_part = text.split("[sensors.acc_z]")
+    assert "# rad/s/sqrt(Hz)" in gyro_part and "m/s^2" not in gyro_part
+    assert "# m/s^2/sqrt(Hz)" in acc_part and "rad/s" not in acc_part
+    assert re.search(r"acc_z: .*\n  white noise density N: N = 0.00[0-9]+ m/s\^2/sqrt\(Hz\)", out)
+    code, _out, err = cli("noise", tmp_path / "missing.csv", "--column", "gyro_z,acc_z", "--rate-hz", "100",
+                          "--unit", "rad/s,m/s^2,T")
+    assert code == 2 and "one per --column (2)" in err and err.count("\n") == 1
