@@ -126,6 +126,10 @@ MIN_SAMPLES = 17
 #: about half a step or more (0.45 step: sqrt(0.45^2 + 1/12) = 0.535); below it the readings'
 #: spread depends on where the true value sits between two levels, not on the sensor's noise
 RESOLVED_NOISE = 0.535
+#: a band limit's deficit below the white noise line (a share of its variance) shrinks from one
+#: octave to the next to at most this much of it, unless it is over half the variance (a filter's
+#: stop band): a level deficit is not a band limit but the later octaves standing above the line
+BAND_LIMIT_DECAY = 0.8
 #: fewest octave points the fit keeps when it leaves out the first, band-limited ones
 MIN_FIT_OCTAVES = 4
 #: share of the fitted variance a term must reach to dominate
@@ -616,7 +620,8 @@ def _band_limit(tau, adev, m, n, rate_hz):
     1 kHz gyro behind a 2nd-order low-pass at 350 Hz or below, or one held over two rows, had no
     term identified at all, and at 400 Hz ``N`` came out 8 % low.  An octave is left out while it
     lies below the model of the octaves after it beyond its chi-square interval
-    (:data:`~cfdesign.allan.DEPARTURE_LEVEL`) and that model holds white noise from the next
+    (:data:`~cfdesign.allan.DEPARTURE_LEVEL`), its deficit shrinks toward the next octave
+    (:data:`~cfdesign.allan.BAND_LIMIT_DECAY`), and that model holds white noise from the next
     octave on; at most half the octaves, and all but :data:`~cfdesign.allan.MIN_FIT_OCTAVES`."""
     from scipy.stats import chi2
 
@@ -627,19 +632,25 @@ def _band_limit(tau, adev, m, n, rate_hz):
             fits[s] = _identify(tau[s:], adev[s:], m[s:], n, rate_hz)
         return fits[s]
 
-    def below(s, upto):  # octaves before ``upto`` all below the model of those from ``s`` on
+    def below(s):  # the octaves before s band-limited, against the model of those from s on
         fit = fit_from(s)
         white = fit[1].get("white")
         if white is None or white.tau_range_s[0] != tau[s]:
             return False
-        model = _basis(tau[:upto], 1.0 / rate_hz) @ fit[0]
-        edf = np.maximum(edf_simple(n + 1, m[:upto], 0), 1.0)
-        return bool(np.all(adev[:upto] ** 2 < model * chi2.ppf(1 - DEPARTURE_LEVEL, edf) / edf))
+        model = _basis(tau[:s + 1], 1.0 / rate_hz) @ fit[0]
+        edf = np.maximum(edf_simple(n + 1, m[:s], 0), 1.0)
+        ratio = adev[:s + 1] ** 2 / model
+        if not np.all(ratio[:s] < chi2.ppf(1 - DEPARTURE_LEVEL, edf) / edf):
+            return False
+        # a band limit's deficit shrinks with tau (about as 1 / tau once it is a small part): a
+        # deficit that stays level is the octaves after it standing above the white noise line
+        deficit = 1.0 - ratio
+        return bool(np.all((deficit[1:] <= BAND_LIMIT_DECAY * deficit[:-1]) | (deficit[:-1] > 0.5)))
 
     last = min(len(tau) // 2, len(tau) - MIN_FIT_OCTAVES)
     for start in range(last + 1):
-        if (below(start, start) if start else "white" in fit_from(0)[1]):
-            while start < last and below(start + 1, start + 1):  # the next octave is band-limited too
+        if (below(start) if start else "white" in fit_from(0)[1]):
+            while start < last and below(start + 1):  # the next octave is band-limited too
                 start += 1
             return start, fit_from(start)
     return 0, fit_from(0)
