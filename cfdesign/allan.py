@@ -1151,15 +1151,15 @@ def adev_plot(fits, ax=None, unit: str = "u"):
         The sensors' unit, for the axis label: one for every fit, or one per fit (then named in
         each curve's label).
 
-    Raises
-    ------
-    InputError
-        A sequence of units whose length is not the number of fits.
-
     Returns
     -------
     matplotlib.figure.Figure
         The figure drawn into.
+
+    Raises
+    ------
+    InputError
+        A sequence of units whose length is not the number of fits.
     """
     import matplotlib.pyplot as plt
 
