@@ -1092,6 +1092,11 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     -------
     str
         TOML text.
+
+    Raises
+    ------
+    InputError
+        A sequence of units whose length is not the number of fits.
     """
     units = _units(unit, len(fits))
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
