@@ -67,7 +67,15 @@ Method (:func:`identify_noise`):
    ``2 theta^2 / var(theta)`` with ``var(theta)`` from the fit, counting the correlation of the
    overlapping estimates at neighbouring octaves (strong for a random walk: a fit of its
    octaves has fewer degrees of freedom than its first octave alone), at most the EDF of the
-   term's best single point.
+   term's best single point;
+7. band-limited readings: a low-pass filter in the sensor (an IMU's digital low-pass or
+   anti-alias filter), or readings held over several rows (a sensor logged faster than it
+   updates), lowers the Allan deviation of the white noise at the first octaves below ``N^2 /
+   tau``, which no term of the model does.  The first octaves are left out of the fit (steps 3-6)
+   while each lies below the model of the octaves after it beyond its chi-square interval
+   (:data:`~cfdesign.allan.DEPARTURE_LEVEL`) and that model holds white noise from the next
+   octave on (``NoiseFit.band_limit_s`` says from where; the summary and the design-file
+   entries say so).
 
 Why not allantools: its ``oadev`` computes the same deviation (the tests and
 ``benchmarks/bench_noise.py`` hold the two against each other to 1e-12), but the package has
@@ -109,8 +117,21 @@ TERMS = {
 }
 #: the noise type (power-law exponent alpha of the frequency PSD) each term is, for the EDF
 _ALPHA = {"quantization": 2, "white": 0, "bias_instability": -1, "random_walk": -2, "rate_ramp": -2}
-#: fewest samples a recording must have
-MIN_SAMPLES = 16
+#: fewest samples a recording must have: 17 give the octaves m = 1, 2, 4, 8, over which the slope of
+#: white noise is resolved (standard error 0.23, at most ``SLOPE_RESOLUTION``); 16 give three octaves
+#: and a standard error of 0.29, over which no term can be reported
+MIN_SAMPLES = 17
+#: least white noise per reading, in steps of the readings' resolution, whose density is read: a
+#: quantiser's output has the variance of its input plus step^2 / 12 once the input's spread is
+#: about half a step or more (0.45 step: sqrt(0.45^2 + 1/12) = 0.535); below it the readings'
+#: spread depends on where the true value sits between two levels, not on the sensor's noise
+RESOLVED_NOISE = 0.535
+#: a band limit's deficit below the white noise line (a share of its variance) shrinks from one
+#: octave to the next to at most this much of it, unless it is over half the variance (a filter's
+#: stop band): a level deficit is not a band limit but the later octaves standing above the line
+BAND_LIMIT_DECAY = 0.8
+#: fewest octave points the fit keeps when it leaves out the first, band-limited ones
+MIN_FIT_OCTAVES = 4
 #: share of the fitted variance a term must reach to dominate
 DOMINANCE = 0.5
 #: how much worse (chi-square) a rate random walk must fit than a rate ramp over the same octaves
@@ -327,6 +348,10 @@ class NoiseFit:
         ``{term name: reason}`` for the terms of the model that are not reported.
     coefficients : dict
         ``{term name: coefficient}`` of the fitted Allan variance model (:data:`TERMS`).
+    band_limit_s : float or None
+        Where the octaves below this ``tau`` were left out of the fit, as band-limited (a low-pass
+        filter in the sensor, or readings held over several rows, lowers them below the white
+        noise line); None when every octave was fitted.
 
     Examples
     --------
@@ -349,6 +374,7 @@ class NoiseFit:
     terms: dict
     missing: dict
     coefficients: dict = field(default_factory=dict)
+    band_limit_s: float | None = None
 
     # the three figures of a design file
     @property
@@ -441,6 +467,8 @@ class NoiseFit:
         unit = _comment(unit)
         lines = [f"{_comment(self.name)}: {self.duration_s:.6g} s at {self.rate_hz:.6g} Hz, Allan deviation at "
                  f"{len(self.tau_s)} octave-spaced tau from {self.tau_s[0]:.3g} to {self.tau_s[-1]:.3g} s"]
+        if self.band_limit_s is not None:
+            lines.append(f"  {_band_limit_text(self.band_limit_s)}")
         for key in TERMS:
             if key in self.terms:
                 lines.append(f"  {_LABELS[key]}: {self.terms[key].line(unit)}")
@@ -464,6 +492,11 @@ class NoiseFit:
             The figure drawn into.
         """
         return adev_plot([self], ax=ax, unit=unit)
+
+
+def _band_limit_text(tau_s):
+    return (f"octaves below tau {tau_s:.3g} s left out of the fit: the Allan deviation there lies below the white "
+            "noise of the octaves after them (a low-pass filter in the sensor, or readings held over several rows)")
 
 
 _LABELS = {"quantization": "quantization noise Q", "white": "white noise density N",
@@ -503,7 +536,9 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
         noise figure (``cfdesign.noise.FIGURE_RANGE``), a rate outside 1e-9 to 1e9 Hz, or a
         recording that jumps (an outlier, a step, motion, an integer that wrapped: a difference of
         adjacent block means beyond :data:`~cfdesign.allan.JUMP_FALSE_ALARM` holding at least
-        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where).
+        :data:`~cfdesign.allan.JUMP_SHARE` of its octave's mean square; the message says where), or readings
+        whose white noise per reading is below :data:`~cfdesign.allan.RESOLVED_NOISE` of their
+        resolution (quantisation hides the sensor's noise).
 
     Examples
     --------
@@ -531,7 +566,8 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
                          f"{RATE_RANGE[1]:g} (the rates a design file takes), got {rate_hz!r}")
     rate_hz = float(rate_hz)  # a float32 rate would keep every 1 / rate_hz in single precision
     if len(y) < MIN_SAMPLES:
-        raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation (at least {MIN_SAMPLES})")
+        raise InputError(f"{name}: {len(y)} readings are too few for an Allan deviation whose slopes tell the noise "
+                         f"terms apart (at least {MIN_SAMPLES})")
     bad = np.flatnonzero(~np.isfinite(y))
     if bad.size:
         raise InputError(f"{name}: reading {bad[0]} is not finite ({y[bad[0]]}); the Allan deviation needs a "
@@ -549,25 +585,96 @@ def identify_noise(x, rate_hz: float, name: str = "sensor") -> NoiseFit:
     tau, adev, m = oadev(y, float(rate_hz))
     keep = adev > 0
     tau, adev, m = tau[keep], adev[keep], m[keep]
-    fit = _eliminate(tau, adev, m, len(y), float(rate_hz), list(TERMS))
+    start, fit = _band_limit(tau, adev, m, len(y), float(rate_hz))
+    _check_resolved(y, float(rate_hz), fit[1].get("white"), name)
+    edf = np.concatenate([np.maximum(edf_simple(len(y) + 1, m[:start], 0), 1.0), fit[3]])
+    coefficients = {k: fit[0][i] for i, k in enumerate(TERMS) if k in fit[1]}
+    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, fit[1], fit[2], coefficients,
+                    float(tau[start]) if start else None)
+
+
+def _check_resolved(y, rate_hz, white, name):
+    """InputError where the white noise per reading is below :data:`RESOLVED_NOISE` steps of the
+    readings' resolution (the smallest change between adjacent readings): the readings hold too few
+    levels for their spread to be the sensor's noise.  With a spread per reading of 0.1 to 0.35 steps
+    the density came out 0.2 to 5 times the sensor's, with a tight interval, depending only on where
+    the true value sat between two levels."""
+    if white is None:
+        return
+    d = np.diff(y)
+    step = float(np.min(np.abs(d[d != 0]))) if d.any() else 0.0
+    sigma = white.value * math.sqrt(rate_hz)
+    if sigma < RESOLVED_NOISE * step:
+        raise InputError(f"{name}: the readings' white noise, {sigma:.3g} per reading, is below {RESOLVED_NOISE:g} of "
+                         f"their resolution ({step:.4g} between levels): quantisation hides the sensor's noise and no "
+                         "density can be read from them; record at a finer resolution (a smaller range, more "
+                         "digits in the log)")
+
+
+def _band_limit(tau, adev, m, n, rate_hz):
+    """``(start, fit)``: the octaves from ``start`` on fitted (:func:`_identify`), those before it
+    left out where the readings are band-limited: a sensor's low-pass filter, or readings held
+    over several rows (a sensor logged faster than it updates), lowers the Allan deviation of its
+    white noise at the first octaves (by about ``1.5 tau_c / tau`` in variance for a filter of time
+    constant ``tau_c``), below the ``N^2 / tau`` of every term of the model.  Fitted with them, a
+    1 kHz gyro behind a 2nd-order low-pass at 350 Hz or below, or one held over two rows, had no
+    term identified at all, and at 400 Hz ``N`` came out 8 % low.  An octave is left out while it
+    lies below the model of the octaves after it beyond its chi-square interval
+    (:data:`~cfdesign.allan.DEPARTURE_LEVEL`), its deficit shrinks toward the next octave
+    (:data:`~cfdesign.allan.BAND_LIMIT_DECAY`), and that model holds white noise from the next
+    octave on; at most half the octaves, and all but :data:`~cfdesign.allan.MIN_FIT_OCTAVES`."""
+    from scipy.stats import chi2
+
+    fits = {}
+
+    def fit_from(s):
+        if s not in fits:
+            fits[s] = _identify(tau[s:], adev[s:], m[s:], n, rate_hz)
+        return fits[s]
+
+    def below(s):  # the octaves before s band-limited, against the model of those from s on
+        fit = fit_from(s)
+        white = fit[1].get("white")
+        if white is None or white.tau_range_s[0] != tau[s]:
+            return False
+        model = _basis(tau[:s + 1], 1.0 / rate_hz) @ fit[0]
+        edf = np.maximum(edf_simple(n + 1, m[:s], 0), 1.0)
+        ratio = adev[:s + 1] ** 2 / model
+        if not np.all(ratio[:s] < chi2.ppf(1 - DEPARTURE_LEVEL, edf) / edf):
+            return False
+        # a band limit's deficit shrinks with tau (about as 1 / tau once it is a small part): a
+        # deficit that stays level is the octaves after it standing above the white noise line
+        deficit = 1.0 - ratio
+        return bool(np.all((deficit[1:] <= BAND_LIMIT_DECAY * deficit[:-1]) | (deficit[:-1] > 0.5)))
+
+    last = min(len(tau) // 2, len(tau) - MIN_FIT_OCTAVES)
+    for start in range(last + 1):
+        if (below(start) if start else "white" in fit_from(0)[1]):
+            while start < last and below(start + 1):  # the next octave is band-limited too
+                start += 1
+            return start, fit_from(start)
+    return 0, fit_from(0)
+
+
+def _identify(tau, adev, m, n, rate_hz):
+    """The terms the octave points show (method steps 3-5 of the module docstring):
+    ``(coef, terms, missing, edf)``."""
+    fit = _eliminate(tau, adev, m, n, rate_hz, list(TERMS))
     terms = fit[1]
     if "rate_ramp" in terms and "random_walk" not in terms:
         # over the last few octaves of a recording one realisation of a rate random walk can
         # look like a ramp; where the random walk explains the same octaves in place of the ramp,
         # it is the model kept (the common gyro term, and the one a design file takes)
         active = [k for k in TERMS if k in terms or k == "random_walk"]
-        walk = _eliminate(tau, adev, m, len(y), float(rate_hz), [k for k in active if k != "rate_ramp"])
+        walk = _eliminate(tau, adev, m, n, rate_hz, [k for k in active if k != "rate_ramp"])
         worse = _misfit(tau, adev, walk, 1.0 / rate_hz) - _misfit(tau, adev, fit, 1.0 / rate_hz)
         if "random_walk" in walk[1] and worse < RAMP_EVIDENCE:
             walk[2]["rate_ramp"] = (f"a rate random walk explains the same octaves (from "
                                     f"{walk[1]['random_walk'].tau_range_s[0]:.3g} s); the recording cannot tell "
-                                    "a ramp from it" + _longer_hint("rate_ramp", len(y) / rate_hz))
+                                    "a ramp from it" + _longer_hint("rate_ramp", n / rate_hz))
             fit = walk
-    fit = _swap_long_terms(tau, adev, m, len(y), float(rate_hz), fit)
-    fit = _white_alone(tau, adev, m, len(y), float(rate_hz), fit)
-    coef, terms, missing, edf = fit
-    coefficients = {k: coef[i] for i, k in enumerate(TERMS) if k in terms}
-    return NoiseFit(name, float(rate_hz), len(y) / float(rate_hz), tau, adev, edf, terms, missing, coefficients)
+    fit = _swap_long_terms(tau, adev, m, n, rate_hz, fit)
+    return _white_alone(tau, adev, m, n, rate_hz, fit)
 
 
 def _check_still(y, rate_hz, name):
@@ -977,23 +1084,31 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
         The fits to write, one ``[sensor]`` table each.
     source : str
         The log's name, for the header comment.
-    unit : str
-        The columns' unit (``rad/s``), for the comments.
+    unit : str or sequence of str
+        The columns' unit (``rad/s``), for the comments: one for every fit, or one per fit (a
+        gyro's ``rad/s`` beside an accelerometer's ``m/s^2``).
 
     Returns
     -------
     str
         TOML text.
+
+    Raises
+    ------
+    InputError
+        A sequence of units whose length is not the number of fits.
     """
-    unit = _comment(unit)
+    units = _units(unit, len(fits))
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
              "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
              "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
              "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
              "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
-    for fit, key in zip(fits, _keys(fit.name for fit in fits), strict=True):
+    for fit, key, unit in zip(fits, _keys(fit.name for fit in fits), units, strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
+        if fit.band_limit_s is not None:
+            lines.append(f"# {_band_limit_text(fit.band_limit_s)}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
         if white is not None:
             lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz); "
@@ -1014,13 +1129,22 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     return "\n".join(lines)
 
 
+def _units(unit, count) -> list:
+    """One unit per fit (``_comment``-safe) from one unit or a sequence of ``count``."""
+    units = [unit] * count if isinstance(unit, str) else list(unit)
+    if len(units) != count:
+        raise InputError(f"give one unit, or one per column ({count}), not {len(units)}: {', '.join(units)}")
+    return [_comment(u) for u in units]
+
+
 def _ci_text(term):
     return (f"95% CI {term.ci[0]:.4g} to {term.ci[1]:.4g}, fitted over tau {term.tau_range_s[0]:.3g} to "
             f"{term.tau_range_s[1]:.3g} s")
 
 
 def adev_plot(fits, ax=None, unit: str = "u"):
-    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes.
+    """Allan deviation of each fit with its 68 % intervals and fitted asymptotes (over the octaves
+    fitted; those left out as band-limited shaded).
 
     Parameters
     ----------
@@ -1028,26 +1152,38 @@ def adev_plot(fits, ax=None, unit: str = "u"):
         The fits to draw, one curve (and its fitted terms) each.
     ax : matplotlib.axes.Axes, optional
         Axes to draw into (default: a new figure).
-    unit : str
-        The sensors' unit, for the axis label.
+    unit : str or sequence of str
+        The sensors' unit, for the axis label: one for every fit, or one per fit (then named in
+        each curve's label).
 
     Returns
     -------
     matplotlib.figure.Figure
         The figure drawn into.
+
+    Raises
+    ------
+    InputError
+        A sequence of units whose length is not the number of fits.
     """
     import matplotlib.pyplot as plt
 
+    units = _units(unit, len(fits))
+    mixed = len(set(units)) > 1
     if ax is None:
         fig, ax = plt.subplots(figsize=(7.5, 5))
     else:
         fig = ax.figure
-    for fit in fits:
+    for fit, u in zip(fits, units, strict=True):
         lo, hi = fit.adev_ci()
         pts = ax.errorbar(fit.tau_s, fit.adev, yerr=[fit.adev - lo, hi - fit.adev], fmt="o", ms=4, capsize=2,
-                          label=f"{fit.name}: overlapping ADEV")
+                          label=f"{fit.name}{f' ({u})' if mixed else ''}: overlapping ADEV")
         color = pts[0].get_color()
         grid = np.logspace(np.log10(fit.tau_s[0]), np.log10(fit.tau_s[-1]), 200)
+        if fit.band_limit_s is not None:  # the band-limited octaves left out of the fit
+            ax.axvspan(fit.tau_s[0] / 1.2, fit.band_limit_s / 1.2, color=color, alpha=0.08,
+                       label=f"{fit.name}: left out (band-limited)")
+            grid = grid[grid >= fit.band_limit_s]
         if fit.terms:
             ax.loglog(grid, fit.model_adev(grid), "-", color=color, lw=1.5, alpha=0.7, label=f"{fit.name}: fit")
         for key, term in fit.terms.items():
@@ -1063,7 +1199,8 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("averaging time tau (s)")
-    ax.set_ylabel(f"Allan deviation ({unit})")
+    ax.set_ylabel("Allan deviation (each column's unit)" if mixed
+                  else f"Allan deviation ({units[0] if units else 'u'})")
     ax.set_title("Allan deviation and fitted asymptotes (x: N read at 1 s, K at 3 s)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)

@@ -391,19 +391,24 @@ def cmd_noise(args) -> int:
         raise CfdesignError(f"cfdesign noise: --column names {twice!r} twice")
     if args.time_unit is not None and args.time is None:
         raise CfdesignError("cfdesign noise: --time-unit is the unit of the --time column; give --time COLUMN too")
+    units = [u.strip() for u in args.unit.split(",")]
+    if len(units) not in (1, len(columns)) or not all(units):
+        raise CfdesignError(f"cfdesign noise: --unit takes one unit, or one per --column ({len(columns)}), "
+                            f"comma-separated; got {args.unit!r}")
+    units = units * len(columns) if len(units) == 1 else units
     rate, data = read_log_columns(args.log, columns, args.time, args.time_unit)
     if rate is not None and rate < 1.0 and args.time_unit is None:  # a log of milliseconds read as seconds
         print(f"cfdesign noise: note: the times in {args.time!r} give {rate:g} Hz; if they are not seconds, "
               "give --time-unit ms|us|ns", file=sys.stderr)
     rate = args.rate_hz if rate is None else rate
     fits = [identify_noise(data[c], rate, name=c) for c in columns]
-    for fit in fits:
-        print(fit.summary(args.unit))
+    for fit, unit in zip(fits, units, strict=True):
+        print(fit.summary(unit))
     outputs = {}
     if args.output:
-        outputs[args.output] = noise_toml(fits, source=str(args.log), unit=args.unit)
+        outputs[args.output] = noise_toml(fits, source=str(args.log), unit=units)
     if args.plot:
-        outputs[args.plot] = _figure_bytes(adev_plot(fits, unit=args.unit), args.plot)
+        outputs[args.plot] = _figure_bytes(adev_plot(fits, unit=units), args.plot)
     for path in write_files(outputs):
         print(f"wrote {path}")
     return 0
@@ -530,7 +535,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    help="unit of a numeric --time column (default: the one its name gives, 'time [ms]', else s)")
     p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
     p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
-    p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")
+    p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s), or one per "
+                   "column, comma-separated (rad/s,rad/s,rad/s,m/s^2)")
     p.set_defaults(run=cmd_noise)
 
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")

@@ -51,6 +51,9 @@ __all__ = ["crossover_gains", "crossover_check", "continuous_crossover_gains", "
 DEFAULT_DAMPING = 1 / math.sqrt(2)
 #: the solved bands must have equal magnitude at each crossover to this relative tolerance
 CROSSOVER_RTOL = 1e-6
+#: a closed-loop decay per step (rate times sample time) below this is within the rounding of the
+#: discrete closed loop's eigenvalues around z = 1 (a few hundred units of the last place)
+POLE_ROUNDING = 1e-13
 
 
 def _bands_by_order(structure):
@@ -226,8 +229,9 @@ def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dic
     ------
     SpecError
         The structure does not take a crossover design, the count of frequencies is not the
-        number of bands minus one, a frequency is at or above Nyquist, or no stabilising gain
-        meets them (the message names the crossover).
+        number of bands minus one, a frequency is at or above Nyquist, no stabilising gain
+        meets them (the message names the crossover), or the gains put a closed-loop pole within
+        double rounding of ``z = 1`` (the message names the pole and its time constant).
     """
     hz = [float(f) for f in hz]
     _count(structure, hz)
@@ -245,6 +249,13 @@ def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dic
     K = _gain_matrix(structure, gains)
     if not linear.is_stable(np.linalg.eigvals(linear.closed_loop(model["F"], model["H"], K, form)),
                             "z" if dt else "s"):
+        slow = _slowest_pole(structure, start)
+        if dt and slow * dt < POLE_ROUNDING:
+            raise SpecError(f"crossover: at {_hz(hz)}{_damping_text(damping, structure)} the slowest closed-loop pole "
+                            f"of {structure.name} is {slow:.3g} rad/s (a time constant of {1 / slow:.3g} s), "
+                            f"{slow * dt:.2g} of a step at {1 / dt:g} Hz: within double rounding of z = 1, so no "
+                            "discrete table holds it; choose a higher crossover, a smaller damping or a lower "
+                            "sample rate")
         raise SpecError(f"crossover: the gains that put the crossovers at {_hz(hz)} do not stabilise "
                         f"{structure.name}")
     for a, b, f, ratio in crossover_check(structure, model, K, form, output, dt, hz):
@@ -253,6 +264,19 @@ def crossover_gains(structure, model, dt, form, output, hz, damping=None) -> dic
                             f"(closest: magnitude ratio {ratio:.4g}); choose frequencies further apart or "
                             "further below Nyquist")
     return gains
+
+
+def _slowest_pole(structure, gains) -> float:
+    """The smallest decay rate (rad/s) of the continuous closed loop of ``gains`` (0 when not
+    stable): the discrete table's pole ``e^{-slow T}`` rounds to 1 when ``slow T`` is below
+    :data:`POLE_ROUNDING`."""
+    poles = np.linalg.eigvals(linear.closed_loop(structure.Fc, structure.H, _gain_matrix(structure, gains),
+                                                 "continuous"))
+    return float(max(np.min(-poles.real), 0.0))
+
+
+def _damping_text(damping, structure):
+    return "" if damping is None else f" with damping {damping:g}"
 
 
 def _hz(hz):

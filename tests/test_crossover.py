@@ -208,3 +208,18 @@ def test_discrete_damped_search_spans_both_the_continuous_w_n_and_w_c(output, hz
     mag = magnitudes(table, [hz])
     assert mag["angle"][0] == pytest.approx(mag["rate"][0], rel=1e-6)
     assert table.checks["stable"]
+
+
+@pytest.mark.parametrize("gain_form", ["predictor", "filter"])
+def test_a_pole_within_rounding_of_z_1_is_named_not_called_unstable(gain_form):
+    """A damping of 1e6 crossing over at 0.01 Hz at 1 kHz has its slow pole at 1.6e-14 rad/s,
+    1.6e-17 of a step: e^(-s T) rounds to 1 and the design was refused as 'the gains ... do not
+    stabilise cf2', which they do (the continuous design holds them). The refusal names the pole,
+    the rounding and what to change."""
+    spec = parse_spec({"structure": "cf2", "order": 2, "discrete": True, "gain_form": gain_form,
+                       "crossover": {"hz": 0.01, "damping": 1e6},
+                       "sensors": {"rate": {**GYRO, "rate_hz": 1000.0}, "angle": {**ANGLE, "rate_hz": 1000.0}}})
+    with pytest.raises(SpecError, match=r"slowest closed-loop pole of cf2 \(order 2\) is 1.57e-14 rad/s .* "
+                                        r"within double rounding of z = 1.*lower sample rate"):
+        design(spec)
+    assert design(cf2_spec(crossover={"hz": 0.01, "damping": 1e6})).checks["stable"]  # continuous: held
