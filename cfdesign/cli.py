@@ -419,8 +419,18 @@ def cmd_discretize(args) -> int:
     from .gains import load_gains
 
     check_distinct({"the gain table": args.table, "-o": args.output})
-    table = discretize_table(load_gains(args.table), args.rate_hz, args.gain_form)
+    continuous = load_gains(args.table)
+    table = discretize_table(continuous, args.rate_hz, args.gain_form)
     print(_summary(table))
+    described = max(s.rate_hz for s in continuous.sensors)  # one rate: discretize_table refuses several
+    if abs(described - table.sensors[0].rate_hz) > 1e-9 * described:
+        f = table.sensors[0].rate_hz
+        print(f"cfdesign discretize: note: the sensors were described at {described:g} Hz; at {f:g} Hz the predicted "
+              f"error takes every measurement as read at every step with the variance of its noise density at "
+              f"{f:g} Hz (PSD x {f:g}: the mean of a {described:g} Hz sensor over each step, not its readings taken "
+              f"as they come); for the error of the readings you will have, give each measurement's rate_hz = "
+              f"{f:g} and noise = {{ std = ... }} of those readings in the design file and design again",
+              file=sys.stderr)
     for path in write_files({args.output: table.to_json()}):
         print(f"wrote {path}")
     return 0

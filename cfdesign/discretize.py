@@ -78,8 +78,9 @@ def discretize_table(table: GainTable, rate_hz: float, gain_form: str = "predict
     -------
     GainTable
         ``F, B`` the ZOH model, ``K`` in the named form, ``Q`` by Van Loan, ``R`` per sample
-        (``PSD * rate_hz``), the predicted covariances of these gains (Lyapunov), checked as
-        ``cfdesign verify`` checks a table.
+        (``PSD * rate_hz``: at a rate other than the sensors' own, the noise of a reading averaged
+        over each step, not of the sensor's readings as they come), the predicted covariances of
+        these gains (Lyapunov), checked as ``cfdesign verify`` checks a table.
 
     Raises
     ------

@@ -143,11 +143,14 @@ class LogResult:
         -------
         dict
             ``log``, ``samples``, ``readings_not_used``, and for each reference ``rms_<state>``
-            (over every row) beside ``rms_settled_<state>`` (after the start-up, ``startup_s``).
+            (over every row), ``rms_settled_<state>`` (after the start-up, ``startup_s``) and
+            ``predicted_std_<state>``, what the settled figure should come to for this log
+            (``predicted_std``: missed readings and recomputed gains make it differ from log to log).
         """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
         for k, v in self.rms.items():
-            row.update({f"rms_{k}": v, f"rms_settled_{k}": self.rms_settled.get(k, math.nan)})
+            row.update({f"rms_{k}": v, f"rms_settled_{k}": self.rms_settled.get(k, math.nan),
+                        f"predicted_std_{k}": self.predicted_std.get(k, math.nan)})
         if self.rms:
             row["startup_s"] = self.startup_s
         return row

@@ -756,6 +756,9 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd, caplog,
     columns = list(summary.columns)  # the settled RMS beside the RMS over every row: none, 15 s in a 45.5 s start-up
     assert columns[columns.index("rms_heading") + 1] == "rms_settled_heading"
     assert summary["rms_settled_heading"].isna().all() and summary["startup_s"].iloc[1:].tolist() == [45.46] * 3
+    # beside them the prediction each log's figure should come to (over every row here: no settled rows)
+    assert columns[columns.index("rms_settled_heading") + 1] == "predicted_std_heading"
+    assert summary["predicted_std_heading"].iloc[1:].gt(0).all() and summary["predicted_std_heading"].isna().iloc[0]
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["robot0.csv", "robot1.csv", "robot2.csv",
                                                                     "summary.csv"]
 

@@ -198,8 +198,10 @@ def test_the_plot_breaks_its_lines_at_a_pause_of_the_log(slow, biased_log):
 
 
 def test_the_fleet_summary_has_the_settled_rms_beside_the_rms():
-    """``summary.csv``'s row: ``rms_<state>`` then ``rms_settled_<state>``, and the start-up's length;
-    a result without references has none of them."""
-    r = LogResult(None, 10, {"heading": 0.5}, rms_settled={"heading": 0.1}, startup_s=16.1)
-    assert list(r.summary().items())[3:] == [("rms_heading", 0.5), ("rms_settled_heading", 0.1), ("startup_s", 16.1)]
+    """``summary.csv``'s row: ``rms_<state>``, ``rms_settled_<state>`` and the prediction it should
+    come to, and the start-up's length; a result without references has none of them."""
+    r = LogResult(None, 10, {"heading": 0.5}, rms_settled={"heading": 0.1}, predicted_std={"heading": 0.09},
+                  startup_s=16.1)
+    assert list(r.summary().items())[3:] == [("rms_heading", 0.5), ("rms_settled_heading", 0.1),
+                                             ("predicted_std_heading", 0.09), ("startup_s", 16.1)]
     assert list(LogResult(None, 10).summary()) == ["log", "samples", "readings_not_used"]
