@@ -1246,3 +1246,34 @@ def test_ekf_noise_figures_at_the_ends_of_their_range_are_named_or_run_finite(da
         assert "\n" not in str(e)
         return
     assert all(np.isfinite(a).all() for a in numbers), (names, values)
+
+
+# ---------------------------------------------------------------------- found by the fourth pass
+STATE_VALUES = [[np.inf, 0.0, 0.0], [np.nan, 0.0, 0.0], [1e308, 1e308, 0.0], [1e200, 0.0, 0.0], "abc", None,
+                [1 + 1j, 0.0, 0.0], [0.1, 0.2], [[0.1], [0.2], [0.3]], [True, False, True], 1.5, np.nan, True,
+                np.int64(1), -3, 10 ** 30, [0.1, -0.2, 5e-324], np.array([0.1, 0.2, 0.3]), [np.inf], [0.25]]
+
+
+@FUZZ
+@given(where=st.sampled_from(["x0", "x", "u_last", "phase"]), value=st.sampled_from(STATE_VALUES))
+def test_every_way_into_a_runtime_state_is_checked(position, where, value):
+    """The ``x`` and ``u_last`` setters stored inf, NaN and 1e308 as they came (u_last = None became
+    NaN), the phase setter took 1.5 and True, and ``x0 = [1e308, ...]`` overflowed in a few steps:
+    each way in now takes what restore takes, or raises a named error and changes nothing."""
+    rt = Runtime(position)
+    rt.step(accelerometer=0.1, gps=1.0)
+    before = rt.state()
+    try:
+        if where == "x0":
+            rt = Runtime(position, x0=value)
+        else:
+            setattr(rt, where, value)
+    except CfdesignError as exc:
+        assert rt.state() == before and "\n" not in str(exc)
+        return
+    state = rt.state()
+    assert all(math.isfinite(v) and abs(v) <= 1e150 for v in state["x"] + state["u_last"]), (where, value)
+    assert type(state["phase"]) is int and 0 <= state["phase"] < position.period
+    for _ in range(3):
+        rt.step(accelerometer=0.1, gps=1.0)
+    assert np.all(np.isfinite(rt.x))
