@@ -1255,11 +1255,24 @@ STATE_VALUES = [[np.inf, 0.0, 0.0], [np.nan, 0.0, 0.0], [1e308, 1e308, 0.0], [1e
 
 
 @FUZZ
-@given(where=st.sampled_from(["x0", "x", "u_last", "phase"]), value=st.sampled_from(STATE_VALUES))
+@given(where=st.sampled_from(["x0", "x", "u_last", "phase", "arrivals x0", "arrivals output"]),
+       value=st.sampled_from(STATE_VALUES))
 def test_every_way_into_a_runtime_state_is_checked(position, where, value):
     """The ``x`` and ``u_last`` setters stored inf, NaN and 1e308 as they came (u_last = None became
-    NaN), the phase setter took 1.5 and True, and ``x0 = [1e308, ...]`` overflowed in a few steps:
-    each way in now takes what restore takes, or raises a named error and changes nothing."""
+    NaN), the phase setter took 1.5 and True, and ``x0 = [1e308, ...]`` overflowed in a few steps
+    (ArrivalKalman's x0 too; its output took any value, a misspelt 'posterior' as 'prior'): each
+    way in now takes what restore takes, or raises a named error and changes nothing."""
+    from cfdesign.runtime.arrivals import ArrivalKalman
+
+    if where.startswith("arrivals"):
+        try:
+            kf = ArrivalKalman(position, **({"x0": value} if where == "arrivals x0" else {"output": value}))
+        except CfdesignError:
+            return
+        assert (where == "arrivals x0" or value is None) and np.all(np.abs(kf.x) <= 1e150)
+        states, _ = kf.run(np.full((3, 1), 0.1), np.ones((3, 1)))
+        assert np.all(np.isfinite(states))
+        return
     rt = Runtime(position)
     rt.step(accelerometer=0.1, gps=1.0)
     before = rt.state()

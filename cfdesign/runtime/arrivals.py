@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linear import gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
-from .filter import held, usable
+from ..errors import CfdesignError
+from ..linear import OUTPUTS, gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
+from .filter import held, state_vector, usable
 
 __all__ = ["ArrivalKalman", "MissedReadings"]
 
@@ -48,6 +49,12 @@ class ArrivalKalman:
     x0 : array_like, optional
         Initial state (default zero); the covariance starts at the table's ``P[0]``.
 
+    Raises
+    ------
+    CfdesignError
+        An output other than ``prior`` or ``posterior``, or an ``x0`` that is not the table's
+        number of finite values (:func:`~cfdesign.runtime.filter.state_vector`).
+
     Attributes
     ----------
     x : ndarray
@@ -65,7 +72,9 @@ class ArrivalKalman:
         self.F, self.B, self.H = table.F, table.B, table.H
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
         self.n = self.F.shape[0]
-        self.x = np.zeros(self.n) if x0 is None else np.asarray(x0, dtype=float).copy()
+        if (output or table.output) not in OUTPUTS:
+            raise CfdesignError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
+        self.x = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n).copy()
         self.P = np.array(table.P[0], dtype=float)
         self.u_last = np.zeros(self.B.shape[1])
         self.posterior = (output or table.output) == "posterior"

@@ -33,7 +33,8 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "filter_sha256", "READING_LIMIT", "STATE_LIMIT", "UNSTABLE_RTOL"]
+__all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256", "READING_LIMIT", "STATE_LIMIT",
+           "UNSTABLE_RTOL"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -121,10 +122,12 @@ def state_vector(value, name, size) -> np.ndarray:
     """``value`` as ``size`` floats fit to be a runtime's state, or
     :class:`~cfdesign.errors.CfdesignError` naming ``name``.
 
-    Real numbers only (:func:`real_array`), exactly ``size`` of them, each finite and at most
-    :data:`~cfdesign.runtime.filter.STATE_LIMIT` in magnitude (one step from such a state cannot
-    overflow).  Used by ``Runtime(x0=...)``, :meth:`Runtime.restore` and the ``x`` and ``u_last``
-    setters, so that no way in can leave a NaN, an inf or an overflowing value in the state.
+    Real numbers only (bool, integer and float arrays, lists of Python numbers), exactly ``size``
+    of them, each finite and at most :data:`~cfdesign.runtime.filter.STATE_LIMIT` in magnitude
+    (one step from such a state cannot overflow).  Used by ``Runtime(x0=...)``,
+    :meth:`cfdesign.runtime.Runtime.restore`, the ``x`` and ``u_last`` setters and
+    :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, so that no way in can leave a NaN, an inf
+    or an overflowing value in the state.
 
     Parameters
     ----------
@@ -321,7 +324,7 @@ class Runtime:
     @property
     def u_last(self) -> np.ndarray:
         """The last input received of each input sensor (held while one is missing; assign finite
-        numbers, as for :attr:`x`)."""
+        numbers, as for ``x``)."""
         return np.array(self._U)
 
     @u_last.setter
