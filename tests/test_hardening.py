@@ -1290,3 +1290,19 @@ def test_every_way_into_a_runtime_state_is_checked(position, where, value):
     for _ in range(3):
         rt.step(accelerometer=0.1, gps=1.0)
     assert np.all(np.isfinite(rt.x))
+
+
+@pytest.mark.parametrize("value", [np.array(["prior", "posterior"]), ["float"], np.array([1, 2]), {"a": 1}, 1])
+@pytest.mark.parametrize("option", ["Runtime output", "ArrivalKalman output", "render_c output", "render_c precision"])
+def test_a_choice_option_of_another_type_is_named(heading, option, value):
+    """An array as an output or precision reached ``value in (...)`` and came out as numpy's 'truth
+    value of an array ... is ambiguous' or 'unhashable type' (TypeError/ValueError)."""
+    from cfdesign.codegen import render_c
+    from cfdesign.runtime.arrivals import ArrivalKalman
+
+    call = {"Runtime output": lambda: Runtime(heading, output=value),
+            "ArrivalKalman output": lambda: ArrivalKalman(heading, output=value),
+            "render_c output": lambda: render_c(heading, output=value),
+            "render_c precision": lambda: render_c(heading, precision=value)}[option]
+    with pytest.raises(CfdesignError, match=r"must be one of|precision must be"):
+        call()

@@ -72,12 +72,13 @@ class ArrivalKalman:
         self.F, self.B, self.H = table.F, table.B, table.H
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
         self.n = self.F.shape[0]
-        if (output or table.output) not in OUTPUTS:
+        output = table.output if output is None else output
+        if not isinstance(output, str) or output not in OUTPUTS:
             raise CfdesignError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
         self.x = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n).copy()
         self.P = np.array(table.P[0], dtype=float)
         self.u_last = np.zeros(self.B.shape[1])
-        self.posterior = (output or table.output) == "posterior"
+        self.posterior = output == "posterior"
         self.wrap_angle = bool(table.wrap_angle)
         self._wrap_rows = np.array([self.wrap_angle and s.order == 0 for s in table.measurements], dtype=bool)
         self._inputs = [s.name for s in table.inputs]
@@ -196,7 +197,7 @@ class MissedReadings:
 
     def __init__(self, table, output=None):
         self.table = table
-        self.posterior = (output or table.output) == "posterior"
+        self.posterior = output == "posterior"
         self.mask = table.schedule.mask()
         self.F, self.H = np.asarray(table.F, dtype=float), np.asarray(table.H, dtype=float)
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
