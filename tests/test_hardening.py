@@ -8,6 +8,7 @@ import json
 import math
 import os
 import stat
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -1306,3 +1307,30 @@ def test_a_choice_option_of_another_type_is_named(heading, option, value):
             "render_c precision": lambda: render_c(heading, precision=value)}[option]
     with pytest.raises(CfdesignError, match=r"must be one of|precision must be"):
         call()
+
+
+EMPTY_NAME_COMMANDS = [
+    ["verify", "g.json", "--spec", ""], ["verify", ""], ["design", ""], ["design", "--example", ""],
+    ["design", "--example", "cf3", "-o", ""], ["design", "--example", "cf3", "-o", "k.json", "--bode", " "],
+    ["export", "g.json", "--format", "c", "-o", ""], ["export", "g.json", "--format", "json", "-o", ""],
+    ["run", "g.json", "log.csv", "-o", ""], ["run", "g.json", "", "-o", "e.csv"],
+    ["run", "g.json", "log.csv", "-o", "e.csv", "--plot", ""],
+    ["run", "g.json", "log.csv", "-o", "e.csv", "--scheduler", ""],
+    ["noise", "log.csv", "--column", "gyro", "--rate-hz", "5", "-o", ""], ["noise", "", "--column", "gyro"],
+    ["discretize", "g.json", "--rate-hz", "5", "-o", ""], ["bode", "cf2", "--gains", "k=1", "-o", ""]]
+
+
+@pytest.mark.parametrize("argv", EMPTY_NAME_COMMANDS, ids=" ".join)
+def test_an_empty_file_name_is_refused_not_read_as_none_or_here(heading, tmp_path, monkeypatch, cli, argv):
+    """An empty name (a shell variable left unset) was read as 'not given' or as '.': ``verify
+    --spec ""`` compared the table with nothing and passed (exit 0), ``design ""`` designed the
+    built-in example instead of the file, ``design -o ""`` wrote nothing with exit 0, ``run -o ""``
+    and ``export --format c -o ""`` wrote into the current folder."""
+    monkeypatch.chdir(tmp_path)
+    heading.save("g.json")
+    Path("log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.1,0.1\n" for k in range(40)))
+    Path("k.json").write_text("previous")
+    before = sorted(p.name for p in tmp_path.iterdir())
+    code, _, err = cli(*argv)
+    assert code == 2 and "is empty or blank: it names nothing" in err and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == before and Path("k.json").read_text() == "previous"
