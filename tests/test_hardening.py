@@ -61,6 +61,10 @@ MUTATIONS = {
     "P_filtered": lambda t: dataclasses.replace(t, P_filtered=[P * 1.01 for P in t.P_filtered]),
     "states": lambda t: dataclasses.replace(t, states=t.states[::-1]),
     "kalman": lambda t: dataclasses.replace(t, provenance={**t.provenance, "solver": {"method": "fixed"}}),
+    # not run, but what a reader of the JSON (and design's summary) sees: k22 = 1e300 beside the
+    # designed K passed verify --spec
+    "named gain": lambda t: dataclasses.replace(t, gains={**t.gains, "k22": 1e300}),
+    "named gain left out": lambda t: dataclasses.replace(t, gains={k: v for k, v in t.gains.items() if k != "k22"}),
 }
 
 
