@@ -103,9 +103,13 @@ def real_array(value, name) -> np.ndarray:
 
     Real numbers only (bool, integer and float arrays, and lists of Python numbers): text, None,
     complex values (``astype(float)`` dropped the imaginary part with a warning), ragged lists
-    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.
+    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.  The
+    masked entries of a ``numpy.ma`` array are missing (NaN): ``asarray`` kept the values under
+    the mask, so a glitch masked by the caller was run.
     """
     try:
+        if isinstance(value, np.ma.MaskedArray) and value.dtype.kind in "biuf":
+            value = value.astype(float).filled(np.nan)
         a = np.asarray(value)
         if a.dtype.kind == "O":  # Python objects: real numbers of mixed types, or anything (None: refused,
             # as step refuses it, not NaN as astype makes it)
