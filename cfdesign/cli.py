@@ -38,6 +38,17 @@ def _named(text: str) -> str:
     return text
 
 
+def _output(text: str) -> str:
+    """argparse ``type`` of every file a command writes: :func:`_named`, and not ``-``.
+
+    ``-o -`` wrote a file named '-' in silence (design, export, discretize, noise, the plots):
+    cfdesign writes files, not standard output."""
+    if _named(text) == "-":
+        raise argparse.ArgumentTypeError("'-' would be a file named '-': cfdesign writes files, not standard output; "
+                                         "name one")
+    return text
+
+
 def parse_gains(text: str) -> dict:
     """Parse ``'k1=2,k2=1'`` (``cfdesign bode --gains``) into exact numbers; never evaluates the text.
 
@@ -273,8 +284,6 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import INTERNAL, run_log, run_logs
 
-    if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
-        raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
@@ -464,7 +473,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--gains", required=True, help="gain values, named as cfdesign prove prints them "
                                                   "(cf3: k1=2,k2=1; continuous gains in SI units, 1/s, 1/s^2, ...)")
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
-    p.add_argument("-o", "--output", required=True, type=_named, help="PNG (or PDF/SVG) file to write")
+    p.add_argument("-o", "--output", required=True, type=_output, help="PNG (or PDF/SVG) file to write")
     p.add_argument("--hz", action="store_true", help="frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_bode)
 
@@ -473,8 +482,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--example", type=_named,
                    help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
                    "ckf3, position, tilt")
-    p.add_argument("-o", "--output", type=_named, help="write the gain table (JSON) here")
-    p.add_argument("--bode", metavar="FILE.png", type=_named,
+    p.add_argument("-o", "--output", type=_output, help="write the gain table (JSON) here")
+    p.add_argument("--bode", metavar="FILE.png", type=_output,
                    help="also write the Bode plot of the designed filter (multirate: "
                    "its gains per phase and the lifted system at the period rate)")
     p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
@@ -484,7 +493,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("table", type=_named, help="gain table (JSON) from cfdesign design")
     p.add_argument("--format", choices=["json", "csv", "c"], required=True,
                    help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
-    p.add_argument("-o", "--output", required=True, type=_named, help="file (json, csv) or directory (c)")
+    p.add_argument("-o", "--output", required=True, type=_output, help="file (json, csv) or directory (c)")
     p.add_argument("--precision", choices=["double", "float"],
                    help="C only: real type (default double)")
     p.add_argument("--prefix", help="C only: identifier prefix of the generated code (default: the table's "
@@ -509,7 +518,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("data", nargs="+", type=_named,
                    help="log file(s), a directory or a glob; one column per sensor (named as in "
                                            "the table, or --map), a time column, any others (passed through)")
-    p.add_argument("-o", "--output", required=True, type=_named,
+    p.add_argument("-o", "--output", required=True, type=_output,
                    help="estimates file (.csv or .parquet); a directory (created "
                                                          "if missing; a name ending in /) for several logs, a "
                                                          "directory or a glob of logs, with summary.csv")
@@ -523,7 +532,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    help="a true value to compare with: prints the RMS error over all rows and after the filter's "
                         "start-up, beside the predicted std (repeatable)")
     p.add_argument("--std", action="store_true", help="also write <state>_std, the predicted standard deviations")
-    p.add_argument("--plot", metavar="FILE.png", type=_named,
+    p.add_argument("--plot", metavar="FILE.png", type=_output,
                    help="draw the estimates (against the references, with the "
                                                      "predicted +-2 sigma band)")
     p.add_argument("--prediction", action="store_true",
@@ -544,8 +553,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    "instead of --rate-hz")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
                    help="unit of a numeric --time column (default: the one its name gives, 'time [ms]', else s)")
-    p.add_argument("-o", "--output", type=_named, help="write the design-file entries (TOML) here")
-    p.add_argument("--plot", metavar="FILE.png", type=_named,
+    p.add_argument("-o", "--output", type=_output, help="write the design-file entries (TOML) here")
+    p.add_argument("--plot", metavar="FILE.png", type=_output,
                    help="write the Allan deviation with the fitted asymptotes")
     p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s)")
     p.set_defaults(run=cmd_noise)
@@ -555,7 +564,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
     p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor",
                    help="gain form of the discrete table (default predictor)")
-    p.add_argument("-o", "--output", required=True, type=_named, help="discrete gain table (JSON) to write")
+    p.add_argument("-o", "--output", required=True, type=_output, help="discrete gain table (JSON) to write")
     p.set_defaults(run=cmd_discretize)
 
     from .reproduce import add_parser as add_reproduce

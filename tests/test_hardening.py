@@ -1340,6 +1340,20 @@ def test_an_empty_file_name_is_refused_not_read_as_none_or_here(heading, tmp_pat
     assert sorted(p.name for p in tmp_path.iterdir()) == before and Path("k.json").read_text() == "previous"
 
 
+@pytest.mark.parametrize("argv", [a for a in EMPTY_NAME_COMMANDS
+                                  if a[-2] in ("-o", "--plot", "--bode") and not a[-1].strip()], ids=" ".join)
+def test_a_dash_as_output_is_refused_not_a_file_named_dash(heading, tmp_path, monkeypatch, cli, argv):
+    """``-o -`` (standard output, by custom) wrote a file named '-' in silence: design, export,
+    discretize, noise, bode and the plots (run -o - alone was refused)."""
+    monkeypatch.chdir(tmp_path)
+    heading.save("g.json")
+    Path("log.csv").write_text("time,gyro,compass,odometry\n" + "".join(f"{k / 5},0.01,0.1,0.1\n" for k in range(40)))
+    argv = ["-" if a in ("", " ") else a for a in argv]
+    code, _, err = cli(*argv)
+    assert code == 2 and "'-' would be a file named '-'" in err and len(err.strip().splitlines()) == 1, err
+    assert not Path("-").exists()
+
+
 @FUZZ
 @given(data=st.data())
 def test_a_masked_reading_is_missing_not_the_value_under_the_mask(heading, data):
