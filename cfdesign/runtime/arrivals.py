@@ -49,12 +49,6 @@ class ArrivalKalman:
     x0 : array_like, optional
         Initial state (default zero); the covariance starts at the table's ``P[0]``.
 
-    Raises
-    ------
-    CfdesignError
-        An output other than ``prior`` or ``posterior``, or an ``x0`` that is not the table's
-        number of finite values (:func:`~cfdesign.runtime.filter.state_vector`).
-
     Attributes
     ----------
     x : ndarray
@@ -66,6 +60,12 @@ class ArrivalKalman:
     counts : dict
         ``{'rejected': {sensor: n}}``: readings (inputs and measurements) treated as missing, as
         :attr:`Runtime.counts <cfdesign.runtime.Runtime.counts>` names them.
+
+    Raises
+    ------
+    CfdesignError
+        An output other than ``prior`` or ``posterior``, or an ``x0`` that is not the table's
+        number of finite values (:func:`~cfdesign.runtime.filter.state_vector`).
     """
 
     def __init__(self, table, output=None, x0=None):
