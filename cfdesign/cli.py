@@ -27,6 +27,28 @@ class _Parser(argparse.ArgumentParser):
         raise CfdesignError(f"{self.prog}: {message}")
 
 
+def _named(text: str) -> str:
+    """argparse ``type`` of every file, folder, example and scheduler name: an empty one is refused.
+
+    ``-o ""`` (a shell variable left unset) wrote nothing with exit 0 (design), wrote into the
+    current folder (export c, run), designed the built-in example instead of the file
+    (``design ""``), and ``verify --spec ""`` compared the table with nothing and passed."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is empty or blank: it names nothing (a shell variable left unset?)")
+    return text
+
+
+def _output(text: str) -> str:
+    """argparse ``type`` of every file a command writes: :func:`_named`, and not ``-``.
+
+    ``-o -`` wrote a file named '-' in silence (design, export, discretize, noise, the plots):
+    cfdesign writes files, not standard output."""
+    if _named(text) == "-":
+        raise argparse.ArgumentTypeError("'-' would be a file named '-': cfdesign writes files, not standard output; "
+                                         "name one")
+    return text
+
+
 def parse_gains(text: str) -> dict:
     """Parse ``'k1=2,k2=1'`` (``cfdesign bode --gains``) into exact numbers; never evaluates the text.
 
@@ -262,8 +284,6 @@ def cmd_run(args) -> int:
     from .gains import load_gains
     from .logs import INTERNAL, run_log, run_logs
 
-    if args.output == "-":  # a file named '-' was written in silence, beside the RMS lines on stdout
-        raise CfdesignError("-o -: the estimates are written to a file; name one (.csv, .csv.gz or .parquet)")
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
@@ -468,25 +488,27 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--gains", required=True, help="gain values, named as cfdesign prove prints them "
                                                   "(cf3: k1=2,k2=1; continuous gains in SI units, 1/s, 1/s^2, ...)")
     p.add_argument("--sample-time", help="sample time T in seconds (discrete structures)")
-    p.add_argument("-o", "--output", required=True, help="PNG (or PDF/SVG) file to write")
+    p.add_argument("-o", "--output", required=True, type=_output, help="PNG (or PDF/SVG) file to write")
     p.add_argument("--hz", action="store_true", help="frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_bode)
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
-    p.add_argument("spec", nargs="?", help="design file (TOML); omitted: the built-in example")
-    p.add_argument("--example", help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
-                                      "ckf3, position, tilt")
-    p.add_argument("-o", "--output", help="write the gain table (JSON) here")
-    p.add_argument("--bode", metavar="FILE.png", help="also write the Bode plot of the designed filter (multirate: "
+    p.add_argument("spec", nargs="?", type=_named, help="design file (TOML); omitted: the built-in example")
+    p.add_argument("--example", type=_named,
+                   help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
+                   "ckf3, position, tilt")
+    p.add_argument("-o", "--output", type=_output, help="write the gain table (JSON) here")
+    p.add_argument("--bode", metavar="FILE.png", type=_output,
+                   help="also write the Bode plot of the designed filter (multirate: "
                    "its gains per phase and the lifted system at the period rate)")
     p.add_argument("--hz", action="store_true", help="Bode plot: frequency axis in Hz instead of rad/s")
     p.set_defaults(run=cmd_design)
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
-    p.add_argument("table", help="gain table (JSON) from cfdesign design")
+    p.add_argument("table", type=_named, help="gain table (JSON) from cfdesign design")
     p.add_argument("--format", choices=["json", "csv", "c"], required=True,
                    help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
-    p.add_argument("-o", "--output", required=True, help="file (json, csv) or directory (c)")
+    p.add_argument("-o", "--output", required=True, type=_output, help="file (json, csv) or directory (c)")
     p.add_argument("--precision", choices=["double", "float"],
                    help="C only: real type (default double)")
     p.add_argument("--prefix", help="C only: identifier prefix of the generated code (default: the table's "
@@ -497,8 +519,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_export)
 
     p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
-    p.add_argument("table", help="gain table (JSON)")
-    p.add_argument("--spec", help="design file the table should come from")
+    p.add_argument("table", type=_named, help="gain table (JSON)")
+    p.add_argument("--spec", type=_named, help="design file the table should come from")
     p.add_argument("--rtol", type=float, default=1e-9,
                    help="relative tolerance of the comparison with --spec (default 1e-9)")
     p.set_defaults(run=cmd_verify)
@@ -507,10 +529,12 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                        description="Each row is placed on the table's base tick by its time (nearest tick); slow "
                                    "sensors' columns are empty between readings; the schedule locks to when they "
                                    "arrive.  Readings not used are reported on stderr.")
-    p.add_argument("table", help="gain table (JSON)")
-    p.add_argument("data", nargs="+", help="log file(s), a directory or a glob; one column per sensor (named as in "
+    p.add_argument("table", type=_named, help="gain table (JSON)")
+    p.add_argument("data", nargs="+", type=_named,
+                   help="log file(s), a directory or a glob; one column per sensor (named as in "
                                            "the table, or --map), a time column, any others (passed through)")
-    p.add_argument("-o", "--output", required=True, help="estimates file (.csv or .parquet); a directory (created "
+    p.add_argument("-o", "--output", required=True, type=_output,
+                   help="estimates file (.csv or .parquet); a directory (created "
                                                          "if missing; a name ending in /) for several logs, a "
                                                          "directory or a glob of logs, with summary.csv")
     p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
@@ -523,19 +547,20 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    help="a true value to compare with: prints the RMS error over all rows and after the filter's "
                         "start-up, beside the predicted std (repeatable)")
     p.add_argument("--std", action="store_true", help="also write <state>_std, the predicted standard deviations")
-    p.add_argument("--plot", metavar="FILE.png", help="draw the estimates (against the references, with the "
+    p.add_argument("--plot", metavar="FILE.png", type=_output,
+                   help="draw the estimates (against the references, with the "
                                                      "predicted +-2 sigma band)")
     p.add_argument("--prediction", action="store_true",
                    help="write the one-step prediction instead of the table's output (by default the estimate "
                         "after each step's readings)")
     dask = p.add_mutually_exclusive_group()
     dask.add_argument("--workers", type=int, help="several logs: Dask worker processes (default: the CPUs)")
-    dask.add_argument("--scheduler", metavar="ADDRESS", help="several logs: an existing Dask scheduler")
+    dask.add_argument("--scheduler", metavar="ADDRESS", type=_named, help="several logs: an existing Dask scheduler")
     p.add_argument("--format", choices=["csv", "parquet"], default="csv", help="several logs: estimate file format")
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
-    p.add_argument("log", help="CSV (with a header row) or Parquet log, sensor at rest")
+    p.add_argument("log", type=_named, help="CSV (with a header row) or Parquet log, sensor at rest")
     p.add_argument("--column", action="append", required=True,
                    help="column to analyse (repeat, or comma-separate, for several axes)")
     p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
@@ -543,18 +568,19 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    "instead of --rate-hz")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
                    help="unit of a numeric --time column (default: the one its name gives, 'time [ms]', else s)")
-    p.add_argument("-o", "--output", help="write the design-file entries (TOML) here")
-    p.add_argument("--plot", metavar="FILE.png", help="write the Allan deviation with the fitted asymptotes")
+    p.add_argument("-o", "--output", type=_output, help="write the design-file entries (TOML) here")
+    p.add_argument("--plot", metavar="FILE.png", type=_output,
+                   help="write the Allan deviation with the fitted asymptotes")
     p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s), or one per "
                    "column, comma-separated (rad/s,rad/s,rad/s,m/s^2)")
     p.set_defaults(run=cmd_noise)
 
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
-    p.add_argument("table", help="continuous gain table (JSON)")
+    p.add_argument("table", type=_named, help="continuous gain table (JSON)")
     p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
     p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor",
                    help="gain form of the discrete table (default predictor)")
-    p.add_argument("-o", "--output", required=True, help="discrete gain table (JSON) to write")
+    p.add_argument("-o", "--output", required=True, type=_output, help="discrete gain table (JSON) to write")
     p.set_defaults(run=cmd_discretize)
 
     from .reproduce import add_parser as add_reproduce

@@ -511,7 +511,7 @@ def realisation(F, B, H, K, form: str, output: str | None = None) -> Realisation
         table or of a predictor table whose ``F`` is singular.
     """
     output = default_output(form) if output is None else output
-    if output not in OUTPUTS:
+    if not isinstance(output, str) or output not in OUTPUTS:  # (an array: 'truth value ... ambiguous')
         raise ValueError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
     F, B, H = (np.asarray(M, dtype=float) for M in (F, B, H))
     Kp, L = gain_pair(F, K, form)

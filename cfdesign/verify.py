@@ -383,11 +383,28 @@ def _same_design(table, spec, rtol) -> list:
     detail = (f"max relative difference: gains {worst[0]:.2e}{worst[1]}; model {model[0]:.2e}"
               f"{_at(model)}; covariances {cov[0]:.2e}{_at(cov)}; tolerance {rtol:g}")
     checks = [Check("gains match the spec", ok, detail)]
+    shown = _named_gains_differ(fresh.gains, table.gains, rtol)
+    if shown:
+        checks.append(Check("spec: gains (named)", False, shown))
     if spec.sha256 and table.provenance.get("spec_sha256") not in ("", spec.sha256):
         checks.append(Check("spec hash (note)", True, "the spec file differs from the one the table was designed "
                             "from (same gains, so only comments or formatting changed)"
                             if ok else "the spec file differs from the one the table was designed from"))
     return checks
+
+
+def _named_gains_differ(spec_gains, table_gains, rtol) -> str:
+    """What differs between the named gains a table shows (``gains``, what a reader of the JSON
+    and ``cfdesign design`` see) and the spec's; empty when they agree within ``rtol``.  The
+    runtime runs ``K``, so a ``gains`` edited apart from ``K`` shows one filter and runs another."""
+    if set(spec_gains) != set(table_gains):
+        return (f"the table names {', '.join(sorted(map(str, table_gains))) or 'no gains'}, the spec "
+                f"{', '.join(sorted(spec_gains)) or 'no gains'}")
+    for name in sorted(spec_gains):
+        a, b = spec_gains[name], table_gains[name]
+        if not abs(a - b) <= rtol * max(abs(a), abs(b)):
+            return f"{name}: the table shows {b:.10g}, the spec gives {a:.10g}"
+    return ""
 
 
 def _field(table, name):

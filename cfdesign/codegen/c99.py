@@ -314,9 +314,9 @@ def _fields(table, prefix, precision, output) -> dict:
     """Every substitution of the templates."""
     _check_runnable(table)
     output = table.output if output is None else output
-    if output not in linear.OUTPUTS:
+    if not isinstance(output, str) or output not in linear.OUTPUTS:
         raise CfdesignError(f"output must be one of {', '.join(linear.OUTPUTS)}, got {output!r}")
-    if precision not in _PRECISIONS:
+    if not isinstance(precision, str) or precision not in _PRECISIONS:
         raise CfdesignError(f"precision must be 'double' or 'float', got {precision!r}")
     prefix = check_c_prefix(_default_prefix(table) if prefix is None else prefix)
     real, ceil, suffix = _PRECISIONS[precision]

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..linear import gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
-from .filter import held, usable
+from ..errors import CfdesignError
+from ..linear import OUTPUTS, gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
+from .filter import held, state_vector, usable
 
 __all__ = ["ArrivalKalman", "MissedReadings"]
 
@@ -59,16 +60,25 @@ class ArrivalKalman:
     counts : dict
         ``{'rejected': {sensor: n}}``: readings (inputs and measurements) treated as missing, as
         :attr:`Runtime.counts <cfdesign.runtime.Runtime.counts>` names them.
+
+    Raises
+    ------
+    CfdesignError
+        An output other than ``prior`` or ``posterior``, or an ``x0`` that is not the table's
+        number of finite values (:func:`~cfdesign.runtime.filter.state_vector`).
     """
 
     def __init__(self, table, output=None, x0=None):
         self.F, self.B, self.H = table.F, table.B, table.H
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
         self.n = self.F.shape[0]
-        self.x = np.zeros(self.n) if x0 is None else np.asarray(x0, dtype=float).copy()
+        output = table.output if output is None else output
+        if not isinstance(output, str) or output not in OUTPUTS:
+            raise CfdesignError(f"output must be one of {', '.join(OUTPUTS)}, got {output!r}")
+        self.x = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n).copy()
         self.P = np.array(table.P[0], dtype=float)
         self.u_last = np.zeros(self.B.shape[1])
-        self.posterior = (output or table.output) == "posterior"
+        self.posterior = output == "posterior"
         self.wrap_angle = bool(table.wrap_angle)
         self._wrap_rows = np.array([self.wrap_angle and s.order == 0 for s in table.measurements], dtype=bool)
         self._inputs = [s.name for s in table.inputs]
@@ -187,7 +197,7 @@ class MissedReadings:
 
     def __init__(self, table, output=None):
         self.table = table
-        self.posterior = (output or table.output) == "posterior"
+        self.posterior = output == "posterior"
         self.mask = table.schedule.mask()
         self.F, self.H = np.asarray(table.F, dtype=float), np.asarray(table.H, dtype=float)
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)

@@ -33,7 +33,8 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "filter_sha256", "READING_LIMIT", "STATE_LIMIT", "UNSTABLE_RTOL"]
+__all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256", "READING_LIMIT", "STATE_LIMIT",
+           "UNSTABLE_RTOL"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -102,9 +103,13 @@ def real_array(value, name) -> np.ndarray:
 
     Real numbers only (bool, integer and float arrays, and lists of Python numbers): text, None,
     complex values (``astype(float)`` dropped the imaginary part with a warning), ragged lists
-    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.
+    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.  The
+    masked entries of a ``numpy.ma`` array are missing (NaN): ``asarray`` kept the values under
+    the mask, so a glitch masked by the caller was run.
     """
     try:
+        if isinstance(value, np.ma.MaskedArray) and value.dtype.kind in "biuf":
+            value = value.astype(float).filled(np.nan)
         a = np.asarray(value)
         if a.dtype.kind == "O":  # Python objects: real numbers of mixed types, or anything (None: refused,
             # as step refuses it, not NaN as astype makes it)
@@ -115,6 +120,45 @@ def real_array(value, name) -> np.ndarray:
         shown = " ".join(repr(value).split())  # one line (numpy's repr breaks long arrays over lines)
         raise CfdesignError(f"{name}: real numbers are needed, got {shown[:80]}{'...' if len(shown) > 80 else ''}")
     return a.astype(float, copy=False)
+
+
+def state_vector(value, name, size) -> np.ndarray:
+    """``value`` as ``size`` floats fit to be a runtime's state, or
+    :class:`~cfdesign.errors.CfdesignError` naming ``name``.
+
+    Real numbers only (bool, integer and float arrays, lists of Python numbers), exactly ``size``
+    of them, each finite and at most :data:`~cfdesign.runtime.filter.STATE_LIMIT` in magnitude
+    (one step from such a state cannot overflow).  Used by ``Runtime(x0=...)``,
+    :meth:`cfdesign.runtime.Runtime.restore`, the ``x`` and ``u_last`` setters and
+    :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, so that no way in can leave a NaN, an inf
+    or an overflowing value in the state.
+
+    Parameters
+    ----------
+    value : array_like
+        The proposed values.
+    name : str
+        What they are (``x0``, ``x``, ``u_last``), for the message.
+    size : int
+        How many values the state holds.
+
+    Returns
+    -------
+    ndarray, shape (size,)
+        The values as floats.
+
+    Raises
+    ------
+    CfdesignError
+        Not real numbers, another count, or a value not finite or beyond the limit.
+    """
+    a = real_array(value, name)
+    if a.shape != (size,):
+        raise CfdesignError(f"{name} must be {size} finite numbers, got shape {a.shape}")
+    if not np.all(np.abs(a) <= STATE_LIMIT):
+        raise CfdesignError(f"{name} must be finite numbers of magnitude at most {STATE_LIMIT:g}, got "
+                            f"{' '.join(repr(a.tolist()).split())[:80]}")
+    return a
 
 
 def usable(a) -> np.ndarray:
@@ -237,9 +281,10 @@ class Runtime:
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
         self._sha256 = filter_sha256(table)
-        self._x0 = np.zeros(self.n) if x0 is None else real_array(x0, "x0").reshape(-1)
-        if self._x0.shape != (self.n,) or not np.all(np.isfinite(self._x0)):
-            raise CfdesignError(f"x0 must be {self.n} finite numbers for {table.name}, got {self._x0.tolist()}")
+        try:
+            self._x0 = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n)
+        except CfdesignError as exc:
+            raise CfdesignError(f"{table.name}: {exc}") from None
         from .step import compile_step
 
         self._S = [0.0] * self.n + [0]                        # the state floats, then the phase
@@ -264,30 +309,36 @@ class Runtime:
 
     @property
     def x(self) -> np.ndarray:
-        """The state before the next step (a copy; assign to change it)."""
+        """The state before the next step (a copy; assign to change it: ``n`` finite numbers of
+        magnitude at most :data:`~cfdesign.runtime.filter.STATE_LIMIT`, else a
+        :class:`~cfdesign.errors.CfdesignError` and no change)."""
         return np.array(self._S[: self.n])
 
     @x.setter
     def x(self, value):
-        self._S[: self.n] = [float(v) for v in np.asarray(value, dtype=float).reshape(self.n)]
+        self._S[: self.n] = state_vector(value, "x", self.n).tolist()
 
     @property
     def phase(self) -> int:
-        """The phase of the next step in the table's period."""
+        """The phase of the next step in the table's period (assign an integer: taken modulo the
+        period)."""
         return self._S[self.n]
 
     @phase.setter
     def phase(self, value):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise CfdesignError(f"phase must be an integer, got {value!r}")
         self._S[self.n] = int(value) % self.period
 
     @property
     def u_last(self) -> np.ndarray:
-        """The last input received of each input sensor (held while one is missing)."""
+        """The last input received of each input sensor (held while one is missing; assign finite
+        numbers, as for ``x``)."""
         return np.array(self._U)
 
     @u_last.setter
     def u_last(self, value):
-        self._U[:] = [float(v) for v in np.asarray(value, dtype=float).reshape(len(self.inputs))]
+        self._U[:] = state_vector(value, "u_last", len(self.inputs)).tolist()
 
     @property
     def counts(self) -> dict:
@@ -676,14 +727,10 @@ def _snapshot(state, n, period, p, name, sha256):
         fail(f"it was taken from another filter, {str(state.get('table', 'a table not named'))[:200]!r} "
              f"(filter_sha256 {str(theirs)[:16]}..., this one's {sha256[:16]}...)")
     try:
-        x, u_last = real_array(state["x"], "x"), real_array(state["u_last"], "u_last")
+        x, u_last = state_vector(state["x"], "x", n), state_vector(state["u_last"], "u_last", p)
     except CfdesignError as exc:
         fail(str(exc))
     phase = state["phase"]
-    if x.shape != (n,) or u_last.shape != (p,):
-        fail(f"x must have {n} entries and u_last {p}")
-    if not (np.all(np.abs(x) <= STATE_LIMIT) and np.all(np.abs(u_last) <= STATE_LIMIT)):
-        fail(f"x and u_last must be finite numbers of magnitude at most {STATE_LIMIT:g}")
     if isinstance(phase, bool) or not isinstance(phase, (int, np.integer)) or not 0 <= phase < period:
         fail(f"phase must be an integer with 0 <= phase < {period}, got {phase!r}")
     return x, int(phase), u_last

@@ -49,10 +49,14 @@ def _as_float(v):
     ``numpy.float64``, a 0-d array) become the float of their value, so that the state stays in
     Python floats: a numpy scalar kept in it would make every later step compute in numpy
     scalars (2.5x slower) and a ``float32`` one in single precision.  An int too large for a
-    float becomes +-inf (beyond the reading limit: rejected and counted).  Text, None, complex,
-    a ``Decimal`` and arrays of one value or more are not real numbers here.
+    float becomes +-inf (beyond the reading limit: rejected and counted).  A masked numpy value
+    (``numpy.ma.masked``, a 0-d masked array) is a missing reading, NaN (its ``item()`` was the
+    value under the mask, or 0.0).  Text, None, complex, a ``Decimal`` and arrays of one value or
+    more are not real numbers here.
     """
     if getattr(v, "shape", None) == () and hasattr(v, "item"):  # a numpy scalar or 0-d array
+        if bool(getattr(v, "mask", False)):  # numpy.ma: a masked value
+            return math.nan
         v = v.item()
     if isinstance(v, bool) or (isinstance(v, numbers.Real) and not isinstance(v, Decimal)):
         try:
