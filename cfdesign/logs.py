@@ -916,12 +916,13 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
 class _Pass:
     """Placement of rows on ticks, carried from block to block (times checked across blocks)."""
 
-    def __init__(self, table, cols, source, blocks=None, grid=None):
+    def __init__(self, table, cols, source, blocks=None, grid=None, rephased=None):
         self.table, self.cols, self.source = table, cols, source
         self.blocks = blocks  # the log's blocks, looked through for the grid when the first block has no input row
         self.t0 = None
         self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
         self.grid = grid  # (t0, spacing) of tick 0, when known (the first pass's, for the second)
+        self.rephased = dict(rephased or {})  # the log's row after each pause -> the grid's origin from there on
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.early = {}  # sensor -> readings logged before tick 0 (not used)
@@ -978,25 +979,46 @@ class _Pass:
         that has (the log's blocks read again up to it: a log of more than a block of rows before
         its first input row was placed on the grid of its first row, half a tick off the inputs'
         at worst, and its readings before the inputs were used instead of counted), else the first row's time."""
-        from .timing import PAUSE_TICKS, grid_fit
+        from .timing import FIT_ROWS, grid_fit
 
-        if not first.size and self.blocks is not None:
-            sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
-            start = 0
-            for block in self.blocks():
-                values = _numeric(block, [self.cols.time, *sensors], self.source,
-                                  lambda i, start=start: self.cols.lines(start + i), self.cols.time,
-                                  self.cols.time_scale)
-                start += len(block)
-                base = np.ones(len(block), dtype=bool)
-                for c in sensors:
-                    base &= ~np.isnan(values[c])
-                first = values[self.cols.time][base]
-                if first.size:
-                    pause = np.flatnonzero(np.diff(first) > PAUSE_TICKS * self.spacing)
-                    first = first[:pause[0] + 1 if pause.size else None]
-                    break
+        if not first.size:
+            first = self._ahead(0, count=FIT_ROWS)
         return grid_fit(first, self.table.sample_time_s) if first.size else (t_first, self.spacing)
+
+    def _ahead(self, row, before=None, count=None):
+        """The times of the rows where the inputs read from the log's row ``row`` on (its blocks
+        read again), up to ``count`` of them (:data:`~cfdesign.timing.ARC_ROWS`) and the first
+        pause (also one right after ``before``, the time of such a row before them); none without
+        the blocks."""
+        from .timing import ARC_ROWS, PAUSE_TICKS
+
+        count = count or ARC_ROWS
+        out, n = [np.zeros(0)], 0
+        if self.blocks is None:
+            return out[0]
+        sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
+        start = 0
+        for block in self.blocks():
+            start, first = start + len(block), start
+            if start <= row:
+                continue
+            block = block.iloc[max(row - first, 0):]
+            values = _numeric(block, [self.cols.time, *sensors], self.source,
+                              lambda i, at=max(row, first): self.cols.lines(at + i), self.cols.time,
+                              self.cols.time_scale)
+            base = np.ones(len(block), dtype=bool)
+            for c in sensors:
+                base &= ~np.isnan(values[c])
+            t = values[self.cols.time][base]
+            pause = np.flatnonzero(np.diff(np.concatenate([[before] if before is not None else [], t]))
+                                   > PAUSE_TICKS * self.spacing)
+            t = t[:pause[0] - (before is not None) + 1 if pause.size else None][:count - n]
+            out.append(t)
+            n += len(t)
+            before = t[-1] if t.size else before
+            if pause.size or n >= count:
+                break
+        return np.concatenate(out)
 
     def _pauses(self, base_t, rows) -> tuple:
         """``(rows, pauses)``: the rows of the block where the inputs read and the indices among them
@@ -1015,14 +1037,21 @@ class _Pass:
     def _placed(self, t, base_t, rows, pauses):
         """Ticks of a block's rows: on the grid, whose phase is fitted again at each pause
         (:func:`cfdesign.timing.rephase`) for the rows from there on."""
-        from .timing import nearest_tick, rephase
+        from .timing import ARC_ROWS, nearest_tick, rephase
 
         cuts = [0, *(int(rows[p]) for p in pauses), len(t)]
         starts = [0, *pauses, len(base_t)]
         out = np.empty(len(t), dtype=np.int64)
         for k, (a, b) in enumerate(itertools.pairwise(cuts)):
-            if k:  # the base rows from this pause to the next
-                self.t0 = rephase(base_t[starts[k]:starts[k + 1]], self.t0, self.spacing)
+            if k and self.rows + a not in self.rephased:  # the base rows from this pause to the next, also
+                # those of the blocks after this one (a pause at a block's end: a phase fitted to its few
+                # rows there had left one row in ten on a shared tick for the rest of the log)
+                after = base_t[starts[k]:starts[k + 1]]
+                if starts[k + 1] == len(base_t) and len(after) < ARC_ROWS:
+                    after = np.concatenate([after, self._ahead(self.rows + len(t), after[-1])])
+                self.rephased[self.rows + a] = rephase(after, self.t0, self.spacing)
+            if k:
+                self.t0 = self.rephased[self.rows + a]
             out[a:b] = nearest_tick((t[a:b] - self.t0) / self.spacing)
         return out
 
@@ -1128,7 +1157,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types, grid = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, (grid, rephased) = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -1140,7 +1169,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
-    place = _Pass(table, cols, source, grid=grid)  # tick 0 where the first pass put it
+    place = _Pass(table, cols, source, grid=grid, rephased=rephased)  # ticks where the first pass put them
     startup = _startup_ticks(table)
 
     def run_rows(block, values, ticks):
@@ -1162,6 +1191,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                 values = {k: np.concatenate([pending[1][k], v]) for k, v in values.items()}
                 ticks = np.concatenate([pending[2], ticks])
             cut = int(np.searchsorted(ticks, ticks[-1])) if len(ticks) else 0
+            held = runner.held_from(ticks[:cut], {s: values[c][:cut] for s, c in cols.sensors.items()})
+            if len(ticks) - held <= block_rows:  # rows after a pause wait for the reading that moves them
+                cut = held
             pending = (block.iloc[cut:], {k: v[cut:] for k, v in values.items()}, ticks[cut:])
             run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
         if pending is not None:
@@ -1322,7 +1354,7 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None, place.grid
+    return lock, place.rows, schemas or None, (place.grid, place.rephased)
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):
@@ -1498,6 +1530,31 @@ class _Runner:
                 f"{start * dt:.6g} s: {self.table.states[0]} started again from the first direct reading after "
                 f"{len(self.restarts)} of them (where it disagreed with the state carried over the pause by more "
                 f"than {RESTART_GATE:g} sigma), each start-up shaded and left out of the settled RMS")
+
+    def held_from(self, ticks, readings) -> int:
+        """The first of rows at ``ticks`` (ascending, the next to run) whose estimates are not known
+        until a later block: those from the end of a pause (:meth:`_restart_ticks`) on when no direct
+        reading follows it among them, as that reading may move them (:meth:`_restart`); else
+        ``len(ticks)``.  (Rows written before the reading came in the next block stayed where the
+        held inputs took them: 0.69 rad off, where one block moved them.)"""
+        from .runtime.filter import usable
+        from .timing import PAUSE_TICKS
+
+        inputs, direct, n = self.table.inputs, self._direct(), len(ticks)
+        if not (inputs and direct and n):
+            return n
+        have = np.zeros(n, dtype=bool)
+        for s in inputs:
+            have |= usable(readings[s.name])
+        at = np.flatnonzero(have)
+        quiet = np.diff(np.concatenate([[self.next_tick - 1 - self.quiet], ticks[at]])) - 1
+        ends = at[quiet >= PAUSE_TICKS]
+        if not ends.size:
+            return n
+        read = np.zeros(n, dtype=bool)
+        for i in direct:
+            read |= usable(readings[self.table.measurements[i].name])
+        return n if read[ends[-1]:].any() else int(ends[-1])
 
     def _direct(self):
         """Indices (in the table's measurements) of the sensors that read state 0 directly."""

@@ -1355,6 +1355,35 @@ def test_rows_jittered_by_nearly_half_a_tick_are_at_their_rate():
             check_rate(t * 1.04, 0.2, "log")
 
 
+@pytest.mark.parametrize("rows_after", [1, 4])
+def test_a_pause_at_the_end_of_a_block_is_rephased_on_the_rows_of_the_next(heading, rows_after):
+    """A 10 s pause, the clock back half a tick off, +-0.4 tick of jitter, and a block that ends
+    ``rows_after`` rows after the pause: the phase was fitted to those rows alone, and hundreds of
+    gyro readings after it shared a tick (same_tick).  The rows of the next block count too, in
+    both passes: the estimates are those of one block."""
+    log, _ = heading_log(3, 37, n=6000, jitter=0.0)
+    log["time"] += np.random.default_rng(2).uniform(-0.4, 0.4, 6000) * 0.01
+    log = log.drop(index=range(3000, 4000))
+    log.loc[log.index >= 4000, "time"] += 0.005
+    whole = run_log(heading, log, reference="truth")
+    blocks = run_log(heading, log, reference="truth", block_rows=3000 + rows_after)
+    assert whole.unused == blocks.unused == {}, blocks.unused
+    assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
+
+
+def test_rows_after_a_pause_at_the_end_of_a_block_move_onto_the_reading_of_the_next(heading):
+    """After a pause the heading starts again from the first direct reading, and the rows from the
+    pause's end to it move with it; with that reading in the next block (a block ending 4 rows
+    after the pause, the odometry on its last row, whose tick waits for the next block) the 3 rows
+    before it were written where the held gyro had taken them: 0.69 rad off, 8 times the RMS."""
+    log, _ = heading_log(3, 37, n=6000, jitter=0.0)
+    log = log.drop(index=range(3000, 4000))
+    whole = run_log(heading, log, reference="truth")
+    blocks = run_log(heading, log, reference="truth", block_rows=3004)
+    assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
+    assert blocks.rms["heading"] == pytest.approx(whole.rms["heading"], rel=1e-9)
+
+
 def test_a_log_whose_first_block_has_no_input_row_is_placed_as_in_one_block(heading):
     """3000 rows of another sensor, half a tick off the gyro's grid, one with a compass reading,
     before the first gyro row: in blocks of 2000 rows the log was placed on the first row's grid
