@@ -344,7 +344,7 @@ def _log_paths(items) -> tuple:
     out = []
     fleet = len(items) > 1
     for item in items:
-        p = Path(item)
+        p = Path("/dev/stdin" if item == "-" else item)  # '-': the log on standard input (copied: logs._spooled)
         if is_dir(p):
             found = sorted(q for q in p.iterdir() if "".join(q.suffixes[-2:]).lower() in LOG_SUFFIXES
                            or q.suffix.lower() in LOG_SUFFIXES)

@@ -223,6 +223,10 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         raise DataError(f"--map {unknown[0]}: {table.name} has no sensor {unknown[0]!r} "
                         f"(sensors: {', '.join(table.sensor_names())})")
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
+    for s, c in sensors.items():  # a sensor's name in another case ('Gyro', 'GYRO'), as the time column's
+        like = [h for h in header if h.lower() == s.lower()]
+        if s not in mapping and c not in header and len(like) == 1:
+            sensors[s] = like[0]
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
         # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
@@ -231,6 +235,9 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         hint = " ".join(f'--map "{s}={h}"' for s, h in like)
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
                         + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                           "the header is one column: cells are separated by commas, by the semicolons or tabs "
+                           "of a header without a comma, or by spaces where the first row has as many cells"
+                           if len(header) == 1 else
                            "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
     if time is None:  # 'time' or 't', else in another case ('Time', 'T'), else with a unit ('time [ms]')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
@@ -313,7 +320,11 @@ def _numeric(df, columns, source, line, time=None, time_scale=1.0):
         if len(bad):
             what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
                     "(2024-05-01T12:00:00.010)" if c == time else "not a number")
-            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}")
+            comma = re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", str(text.iloc[bad[0]]))
+            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
+                            + (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose "
+                               "first 64 kB show one, not in one separated by commas; write decimal points)"
+                               if comma else ""))
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
 
@@ -427,9 +438,12 @@ def read_log(path, columns=None, *, chunksize=None):
     What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
     compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
     separator is a comma, or the semicolon or tab of its header line when that has no
-    comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
-    stripped of spaces, and a row with more cells than the header is an error naming its line
-    (it was read without its extra cells).  The end of a plain CSV cut off while it was written
+    comma, or spaces when the header and the first row split into as many cells at spaces
+    (``numpy.savetxt``; a semicolon-, tab- or space-separated file may write decimal commas:
+    ``0,01``); column names are stripped of spaces, and a row with more cells than the header is
+    an error naming its line (it was read without its extra cells), but empty cells after the first
+    row's last (a separator ending every row) are columns without a name.  The first cells of a
+    row are never an index.  The end of a plain CSV cut off while it was written
     (a power loss) is not read: the NUL bytes it may end in, and its last line when that has no
     line end and has fewer cells than the header or NUL bytes after it (its last cell may have
     lost digits); :func:`run_log` notes it.
@@ -467,7 +481,7 @@ def read_log(path, columns=None, *, chunksize=None):
         end = _tail(path)[0] if kind == "csv" else None
         source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
         reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, compression=None if kind == "csv" else kind, **fmt)
+                             low_memory=False, index_col=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
             return _csv_blocks(path, reader, columns, hashed, closing=None if end is None else source)
         with contextlib.closing(source) if end is not None else contextlib.nullcontext():
@@ -518,8 +532,7 @@ def _tail(path) -> tuple:
     end, cells = text_end, None
     newline = last.rfind(b"\n")
     if last and not last.endswith(b"\n") and newline >= 0:  # a last line without its end (not the header)
-        sep = _csv_format(path).get("sep", ",")
-        row = next(csv.reader([last[newline + 1:].decode("utf-8", "replace")], delimiter=sep), [])
+        row = _cells(last[newline + 1:], _csv_format(path).get("sep", ","))
         header = len(_header(path))
         if len(row) < header or text_end < size:  # fewer cells, or NUL bytes where the rest was not written
             cells, end = (len(row), header), start + newline + 1
@@ -595,8 +608,10 @@ COMMENT_LINES = 1000
 
 def _csv_format(path, kind="csv") -> dict:
     """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
-    has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
-    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    has none and has semicolons or tabs, else spaces where the header and the first row split into
+    as many cells (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
+    cell of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    A first row with more cells than the header is :func:`_wider_rows`'.
     Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
     the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
     ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
@@ -625,16 +640,73 @@ def _csv_format(path, kind="csv") -> dict:
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
-    sep = "," if b"," in line else ";" if b";" in line else "\t" if b"\t" in line else None
-    if sep in (";", "\t"):
-        cut = re.escape(sep.encode())
+    sep = _separator(line, rows)
+    if sep == WHITESPACE and out.get("_hashed"):  # '# time gyro': the '#' is no column of its own
+        out = {**out, "header": 0, "names": _cells(line.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), sep)}
+    if sep in (";", "\t", WHITESPACE):
+        cut = rb"\s+" if sep == WHITESPACE else re.escape(sep.encode())
         cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % (cut, cut)
         out = {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
     if not out.get("_hashed"):
         units = _units_row(rows, line, sep or ",")
         if units is not None:
             out["_units"] = units
-    return out
+    return _wider_rows(path, out, line, rows, sep or ",")
+
+
+#: the separator of a log whose columns are separated by spaces (``numpy.savetxt``'s default)
+WHITESPACE = r"\s+"
+
+
+def _separator(header, rows):
+    """The separator of a CSV from its header line: a comma, else a semicolon or a tab; else
+    spaces (:data:`WHITESPACE`) when the header and the first row of ``rows`` split into as many
+    cells, at least two; else None (one column)."""
+    for sep in (",", ";", "\t"):
+        if sep.encode() in header:
+            return sep
+    first = next((r for r in rows.split(b"\n")[:-1] if r.strip()), b"")
+    names = _cells(header.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), WHITESPACE)
+    return WHITESPACE if len(names) > 1 and len(_cells(first, WHITESPACE)) == len(names) else None
+
+
+def _cells(line, sep) -> list:
+    """The cells of a CSV line (bytes or text) split at ``sep`` (quotes as the csv module reads
+    them; :data:`WHITESPACE`: runs of spaces and tabs)."""
+    text = line.decode("utf-8-sig", "replace") if isinstance(line, bytes) else line
+    text = text.strip("\r\n")
+    if sep == WHITESPACE:
+        return text.split()
+    try:
+        return next(csv.reader([text], delimiter=sep), [])
+    except csv.Error:
+        return []
+
+
+def _wider_rows(path, fmt, header, rows, sep) -> dict:
+    """``fmt`` for a CSV whose first row has more cells than its header: pandas took the first
+    cells as an index and every column from the wrong cell (the gyro's cells read as times).
+    Empty cells at the end (a separator after each row's last cell) are columns without a name
+    (``names``); cells with values are a DataError naming the line (a decimal comma in a
+    comma-separated file: ``0,01`` is two cells)."""
+    lines = rows.split(b"\n")[:-1]
+    at = next((i for i, r in enumerate(lines) if r.strip()), None)
+    if at is None:
+        return fmt
+    if "_units" in fmt:
+        at = next((i for i in range(at + 1, len(lines)) if lines[i].strip()), None)
+        if at is None:
+            return fmt
+    names = fmt.get("names") or _cells(header, sep)
+    cells = _cells(lines[at], sep)
+    if len(cells) <= len(names):
+        return fmt
+    if any(c.strip() for c in cells[len(names):]):
+        line = 2 + fmt.get("skiprows", 0) + at
+        raise DataError(f"{path} line {line}: {len(cells)} cells under a header of {len(names)} columns"
+                        + (" (decimal commas in a log separated by commas? 0,01 is two cells: separate the cells "
+                           "by semicolons or write decimal points)" if sep == "," else ""))
+    return {**fmt, "header": 0, "names": [*names, *(f"Unnamed: {i}" for i in range(len(names), len(cells)))]}
 
 
 def _units_row(rows, header, sep):
@@ -646,13 +718,7 @@ def _units_row(rows, header, sep):
     if len(lines) < 3:
         return None
 
-    def cells(line):
-        try:
-            return next(csv.reader([line.decode("utf-8-sig").strip("\r")], delimiter=sep), [])
-        except (UnicodeDecodeError, csv.Error):
-            return []
-
-    first, second, names = cells(lines[0]), cells(lines[1]), cells(header)
+    first, second, names = _cells(lines[0], sep), _cells(lines[1], sep), _cells(header, sep)
     text = [c.strip() for c in first if c.strip().lower() not in MISSING]
     if len(first) != len(names) or not text:
         return None
@@ -674,12 +740,11 @@ def _units_row(rows, header, sep):
 
 def _numbers(line, header) -> bool:
     """Whether a CSV line is a row of numbers (or empty cells), split as its ``header`` line is."""
-    sep = b"," if b"," in header else b";" if b";" in header else b"\t" if b"\t" in header else b","
     try:
-        for cell in line.strip().split(sep):
-            cell = cell.strip(b' "')
+        for cell in _cells(line.strip(), _separator(header, line + b"\n") or ","):
+            cell = cell.strip(' "')
             if cell:
-                float(cell.replace(b",", b"."))
+                float(cell.replace(",", "."))
     except ValueError:
         return False
     return bool(line.strip())
@@ -862,7 +927,9 @@ def _header(path) -> list:
         with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
             for _ in range(fmt.get("skiprows", 0)):
                 fh.readline()
-            header = next(csv.reader(fh, delimiter=fmt.get("sep", ",")), None)
+            sep = fmt.get("sep", ",")
+            header = fmt.get("names") or (fh.readline().split() if sep == WHITESPACE else
+                                           next(csv.reader(fh, delimiter=sep), None))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
     if not header:
@@ -1002,10 +1069,9 @@ class _Pass:
             start, first = start + len(block), start
             if start <= row:
                 continue
-            block = block.iloc[max(row - first, 0):]
+            block, at = block.iloc[max(row - first, 0):], max(row, first)
             values = _numeric(block, [self.cols.time, *sensors], self.source,
-                              lambda i, at=max(row, first): self.cols.lines(at + i), self.cols.time,
-                              self.cols.time_scale)
+                              lambda i, at=at: self.cols.lines(at + i), self.cols.time, self.cols.time_scale)
             base = np.ones(len(block), dtype=bool)
             for c in sensors:
                 base &= ~np.isnan(values[c])

@@ -361,6 +361,71 @@ def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading,
             assert got["truth"].dtype.kind == "f", name  # passed-through columns stay numbers
 
 
+def test_logs_separated_by_spaces_as_numpy_savetxt_writes_them(heading, tmp_path):
+    """``numpy.savetxt``'s default separator is a space, with or without its '# ' header: the
+    header was one column ('missing column(s) gyro, ...', or the first row's numbers as names);
+    columns are split at spaces where the header and the first row split into as many cells."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    names = " ".join(log.columns)
+    np.savetxt(tmp_path / "hashed.txt", log.to_numpy(float), header=names)
+    np.savetxt(tmp_path / "plain.txt", log.to_numpy(float), header=names, comments="")
+    aligned = log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format)  # runs of spaces
+    (tmp_path / "aligned.txt").write_text(aligned)
+    for name in ("hashed.txt", "plain.txt", "aligned.txt"):
+        for rows in (None, 250):
+            got = run_log(heading, tmp_path / name, block_rows=rows).estimates
+            assert list(got.columns) == ["time", "heading", "gyro_correction", "truth", "lap"], name
+            assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9), name
+
+
+@pytest.mark.parametrize("sep", ["|", " "])
+def test_a_header_read_as_one_column_says_how_cells_are_separated(heading, tmp_path, cli, sep):
+    """A log separated by '|', or by spaces under a header whose names hold spaces ('time [s]'),
+    is one column: the message says so and which separators are read."""
+    header = sep.join(["time [s]" if sep == " " else "time", "gyro", "compass", "odometry"])
+    (tmp_path / "log.txt").write_text(header + "\n" + "".join(sep.join(["0.2" if k else "0", "1", "2", "3"]) + "\n"
+                                                              for k in range(2)))
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.txt", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "the header is one column: cells are separated by commas" in err
+
+
+def test_a_separator_after_each_row_s_last_cell_is_no_index(heading, tmp_path, cli):
+    """Rows ending in a separator the header does not end in ('0.01,0.5,' under 'time,gyro'): pandas
+    took the first cell of each row as an index and every column from its neighbour's cells, the
+    gyro's read as times ('time 0.158 goes back'; a monotonic column would have run in silence).
+    Empty cells past the header are columns without a name; cells with values there are refused
+    on one line naming the line, with the decimal comma of a comma-separated export as the likely
+    cause."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    lines = log.to_csv(index=False).splitlines()
+    (tmp_path / "trailing.csv").write_text("\n".join([lines[0], *(line + "," for line in lines[1:])]) + "\n")
+    for rows in (None, 250):
+        got = run_log(heading, tmp_path / "trailing.csv", block_rows=rows).estimates
+        assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    text = "time,gyro,compass,odometry\n0,000,0,100,0,200,0,300\n0,200,0,100,0,200,0,300\n"
+    (tmp_path / "commas.csv").write_text(text)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "commas.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "line 2: 8 cells under a header of 4 columns (decimal commas" in err
+    (tmp_path / "quoted.csv").write_text('time,gyro,compass,odometry\n"0,0","0,1","0,2","0,3"\n')
+    code, _, err = cli("run", tmp_path / "g.json", tmp_path / "quoted.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "'0,0' (a decimal comma: read in a log separated by semicolons" in err
+
+
+def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
+    """'GYRO', 'Compass' for the table's gyro and compass (as 'Time' for the time): refused as
+    missing; a unique match in another case is the sensor's column."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    got = run_log(heading, log.rename(columns={"gyro": "GYRO", "compass": "Compass"})).estimates
+    assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match="missing column"):  # two of them: none is taken
+        run_log(heading, log.rename(columns={"gyro": "GYRO"}).assign(Gyro=1.0))
+
+
 def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp_path, cli, monkeypatch):
     """A big log is read in blocks: a broken row (an unclosed quote, a row of extra cells) far
     into it stopped cfdesign run as an internal error (exit 3), and extra cells were dropped."""
@@ -600,10 +665,12 @@ def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
 
 
 @pytest.mark.skipif(not Path("/dev/stdin").exists(), reason="needs /dev/stdin")
-def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
+@pytest.mark.parametrize("name", ["/dev/stdin", "-"])
+def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli, name):
     """``zcat log.csv.gz | cfdesign run g.json /dev/stdin`` (or ``<(zcat log.gz)``): a pipe gives
     its bytes once, and a log's header is read before its rows - the first row was taken as the
-    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first."""
+    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first.  ``-`` is
+    standard input too ('cannot read -: no such file')."""
     import gzip
     import os
 
@@ -617,7 +684,7 @@ def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
     stdin = os.dup(0)
     os.dup2(read, 0)
     try:
-        code, _, err = cli("run", heading.save(tmp_path / "g.json"), "/dev/stdin", "-o", tmp_path / "e.csv")
+        code, _, err = cli("run", heading.save(tmp_path / "g.json"), name, "-o", tmp_path / "e.csv")
     finally:
         os.dup2(stdin, 0)
         os.close(stdin)
