@@ -37,7 +37,7 @@ __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot
            "BLOCK_ROWS", "INTERNAL"]
 
 #: column names taken as the time (seconds) when none is given
-TIME_COLUMNS = ("time", "t")
+TIME_COLUMNS = ("time", "t", "timestamp")
 #: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
@@ -189,11 +189,14 @@ _UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
 
 
 def _unit(name) -> tuple:
-    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``), else ``(name, None)``;
-    a unit of time as :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
+    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``, or a unit of
+    time after an underscore: ``time_ms``), else ``(name, None)``; a unit of time as
+    :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
     m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
     if not (m and m.group(1)):
-        return name, None
+        m = re.fullmatch(r"(.+?)_([^_]+)", str(name).strip())
+        unit = _UNIT_NAMES.get(m.group(2).lower()) if m else None
+        return (m.group(1), unit) if unit else (name, None)
     unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
@@ -239,7 +242,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                            "of a header without a comma, or by spaces where the first row has as many cells"
                            if len(header) == 1 else
                            "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
-    if time is None:  # 'time' or 't', else in another case ('Time', 'T'), else with a unit ('time [ms]')
+    if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
             (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
@@ -1150,9 +1153,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
         no DataFrame (bounded memory for big logs).
     time : str, optional
-        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time`` or
-        ``t`` (in any case) when present, or a DataFrame's index when it is a DatetimeIndex or is
-        named so; else every row is one base tick (said in a note).
+        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time``,
+        ``t`` or ``timestamp`` (in any case, or named with a unit: ``time [ms]``, ``time_ms``) when
+        present, or a DataFrame's index when it is a DatetimeIndex or is named so; else every row
+        is one base tick (said in a note).
     mapping : dict, optional
         ``{sensor: column}`` where the log names a sensor differently.
     reference : str or list of str, optional
@@ -1345,7 +1349,7 @@ def _time_note(cols) -> list:
     if cols.time is not None:
         return []
     like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec"))]
-    return ["the log has no time column ('time' or 't'): every row is taken as one base tick"
+    return ["the log has no time column ('time', 't' or 'timestamp'): every row is taken as one base tick"
             + (f" (column {like[0]!r} looks like a time: --time {like[0]})" if like else " (--time COLUMN)")]
 
 

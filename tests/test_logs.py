@@ -415,6 +415,20 @@ def test_a_separator_after_each_row_s_last_cell_is_no_index(heading, tmp_path, c
     assert code == 2 and "'0,0' (a decimal comma: read in a log separated by semicolons" in err
 
 
+@pytest.mark.parametrize("name, scale", [("time_ms", 1e3), ("t_us", 1e6), ("timestamp", 1.0), ("Timestamp_s", 1.0)])
+def test_a_time_column_named_timestamp_or_with_its_unit_after_an_underscore(heading, name, scale):
+    """'time_ms' and 'timestamp' were no time column: every row was taken as one tick (a note), so
+    a log with dropped rows ran its readings on the wrong ticks; they are the time (in the unit the
+    name gives, else seconds)."""
+    log, _ = heading_log(3, 37, n=600)
+    log = log.drop(index=range(100, 110))
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    named = log.assign(time=np.round(log["time"] * scale, 9)).rename(columns={"time": name})
+    result = run_log(heading, named)
+    assert result.notes == [] or not any("no time column" in n for n in result.notes), result.notes
+    assert np.allclose(result.estimates["heading"], expected, rtol=0, atol=1e-9)
+
+
 def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
     """'GYRO', 'Compass' for the table's gyro and compass (as 'Time' for the time): refused as
     missing; a unique match in another case is the sensor's column."""
