@@ -303,6 +303,20 @@ def _phase_origin(t, spacing):
     return arc if shared(arc) < shared(mean) else mean
 
 
+def _written_to(t):
+    """The coarsest power of ten (s) that every finite time of ``t`` is a whole multiple of, or None:
+    epoch seconds written with ten digits (``1700000000``) are written to 1 s."""
+    t = np.asarray(t, dtype=float)
+    t = t[np.isfinite(t)]
+    if not np.any(t):
+        return None
+    for e in range(12, -10, -1):
+        q = t / 10.0 ** e
+        if t.size and np.all(np.abs(q - np.rint(q)) <= 8 * np.finfo(float).eps * np.max(np.abs(q))):
+            return 10.0 ** e
+    return None
+
+
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
           readings=None, line=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
@@ -367,9 +381,12 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if back.size:
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
+        coarse = _written_to(t) if what == "repeats" else None
         raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
                         "line before (times must increase" + (", and rows at one time must read different sensors)"
-                                                             if readings is not None else ")"))
+                                                             if readings is not None else ")")
+                        + (f": the times are written to {coarse:g} s, coarser than the table's tick of {dt:g} s "
+                           "(write them with more digits)" if coarse is not None and coarse > dt else ""))
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
     if gap.size:
         i = gap[0] + 1

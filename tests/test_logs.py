@@ -429,6 +429,24 @@ def test_a_time_column_named_timestamp_or_with_its_unit_after_an_underscore(head
     assert np.allclose(result.estimates["heading"], expected, rtol=0, atol=1e-9)
 
 
+def test_times_written_with_too_few_digits_are_named_so(heading, tmp_path, cli):
+    """Unix times written with ten digits ('%.10g': 1700000000) or by '%g' (1.7e+09) repeat
+    from row to row: the line said only 'time 1700000000.0 repeats'; it now says to how much the
+    times are written against the tick."""
+    log, _ = heading_log(3, 37, n=300)
+    table = heading.save(tmp_path / "g.json")
+    for fmt, step in (("%.10g", "1 s"), ("%g", "1e+08 s")):
+        log.assign(time=log["time"] + 1.7e9).to_csv(tmp_path / "log.csv", index=False, float_format=fmt)
+        code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "repeats 1700000000.0 on the line before" in err and f"the times are written to {step}, coarser " \
+            "than the table's tick of 0.01 s (write them with more digits)" in err, err
+    log.loc[5, "time"] = log.loc[4, "time"]  # a genuine repeat of times written in full: no such words
+    log.to_csv(tmp_path / "log.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "repeats" in err and "written to" not in err, err
+
+
 def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
     """'GYRO', 'Compass' for the table's gyro and compass (as 'Time' for the time): refused as
     missing; a unique match in another case is the sensor's column."""
