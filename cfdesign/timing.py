@@ -36,6 +36,7 @@ steps join them (docs/derivations.md, "Multirate gains"; the choice is argued in
 from __future__ import annotations
 
 import bisect
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -404,12 +405,13 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
 
 
 def _row_spacing(t, dt):
-    """``(spacing, span)`` of a log whose rows up to its first pause are on consecutive ticks of a
-    grid (one row a tick, none skipped or shared): the least-squares slope of their times over the
-    rows, and the time they span; None when no grid puts them so (rows dropped, a wrong rate)."""
-    fitted = t[:FIT_ROWS]
-    pause = np.flatnonzero(np.diff(fitted) > PAUSE_TICKS * dt)
-    fitted = fitted[:pause[0] + 1] if pause.size else fitted
+    """``(spacing, span)`` of a log whose rows between two pauses (the longest such stretch) are on
+    consecutive ticks of a grid (one row a tick, none skipped or shared): the least-squares slope
+    of their times over the rows, and the time they span; None when no grid puts them so (rows
+    dropped, a wrong rate)."""
+    cuts = [0, *(np.flatnonzero(np.diff(t) > PAUSE_TICKS * dt) + 1), len(t)]
+    a, b = max(itertools.pairwise(cuts), key=lambda c: c[1] - c[0])  # the longest stretch between pauses
+    fitted = t[a:min(b, a + FIT_ROWS)]
     if len(fitted) < 3:
         return None
     rows = np.arange(len(fitted)) - (len(fitted) - 1) / 2
@@ -448,7 +450,7 @@ def _tick_spacing(t):
 def check_rate(t, dt, source):
     """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
 
-    Where the rows up to the first pause (:data:`PAUSE_TICKS`) lie one a tick on a grid (that of
+    Where the rows of the longest stretch between pauses (:data:`PAUSE_TICKS`) lie one a tick on a grid (that of
     :func:`grid_fit`, or of their own slope: none dropped, none sharing a tick), the spacing is the
     least-squares slope of their times over the rows; jitter of +-0.45 tick had put the ticks below
     a few percent off (one such log of 300 rows in three refused at 5 Hz, and one 4 % off taken).

@@ -1450,6 +1450,9 @@ def test_rows_jittered_by_nearly_half_a_tick_are_at_their_rate():
         t = (np.arange(300) + np.random.default_rng(seed).uniform(-0.45, 0.45, 300)) * 0.2
         check_rate(t, 0.2, "log")
         check_rate(np.where(np.arange(300) < 150, t, t + 10.1), 0.2, "log")
+        early = (np.arange(3000) + np.random.default_rng(seed).uniform(-0.3, 0.3, 3000)) * 0.2
+        check_rate(np.where(np.arange(3000) < 5, early, early + 20.1), 0.2, "log")  # 5 rows, a pause: the
+        # longest stretch between pauses is fitted (the first 5 rows' slope refused 22 such logs of 40)
         with pytest.raises(DataError, match="base rate is"):
             check_rate(t * 1.04, 0.2, "log")
 
