@@ -615,6 +615,7 @@ def _csv_format(path, kind="csv") -> dict:
     as many cells (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
     cell of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
     A first row with more cells than the header is :func:`_wider_rows`'.
+    A first line ``sep=;`` (written for spreadsheets) names the separator and is skipped.
     Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
     the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
     ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
@@ -625,6 +626,9 @@ def _csv_format(path, kind="csv") -> dict:
         with _open_csv(path, kind) as fh:
             skipped, comment = 0, None
             line = fh.readline(1 << 16)
+            forced = re.fullmatch(rb"(?:\xef\xbb\xbf)?sep=(.)\r?\n", line)  # a spreadsheet's 'sep=;' line
+            if forced:
+                skipped, forced, line = 1, forced.group(1).decode("latin-1"), fh.readline(1 << 16)
             while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
                                                or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
                 comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
@@ -643,7 +647,7 @@ def _csv_format(path, kind="csv") -> dict:
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
-    sep = _separator(line, rows)
+    sep = forced or _separator(line, rows)
     if sep == WHITESPACE and out.get("_hashed"):  # '# time gyro': the '#' is no column of its own
         out = {**out, "header": 0, "names": _cells(line.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), sep)}
     if sep in (";", "\t", WHITESPACE):

@@ -447,6 +447,21 @@ def test_times_written_with_too_few_digits_are_named_so(heading, tmp_path, cli):
     assert code == 2 and "repeats" in err and "written to" not in err, err
 
 
+def test_a_spreadsheet_s_sep_line_names_the_separator(heading, tmp_path):
+    """A first line 'sep=;' (written so that a spreadsheet opens the file in columns) was read as
+    the header: two columns 'sep=' and ''.  It names the separator and is skipped; lines in
+    messages are still the file's own."""
+    log, _ = heading_log(3, 37, n=300)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    for sep, decimal in ((";", ","), (",", ".")):
+        text = log.to_csv(index=False, sep=sep, decimal=decimal)
+        (tmp_path / "log.csv").write_text(f"\ufeffsep={sep}\n" + text, encoding="utf-8")
+        assert np.allclose(run_log(heading, tmp_path / "log.csv").estimates["heading"], expected, rtol=0, atol=1e-12)
+    (tmp_path / "bad.csv").write_text("sep=;\ntime;gyro;compass;odometry\n0;1;2;3\n0,2;1;abc;3\n")
+    with pytest.raises(DataError, match=r"bad\.csv line 4: column 'compass' is not a number"):
+        run_log(heading, tmp_path / "bad.csv")
+
+
 def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
     """'GYRO', 'Compass' for the table's gyro and compass (as 'Time' for the time): refused as
     missing; a unique match in another case is the sensor's column."""
