@@ -323,11 +323,13 @@ def _numeric(df, columns, source, line, time=None, time_scale=1.0):
         if len(bad):
             what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
                     "(2024-05-01T12:00:00.010)" if c == time else "not a number")
-            comma = re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", str(text.iloc[bad[0]]))
+            cell = str(text.iloc[bad[0]])
+            hint = (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
+                    "show one, not in one separated by commas; write decimal points)"
+                    if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
+                    " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")
             raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
-                            + (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose "
-                               "first 64 kB show one, not in one separated by commas; write decimal points)"
-                               if comma else ""))
+                            + hint)
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
 

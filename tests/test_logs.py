@@ -639,6 +639,8 @@ BAD_LOGS = {
                 r"line 3: no time \(an empty cell; every row needs one\)"),
     "inf.csv": ("time,gyro,compass,odometry\n0,1,2,3\ninf,1,2,3\n", "line 3: time inf is not a finite number"),
     "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
+    "comment.csv": ("time,gyro,compass,odometry\n0,1,2,3\n# restarted\n0.2,1,2,3\n",
+                    r"line 3: .*'# restarted' \(a comment line: only those before the header are skipped\)$"),
 }
 
 
