@@ -44,8 +44,8 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
-           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "rephase", "date_seconds", "nearest_tick", "grid_origin",
-           "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "SWAP_ROWS", "rephase", "date_seconds", "nearest_tick",
+           "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -416,10 +416,27 @@ def _row_spacing(t, dt):
         return None
     rows = np.arange(len(fitted)) - (len(fitted) - 1) / 2
     slope = float(rows @ (fitted - fitted.mean()) / (rows @ rows))
-    if slope > 0 and any(np.all(np.diff(nearest_tick((fitted - o) / s)) == 1)
+    if slope > 0 and any(_one_a_tick(nearest_tick((fitted - o) / s))
                          for o, s in ((_phase_origin(fitted, slope), slope), grid_fit(fitted, dt))):
         return slope, float(fitted[-1] - fitted[0])
     return None
+
+
+#: rows in a row that jitter may put a tick off their own before they are taken for rows missing
+SWAP_ROWS = 3
+
+
+def _one_a_tick(k) -> bool:
+    """Whether ticks ``k`` (of consecutive rows) are one a row: each on the tick after the one
+    before, or a tick off it for at most :data:`SWAP_ROWS` rows (a row jittered onto its
+    neighbour's tick, the next back on its own: a Gaussian jitter of 0.2 tick puts one row in a
+    hundred there).  A row missing moves every row after it a tick on (a grid fitted to rows
+    with some missing moves them back only after many rows)."""
+    off = np.cumsum(np.diff(k) - 1)  # ticks the rows are off the consecutive ticks
+    if not np.all(np.abs(off) <= 1):
+        return False
+    moved = np.flatnonzero(np.diff(np.concatenate([[0], off != 0, [0]]).astype(np.int8)))
+    return bool(np.all(moved[1::2] - moved[::2] <= SWAP_ROWS))
 
 
 def _tick_spacing(t):
@@ -451,7 +468,8 @@ def check_rate(t, dt, source):
     """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
 
     Where the rows of the longest stretch between pauses (:data:`PAUSE_TICKS`) lie one a tick on a grid (that of
-    :func:`grid_fit`, or of their own slope: none dropped, none sharing a tick), the spacing is the
+    :func:`grid_fit`, or of their own slope: none dropped; a row jittered onto its neighbour's tick
+    for at most :data:`SWAP_ROWS` rows), the spacing is the
     least-squares slope of their times over the rows; jitter of +-0.45 tick had put the ticks below
     a few percent off (one such log of 300 rows in three refused at 5 Hz, and one 4 % off taken).
     Otherwise the spacing is the least-squares slope of the times over the ticks they fall on, fitted

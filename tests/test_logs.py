@@ -1472,6 +1472,8 @@ def test_rows_jittered_by_nearly_half_a_tick_are_at_their_rate():
         # longest stretch between pauses is fitted (the first 5 rows' slope refused 22 such logs of 40)
         with pytest.raises(DataError, match="base rate is"):
             check_rate(t * 1.04, 0.2, "log")
+        gauss = np.sort(np.arange(300) + np.random.default_rng(seed).normal(0, 0.2, 300)) * 0.2  # a row in a
+        check_rate(gauss, 0.2, "log")  # hundred on its neighbour's tick (9 such logs of 40 had been refused)
 
 
 @pytest.mark.parametrize("rows_after", [1, 4])
