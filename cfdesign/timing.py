@@ -405,9 +405,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
 
 
 def _row_spacing(t, dt):
-    """``(spacing, span)`` of a log whose rows between two pauses (the longest such stretch) are on
+    """``(spacing, times)`` of a log whose rows between two pauses (the longest such stretch) are on
     consecutive ticks of a grid (one row a tick, none skipped or shared): the least-squares slope
-    of their times over the rows, and the time they span; None when no grid puts them so (rows
+    of their times over the rows, and those times; None when no grid puts them so (rows
     dropped, a wrong rate)."""
     cuts = [0, *(np.flatnonzero(np.diff(t) > PAUSE_TICKS * dt) + 1), len(t)]
     a, b = max(itertools.pairwise(cuts), key=lambda c: c[1] - c[0])  # the longest stretch between pauses
@@ -418,12 +418,21 @@ def _row_spacing(t, dt):
     slope = float(rows @ (fitted - fitted.mean()) / (rows @ rows))
     if slope > 0 and any(_one_a_tick(nearest_tick((fitted - o) / s))
                          for o, s in ((_phase_origin(fitted, slope), slope), grid_fit(fitted, dt))):
-        return slope, float(fitted[-1] - fitted[0])
+        return slope, fitted
     return None
 
 
 #: rows in a row that jitter may put a tick off their own before they are taken for rows missing
 SWAP_ROWS = 3
+
+
+def _misfit(t, spacing) -> float:
+    """The mean square of the times ``t`` about the straight line fitted to them over the ticks a
+    grid of ``spacing`` puts them on."""
+    k = nearest_tick((t - _phase_origin(t, spacing)) / spacing)
+    k -= k.mean()
+    slope = float(k @ (t - t.mean()) / (k @ k)) if k @ k > 0 else 0.0
+    return float(np.mean((t - t.mean() - slope * k) ** 2))
 
 
 def _one_a_tick(k) -> bool:
@@ -507,13 +516,12 @@ def check_rate(t, dt, source):
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return
-    spacing, span = _row_spacing(t, dt), t[-1] - t[0]
-    if spacing is not None:
-        spacing, span = spacing
-    else:
-        spacing = _tick_spacing(t)
-        if not spacing > 0:
-            return
+    rows, spacing, span = _row_spacing(t, dt), _tick_spacing(t), t[-1] - t[0]
+    if rows is not None and not (spacing > 0 and _misfit(rows[1], spacing) < 0.5 * _misfit(rows[1], rows[0])):
+        spacing, span = rows[0], rows[1][-1] - rows[1][0]  # the rows one a tick, unless ticks with some
+        # skipped fit their times far closer (every 7th row missing from exact times: 6 rows in 7 ticks)
+    if not spacing > 0:
+        return
     ticks = max(float(span) / spacing, 1.0)
     if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
         unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"

@@ -1474,6 +1474,8 @@ def test_rows_jittered_by_nearly_half_a_tick_are_at_their_rate():
             check_rate(t * 1.04, 0.2, "log")
         gauss = np.sort(np.arange(300) + np.random.default_rng(seed).normal(0, 0.2, 300)) * 0.2  # a row in a
         check_rate(gauss, 0.2, "log")  # hundred on its neighbour's tick (9 such logs of 40 had been refused)
+    k = np.arange(300)
+    check_rate(k[k % 7 != 6] * 0.2 + 1.7e9, 0.2, "log")  # every 7th row missing: 6 rows in 7 ticks, not 4.29 Hz
 
 
 @pytest.mark.parametrize("rows_after", [1, 4])
