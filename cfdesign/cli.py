@@ -364,7 +364,7 @@ def _log_paths(items) -> tuple:
     out = []
     fleet = len(items) > 1
     for item in items:
-        p = Path(item)
+        p = Path("/dev/stdin" if item == "-" else item)  # '-': the log on standard input (copied: logs._spooled)
         if is_dir(p):
             found = sorted(q for q in p.iterdir() if "".join(q.suffixes[-2:]).lower() in LOG_SUFFIXES
                            or q.suffix.lower() in LOG_SUFFIXES)
@@ -537,8 +537,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                    help="estimates file (.csv or .parquet); a directory (created "
                                                          "if missing; a name ending in /) for several logs, a "
                                                          "directory or a glob of logs, with summary.csv")
-    p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time' "
-                                                    "or 't' in any case; without one, each row is one base tick)")
+    p.add_argument("--time", metavar="COLUMN", help="time column in seconds or ISO 8601 dates (default: 'time', "
+                                                    "'t' or 'timestamp' in any case, or with a unit: 'time [ms]', "
+                                                    "'time_ms'; without one, each row is one base tick)")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
                    help="unit of a numeric time column (default: the one its name gives, 'time [ms]', else s; ns for "
                         "the %%time of a ROS rostopic echo -p export)")

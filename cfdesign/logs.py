@@ -38,7 +38,7 @@ __all__ = ["LogResult", "run_log", "run_logs", "read_log", "read_columns", "plot
            "BLOCK_ROWS", "INTERNAL"]
 
 #: column names taken as the time (seconds) when none is given
-TIME_COLUMNS = ("time", "t")
+TIME_COLUMNS = ("time", "t", "timestamp")
 #: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
@@ -193,11 +193,14 @@ _UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
 
 
 def _unit(name) -> tuple:
-    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``), else ``(name, None)``;
-    a unit of time as :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
+    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``, or a unit of
+    time after an underscore: ``time_ms``), else ``(name, None)``; a unit of time as
+    :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
     m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
     if not (m and m.group(1)):
-        return name, None
+        m = re.fullmatch(r"(.+?)_([^_]+)", str(name).strip())
+        unit = _UNIT_NAMES.get(m.group(2).lower()) if m else None
+        return (m.group(1), unit) if unit else (name, None)
     unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
@@ -227,6 +230,10 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         raise DataError(f"--map {unknown[0]}: {table.name} has no sensor {unknown[0]!r} "
                         f"(sensors: {', '.join(table.sensor_names())})")
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
+    for s, c in sensors.items():  # a sensor's name in another case ('Gyro', 'GYRO'), as the time column's
+        like = [h for h in header if h.lower() == s.lower()]
+        if s not in mapping and c not in header and len(like) == 1:
+            sensors[s] = like[0]
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
         # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
@@ -235,8 +242,11 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         hint = " ".join(f'--map "{s}={h}"' for s, h in like)
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
                         + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                           "the header is one column: cells are separated by commas, by the semicolons or tabs "
+                           "of a header without a comma, or by spaces where the first row has as many cells"
+                           if len(header) == 1 else
                            "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
-    if time is None:  # 'time' or 't', else in another case ('Time', 'T'), else with a unit ('time [ms]')
+    if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
             (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
@@ -317,7 +327,13 @@ def _numeric(df, columns, source, line, time=None, time_scale=1.0):
         if len(bad):
             what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
                     "(2024-05-01T12:00:00.010)" if c == time else "not a number")
-            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}")
+            cell = str(text.iloc[bad[0]])
+            hint = (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
+                    "show one, not in one separated by commas; write decimal points)"
+                    if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
+                    " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")
+            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
+                            + hint)
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
 
@@ -431,9 +447,12 @@ def read_log(path, columns=None, *, chunksize=None):
     What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
     compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
     separator is a comma, or the semicolon or tab of its header line when that has no
-    comma (a semicolon- or tab-separated file may write decimal commas: ``0,01``); column names are
-    stripped of spaces, and a row with more cells than the header is an error naming its line
-    (it was read without its extra cells).  The end of a plain CSV cut off while it was written
+    comma, or spaces when the header and the first row split into as many cells at spaces
+    (``numpy.savetxt``; a semicolon-, tab- or space-separated file may write decimal commas:
+    ``0,01``); column names are stripped of spaces, and a row with more cells than the header is
+    an error naming its line (it was read without its extra cells), but empty cells after the first
+    row's last (a separator ending every row) are columns without a name.  The first cells of a
+    row are never an index.  The end of a plain CSV cut off while it was written
     (a power loss) is not read: the NUL bytes it may end in, and its last line when that has no
     line end and has fewer cells than the header or NUL bytes after it (its last cell may have
     lost digits); :func:`run_log` notes it.
@@ -471,7 +490,7 @@ def read_log(path, columns=None, *, chunksize=None):
         end = _tail(path)[0] if kind == "csv" else None
         source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
         reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, compression=None if kind == "csv" else kind, **fmt)
+                             low_memory=False, index_col=False, compression=None if kind == "csv" else kind, **fmt)
         if chunksize:
             return _csv_blocks(path, reader, columns, hashed, closing=None if end is None else source)
         with contextlib.closing(source) if end is not None else contextlib.nullcontext():
@@ -522,8 +541,7 @@ def _tail(path) -> tuple:
     end, cells = text_end, None
     newline = last.rfind(b"\n")
     if last and not last.endswith(b"\n") and newline >= 0:  # a last line without its end (not the header)
-        sep = _csv_format(path).get("sep", ",")
-        row = next(csv.reader([last[newline + 1:].decode("utf-8", "replace")], delimiter=sep), [])
+        row = _cells(last[newline + 1:], _csv_format(path).get("sep", ","))
         header = len(_header(path))
         if len(row) < header or text_end < size:  # fewer cells, or NUL bytes where the rest was not written
             cells, end = (len(row), header), start + newline + 1
@@ -599,8 +617,11 @@ COMMENT_LINES = 1000
 
 def _csv_format(path, kind="csv") -> dict:
     """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
-    has none and has semicolons or tabs; a semicolon or tab file writes decimal commas when a cell
-    of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    has none and has semicolons or tabs, else spaces where the header and the first row split into
+    as many cells (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
+    cell of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    A first row with more cells than the header is :func:`_wider_rows`'.
+    A first line ``sep=;`` (written for spreadsheets) names the separator and is skipped.
     Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
     the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
     ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
@@ -611,6 +632,9 @@ def _csv_format(path, kind="csv") -> dict:
         with _open_csv(path, kind) as fh:
             skipped, comment = 0, None
             line = fh.readline(1 << 16)
+            forced = re.fullmatch(rb"(?:\xef\xbb\xbf)?sep=(.)\r?\n", line)  # a spreadsheet's 'sep=;' line
+            if forced:
+                skipped, forced, line = 1, forced.group(1).decode("latin-1"), fh.readline(1 << 16)
             while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
                                                or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
                 comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
@@ -629,16 +653,73 @@ def _csv_format(path, kind="csv") -> dict:
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
-    sep = "," if b"," in line else ";" if b";" in line else "\t" if b"\t" in line else None
-    if sep in (";", "\t"):
-        cut = re.escape(sep.encode())
+    sep = forced or _separator(line, rows)
+    if sep == WHITESPACE and out.get("_hashed"):  # '# time gyro': the '#' is no column of its own
+        out = {**out, "header": 0, "names": _cells(line.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), sep)}
+    if sep in (";", "\t", WHITESPACE):
+        cut = rb"\s+" if sep == WHITESPACE else re.escape(sep.encode())
         cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % (cut, cut)
         out = {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
     if not out.get("_hashed"):
         units = _units_row(rows, line, sep or ",")
         if units is not None:
             out["_units"] = units
-    return out
+    return _wider_rows(path, out, line, rows, sep or ",")
+
+
+#: the separator of a log whose columns are separated by spaces (``numpy.savetxt``'s default)
+WHITESPACE = r"\s+"
+
+
+def _separator(header, rows):
+    """The separator of a CSV from its header line: a comma, else a semicolon or a tab; else
+    spaces (:data:`WHITESPACE`) when the header and the first row of ``rows`` split into as many
+    cells, at least two; else None (one column)."""
+    for sep in (",", ";", "\t"):
+        if sep.encode() in header:
+            return sep
+    first = next((r for r in rows.split(b"\n")[:-1] if r.strip()), b"")
+    names = _cells(header.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), WHITESPACE)
+    return WHITESPACE if len(names) > 1 and len(_cells(first, WHITESPACE)) == len(names) else None
+
+
+def _cells(line, sep) -> list:
+    """The cells of a CSV line (bytes or text) split at ``sep`` (quotes as the csv module reads
+    them; :data:`WHITESPACE`: runs of spaces and tabs)."""
+    text = line.decode("utf-8-sig", "replace") if isinstance(line, bytes) else line
+    text = text.strip("\r\n")
+    if sep == WHITESPACE:
+        return text.split()
+    try:
+        return next(csv.reader([text], delimiter=sep), [])
+    except csv.Error:
+        return []
+
+
+def _wider_rows(path, fmt, header, rows, sep) -> dict:
+    """``fmt`` for a CSV whose first row has more cells than its header: pandas took the first
+    cells as an index and every column from the wrong cell (the gyro's cells read as times).
+    Empty cells at the end (a separator after each row's last cell) are columns without a name
+    (``names``); cells with values are a DataError naming the line (a decimal comma in a
+    comma-separated file: ``0,01`` is two cells)."""
+    lines = rows.split(b"\n")[:-1]
+    at = next((i for i, r in enumerate(lines) if r.strip()), None)
+    if at is None:
+        return fmt
+    if "_units" in fmt:
+        at = next((i for i in range(at + 1, len(lines)) if lines[i].strip()), None)
+        if at is None:
+            return fmt
+    names = fmt.get("names") or _cells(header, sep)
+    cells = _cells(lines[at], sep)
+    if len(cells) <= len(names):
+        return fmt
+    if any(c.strip() for c in cells[len(names):]):
+        line = 2 + fmt.get("skiprows", 0) + at
+        raise DataError(f"{path} line {line}: {len(cells)} cells under a header of {len(names)} columns"
+                        + (" (decimal commas in a log separated by commas? 0,01 is two cells: separate the cells "
+                           "by semicolons or write decimal points)" if sep == "," else ""))
+    return {**fmt, "header": 0, "names": [*names, *(f"Unnamed: {i}" for i in range(len(names), len(cells)))]}
 
 
 def _units_row(rows, header, sep):
@@ -650,13 +731,7 @@ def _units_row(rows, header, sep):
     if len(lines) < 3:
         return None
 
-    def cells(line):
-        try:
-            return next(csv.reader([line.decode("utf-8-sig").strip("\r")], delimiter=sep), [])
-        except (UnicodeDecodeError, csv.Error):
-            return []
-
-    first, second, names = cells(lines[0]), cells(lines[1]), cells(header)
+    first, second, names = _cells(lines[0], sep), _cells(lines[1], sep), _cells(header, sep)
     text = [c.strip() for c in first if c.strip().lower() not in MISSING]
     if len(first) != len(names) or not text:
         return None
@@ -678,12 +753,11 @@ def _units_row(rows, header, sep):
 
 def _numbers(line, header) -> bool:
     """Whether a CSV line is a row of numbers (or empty cells), split as its ``header`` line is."""
-    sep = b"," if b"," in header else b";" if b";" in header else b"\t" if b"\t" in header else b","
     try:
-        for cell in line.strip().split(sep):
-            cell = cell.strip(b' "')
+        for cell in _cells(line.strip(), _separator(header, line + b"\n") or ","):
+            cell = cell.strip(' "')
             if cell:
-                float(cell.replace(b",", b"."))
+                float(cell.replace(",", "."))
     except ValueError:
         return False
     return bool(line.strip())
@@ -866,7 +940,9 @@ def _header(path) -> list:
         with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
             for _ in range(fmt.get("skiprows", 0)):
                 fh.readline()
-            header = next(csv.reader(fh, delimiter=fmt.get("sep", ",")), None)
+            sep = fmt.get("sep", ",")
+            header = fmt.get("names") or (fh.readline().split() if sep == WHITESPACE else
+                                           next(csv.reader(fh, delimiter=sep), None))
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise _read_error(path, exc) from None
     if not header:
@@ -920,12 +996,13 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
 class _Pass:
     """Placement of rows on ticks, carried from block to block (times checked across blocks)."""
 
-    def __init__(self, table, cols, source, blocks=None, grid=None):
+    def __init__(self, table, cols, source, blocks=None, grid=None, rephased=None):
         self.table, self.cols, self.source = table, cols, source
         self.blocks = blocks  # the log's blocks, looked through for the grid when the first block has no input row
         self.t0 = None
         self.spacing = table.sample_time_s  # of the log's clock: the table's tick unless it drifts (timing.grid_fit)
         self.grid = grid  # (t0, spacing) of tick 0, when known (the first pass's, for the second)
+        self.rephased = dict(rephased or {})  # the log's row after each pause -> the grid's origin from there on
         self.tail = None  # the previous block's rows at its last time: (times, {sensor: read}), checked with the next
         self.rows = 0
         self.early = {}  # sensor -> readings logged before tick 0 (not used)
@@ -982,25 +1059,45 @@ class _Pass:
         that has (the log's blocks read again up to it: a log of more than a block of rows before
         its first input row was placed on the grid of its first row, half a tick off the inputs'
         at worst, and its readings before the inputs were used instead of counted), else the first row's time."""
-        from .timing import PAUSE_TICKS, grid_fit
+        from .timing import FIT_ROWS, grid_fit
 
-        if not first.size and self.blocks is not None:
-            sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
-            start = 0
-            for block in self.blocks():
-                values = _numeric(block, [self.cols.time, *sensors], self.source,
-                                  lambda i, start=start: self.cols.lines(start + i), self.cols.time,
-                                  self.cols.time_scale)
-                start += len(block)
-                base = np.ones(len(block), dtype=bool)
-                for c in sensors:
-                    base &= ~np.isnan(values[c])
-                first = values[self.cols.time][base]
-                if first.size:
-                    pause = np.flatnonzero(np.diff(first) > PAUSE_TICKS * self.spacing)
-                    first = first[:pause[0] + 1 if pause.size else None]
-                    break
+        if not first.size:
+            first = self._ahead(0, count=FIT_ROWS)
         return grid_fit(first, self.table.sample_time_s) if first.size else (t_first, self.spacing)
+
+    def _ahead(self, row, before=None, count=None):
+        """The times of the rows where the inputs read from the log's row ``row`` on (its blocks
+        read again), up to ``count`` of them (:data:`~cfdesign.timing.ARC_ROWS`) and the first
+        pause (also one right after ``before``, the time of such a row before them); none without
+        the blocks."""
+        from .timing import ARC_ROWS, PAUSE_TICKS
+
+        count = count or ARC_ROWS
+        out, n = [np.zeros(0)], 0
+        if self.blocks is None:
+            return out[0]
+        sensors = [self.cols.sensors[s.name] for s in self.table.inputs]
+        start = 0
+        for block in self.blocks():
+            start, first = start + len(block), start
+            if start <= row:
+                continue
+            block, at = block.iloc[max(row - first, 0):], max(row, first)
+            values = _numeric(block, [self.cols.time, *sensors], self.source,
+                              lambda i, at=at: self.cols.lines(at + i), self.cols.time, self.cols.time_scale)
+            base = np.ones(len(block), dtype=bool)
+            for c in sensors:
+                base &= ~np.isnan(values[c])
+            t = values[self.cols.time][base]
+            pause = np.flatnonzero(np.diff(np.concatenate([[before] if before is not None else [], t]))
+                                   > PAUSE_TICKS * self.spacing)
+            t = t[:pause[0] - (before is not None) + 1 if pause.size else None][:count - n]
+            out.append(t)
+            n += len(t)
+            before = t[-1] if t.size else before
+            if pause.size or n >= count:
+                break
+        return np.concatenate(out)
 
     def _pauses(self, base_t, rows) -> tuple:
         """``(rows, pauses)``: the rows of the block where the inputs read and the indices among them
@@ -1019,14 +1116,21 @@ class _Pass:
     def _placed(self, t, base_t, rows, pauses):
         """Ticks of a block's rows: on the grid, whose phase is fitted again at each pause
         (:func:`cfdesign.timing.rephase`) for the rows from there on."""
-        from .timing import nearest_tick, rephase
+        from .timing import ARC_ROWS, nearest_tick, rephase
 
         cuts = [0, *(int(rows[p]) for p in pauses), len(t)]
         starts = [0, *pauses, len(base_t)]
         out = np.empty(len(t), dtype=np.int64)
         for k, (a, b) in enumerate(itertools.pairwise(cuts)):
-            if k:  # the base rows from this pause to the next
-                self.t0 = rephase(base_t[starts[k]:starts[k + 1]], self.t0, self.spacing)
+            if k and self.rows + a not in self.rephased:  # the base rows from this pause to the next, also
+                # those of the blocks after this one (a pause at a block's end: a phase fitted to its few
+                # rows there had left one row in ten on a shared tick for the rest of the log)
+                after = base_t[starts[k]:starts[k + 1]]
+                if starts[k + 1] == len(base_t) and len(after) < ARC_ROWS:
+                    after = np.concatenate([after, self._ahead(self.rows + len(t), after[-1])])
+                self.rephased[self.rows + a] = rephase(after, self.t0, self.spacing)
+            if k:
+                self.t0 = self.rephased[self.rows + a]
             out[a:b] = nearest_tick((t[a:b] - self.t0) / self.spacing)
         return out
 
@@ -1059,9 +1163,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
         no DataFrame (bounded memory for big logs).
     time : str, optional
-        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time`` or
-        ``t`` (in any case) when present, or a DataFrame's index when it is a DatetimeIndex or is
-        named so; else every row is one base tick (said in a note).
+        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time``,
+        ``t`` or ``timestamp`` (in any case, or named with a unit: ``time [ms]``, ``time_ms``) when
+        present, or a DataFrame's index when it is a DatetimeIndex or is named so; else every row
+        is one base tick (said in a note).
     mapping : dict, optional
         ``{sensor: column}`` where the log names a sensor differently.
     reference : str or list of str, optional
@@ -1135,7 +1240,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types, grid = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, (grid, rephased) = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -1147,7 +1252,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
-    place = _Pass(table, cols, source, grid=grid)  # tick 0 where the first pass put it
+    place = _Pass(table, cols, source, grid=grid, rephased=rephased)  # ticks where the first pass put them
     startup = _startup_ticks(table)
 
     def run_rows(block, values, ticks):
@@ -1169,6 +1274,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                 values = {k: np.concatenate([pending[1][k], v]) for k, v in values.items()}
                 ticks = np.concatenate([pending[2], ticks])
             cut = int(np.searchsorted(ticks, ticks[-1])) if len(ticks) else 0
+            held = runner.held_from(ticks[:cut], {s: values[c][:cut] for s, c in cols.sensors.items()})
+            if len(ticks) - held <= block_rows:  # rows after a pause wait for the reading that moves them
+                cut = held
             pending = (block.iloc[cut:], {k: v[cut:] for k, v in values.items()}, ticks[cut:])
             run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
         if pending is not None:
@@ -1254,7 +1362,7 @@ def _time_note(cols) -> list:
     if cols.time is not None:
         return []
     like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec"))]
-    return ["the log has no time column ('time' or 't'): every row is taken as one base tick"
+    return ["the log has no time column ('time', 't' or 'timestamp'): every row is taken as one base tick"
             + (f" (column {like[0]!r} looks like a time: --time {like[0]})" if like else " (--time COLUMN)")]
 
 
@@ -1329,7 +1437,7 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None, place.grid
+    return lock, place.rows, schemas or None, (place.grid, place.rephased)
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):
@@ -1510,6 +1618,31 @@ class _Runner:
                 f"{start * dt:.6g} s: {self.table.states[0]} started again from the first direct reading after "
                 f"{len(self.restarts)} of them (where it disagreed with the state carried over the pause by more "
                 f"than {RESTART_GATE:g} sigma), each start-up shaded and left out of the settled RMS")
+
+    def held_from(self, ticks, readings) -> int:
+        """The first of rows at ``ticks`` (ascending, the next to run) whose estimates are not known
+        until a later block: those from the end of a pause (:meth:`_restart_ticks`) on when no direct
+        reading follows it among them, as that reading may move them (:meth:`_restart`); else
+        ``len(ticks)``.  (Rows written before the reading came in the next block stayed where the
+        held inputs took them: 0.69 rad off, where one block moved them.)"""
+        from .runtime.filter import usable
+        from .timing import PAUSE_TICKS
+
+        inputs, direct, n = self.table.inputs, self._direct(), len(ticks)
+        if not (inputs and direct and n):
+            return n
+        have = np.zeros(n, dtype=bool)
+        for s in inputs:
+            have |= usable(readings[s.name])
+        at = np.flatnonzero(have)
+        quiet = np.diff(np.concatenate([[self.next_tick - 1 - self.quiet], ticks[at]])) - 1
+        ends = at[quiet >= PAUSE_TICKS]
+        if not ends.size:
+            return n
+        read = np.zeros(n, dtype=bool)
+        for i in direct:
+            read |= usable(readings[self.table.measurements[i].name])
+        return n if read[ends[-1]:].any() else int(ends[-1])
 
     def _direct(self):
         """Indices (in the table's measurements) of the sensors that read state 0 directly."""

@@ -412,6 +412,118 @@ def test_semicolons_tabs_decimal_commas_and_spaced_names_read_as_commas(heading,
             assert got["truth"].dtype.kind == "f", name  # passed-through columns stay numbers
 
 
+def test_logs_separated_by_spaces_as_numpy_savetxt_writes_them(heading, tmp_path):
+    """``numpy.savetxt``'s default separator is a space, with or without its '# ' header: the
+    header was one column ('missing column(s) gyro, ...', or the first row's numbers as names);
+    columns are split at spaces where the header and the first row split into as many cells."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    names = " ".join(log.columns)
+    np.savetxt(tmp_path / "hashed.txt", log.to_numpy(float), header=names)
+    np.savetxt(tmp_path / "plain.txt", log.to_numpy(float), header=names, comments="")
+    aligned = log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format)  # runs of spaces
+    (tmp_path / "aligned.txt").write_text(aligned)
+    for name in ("hashed.txt", "plain.txt", "aligned.txt"):
+        for rows in (None, 250):
+            got = run_log(heading, tmp_path / name, block_rows=rows).estimates
+            assert list(got.columns) == ["time", "heading", "gyro_correction", "truth", "lap"], name
+            assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9), name
+
+
+@pytest.mark.parametrize("sep", ["|", " "])
+def test_a_header_read_as_one_column_says_how_cells_are_separated(heading, tmp_path, cli, sep):
+    """A log separated by '|', or by spaces under a header whose names hold spaces ('time [s]'),
+    is one column: the message says so and which separators are read."""
+    header = sep.join(["time [s]" if sep == " " else "time", "gyro", "compass", "odometry"])
+    (tmp_path / "log.txt").write_text(header + "\n" + "".join(sep.join(["0.2" if k else "0", "1", "2", "3"]) + "\n"
+                                                              for k in range(2)))
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.txt", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "the header is one column: cells are separated by commas" in err
+
+
+def test_a_separator_after_each_row_s_last_cell_is_no_index(heading, tmp_path, cli):
+    """Rows ending in a separator the header does not end in ('0.01,0.5,' under 'time,gyro'): pandas
+    took the first cell of each row as an index and every column from its neighbour's cells, the
+    gyro's read as times ('time 0.158 goes back'; a monotonic column would have run in silence).
+    Empty cells past the header are columns without a name; cells with values there are refused
+    on one line naming the line, with the decimal comma of a comma-separated export as the likely
+    cause."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    lines = log.to_csv(index=False).splitlines()
+    (tmp_path / "trailing.csv").write_text("\n".join([lines[0], *(line + "," for line in lines[1:])]) + "\n")
+    for rows in (None, 250):
+        got = run_log(heading, tmp_path / "trailing.csv", block_rows=rows).estimates
+        assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    text = "time,gyro,compass,odometry\n0,000,0,100,0,200,0,300\n0,200,0,100,0,200,0,300\n"
+    (tmp_path / "commas.csv").write_text(text)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "commas.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "line 2: 8 cells under a header of 4 columns (decimal commas" in err
+    (tmp_path / "quoted.csv").write_text('time,gyro,compass,odometry\n"0,0","0,1","0,2","0,3"\n')
+    code, _, err = cli("run", tmp_path / "g.json", tmp_path / "quoted.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "'0,0' (a decimal comma: read in a log separated by semicolons" in err
+
+
+@pytest.mark.parametrize("name, scale", [("time_ms", 1e3), ("t_us", 1e6), ("timestamp", 1.0), ("Timestamp_s", 1.0)])
+def test_a_time_column_named_timestamp_or_with_its_unit_after_an_underscore(heading, name, scale):
+    """'time_ms' and 'timestamp' were no time column: every row was taken as one tick (a note), so
+    a log with dropped rows ran its readings on the wrong ticks; they are the time (in the unit the
+    name gives, else seconds)."""
+    log, _ = heading_log(3, 37, n=600)
+    log = log.drop(index=range(100, 110))
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    named = log.assign(time=np.round(log["time"] * scale, 9)).rename(columns={"time": name})
+    result = run_log(heading, named)
+    assert result.notes == [] or not any("no time column" in n for n in result.notes), result.notes
+    assert np.allclose(result.estimates["heading"], expected, rtol=0, atol=1e-9)
+
+
+def test_times_written_with_too_few_digits_are_named_so(heading, tmp_path, cli):
+    """Unix times written with ten digits ('%.10g': 1700000000) or by '%g' (1.7e+09) repeat
+    from row to row: the line said only 'time 1700000000.0 repeats'; it now says to how much the
+    times are written against the tick."""
+    log, _ = heading_log(3, 37, n=300)
+    table = heading.save(tmp_path / "g.json")
+    for fmt, step in (("%.10g", "1 s"), ("%g", "1e+08 s")):
+        log.assign(time=log["time"] + 1.7e9).to_csv(tmp_path / "log.csv", index=False, float_format=fmt)
+        code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "repeats 1700000000.0 on the line before" in err and f"the times are written to {step}, coarser " \
+            "than the table's tick of 0.01 s (write them with more digits)" in err, err
+    log.loc[5, "time"] = log.loc[4, "time"]  # a genuine repeat of times written in full: no such words
+    log.to_csv(tmp_path / "log.csv", index=False)
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "e.csv")
+    assert code == 2 and "repeats" in err and "written to" not in err, err
+
+
+def test_a_spreadsheet_s_sep_line_names_the_separator(heading, tmp_path):
+    """A first line 'sep=;' (written so that a spreadsheet opens the file in columns) was read as
+    the header: two columns 'sep=' and ''.  It names the separator and is skipped; lines in
+    messages are still the file's own."""
+    log, _ = heading_log(3, 37, n=300)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    for sep, decimal in ((";", ","), (",", ".")):
+        text = log.to_csv(index=False, sep=sep, decimal=decimal)
+        (tmp_path / "log.csv").write_text(f"\ufeffsep={sep}\n" + text, encoding="utf-8")
+        assert np.allclose(run_log(heading, tmp_path / "log.csv").estimates["heading"], expected, rtol=0, atol=1e-12)
+    (tmp_path / "bad.csv").write_text("sep=;\ntime;gyro;compass;odometry\n0;1;2;3\n0,2;1;abc;3\n")
+    with pytest.raises(DataError, match=r"bad\.csv line 4: column 'compass' is not a number"):
+        run_log(heading, tmp_path / "bad.csv")
+
+
+def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
+    """'GYRO', 'Compass' for the table's gyro and compass (as 'Time' for the time): refused as
+    missing; a unique match in another case is the sensor's column."""
+    log, _ = heading_log(3, 37, n=600)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    got = run_log(heading, log.rename(columns={"gyro": "GYRO", "compass": "Compass"})).estimates
+    assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match="missing column"):  # two of them: none is taken
+        run_log(heading, log.rename(columns={"gyro": "GYRO"}).assign(Gyro=1.0))
+
+
 def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp_path, cli, monkeypatch):
     """A big log is read in blocks: a broken row (an unclosed quote, a row of extra cells) far
     into it stopped cfdesign run as an internal error (exit 3), and extra cells were dropped."""
@@ -578,6 +690,8 @@ BAD_LOGS = {
                 r"line 3: no time \(an empty cell; every row needs one\)"),
     "inf.csv": ("time,gyro,compass,odometry\n0,1,2,3\ninf,1,2,3\n", "line 3: time inf is not a finite number"),
     "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
+    "comment.csv": ("time,gyro,compass,odometry\n0,1,2,3\n# restarted\n0.2,1,2,3\n",
+                    r"line 3: .*'# restarted' \(a comment line: only those before the header are skipped\)$"),
 }
 
 
@@ -651,10 +765,12 @@ def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
 
 
 @pytest.mark.skipif(not Path("/dev/stdin").exists(), reason="needs /dev/stdin")
-def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
+@pytest.mark.parametrize("name", ["/dev/stdin", "-"])
+def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli, name):
     """``zcat log.csv.gz | cfdesign run g.json /dev/stdin`` (or ``<(zcat log.gz)``): a pipe gives
     its bytes once, and a log's header is read before its rows - the first row was taken as the
-    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first."""
+    header ('duplicate column(s) 0.5').  A pipe is copied to a temporary file first.  ``-`` is
+    standard input too ('cannot read -: no such file')."""
     import gzip
     import os
 
@@ -668,7 +784,7 @@ def test_a_log_from_a_pipe_runs_as_the_file(heading, tmp_path, cli):
     stdin = os.dup(0)
     os.dup2(read, 0)
     try:
-        code, _, err = cli("run", heading.save(tmp_path / "g.json"), "/dev/stdin", "-o", tmp_path / "e.csv")
+        code, _, err = cli("run", heading.save(tmp_path / "g.json"), name, "-o", tmp_path / "e.csv")
     finally:
         os.dup2(stdin, 0)
         os.close(stdin)
@@ -1392,6 +1508,57 @@ def test_a_logger_paused_and_restarted_off_its_grid_puts_every_row_on_its_own_ti
     assert same.unused == {} and moved.unused == {}, moved.unused
     assert not any("as they arrive" in n for n in moved.notes), moved.notes  # a shift of one tick at the pause
     assert moved.rms["heading"] <= 1.05 * same.rms["heading"]
+
+
+def test_rows_jittered_by_nearly_half_a_tick_are_at_their_rate():
+    """Uniform jitter of +-0.45 tick, every row present: the slope fitted on ticks that the median
+    step gave was a few percent off (300 rows: 32 logs of 40 refused as 4.9 or 5.1 Hz for 5 Hz),
+    although the grid the rows are placed on puts each on its own tick; a pause (the clock back
+    half a tick off) refused the log the same way.  Its spacing is now that of the rows."""
+    from cfdesign.timing import check_rate
+
+    for seed in range(20):
+        t = (np.arange(300) + np.random.default_rng(seed).uniform(-0.45, 0.45, 300)) * 0.2
+        check_rate(t, 0.2, "log")
+        check_rate(np.where(np.arange(300) < 150, t, t + 10.1), 0.2, "log")
+        early = (np.arange(3000) + np.random.default_rng(seed).uniform(-0.3, 0.3, 3000)) * 0.2
+        check_rate(np.where(np.arange(3000) < 5, early, early + 20.1), 0.2, "log")  # 5 rows, a pause: the
+        # longest stretch between pauses is fitted (the first 5 rows' slope refused 22 such logs of 40)
+        with pytest.raises(DataError, match="base rate is"):
+            check_rate(t * 1.04, 0.2, "log")
+        gauss = np.sort(np.arange(300) + np.random.default_rng(seed).normal(0, 0.2, 300)) * 0.2  # a row in a
+        check_rate(gauss, 0.2, "log")  # hundred on its neighbour's tick (9 such logs of 40 had been refused)
+    k = np.arange(300)
+    check_rate(k[k % 7 != 6] * 0.2 + 1.7e9, 0.2, "log")  # every 7th row missing: 6 rows in 7 ticks, not 4.29 Hz
+
+
+@pytest.mark.parametrize("rows_after", [1, 4])
+def test_a_pause_at_the_end_of_a_block_is_rephased_on_the_rows_of_the_next(heading, rows_after):
+    """A 10 s pause, the clock back half a tick off, +-0.4 tick of jitter, and a block that ends
+    ``rows_after`` rows after the pause: the phase was fitted to those rows alone, and hundreds of
+    gyro readings after it shared a tick (same_tick).  The rows of the next block count too, in
+    both passes: the estimates are those of one block."""
+    log, _ = heading_log(3, 37, n=6000, jitter=0.0)
+    log["time"] += np.random.default_rng(2).uniform(-0.4, 0.4, 6000) * 0.01
+    log = log.drop(index=range(3000, 4000))
+    log.loc[log.index >= 4000, "time"] += 0.005
+    whole = run_log(heading, log, reference="truth")
+    blocks = run_log(heading, log, reference="truth", block_rows=3000 + rows_after)
+    assert whole.unused == blocks.unused == {}, blocks.unused
+    assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
+
+
+def test_rows_after_a_pause_at_the_end_of_a_block_move_onto_the_reading_of_the_next(heading):
+    """After a pause the heading starts again from the first direct reading, and the rows from the
+    pause's end to it move with it; with that reading in the next block (a block ending 4 rows
+    after the pause, the odometry on its last row, whose tick waits for the next block) the 3 rows
+    before it were written where the held gyro had taken them: 0.69 rad off, 8 times the RMS."""
+    log, _ = heading_log(3, 37, n=6000, jitter=0.0)
+    log = log.drop(index=range(3000, 4000))
+    whole = run_log(heading, log, reference="truth")
+    blocks = run_log(heading, log, reference="truth", block_rows=3004)
+    assert np.allclose(blocks.estimates["heading"], whole.estimates["heading"], rtol=0, atol=1e-12)
+    assert blocks.rms["heading"] == pytest.approx(whole.rms["heading"], rel=1e-9)
 
 
 def test_a_log_whose_first_block_has_no_input_row_is_placed_as_in_one_block(heading):
