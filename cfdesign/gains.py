@@ -217,9 +217,15 @@ def _check_schedule(t, source):
 
 def _check_output(t, source):
     _require_output(t.output, source)
-    if t.output == "posterior" and (t.domain == "s" or any(linear.gain_pair(t.F, K, t.gain_form)[1] is None
-                                                           for K in t.K)):
+    if t.output == "posterior" and not _has_posterior(t):
         raise GainTableError(f"{source}: a posterior output needs a discrete table with an invertible F")
+
+
+def _has_posterior(t) -> bool:
+    """Every phase's gain has an update gain (:func:`cfdesign.linear.gain_pair`).  Whether it
+    does depends on ``F``, the gain form and the gains' shape, which all phases share, not on
+    the gains' values: asked once, not once per phase (an SVD of ``F`` each)."""
+    return t.domain == "z" and linear.gain_pair(t.F, t.K[0], t.gain_form)[1] is not None
 
 
 def _shape_of(M, shape, what):
@@ -610,9 +616,7 @@ class GainTable:
         object.__setattr__(self, "sensors", ports)
         _check_table(self, self.name)
         if not self.output:  # tables written before the output was declared: the posterior where it exists
-            posterior = self.domain == "z" and all(linear.gain_pair(self.F, K, self.gain_form)[1] is not None
-                                                   for K in self.K)
-            object.__setattr__(self, "output", "posterior" if posterior else "prior")
+            object.__setattr__(self, "output", "posterior" if _has_posterior(self) else "prior")
         _check_output(self, self.name)
         n = len(self.F)
         if not self.states:
