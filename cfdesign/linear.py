@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -273,7 +274,18 @@ def has_posterior(F, form: str) -> bool:
     _check_form(form)
     if form != "predictor":
         return form == "filter"
-    return bool(np.linalg.cond(np.asarray(F, dtype=float)) <= 1e12)
+    F = np.ascontiguousarray(F, dtype=float)
+    return _well_conditioned(F.shape, F.tobytes())
+
+
+@lru_cache(maxsize=64)
+def _well_conditioned(shape, data: bytes) -> bool:
+    """``cond(F) <= 1e12`` for the matrix of ``shape`` whose doubles are ``data``.
+
+    Memoised on the bytes: every phase of a multirate table asks it of the same ``F`` (through
+    :func:`gain_pair`), and the SVD behind it cost more than the rest of a phase's work.
+    """
+    return bool(np.linalg.cond(np.frombuffer(data, dtype=float).reshape(shape)) <= 1e12)
 
 
 def gain_in_form(F, Kp, form: str) -> np.ndarray:
@@ -809,15 +821,25 @@ def band_polynomials(real: Realisation, ports, relations: dict, row: int = 0):
     tuple
         ``({name: (num, den)}, den_closed_loop)``.
     """
-    den = characteristic_polynomial(real.A)
+    den = characteristic_polynomial(real.A)  # monic: nothing to trim
     W = output_adjugate(real.A, real.C[row], den)
+    rel = {order: (_trimmed(relations[order][0]), _trimmed(relations[order][1])) for order in {s.order for s in ports}}
     out = {}
     for j, s in enumerate(ports):
         d = real.D[row, j]
         num = np.concatenate([[d], W @ real.G[:, j] + d * den[1:]])
-        rel_num, rel_den = relations[s.order]
-        out[s.name] = (np.polymul(num, rel_num), np.polymul(den, rel_den))
+        rel_num, rel_den = rel[s.order]
+        out[s.name] = (np.convolve(_trimmed(num), rel_num), np.convolve(den, rel_den))
     return out, den
+
+
+def _trimmed(p) -> np.ndarray:
+    """Coefficients without leading zeros (``[0.]`` for the zero polynomial), as ``np.polymul``
+    takes its factors: multiplying trimmed factors by ``np.convolve`` gives its product without
+    the two ``poly1d`` objects it builds, which cost most of a phase's band polynomials."""
+    p = np.atleast_1d(np.asarray(p, dtype=float))
+    nz = np.flatnonzero(p)
+    return p[nz[0]:] if nz.size else np.zeros(1)
 
 
 def response(num, den, omega, dt: float | None = None) -> np.ndarray:

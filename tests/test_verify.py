@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import pathlib
 import subprocess
 
 import numpy as np
@@ -190,3 +191,55 @@ def test_identity_is_checked_once_per_distinct_gain(tables, monkeypatch):
     F[0, 1] *= 1.5  # another model: the bands no longer sum to one at any phase
     checks = verify._complementarity(dataclasses.replace(t, F=F, K=K))
     assert not checks[0].ok and "worst at phase" in checks[0].detail
+
+
+PERIOD_100 = json.loads((pathlib.Path(__file__).parent / "fixtures" / "period100_tables.json").read_text())
+
+
+@pytest.mark.parametrize("name", sorted(PERIOD_100["cases"]))
+def test_period_100_tables_are_as_before(name, tmp_path):
+    """A 3 Hz sensor beside a 100 Hz one (period 100; a chain in predictor form with its posterior
+    through F^-1, the position filter in filter form): the gains, covariances, recorded checks and
+    every line of verify are those the designer gave before phases shared their work (fixture
+    written by that version), and a save/load round trip keeps them."""
+    case = PERIOD_100["cases"][name]
+    path = tmp_path / "spec.toml"
+    path.write_text(case["spec"])
+    spec = cfdesign.load_spec(path)
+    table = cfdesign.design(spec)
+    for key in ("K", "P", "P_filtered"):
+        assert [M.tolist() for M in getattr(table, key)] == case[key], key
+    assert table.checks == case["checks"]
+    assert [c.line() for c in verify_table(table, spec)] == case["verify"]
+    loaded = load_gains(table.save(tmp_path / "gains.json"))
+    assert [c.line() for c in verify_table(loaded, spec)] == case["verify"]
+
+
+def test_posterior_is_checked_once_per_table(tables, monkeypatch):
+    """Whether a table has a posterior depends on F, the gain form and the gains' shape, not on
+    the gains' values: building a table asks gain_pair once, not once per phase (period 10000:
+    three SVDs of F per phase)."""
+    import cfdesign.gains as gains
+
+    t = tables["position"]
+    calls = []
+    real = gains.linear.gain_pair
+    monkeypatch.setattr(gains.linear, "gain_pair", lambda *a: calls.append(1) or real(*a))
+    dataclasses.replace(t, output="")
+    assert len(calls) == 2  # the default output, then its check
+    F = np.zeros_like(t.F)  # no update gain of a predictor table: still refused
+    K = [np.zeros_like(k) for k in t.K]
+    with pytest.raises(GainTableError, match="posterior output needs"):
+        dataclasses.replace(t, gain_form="predictor", F=F, K=K, output="posterior")
+
+
+def test_schema_names_a_bad_phase_of_a_long_table(tables):
+    """The schema walks one phase of K, P, P_filtered and measured when all phases have the
+    item type; a phase of another type is still found and named."""
+    d = json.loads(tables["position"].to_json())
+    for key, bad in (("K", [["x"]]), ("P", [[True]]), ("P_filtered", 1.0), ("measured", [1])):
+        broken = json.loads(json.dumps(d))
+        broken[key][37] = bad
+        with pytest.raises(GainTableError, match=f"schema violation at {key}/37"):
+            validate(broken)
+    assert validate(d).K[37].tolist() == tables["position"].K[37].tolist()
