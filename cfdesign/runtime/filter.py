@@ -38,6 +38,9 @@ __all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256",
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
+#: samples per piece of the batch paths, each run relative to its own reference (the
+#: rounding of the IIR path's direct form scales with the estimate's excursion over a piece)
+_PIECE = 1 << 12
 #: states up to this size run the IIR and long-block batch paths; larger ones step block by block
 _SMALL = 12
 #: "every reading present" for the IIR path's innovation check
@@ -580,7 +583,7 @@ class Runtime:
         # the blocked form piece by piece, each relative to the state it starts from
         # (_run_vectorised) and its angles unwrapped from there; a piece where an angle turns
         # more than pi between readings runs step by step
-        M = self._block_length() * max(1, linear.CHUNK // self._block_length())
+        M = self._block_length() * max(1, (16 * _PIECE) // self._block_length())
         pieces = []
         for start in range(0, len(u), M):
             at = slice(start, start + M)
@@ -745,6 +748,21 @@ class Runtime:
         return y
 
 
+def _offset_dominates(rt, cols) -> bool:
+    """Whether the IIR path should run relative to references (:meth:`_LtiBands._filtered`):
+    the readings of the quantity (its first order-0 column, sampled every :data:`_PIECE`
+    samples) lie farther from zero than 16 times the most they move from one sampled value to
+    the next.  Then the rounding of the direct form, which scales with the values it runs on, is
+    cut by at least 16 by references re-taken every piece; otherwise (a heading swinging
+    through +-pi, a position near the origin) the references could not reduce it and the
+    single recursion runs, without their cost."""
+    if rt._shift is None:
+        return False
+    col = cols[int(np.flatnonzero(rt._shift[1])[0])]
+    sample = np.append(col[::_PIECE], col[-1])
+    return bool(np.abs(sample).max() > 16 * np.abs(np.diff(sample)).max())
+
+
 def _offset_direction(F, B, H, table):
     """How a constant offset of the common quantity moves the filter: ``(v, s)``, or None.
 
@@ -894,10 +912,12 @@ class _LtiBands:
         zi = T @ (x - r * shift[0]) if shift is not None else T @ x
         tail = np.cumsum(self.den[::-1])[::-1][1:] * (shift[2] if shift is not None else 0.0)
         total = np.empty(N)
-        v = np.empty(min(N, linear.CHUNK))
-        rel = np.empty(min(N, linear.CHUNK) + n)
-        for start in range(0, N, linear.CHUNK):  # piece by piece: the convolutions stay in cache
-            piece = v[: min(linear.CHUNK, N - start)]
+        size = _PIECE if shift is not None else linear.CHUNK
+        # without references the numerators' sum is formed piece by piece and one recursion runs
+        v = np.empty(min(N, size)) if shift is not None else total
+        rel = np.empty(min(N, size) + n)
+        for start in range(0, N, size):  # piece by piece: the convolutions stay in cache
+            piece = v[: min(size, N - start)] if shift is not None else v[start:start + size]
             if start and shift is not None:  # a new reference: the last output
                 zi += (total[start - 1] - r) * tail
                 r = float(total[start - 1])
@@ -914,8 +934,11 @@ class _LtiBands:
                     piece += part
                 else:
                     piece[:] = part
-            out, zi = lfilter([1.0], self.den, piece, zi=zi)
-            np.add(out, r, out=total[start:start + len(piece)])
+            if shift is not None:
+                out, zi = lfilter([1.0], self.den, piece, zi=zi)
+                np.add(out, r, out=total[start:start + len(piece)])
+        if shift is None:
+            total, zi = lfilter([1.0], self.den, total, zi=zi)
         zf = zi
         last = np.zeros(n)  # the last n readings, newest first
         for num, col, f in zip(nums, cols, flags, strict=True):
@@ -929,9 +952,9 @@ class _LtiBands:
     def run(self, rt, cols, read=None):
         """The estimates, the runtime advanced; None (the runtime unchanged) when, with ``read``
         (where the angle readings are), an angle innovation is not within pi."""
-        shift = self._shift(rt, rt._phases[0].C[0], rt._phases[0].D[0])
+        shift = self._shift(rt, rt._phases[0].C[0], rt._phases[0].D[0]) if _offset_dominates(rt, cols) else None
         est, zf, r = self._filtered(self.nums, self.T, rt.x, cols, shift)
-        if read is not None and not self._within_pi(rt, est, cols, read):
+        if read is not None and not self._within_pi(rt, est, cols, read, shift is not None):
             return None
         rt.x = self.Tinv @ zf + (r * shift[0] if shift is not None else 0.0)
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
@@ -952,14 +975,17 @@ class _LtiBands:
         g = float(c @ v + (0.0 if d is None else d @ s))
         return (v, s, g) if g else None
 
-    def _within_pi(self, rt, est, cols, read) -> bool:
+    def _within_pi(self, rt, est, cols, read, relative=False) -> bool:
         """Whether every angle innovation (an angle reading less the prior of its row) is within
         pi wherever ``read`` has a reading (``_ALL``: everywhere).  Piece by piece: the prior
         formed from the estimate (``from_post``) and the differences stay in cache."""
         p, N = len(rt.inputs), len(est)
         ys = cols[p:]
-        groups = [(rows, None if self.from_post is not None else
-                   est if Tc is None else self._filtered(nums, Tc, rt.x, cols, self._shift(rt, rt.H[rows[0]]))[0])
+        def prior(rows, Tc, nums):  # the prior of these rows (relative, as the estimate was)
+            shift = self._shift(rt, rt.H[rows[0]]) if relative else None
+            return self._filtered(nums, Tc, rt.x, cols, shift)[0]
+
+        groups = [(rows, None if self.from_post is not None else est if Tc is None else prior(rows, Tc, nums))
                   for rows, Tc, nums in self.priors]
         work = np.empty((2, min(N, linear.CHUNK)))
         for start in range(0, N, linear.CHUNK):
