@@ -284,7 +284,7 @@ class Runtime:
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
         self._sha256 = filter_sha256(table)
-        #: the batch path's reference shift: ``(v, s)``, or None (see :func:`_offset_direction`)
+        #: the batch path's reference shift: ``(v, s)``, or None (see ``_offset_direction``)
         self._shift = _offset_direction(self.F, self.B, self.H, table)
         try:
             self._x0 = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n)
@@ -673,7 +673,7 @@ class Runtime:
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
         once, vectorised over the blocks (``L`` a multiple of the period).  The readings of the
         quantity and the state run relative to the state's quantity at the start (the offset
-        direction of :func:`_offset_direction`), so the rounding scales with their spread over
+        direction of ``_offset_direction``), so the rounding scales with their spread over
         the stretch, not with their size.
 
         ``read`` (angle tables): where the angle readings are; returns None, the runtime
@@ -749,8 +749,8 @@ class Runtime:
 
 
 def _offset_dominates(rt, cols) -> bool:
-    """Whether the IIR path should run relative to references (:meth:`_LtiBands._filtered`):
-    the readings of the quantity (its first order-0 column, sampled every :data:`_PIECE`
+    """Whether the IIR path should run relative to references (``_LtiBands._filtered``):
+    the readings of the quantity (its first order-0 column, sampled every ``_PIECE``
     samples) lie farther from zero than 16 times the most they move from one sampled value to
     the next.  Then the rounding of the direct form, which scales with the values it runs on, is
     cut by at least 16 by references re-taken every piece; otherwise (a heading swinging
@@ -897,8 +897,8 @@ class _LtiBands:
 
         ``shift`` ``(v, s, g)`` (:func:`_offset_direction`; ``g`` the output's move per unit
         offset): the recursion runs on values relative to a reference ``r``, the columns ``s``
-        less ``r`` and the state less ``r v``, re-taken at every piece of
-        :data:`cfdesign.linear.CHUNK` samples from the last output (the recursion's state moves
+        less ``r`` and the state less ``r v``, re-taken at every piece of ``_PIECE`` samples
+        from the last output (the recursion's state moves
         by ``(r' - r) g`` times the tail sums of ``den``: its steady state for a constant
         output), so that its rounding scales with the values' spread within a piece, not with
         their size.  Returns the outputs (absolute), the final state relative to ``r`` and ``r``.
@@ -978,7 +978,8 @@ class _LtiBands:
     def _within_pi(self, rt, est, cols, read, relative=False) -> bool:
         """Whether every angle innovation (an angle reading less the prior of its row) is within
         pi wherever ``read`` has a reading (``_ALL``: everywhere).  Piece by piece: the prior
-        formed from the estimate (``from_post``) and the differences stay in cache."""
+        formed from the estimate (``from_post``) and the differences stay in cache.  ``relative``:
+        the priors' filters run relative to references, as the estimate's did."""
         p, N = len(rt.inputs), len(est)
         ys = cols[p:]
         def prior(rows, Tc, nums):  # the prior of these rows (relative, as the estimate was)
