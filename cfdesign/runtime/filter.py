@@ -776,7 +776,7 @@ def _offset_direction(F, B, H, table):
     when no such ``v`` solves the equations to rounding (then the batch runs on the absolute
     values, as before).
     """
-    s = np.array([float(p.order == 0) for p in (*table.inputs, *table.measurements)])
+    s = np.array([float(port.order == 0) for port in (*table.inputs, *table.measurements)])
     p = B.shape[1]
     n = F.shape[0]
     if not s[p:].any():
