@@ -38,6 +38,9 @@ __all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256",
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
+#: samples per piece of the batch paths, each run relative to its own reference (the
+#: rounding of the IIR path's direct form scales with the estimate's excursion over a piece)
+_PIECE = 1 << 12
 #: states up to this size run the IIR and long-block batch paths; larger ones step block by block
 _SMALL = 12
 #: "every reading present" for the IIR path's innovation check
@@ -281,6 +284,8 @@ class Runtime:
         self._wrap_rows = np.array([bool(table.wrap_angle) and s.order == 0 for s in table.measurements],
                                    dtype=bool)
         self._sha256 = filter_sha256(table)
+        #: the batch path's reference shift: ``(v, s)``, or None (see ``_offset_direction``)
+        self._shift = _offset_direction(self.F, self.B, self.H, table)
         try:
             self._x0 = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n)
         except CfdesignError as exc:
@@ -570,13 +575,31 @@ class Runtime:
         turns more than pi between two readings of a slow sensor, or before its first one) the
         stretch runs step by step instead."""
         read = ~np.isnan(y) if self._wrap_rows.any() else None
-        unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
         lti = _LtiBands.of(self) if self.period == 1 and not states and self.n <= _SMALL else None
         if lti is not None:
+            unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
             out = lti.run(self, [*u.T, *unwrapped.T], read)
-        else:
-            out = self._run_vectorised(u, unwrapped, states, read)
-        return self._run_loop(u, y, states) if out is None else out
+            return self._run_loop(u, y, states) if out is None else out
+        # the blocked form piece by piece, each relative to the state it starts from
+        # (_run_vectorised) and its angles unwrapped from there; a piece where an angle turns
+        # more than pi between readings runs step by step
+        M = self._block_length() * max(1, (16 * _PIECE) // self._block_length())
+        pieces = []
+        for start in range(0, len(u), M):
+            at = slice(start, start + M)
+            out = self._run_vectorised(u[at], np.nan_to_num(self._unwrapped(y[at]), nan=0.0), states,
+                                       None if read is None else read[at])
+            pieces.append(self._run_loop(u[at], y[at], states) if out is None else out)
+        if len(pieces) == 1:
+            return pieces[0]
+        if states:
+            return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+        return np.concatenate(pieces)
+
+    def _block_length(self) -> int:
+        """Samples per block of :meth:`_run_vectorised`: whole periods; long blocks pay off for
+        small states only (the lifting costs that many products of n x n matrices)."""
+        return self.period * (max(1, _BLOCK // self.period) if self.n <= _SMALL else 1)
 
     def _held_inputs(self, u):
         """Inputs with NaN or inf replaced by the last good value (``u_last`` before the first)."""
@@ -648,21 +671,28 @@ class Runtime:
     def _run_vectorised(self, u, y, states, read=None):
         """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
         system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
-        once, vectorised over the blocks (``L`` a multiple of the period).
+        once, vectorised over the blocks (``L`` a multiple of the period).  The readings of the
+        quantity and the state run relative to the state's quantity at the start (the offset
+        direction of ``_offset_direction``), so the rounding scales with their spread over
+        the stretch, not with their size.
 
         ``read`` (angle tables): where the angle readings are; returns None, the runtime
         unchanged, when an angle innovation is not within pi there (:meth:`_run_regular`)."""
         N = len(u)
-        # blocks of whole periods; long blocks pay off for small states only (the lifting
-        # costs L products of n x n matrices)
-        L = self.period * (max(1, _BLOCK // self.period) if self.n <= _SMALL else 1)
+        L = self._block_length()
         P = -(-N // L)
         pad = P * L - N
         phases = [self._phases[(self.phase + j) % self.period] for j in range(L)]
         W = np.concatenate([np.hstack([u, y]), np.zeros((pad, u.shape[1] + y.shape[1]))])
+        x0 = self.x
+        if self._shift is not None:  # relative to the state's quantity: rounding of the spread, not the size
+            r = float(x0[0])
+            v, s = self._shift
+            W -= r * s
+            x0 -= r * v
         W = W.reshape(P, L, -1)
         Phi, C = self._lift([ph.A for ph in phases], [ph.G for ph in phases], W)
-        X = _boundary_states(Phi, C, self.x)  # (P, n): x at the start of every block
+        X = _boundary_states(Phi, C, x0)  # (P, n): x at the start of every block
         xs, last = np.empty((P, L, self.n)), None
         angle_rows = np.flatnonzero(self._wrap_rows) if read is not None else ()
         if len(angle_rows):
@@ -678,6 +708,9 @@ class Runtime:
             xs[:, j] = X @ ph.C.T + W[:, j] @ ph.D.T if self.posterior else X
             X = X @ ph.A.T + W[:, j] @ ph.G.T
         xs = xs.reshape(-1, self.n)[:N]
+        if self._shift is not None:
+            xs += r * v
+            last += r * v
         est = xs[:, 0].copy()
         self._finish(last, u[-1], y[-1], N)
         if self.table.wrap_angle:
@@ -713,6 +746,49 @@ class Runtime:
             if seen.size:
                 y[seen, i] = _unwrap(y[seen, i], float(self.H[i] @ self.x))
         return y
+
+
+def _offset_dominates(rt, cols) -> bool:
+    """Whether the IIR path should run relative to references (``_LtiBands._filtered``):
+    the readings of the quantity (its first order-0 column, sampled every ``_PIECE``
+    samples) lie farther from zero than 16 times the most they move from one sampled value to
+    the next.  Then the rounding of the direct form, which scales with the values it runs on, is
+    cut by at least 16 by references re-taken every piece; otherwise (a heading swinging
+    through +-pi, a position near the origin) the references could not reduce it and the
+    single recursion runs, without their cost."""
+    if rt._shift is None:
+        return False
+    col = cols[int(np.flatnonzero(rt._shift[1])[0])]
+    sample = np.append(col[::_PIECE], col[-1])
+    return bool(np.abs(sample).max() > 16 * np.abs(np.diff(sample)).max())
+
+
+def _offset_direction(F, B, H, table):
+    """How a constant offset of the common quantity moves the filter: ``(v, s)``, or None.
+
+    ``s`` marks the columns (inputs by column of ``B``, then measurements by row of ``H``) of
+    the sensors that read the quantity itself (derivative order 0, from the table's typed ports);
+    ``v`` is the state that the offset moves, ``F v + B s_u = v`` and ``H v = s_y`` with
+    ``v[0] = 1``: the position but not the velocity or a bias.  Then adding ``c`` to every such
+    reading and ``c v`` to the state adds ``c v`` to every later state, whatever the gains (the
+    bands sum to one), and the batch paths run on readings and states relative to a reference
+    so that their rounding scales with the spread of the values, not with their size.  None
+    when no such ``v`` solves the equations to rounding (then the batch runs on the absolute
+    values, as before).
+    """
+    s = np.array([float(port.order == 0) for port in (*table.inputs, *table.measurements)])
+    p = B.shape[1]
+    n = F.shape[0]
+    if not s[p:].any():
+        return None
+    M = np.vstack([F - np.eye(n), H, np.eye(n)[:1]])
+    rhs = np.concatenate([-B @ s[:p], s[p:], [1.0]])
+    v = np.linalg.lstsq(M, rhs, rcond=None)[0]
+    snapped = np.round(v)
+    for cand in (snapped, v):  # the exact 0/1 state of a kinematic chain when it solves
+        if np.max(np.abs(M @ cand - rhs)) <= 8 * np.finfo(float).eps * (1.0 + np.abs(M).max() * np.abs(cand).max()):
+            return cand, s
+    return None
 
 
 def _snapshot(state, n, period, p, name, sha256):
@@ -809,7 +885,7 @@ class _LtiBands:
             lti = cls(den, nums, T, np.linalg.inv(T), checks, from_post)
         return lti
 
-    def _filtered(self, nums, T, x, cols):
+    def _filtered(self, nums, T, x, cols, shift=None):
         """``sum_j lfilter(nums[j], den, cols[j])`` started from the state ``x`` (through ``T``),
         and the final filter state (the sum of the filters' states), by one recursion.
 
@@ -817,35 +893,70 @@ class _LtiBands:
         ``v = sum_j nums[j] * cols[j]`` (short convolutions), started from the same state.  The
         sum of their direct-form-II-transposed states is that recursion's state plus the part of
         the numerators still to come, ``sum_j sum_(m > i) nums[j][m] cols[j][N + i - m]`` in row
-        ``i`` (readings before the first count as zero)."""
+        ``i`` (readings before the first count as zero).
+
+        ``shift`` ``(v, s, g)`` (:func:`_offset_direction`; ``g`` the output's move per unit
+        offset): the recursion runs on values relative to a reference ``r``, the columns ``s``
+        less ``r`` and the state less ``r v``, re-taken at every piece of ``_PIECE`` samples
+        from the last output (the recursion's state moves
+        by ``(r' - r) g`` times the tail sums of ``den``: its steady state for a constant
+        output), so that its rounding scales with the values' spread within a piece, not with
+        their size.  Returns the outputs (absolute), the final state relative to ``r`` and ``r``.
+        """
         from scipy.signal import lfilter
 
         N, n = len(cols[0]), len(self.den) - 1
-        terms = [(num, col) for num, col in zip(nums, cols, strict=True) if num.any()]
-        v = np.zeros(N) if not terms else np.empty(N)
-        for start in range(0, N, linear.CHUNK):  # piece by piece: the convolutions stay in cache
-            piece = v[start:start + linear.CHUNK]
-            for j, (num, col) in enumerate(terms):
+        flags = shift[1] if shift is not None else np.zeros(len(cols))
+        terms = [(num, col, bool(f)) for num, col, f in zip(nums, cols, flags, strict=True) if num.any()]
+        r = float(x[0]) if shift is not None else 0.0
+        zi = T @ (x - r * shift[0]) if shift is not None else T @ x
+        tail = np.cumsum(self.den[::-1])[::-1][1:] * (shift[2] if shift is not None else 0.0)
+        total = np.empty(N)
+        size = _PIECE if shift is not None else linear.CHUNK
+        # without references the numerators' sum is formed piece by piece and one recursion runs
+        v = np.empty(min(N, size)) if shift is not None else total
+        rel = np.empty(min(N, size) + n)
+        for start in range(0, N, size):  # piece by piece: the convolutions stay in cache
+            piece = v[: min(size, N - start)] if shift is not None else v[start:start + size]
+            if start and shift is not None:  # a new reference: the last output
+                zi += (total[start - 1] - r) * tail
+                r = float(total[start - 1])
+            if not terms:
+                piece[:] = 0.0
+            for j, (num, col, moved) in enumerate(terms):
                 window = col[start - n:start + len(piece)] if start else np.concatenate([np.zeros(n), col[:len(piece)]])
+                if moved and r:
+                    window = np.subtract(window, r, out=rel[: len(window)])
+                    if not start:
+                        window[:n] = 0.0  # before the first reading: zero, relative to the reference
                 part = np.convolve(window, num, mode="valid")  # the piece's outputs of this numerator
                 if j:
                     piece += part
                 else:
                     piece[:] = part
-        total, zf = lfilter([1.0], self.den, v, zi=T @ x)
+            if shift is not None:
+                out, zi = lfilter([1.0], self.den, piece, zi=zi)
+                np.add(out, r, out=total[start:start + len(piece)])
+        if shift is None:
+            total, zi = lfilter([1.0], self.den, total, zi=zi)
+        zf = zi
         last = np.zeros(n)  # the last n readings, newest first
-        for num, col in zip(nums, cols, strict=True):
-            last[: min(n, N)] = col[: -n - 1: -1] if N > n else col[::-1]
+        for num, col, f in zip(nums, cols, flags, strict=True):
+            k = min(n, N)
+            last[:k] = col[: -n - 1: -1] if N > n else col[::-1]
+            if f:
+                last[:k] -= r
             zf += np.correlate(num[1:], last, "full")[n - 1:]  # row i: sum_k num[i + 1 + k] last[k]
-        return total, zf
+        return total, zf, r
 
     def run(self, rt, cols, read=None):
         """The estimates, the runtime advanced; None (the runtime unchanged) when, with ``read``
         (where the angle readings are), an angle innovation is not within pi."""
-        est, zf = self._filtered(self.nums, self.T, rt.x, cols)
-        if read is not None and not self._within_pi(rt, est, cols, read):
+        shift = self._shift(rt, rt._phases[0].C[0], rt._phases[0].D[0]) if _offset_dominates(rt, cols) else None
+        est, zf, r = self._filtered(self.nums, self.T, rt.x, cols, shift)
+        if read is not None and not self._within_pi(rt, est, cols, read, shift is not None):
             return None
-        rt.x = self.Tinv @ zf
+        rt.x = self.Tinv @ zf + (r * shift[0] if shift is not None else 0.0)
         rt.phase, rt.u_last = 0, np.array([c[-1] for c in cols[: len(rt.inputs)]])
         if rt.table.wrap_angle:
             x = rt.x
@@ -854,14 +965,29 @@ class _LtiBands:
             linear.wrap_inplace(est)
         return est
 
-    def _within_pi(self, rt, est, cols, read) -> bool:
+    @staticmethod
+    def _shift(rt, c, d=None):
+        """``(v, s, g)`` for :meth:`_filtered` of the output ``c x + d w``: ``g`` its move per unit
+        offset of the quantity; None where the table has no offset direction or ``g`` is 0."""
+        if rt._shift is None:
+            return None
+        v, s = rt._shift
+        g = float(c @ v + (0.0 if d is None else d @ s))
+        return (v, s, g) if g else None
+
+    def _within_pi(self, rt, est, cols, read, relative=False) -> bool:
         """Whether every angle innovation (an angle reading less the prior of its row) is within
         pi wherever ``read`` has a reading (``_ALL``: everywhere).  Piece by piece: the prior
-        formed from the estimate (``from_post``) and the differences stay in cache."""
+        formed from the estimate (``from_post``) and the differences stay in cache.  ``relative``:
+        the priors' filters run relative to references, as the estimate's did."""
         p, N = len(rt.inputs), len(est)
         ys = cols[p:]
-        groups = [(rows, None if self.from_post is not None else
-                   est if Tc is None else self._filtered(nums, Tc, rt.x, cols)[0]) for rows, Tc, nums in self.priors]
+        def prior(rows, Tc, nums):  # the prior of these rows (relative, as the estimate was)
+            shift = self._shift(rt, rt.H[rows[0]]) if relative else None
+            return self._filtered(nums, Tc, rt.x, cols, shift)[0]
+
+        groups = [(rows, None if self.from_post is not None else est if Tc is None else prior(rows, Tc, nums))
+                  for rows, Tc, nums in self.priors]
         work = np.empty((2, min(N, linear.CHUNK)))
         for start in range(0, N, linear.CHUNK):
             at = slice(start, start + linear.CHUNK)
