@@ -32,8 +32,29 @@ def _controller():
     return ThreadpoolController()
 
 
+class _OneThread:
+    """Set the given BLAS libraries to one thread on entry and back to their counts on exit."""
+
+    def __init__(self, busy):
+        self.busy = busy  # [(library controller, its thread count)]
+
+    def __enter__(self):
+        for lib, _ in self.busy:
+            lib.set_num_threads(1)
+        return self
+
+    def __exit__(self, *exc):
+        for lib, threads in self.busy:
+            lib.set_num_threads(threads)
+        return False
+
+
 def single_thread(n: int):
     """A context in which BLAS runs one thread when ``n <= SMALL`` (else nothing changes).
+
+    Only the BLAS libraries running more than one thread are touched, directly through their
+    controllers: threadpoolctl's ``limit`` re-reads every library's state on each call (24.5
+    against 9.6 us per entry and exit with two OpenBLAS pools of two threads).
 
     Parameters
     ----------
@@ -51,9 +72,12 @@ def single_thread(n: int):
     ...     pass
     """
     controller = _controller() if n <= SMALL else None
-    if controller is None or all(lib.num_threads <= 1 for lib in controller.lib_controllers):
-        return contextlib.nullcontext()  # nothing to limit (OPENBLAS_NUM_THREADS=1, one core)
-    return controller.limit(limits=1, user_api="blas")
+    if controller is None:
+        return contextlib.nullcontext()
+    busy = [(lib, threads) for lib in controller.lib_controllers
+            if lib.user_api == "blas" and (threads := lib.num_threads) > 1]
+    # nothing to limit (OPENBLAS_NUM_THREADS=1, one core): no context to enter
+    return _OneThread(busy) if busy else contextlib.nullcontext()
 
 
 def _states(A) -> int:

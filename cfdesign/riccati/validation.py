@@ -69,15 +69,16 @@ def matrix(name, value, shape=(None, None), *, hermitian=False):
     if (want_r is not None and rows != want_r) or (want_c is not None and cols != want_c):
         want = f"{want_r if want_r is not None else rows}x{want_c if want_c is not None else cols}"
         raise RiccatiError(f"{name} must be {want} (got {rows}x{cols})")
-    if not np.all(np.isfinite(M)):
+    big = np.abs(M).max() if M.size else 0.0  # NaN when an entry is NaN: one pass serves both checks
+    if not np.isfinite(big):
         raise RiccatiError(f"{name} contains NaN or Inf")
-    if M.size and np.abs(M).max() > MAX_ENTRY:  # products of two overflow: an SVD that did not converge
-        raise RiccatiError(f"{name} has an entry of magnitude {np.abs(M).max():.3g}, beyond {MAX_ENTRY:g}: the "
+    if big > MAX_ENTRY:  # products of two overflow: an SVD that did not converge
+        raise RiccatiError(f"{name} has an entry of magnitude {big:.3g}, beyond {MAX_ENTRY:g}: the "
                            "products the solver forms would overflow (rescale the problem)")
     if hermitian and M.size:
         Mh = M.conj().T if np.iscomplexobj(M) else M.T
         gap = np.abs(M - Mh).max()
-        if gap > 1e-10 * max(np.abs(M).max(), TINY):
+        if gap > 1e-10 * max(big, TINY):
             raise RiccatiError(f"{name} must be symmetric (Hermitian): max |{name} - {name}'| = {gap:.3g}")
         M = 0.5 * (M + Mh)
     return M
