@@ -1240,7 +1240,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types, (grid, rephased) = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, (grid, rephased, first) = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -1248,7 +1248,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
         _check_plot_target(plot)
     runner = _Runner(table, lock, "prior" if prediction else None, start == "reading",
-                     covariances=bool(std or cols.references))
+                     covariances=bool(std or cols.references), first_reading=first)
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
@@ -1409,7 +1409,7 @@ def _lock(table, blocks, cols, source, types=False):
     place = _Pass(table, cols, source, blocks=blocks)
     arrivals = {s.name: [] for s in table.measurements}
     inputs = {s.name: _Held() for s in table.inputs}  # the ticks without a reading of each input sensor
-    last = -1
+    last, first = -1, None  # the last tick; the first direct reading (_first_direct)
     schemas = []
     for block in blocks():
         if types:
@@ -1424,6 +1424,9 @@ def _lock(table, blocks, cols, source, types=False):
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         for name, held in inputs.items():
             held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_row)
+        here = _first_direct(table, ticks, {s.name: values[cols.sensors[s.name]] for s in table.measurements})
+        if here is not None and (first is None or here[:2] < first[:2]):
+            first = here
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -1437,7 +1440,7 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None, (place.grid, place.rephased)
+    return lock, place.rows, schemas or None, (place.grid, place.rephased, first)
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):
@@ -1449,6 +1452,27 @@ def _check_float32_time(t, name, dt, source, scale=1.0):
         if step > dt / 10:
             raise DataError(f"{source}: the time column {name!r} is float32, whose steps at {finite.max():.6g} s are "
                             f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
+
+
+def _first_direct(table, ticks, readings):
+    """``(tick, sensor, value)`` of the first usable reading (:func:`~cfdesign.runtime.filter.usable`;
+    the first of its tick, as ``_Runner._dense`` keeps it) of a sensor whose row of H picks the
+    quantity (state 0), the sensor first by name on a shared tick; None when there is none.
+    ``readings``: ``{sensor: values}`` of the rows at ``ticks`` (ascending; NaN where none)."""
+    from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
+
+    e0 = np.eye(table.F.shape[0])[0]
+    firsts = []
+    for s in table.measurements:
+        if not np.array_equal(table.H[s.index], e0):
+            continue
+        col = readings[s.name]
+        ok = np.flatnonzero(~np.isnan(col))
+        at, row = _unique(ticks[ok], return_index=True)
+        good = np.flatnonzero(usable(col[ok[row]]))
+        if good.size:
+            firsts.append((int(at[good[0]]), s.name, float(col[ok[row[good[0]]]])))
+    return min(firsts, key=lambda f: f[:2]) if firsts else None
 
 
 def _unique(a, return_index=False):
@@ -1506,10 +1530,13 @@ RESTART_GATE = 3.0
 class _Runner:
     """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
 
-    def __init__(self, table, lock, output, from_reading=True, covariances=False):
+    def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None):
         from .runtime import Runtime
 
         self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
+        # (tick, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
+        # when it lies in a later block than the first
+        self.first_reading = first_reading
         self.covariances = covariances  # standard deviations that follow missed readings
         self.P_missed = None
         from .designer import has_kalman_gains
@@ -1845,15 +1872,13 @@ class _Runner:
         return rt._log_std
 
     def _start(self, dense):
-        """The quantity from the first reading of a sensor whose row of H picks it (state 0)."""
+        """The quantity from the first reading of a sensor whose row of H picks it (state 0): the
+        log's (``first_reading``, found by the first pass over every block) or, without it, the
+        first in ``dense``."""
         x = np.zeros(self.table.F.shape[0])
-        direct = [s.name for s in self.table.measurements
-                  if np.array_equal(self.table.H[s.index], np.eye(len(x))[0])]
-        from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
-
-        firsts = [(int(np.flatnonzero(usable(dense[n]))[0]), n) for n in direct if np.any(usable(dense[n]))]
-        if firsts:
-            x[0] = dense[min(firsts)[1]][min(firsts)[0]]
+        first = self.first_reading or _first_direct(self.table, np.arange(len(next(iter(dense.values())))), dense)
+        if first is not None:
+            x[0] = first[2]
         return x
 
     def _dense(self, ticks, readings, first, last):

@@ -573,6 +573,28 @@ def test_blocks_equal_one_pass_also_across_a_tick_split_between_blocks(heading):
                        one["heading"].to_numpy()[event_log["gyro"].notna().to_numpy()], atol=1e-9)
 
 
+def test_the_state_starts_from_the_first_direct_reading_in_any_block(heading, gps3):
+    """start='reading' takes the quantity from the log's first direct reading even when that lies
+    beyond the first block of rows (a GPS without a fix for the first block, a compass started
+    late): the first block started from zero instead, so the estimates of a log depended on its
+    block size (a 3 Hz GPS table on a log whose first 5 fixes are missing was 1.4 m apart from row
+    0 to the end with blocks of 50 rows; the heading table here 1.97 rad apart, 0.097 rad at the end
+    with blocks of 200)."""
+    log, _ = heading_log(3, 37, n=3000, jitter=0.0)
+    log.loc[:1500, ["odometry", "compass"]] = np.nan  # no direct reading in the first blocks
+    one = run_log(heading, log).estimates["heading"].to_numpy()
+    for rows in (200, 777):
+        assert np.allclose(run_log(heading, log, block_rows=rows).estimates["heading"], one, atol=1e-12)
+    _, readings = model_log(gps3, 3000, seed=5)
+    gps = readings["gps"].copy()
+    gps[: np.flatnonzero(np.isfinite(gps))[5]] = np.nan
+    gps += 1000.0  # far from the zero a block without a fix started from
+    log = pd.DataFrame({"time": np.arange(3000) * 0.01, "accelerometer": readings["accelerometer"], "gps": gps})
+    one = run_log(gps3, log).estimates["position"].to_numpy()
+    assert abs(one[0] - gps[np.isfinite(gps)][0]) < 1e-9
+    assert np.allclose(run_log(gps3, log, block_rows=50).estimates["position"], one, atol=1e-9)
+
+
 def test_the_base_rate_is_measured_over_the_log_not_per_block(heading):
     """Jitter of 3 % of a tick moves single steps by up to 6 %: a last block of three rows, or a log
     of four, was refused for a rate 1.2 % off; a log 1.5 % off still is, whatever its blocks."""
