@@ -664,6 +664,8 @@ def _csv_format(path, kind="csv") -> dict:
         units = _units_row(rows, line, sep or ",")
         if units is not None:
             out["_units"] = units
+    if sep == WHITESPACE:
+        _short_rows(path, out, line, rows)
     return _wider_rows(path, out, line, rows, sep or ",")
 
 
@@ -694,6 +696,27 @@ def _cells(line, sep) -> list:
         return next(csv.reader([text], delimiter=sep), [])
     except csv.Error:
         return []
+
+
+def _short_rows(path, fmt, header, rows):
+    """A DataError naming the first row of the first 64 kB (``rows``, whole lines) of a log
+    separated by spaces that has fewer cells than its header: an empty cell of a column-aligned
+    table (a slow sensor between its readings) is no cell at all there, so pandas read the cells
+    after it into the columns before them and left the last column empty (the reference read as
+    the GPS, exit 0).  Blank lines, ``#`` lines and the row of units are not rows of cells."""
+    names = fmt.get("names") or _cells(header, WHITESPACE)
+    units = "_units" in fmt
+    for i, row in enumerate(rows.split(b"\n")[:-1]):
+        cells = _cells(row, WHITESPACE)
+        if not cells or cells[0].startswith("#"):
+            continue
+        if units:  # the first row of cells is the units row
+            units = False
+            continue
+        if len(cells) < len(names):
+            raise DataError(f"{path} line {2 + fmt.get('skiprows', 0) + i}: {len(cells)} cells under a header of "
+                            f"{len(names)} columns separated by spaces: an empty cell cannot be told from the "
+                            "spaces around it (write nan in it, or separate the cells by commas or tabs)")
 
 
 def _wider_rows(path, fmt, header, rows, sep) -> dict:

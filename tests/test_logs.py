@@ -430,6 +430,30 @@ def test_logs_separated_by_spaces_as_numpy_savetxt_writes_them(heading, tmp_path
             assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9), name
 
 
+def test_an_empty_cell_of_a_log_separated_by_spaces_is_refused_naming_its_line(heading, tmp_path, cli):
+    """A column-aligned table written with blanks where a slow sensor has no reading (na_rep=''):
+    at spaces the blank is no cell, so pandas read each later cell into the column before it
+    (the truth read as the compass, the lap as the truth) and ran with exit 0.  Refused, naming
+    the first such line (after comment lines and a row of units too); 'nan' in the cell still reads."""
+    log, _ = heading_log(0, 0, n=300)
+    text = log.to_string(index=False, na_rep="", float_format="{:.17g}".format)
+    (tmp_path / "blank.txt").write_text(text + "\n")
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "blank.txt", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "blank.txt line 3: 4 cells under a header of 6 columns separated by spaces" in err
+    assert not (tmp_path / "e.csv").exists()
+    lines = text.splitlines()
+    (tmp_path / "units.txt").write_text("\n".join(["# logged", lines[0], "s rad/s rad rad rad 1", *lines[1:]]) + "\n")
+    with pytest.raises(DataError, match=r"units.txt line 5: 4 cells"):
+        run_log(heading, tmp_path / "units.txt")
+    with pytest.raises(DataError, match=r"line 3: 4 cells"):
+        cfdesign.logs.read_columns(tmp_path / "blank.txt", ["gyro"])
+    filled = log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format)
+    (tmp_path / "filled.txt").write_text(filled + "\n")
+    assert np.allclose(run_log(heading, tmp_path / "filled.txt").estimates["heading"],
+                       run_log(heading, log).estimates["heading"], rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("sep", ["|", " "])
 def test_a_header_read_as_one_column_says_how_cells_are_separated(heading, tmp_path, cli, sep):
     """A log separated by '|', or by spaces under a header whose names hold spaces ('time [s]'),
