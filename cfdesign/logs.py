@@ -22,6 +22,7 @@ import io
 import itertools
 import logging
 import math
+import numbers
 import os
 import re
 from dataclasses import dataclass, field
@@ -1229,7 +1230,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
-        A continuous-time table (logs run discrete tables).
+        A continuous-time table (logs run discrete tables), or a ``block_rows`` that is not a
+        positive whole number.
     DataError
         A missing or non-numeric column (naming the line), bad times (naming the line), a base
         rate more than 1 % off the table's, an empty log.
@@ -1241,7 +1243,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         from .runtime.filter import DISCRETE_HINT
 
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables ({DISCRETE_HINT})")
-    block_rows = block_rows or BLOCK_ROWS
+    if block_rows is not None and (isinstance(block_rows, bool) or not isinstance(block_rows, numbers.Integral)
+                                   or block_rows < 1):  # -5 read no row ('a header but no rows'), True one a block
+        raise CfdesignError(f"block_rows must be a positive whole number of rows, got {block_rows!r}")
+    block_rows = int(block_rows or BLOCK_ROWS)
     frame, source = _source(data, source, time)
     if frame is None and not_a_device(data):  # /dev/zero: an endless line
         raise DataError(f"cannot read {source}: {not_a_device(data)}")

@@ -619,6 +619,17 @@ def test_the_state_starts_from_the_first_direct_reading_in_any_block(heading, gp
     assert np.allclose(run_log(gps3, log, block_rows=50).estimates["position"], one, atol=1e-9)
 
 
+@pytest.mark.parametrize("rows", [-5, 0.5, 1.5, True, "100", np.float64(10.0)])
+def test_block_rows_that_are_not_a_positive_whole_number_are_refused(heading, rows):
+    """block_rows=-5 read no row and said 'the log has a header but no rows', 1.5 raised a raw
+    TypeError, True ran one row a block; np.int64 is a number of rows."""
+    log, _ = heading_log(3, 37, n=300)
+    with pytest.raises(CfdesignError, match="block_rows must be a positive whole number of rows"):
+        run_log(heading, log, block_rows=rows)
+    assert np.array_equal(run_log(heading, log, block_rows=np.int64(100)).estimates["heading"],
+                          run_log(heading, log, block_rows=100).estimates["heading"])
+
+
 def test_the_base_rate_is_measured_over_the_log_not_per_block(heading):
     """Jitter of 3 % of a tick moves single steps by up to 6 %: a last block of three rows, or a log
     of four, was refused for a rate 1.2 % off; a log 1.5 % off still is, whatever its blocks."""
