@@ -225,6 +225,8 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise DataError(f"{source}: duplicate column(s) {', '.join(dup)}")
+    if mapping is not None and not isinstance(mapping, dict):  # a list of pairs gave dict()'s raw ValueError
+        raise CfdesignError(f"mapping must be a dict {{sensor: column}}, got {type(mapping).__name__} {mapping!r:.80}")
     mapping = dict(mapping or {})
     unknown = sorted(set(mapping) - set(table.sensor_names()))
     if unknown:
@@ -279,7 +281,11 @@ def _listed(header, limit=300) -> str:
 def _references(table, reference, header, source) -> dict:
     """``{state: column}`` from ``COLUMN`` (the first state) or ``STATE=COLUMN`` items."""
     out = {}
-    for item in ([reference] if isinstance(reference, str) else list(reference or [])):
+    items = [reference] if isinstance(reference, str) else reference or []
+    if not isinstance(items, (list, tuple)) or not all(isinstance(item, str) for item in items):
+        raise CfdesignError(f"reference must be a column name or a list of COLUMN / STATE=COLUMN texts, "
+                            f"got {reference!r:.80}")
+    for item in items:
         state, sep, col = item.partition("=")
         state, col = (state, col) if sep else (table.states[0], state)
         if state not in table.states:
@@ -1230,8 +1236,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
-        A continuous-time table (logs run discrete tables), or a ``block_rows`` that is not a
-        positive whole number.
+        A continuous-time table (logs run discrete tables), a ``block_rows`` that is not a
+        positive whole number, a ``mapping`` that is not a dict or a ``reference`` that is not
+        text or a list of it.
     DataError
         A missing or non-numeric column (naming the line), bad times (naming the line), a base
         rate more than 1 % off the table's, an empty log.

@@ -619,6 +619,17 @@ def test_the_state_starts_from_the_first_direct_reading_in_any_block(heading, gp
     assert np.allclose(run_log(gps3, log, block_rows=50).estimates["position"], one, atol=1e-9)
 
 
+@pytest.mark.parametrize("option", [{"mapping": [("gyro", "gyro")]}, {"mapping": "gyro=gyro"}, {"reference": 5},
+                                    {"reference": ["truth", None]}, {"reference": {"heading": "truth"}}])
+def test_column_options_of_another_type_are_named(heading, option):
+    """A mapping given as pairs raised dict()'s raw ValueError, a reference given as a number list()'s
+    raw TypeError and a None among references a raw AttributeError; a dict as references took its keys."""
+    log, _ = heading_log(3, 37, n=300)
+    with pytest.raises(CfdesignError, match=r"mapping must be a dict|reference must be a column name"):
+        run_log(heading, log, **option)
+    assert set(run_log(heading, log, reference=("heading=truth",), mapping={"gyro": "gyro"}).rms) == {"heading"}
+
+
 @pytest.mark.parametrize("rows", [-5, 0.5, 1.5, True, "100", np.float64(10.0)])
 def test_block_rows_that_are_not_a_positive_whole_number_are_refused(heading, rows):
     """block_rows=-5 read no row and said 'the log has a header but no rows', 1.5 raised a raw
