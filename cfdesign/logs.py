@@ -206,6 +206,20 @@ def _unit(name) -> tuple:
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
 
+def _time_with_unit(name):
+    """The time column name (one of :data:`TIME_COLUMNS`, in lower case) that ``name`` is with a unit
+    of time (``time [ms]``, ``t_us``), else None."""
+    base, unit = _unit(name)
+    return str(base).lower() if str(base).lower() in TIME_COLUMNS and unit in TIME_UNITS else None
+
+
+def _time_name(name) -> bool:
+    """Whether ``name`` is taken as the time when no time column is given: one of
+    :data:`TIME_COLUMNS` in any case, or with a unit of time (:func:`_time_with_unit`)."""
+    name = str(name).strip()
+    return name.lower() in TIME_COLUMNS or _time_with_unit(name) is not None
+
+
 def _time_unit(source, time, time_unit, units=None) -> str:
     """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
     (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
@@ -252,7 +266,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
     if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
-            (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
+            (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
     time_unit = _time_unit(source, time, time_unit, units)
@@ -1379,13 +1393,13 @@ def _check_plot_target(plot):
 
 def _source(data, source, time=None):
     """``(frame or None, name)``; a DataFrame whose time is its index (a DatetimeIndex, or an
-    index named ``time`` or ``t``) and not a column has it made its first column."""
+    index named as a time column is, :func:`_time_name`: ``time``, ``t``, ``timestamp``, ``time_ms``)
+    and not a column has it made its first column."""
     pd = _pandas()
     if isinstance(data, pd.DataFrame):
         index = data.index
-        named = str(index.name).lower() in TIME_COLUMNS if index.name is not None else False
-        columns = [str(c).strip().lower() for c in data.columns]
-        if time is None and not any(c in columns for c in TIME_COLUMNS) and (
+        named = index.name is not None and _time_name(index.name)
+        if time is None and not any(_time_name(c) for c in data.columns) and (
                 named or isinstance(index, pd.DatetimeIndex)):
             data = data.reset_index(names=str(index.name) if index.name is not None else "time")
         return data, source or "log"
