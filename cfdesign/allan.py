@@ -91,6 +91,7 @@ from __future__ import annotations
 import functools
 import math
 import numbers
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -1096,7 +1097,7 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     Raises
     ------
     InputError
-        A sequence of units whose length is not the number of fits.
+        A unit that is not text, or a sequence of units whose length is not the number of fits.
     """
     units = _units(unit, len(fits))
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
@@ -1131,7 +1132,9 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
 
 def _units(unit, count) -> list:
     """One unit per fit (``_comment``-safe) from one unit or a sequence of ``count``."""
-    units = [unit] * count if isinstance(unit, str) else list(unit)
+    units = [unit] * count if isinstance(unit, str) else list(unit) if isinstance(unit, Sequence) else None
+    if units is None or not all(isinstance(u, str) for u in units):
+        raise InputError(f"unit must be text (rad/s) or a sequence of it, one per fit; got {unit!r}")
     if len(units) != count:
         raise InputError(f"give one unit, or one per column ({count}), not {len(units)}: {', '.join(units)}")
     return [_comment(u) for u in units]
@@ -1164,7 +1167,7 @@ def adev_plot(fits, ax=None, unit: str = "u"):
     Raises
     ------
     InputError
-        A sequence of units whose length is not the number of fits.
+        A unit that is not text, or a sequence of units whose length is not the number of fits.
     """
     import matplotlib.pyplot as plt
 

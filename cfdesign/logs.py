@@ -22,6 +22,7 @@ import io
 import itertools
 import logging
 import math
+import numbers
 import os
 import re
 from dataclasses import dataclass, field
@@ -205,6 +206,20 @@ def _unit(name) -> tuple:
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
 
 
+def _time_with_unit(name):
+    """The time column name (one of :data:`TIME_COLUMNS`, in lower case) that ``name`` is with a unit
+    of time (``time [ms]``, ``t_us``), else None."""
+    base, unit = _unit(name)
+    return str(base).lower() if str(base).lower() in TIME_COLUMNS and unit in TIME_UNITS else None
+
+
+def _time_name(name) -> bool:
+    """Whether ``name`` is taken as the time when no time column is given: one of
+    :data:`TIME_COLUMNS` in any case, or with a unit of time (:func:`_time_with_unit`)."""
+    name = str(name).strip()
+    return name.lower() in TIME_COLUMNS or _time_with_unit(name) is not None
+
+
 def _time_unit(source, time, time_unit, units=None) -> str:
     """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
     (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
@@ -224,6 +239,8 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise DataError(f"{source}: duplicate column(s) {', '.join(dup)}")
+    if mapping is not None and not isinstance(mapping, dict):  # a list of pairs gave dict()'s raw ValueError
+        raise CfdesignError(f"mapping must be a dict {{sensor: column}}, got {type(mapping).__name__} {mapping!r:.80}")
     mapping = dict(mapping or {})
     unknown = sorted(set(mapping) - set(table.sensor_names()))
     if unknown:
@@ -249,7 +266,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
     if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
         time = next((c for c in TIME_COLUMNS if c in header), None) or next(
             (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
-            (h for c in TIME_COLUMNS for h in header if _unit(h)[0].lower() == c and _unit(h)[1] in TIME_UNITS), None)
+            (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
     time_unit = _time_unit(source, time, time_unit, units)
@@ -278,7 +295,11 @@ def _listed(header, limit=300) -> str:
 def _references(table, reference, header, source) -> dict:
     """``{state: column}`` from ``COLUMN`` (the first state) or ``STATE=COLUMN`` items."""
     out = {}
-    for item in ([reference] if isinstance(reference, str) else list(reference or [])):
+    items = [reference] if isinstance(reference, str) else reference or []
+    if not isinstance(items, (list, tuple)) or not all(isinstance(item, str) for item in items):
+        raise CfdesignError(f"reference must be a column name or a list of COLUMN / STATE=COLUMN texts, "
+                            f"got {reference!r:.80}")
+    for item in items:
         state, sep, col = item.partition("=")
         state, col = (state, col) if sep else (table.states[0], state)
         if state not in table.states:
@@ -664,6 +685,8 @@ def _csv_format(path, kind="csv") -> dict:
         units = _units_row(rows, line, sep or ",")
         if units is not None:
             out["_units"] = units
+    if sep == WHITESPACE:
+        _short_rows(path, out, line, rows)
     return _wider_rows(path, out, line, rows, sep or ",")
 
 
@@ -694,6 +717,27 @@ def _cells(line, sep) -> list:
         return next(csv.reader([text], delimiter=sep), [])
     except csv.Error:
         return []
+
+
+def _short_rows(path, fmt, header, rows):
+    """A DataError naming the first row of the first 64 kB (``rows``, whole lines) of a log
+    separated by spaces that has fewer cells than its header: an empty cell of a column-aligned
+    table (a slow sensor between its readings) is no cell at all there, so pandas read the cells
+    after it into the columns before them and left the last column empty (the reference read as
+    the GPS, exit 0).  Blank lines, ``#`` lines and the row of units are not rows of cells."""
+    names = fmt.get("names") or _cells(header, WHITESPACE)
+    units = "_units" in fmt
+    for i, row in enumerate(rows.split(b"\n")[:-1]):
+        cells = _cells(row, WHITESPACE)
+        if not cells or cells[0].startswith("#"):
+            continue
+        if units:  # the first row of cells is the units row
+            units = False
+            continue
+        if len(cells) < len(names):
+            raise DataError(f"{path} line {2 + fmt.get('skiprows', 0) + i}: {len(cells)} cells under a header of "
+                            f"{len(names)} columns separated by spaces: an empty cell cannot be told from the "
+                            "spaces around it (write nan in it, or separate the cells by commas or tabs)")
 
 
 def _wider_rows(path, fmt, header, rows, sep) -> dict:
@@ -1206,7 +1250,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
-        A continuous-time table (logs run discrete tables).
+        A continuous-time table (logs run discrete tables), a ``block_rows`` that is not a
+        positive whole number, a ``mapping`` that is not a dict or a ``reference`` that is not
+        text or a list of it.
     DataError
         A missing or non-numeric column (naming the line), bad times (naming the line), a base
         rate more than 1 % off the table's, an empty log.
@@ -1218,7 +1264,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         from .runtime.filter import DISCRETE_HINT
 
         raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables ({DISCRETE_HINT})")
-    block_rows = block_rows or BLOCK_ROWS
+    if block_rows is not None and (isinstance(block_rows, bool) or not isinstance(block_rows, numbers.Integral)
+                                   or block_rows < 1):  # -5 read no row ('a header but no rows'), True one a block
+        raise CfdesignError(f"block_rows must be a positive whole number of rows, got {block_rows!r}")
+    block_rows = int(block_rows or BLOCK_ROWS)
     frame, source = _source(data, source, time)
     if frame is None and not_a_device(data):  # /dev/zero: an endless line
         raise DataError(f"cannot read {source}: {not_a_device(data)}")
@@ -1240,7 +1289,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     _check_output_names(table, cols, std, source)
     blocks, whole = _blocks(data, frame, cols, block_rows)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
-    lock, n_rows, types, (grid, rephased) = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    lock, n_rows, types, (grid, rephased, first) = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
         raise DataError(f"{source}: the log has a header but no rows")
     if start not in ("reading", "zero"):
@@ -1248,7 +1297,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
         _check_plot_target(plot)
     runner = _Runner(table, lock, "prior" if prediction else None, start == "reading",
-                     covariances=bool(std or cols.references))
+                     covariances=bool(std or cols.references), first_reading=first)
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
@@ -1344,13 +1393,13 @@ def _check_plot_target(plot):
 
 def _source(data, source, time=None):
     """``(frame or None, name)``; a DataFrame whose time is its index (a DatetimeIndex, or an
-    index named ``time`` or ``t``) and not a column has it made its first column."""
+    index named as a time column is, :func:`_time_name`: ``time``, ``t``, ``timestamp``, ``time_ms``)
+    and not a column has it made its first column."""
     pd = _pandas()
     if isinstance(data, pd.DataFrame):
         index = data.index
-        named = str(index.name).lower() in TIME_COLUMNS if index.name is not None else False
-        columns = [str(c).strip().lower() for c in data.columns]
-        if time is None and not any(c in columns for c in TIME_COLUMNS) and (
+        named = index.name is not None and _time_name(index.name)
+        if time is None and not any(_time_name(c) for c in data.columns) and (
                 named or isinstance(index, pd.DatetimeIndex)):
             data = data.reset_index(names=str(index.name) if index.name is not None else "time")
         return data, source or "log"
@@ -1409,7 +1458,7 @@ def _lock(table, blocks, cols, source, types=False):
     place = _Pass(table, cols, source, blocks=blocks)
     arrivals = {s.name: [] for s in table.measurements}
     inputs = {s.name: _Held() for s in table.inputs}  # the ticks without a reading of each input sensor
-    last = -1
+    last, first = -1, None  # the last tick; the first direct reading (_first_direct)
     schemas = []
     for block in blocks():
         if types:
@@ -1424,6 +1473,9 @@ def _lock(table, blocks, cols, source, types=False):
             arrivals[s.name].append(ticks[np.isfinite(values[cols.sensors[s.name]])])
         for name, held in inputs.items():
             held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_row)
+        here = _first_direct(table, ticks, {s.name: values[cols.sensors[s.name]] for s in table.measurements})
+        if here is not None and (first is None or here[:2] < first[:2]):
+            first = here
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
     arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
@@ -1437,7 +1489,7 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
-    return lock, place.rows, schemas or None, (place.grid, place.rephased)
+    return lock, place.rows, schemas or None, (place.grid, place.rephased, first)
 
 
 def _check_float32_time(t, name, dt, source, scale=1.0):
@@ -1449,6 +1501,27 @@ def _check_float32_time(t, name, dt, source, scale=1.0):
         if step > dt / 10:
             raise DataError(f"{source}: the time column {name!r} is float32, whose steps at {finite.max():.6g} s are "
                             f"{step:.3g} s, too coarse for the table's {dt:.6g} s tick; write times as float64")
+
+
+def _first_direct(table, ticks, readings):
+    """``(tick, sensor, value)`` of the first usable reading (:func:`~cfdesign.runtime.filter.usable`;
+    the first of its tick, as ``_Runner._dense`` keeps it) of a sensor whose row of H picks the
+    quantity (state 0), the sensor first by name on a shared tick; None when there is none.
+    ``readings``: ``{sensor: values}`` of the rows at ``ticks`` (ascending; NaN where none)."""
+    from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
+
+    e0 = np.eye(table.F.shape[0])[0]
+    firsts = []
+    for s in table.measurements:
+        if not np.array_equal(table.H[s.index], e0):
+            continue
+        col = readings[s.name]
+        ok = np.flatnonzero(~np.isnan(col))
+        at, row = _unique(ticks[ok], return_index=True)
+        good = np.flatnonzero(usable(col[ok[row]]))
+        if good.size:
+            firsts.append((int(at[good[0]]), s.name, float(col[ok[row[good[0]]]])))
+    return min(firsts, key=lambda f: f[:2]) if firsts else None
 
 
 def _unique(a, return_index=False):
@@ -1506,10 +1579,13 @@ RESTART_GATE = 3.0
 class _Runner:
     """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
 
-    def __init__(self, table, lock, output, from_reading=True, covariances=False):
+    def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None):
         from .runtime import Runtime
 
         self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
+        # (tick, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
+        # when it lies in a later block than the first
+        self.first_reading = first_reading
         self.covariances = covariances  # standard deviations that follow missed readings
         self.P_missed = None
         from .designer import has_kalman_gains
@@ -1845,15 +1921,13 @@ class _Runner:
         return rt._log_std
 
     def _start(self, dense):
-        """The quantity from the first reading of a sensor whose row of H picks it (state 0)."""
+        """The quantity from the first reading of a sensor whose row of H picks it (state 0): the
+        log's (``first_reading``, found by the first pass over every block) or, without it, the
+        first in ``dense``."""
         x = np.zeros(self.table.F.shape[0])
-        direct = [s.name for s in self.table.measurements
-                  if np.array_equal(self.table.H[s.index], np.eye(len(x))[0])]
-        from .runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
-
-        firsts = [(int(np.flatnonzero(usable(dense[n]))[0]), n) for n in direct if np.any(usable(dense[n]))]
-        if firsts:
-            x[0] = dense[min(firsts)[1]][min(firsts)[0]]
+        first = self.first_reading or _first_direct(self.table, np.arange(len(next(iter(dense.values())))), dense)
+        if first is not None:
+            x[0] = first[2]
         return x
 
     def _dense(self, ticks, readings, first, last):

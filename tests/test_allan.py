@@ -612,6 +612,19 @@ def test_cli_a_unit_per_column(cli, tmp_path):
     assert code == 2 and "one per --column (2)" in err and err.count("\n") == 1
 
 
+@pytest.mark.parametrize("unit", [None, 5, ["rad/s", None], b"rad/s"])
+def test_a_unit_that_is_not_text_is_an_input_error(unit):
+    """noise_toml and adev_plot take a unit or a sequence of units: None, a number or a list holding
+    something else raised a raw TypeError ('NoneType' object is not iterable); bytes were units."""
+    from cfdesign.allan import adev_plot, noise_toml
+
+    fit = identify_noise(np.random.default_rng(2).standard_normal(2000), RATE, name="a")
+    for draw in (noise_toml, adev_plot):
+        with pytest.raises(InputError, match="unit must be text"):
+            draw([fit, fit] if isinstance(unit, list) else [fit], unit=unit)
+    assert "# rad/s/sqrt(Hz)" in noise_toml([fit], unit=("rad/s",))
+
+
 def test_octaves_standing_above_the_white_noise_line_are_not_a_band_limit(monkeypatch):
     """White noise with a 5 Hz vibration line: the octaves around 0.1 s stand above the white
     noise line, so the first ones lie below the model fitted without them - by a level deficit, not

@@ -1361,6 +1361,23 @@ def test_every_way_into_a_runtime_state_is_checked(position, where, value):
     assert np.all(np.isfinite(rt.x))
 
 
+@pytest.mark.parametrize("u, y", [(np.ones((3, 1)), np.ones((4, 1))), (np.ones((4, 1)), np.ones((3, 1))),
+                                  (np.ones(3), np.ones(3)), (np.ones((3, 2)), np.ones((3, 1))),
+                                  (np.ones((3, 1)), np.ones((3, 2))), ([["a"]], [[1.0]]), (None, [[1.0]])])
+def test_arrival_kalman_run_names_readings_of_another_shape(position, u, y):
+    """ArrivalKalman.run with y longer than u ran len(u) ticks and left the last readings unread in
+    silence; other shapes raised numpy's or zip's raw ValueError, text a raw one from float()."""
+    from cfdesign.runtime.arrivals import ArrivalKalman
+
+    kf = ArrivalKalman(position)
+    x, P = kf.x.copy(), kf.P.copy()
+    with pytest.raises(CfdesignError, match=r"must be \(N, 1\) and \(N, 1\) arrays|real numbers are needed"):
+        kf.run(u, y)
+    assert np.array_equal(kf.x, x) and np.array_equal(kf.P, P)
+    states, stds = kf.run(np.full((3, 1), 0.1), np.ones((3, 1)))
+    assert states.shape == stds.shape == (3, 3)
+
+
 @pytest.mark.parametrize("value", [np.array(["prior", "posterior"]), ["float"], np.array([1, 2]), {"a": 1}, 1])
 @pytest.mark.parametrize("option", ["Runtime output", "ArrivalKalman output", "render_c output", "render_c precision"])
 def test_a_choice_option_of_another_type_is_named(heading, option, value):

@@ -430,6 +430,30 @@ def test_logs_separated_by_spaces_as_numpy_savetxt_writes_them(heading, tmp_path
             assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9), name
 
 
+def test_an_empty_cell_of_a_log_separated_by_spaces_is_refused_naming_its_line(heading, tmp_path, cli):
+    """A column-aligned table written with blanks where a slow sensor has no reading (na_rep=''):
+    at spaces the blank is no cell, so pandas read each later cell into the column before it
+    (the truth read as the compass, the lap as the truth) and ran with exit 0.  Refused, naming
+    the first such line (after comment lines and a row of units too); 'nan' in the cell still reads."""
+    log, _ = heading_log(0, 0, n=300)
+    text = log.to_string(index=False, na_rep="", float_format="{:.17g}".format)
+    (tmp_path / "blank.txt").write_text(text + "\n")
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "blank.txt", "-o", tmp_path / "e.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "blank.txt line 3: 4 cells under a header of 6 columns separated by spaces" in err
+    assert not (tmp_path / "e.csv").exists()
+    lines = text.splitlines()
+    (tmp_path / "units.txt").write_text("\n".join(["# logged", lines[0], "s rad/s rad rad rad 1", *lines[1:]]) + "\n")
+    with pytest.raises(DataError, match=r"units.txt line 5: 4 cells"):
+        run_log(heading, tmp_path / "units.txt")
+    with pytest.raises(DataError, match=r"line 3: 4 cells"):
+        cfdesign.logs.read_columns(tmp_path / "blank.txt", ["gyro"])
+    filled = log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format)
+    (tmp_path / "filled.txt").write_text(filled + "\n")
+    assert np.allclose(run_log(heading, tmp_path / "filled.txt").estimates["heading"],
+                       run_log(heading, log).estimates["heading"], rtol=0, atol=1e-9)
+
+
 @pytest.mark.parametrize("sep", ["|", " "])
 def test_a_header_read_as_one_column_says_how_cells_are_separated(heading, tmp_path, cli, sep):
     """A log separated by '|', or by spaces under a header whose names hold spaces ('time [s]'),
@@ -571,6 +595,50 @@ def test_blocks_equal_one_pass_also_across_a_tick_split_between_blocks(heading):
     assert len(one) == len(event_log) and np.allclose(one["heading"], blocks["heading"], atol=1e-12)
     assert np.allclose(run_log(heading, log).estimates["heading"].to_numpy(),
                        one["heading"].to_numpy()[event_log["gyro"].notna().to_numpy()], atol=1e-9)
+
+
+def test_the_state_starts_from_the_first_direct_reading_in_any_block(heading, gps3):
+    """start='reading' takes the quantity from the log's first direct reading even when that lies
+    beyond the first block of rows (a GPS without a fix for the first block, a compass started
+    late): the first block started from zero instead, so the estimates of a log depended on its
+    block size (a 3 Hz GPS table on a log whose first 5 fixes are missing was 1.4 m apart from row
+    0 to the end with blocks of 50 rows; the heading table here 1.97 rad apart, 0.097 rad at the end
+    with blocks of 200)."""
+    log, _ = heading_log(3, 37, n=3000, jitter=0.0)
+    log.loc[:1500, ["odometry", "compass"]] = np.nan  # no direct reading in the first blocks
+    one = run_log(heading, log).estimates["heading"].to_numpy()
+    for rows in (200, 777):
+        assert np.allclose(run_log(heading, log, block_rows=rows).estimates["heading"], one, atol=1e-12)
+    _, readings = model_log(gps3, 3000, seed=5)
+    gps = readings["gps"].copy()
+    gps[: np.flatnonzero(np.isfinite(gps))[5]] = np.nan
+    gps += 1000.0  # far from the zero a block without a fix started from
+    log = pd.DataFrame({"time": np.arange(3000) * 0.01, "accelerometer": readings["accelerometer"], "gps": gps})
+    one = run_log(gps3, log).estimates["position"].to_numpy()
+    assert abs(one[0] - gps[np.isfinite(gps)][0]) < 1e-9
+    assert np.allclose(run_log(gps3, log, block_rows=50).estimates["position"], one, atol=1e-9)
+
+
+@pytest.mark.parametrize("option", [{"mapping": [("gyro", "gyro")]}, {"mapping": "gyro=gyro"}, {"reference": 5},
+                                    {"reference": ["truth", None]}, {"reference": {"heading": "truth"}}])
+def test_column_options_of_another_type_are_named(heading, option):
+    """A mapping given as pairs raised dict()'s raw ValueError, a reference given as a number list()'s
+    raw TypeError and a None among references a raw AttributeError; a dict as references took its keys."""
+    log, _ = heading_log(3, 37, n=300)
+    with pytest.raises(CfdesignError, match=r"mapping must be a dict|reference must be a column name"):
+        run_log(heading, log, **option)
+    assert set(run_log(heading, log, reference=("heading=truth",), mapping={"gyro": "gyro"}).rms) == {"heading"}
+
+
+@pytest.mark.parametrize("rows", [-5, 0.5, 1.5, True, "100", np.float64(10.0)])
+def test_block_rows_that_are_not_a_positive_whole_number_are_refused(heading, rows):
+    """block_rows=-5 read no row and said 'the log has a header but no rows', 1.5 raised a raw
+    TypeError, True ran one row a block; np.int64 is a number of rows."""
+    log, _ = heading_log(3, 37, n=300)
+    with pytest.raises(CfdesignError, match="block_rows must be a positive whole number of rows"):
+        run_log(heading, log, block_rows=rows)
+    assert np.array_equal(run_log(heading, log, block_rows=np.int64(100)).estimates["heading"],
+                          run_log(heading, log, block_rows=100).estimates["heading"])
 
 
 def test_the_base_rate_is_measured_over_the_log_not_per_block(heading):
@@ -1365,6 +1433,23 @@ def test_a_time_column_by_another_case_or_in_the_index_is_the_time(heading):
         assert result.estimates.columns[0] in ("Time", "time")
     result = run_log(heading, log.rename(columns={"time": "stamp_s"}))
     assert any("no time column" in n and "'stamp_s'" in n and "--time" in n for n in result.notes)
+
+
+def test_a_dataframe_index_named_with_a_unit_is_the_time(heading):
+    """A column 'time_ms', 't [us]' or 'timestamp' is the time; a DataFrame indexed by one ran one
+    row a tick (its note offered --time COLUMN, which cannot name an index): with a tenth of the
+    gyro rows missing, 0.011 rad off the timed run. Now the index is the time, in its unit."""
+    log, _ = heading_log(3, 37, n=3000)
+    keep = np.random.default_rng(2).random(3000) > 0.1
+    keep |= log["compass"].notna().to_numpy() | log["odometry"].notna().to_numpy()
+    log = log[keep].reset_index(drop=True)
+    timed = run_log(heading, log).estimates["heading"].to_numpy()
+    for name, scale in (("time_ms", 1e3), ("t [us]", 1e6), ("Timestamp", 1.0)):
+        frame = log.assign(time=log["time"] * scale).rename(columns={"time": name}).set_index(name)
+        result = run_log(heading, frame)
+        assert not any("no time column" in n for n in result.notes), name
+        assert result.estimates.columns[0] == name
+        assert np.allclose(result.estimates["heading"], timed, rtol=0, atol=1e-9), name
 
 
 def test_a_csv_column_named_twice_is_refused(heading, tmp_path):

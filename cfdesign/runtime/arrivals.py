@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import CfdesignError
 from ..linear import OUTPUTS, gain_pair, posterior_covariance, wrap_inplace, wrap_scalar
-from .filter import held, state_vector, usable
+from .filter import held, real_array, state_vector, usable
 
 __all__ = ["ArrivalKalman", "MissedReadings"]
 
@@ -102,10 +102,15 @@ class ArrivalKalman:
             The output state of every tick.
         stds : ndarray, shape (N, n)
             The predicted standard deviation of every state of the output, per tick.
+
+        Raises
+        ------
+        CfdesignError
+            ``u`` or ``y`` is not real numbers of those shapes (one ``N`` for both).
         """
+        u, y = self._cleaned(u, y)
         N = len(u)
         states, stds = np.empty((N, self.n)), np.empty((N, self.n))
-        u, y = self._cleaned(u, y)
         seen = ~np.isnan(y)
         F, B, Q = self.F, self.B, self.Q
         x, P = self.x, self.P
@@ -144,7 +149,11 @@ class ArrivalKalman:
 
     def _cleaned(self, u, y):
         """Inputs held over missing or rejected values; rejected readings made missing; both counted."""
-        u, y = np.array(u, dtype=float), np.array(y, dtype=float)
+        u, y = real_array(u, "u").copy(), real_array(y, "y").copy()
+        p, m = len(self._inputs), len(self._measurements)
+        if u.ndim != 2 or y.ndim != 2 or u.shape[1] != p or y.shape[1] != m or len(u) != len(y):
+            raise CfdesignError(f"u and y must be (N, {p}) and (N, {m}) arrays (inputs and measurements per tick), "
+                                f"got shapes {u.shape} and {y.shape}")
         bad_y = ~usable(y) & ~np.isnan(y)
         self._count(self._measurements, bad_y)
         y[bad_y] = np.nan
