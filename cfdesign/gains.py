@@ -904,7 +904,8 @@ class GainTable:
         Raises
         ------
         InputError
-            ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
+            ``omega`` is not a non-empty 1-D array of positive finite angular frequencies (rad/s,
+            at most 1e100).
         """
         from .plot import table_bode_plot
 

@@ -45,10 +45,34 @@ def bode_plot(observer, omega=None, *, hz: bool = False, title: str | None = Non
         ``observer`` is not a cfdesign Observer (a python-control system, a gain table: its own
         ``table.bode()``).
     InputError
-        ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
+        ``omega`` is not a non-empty 1-D array of positive finite angular frequencies (rad/s, at
+        most 1e100).
     """
-    resp = frequency_response(observer, omega)
+    resp = frequency_response(observer, _plot_frequencies(omega))
     return _draw_bands(resp, hz, title or _default_title(observer), fig)
+
+
+def _plot_frequencies(omega):
+    """A caller's grid for a Bode diagram: finite (:func:`angular_frequencies`), positive (the axis is
+    logarithmic: 0 has no place on it and gave matplotlib's raw 'Axis limits cannot be NaN or Inf',
+    a negative frequency was dropped without a word) and at most 1e100 rad/s, where every band has long
+    reached its asymptote (1e300 overflowed the continuous responses).  ``None`` stays ``None``
+    (the default grid).
+
+    Raises
+    ------
+    InputError
+        A frequency is not finite, not positive or above 1e100 rad/s.
+    """
+    if omega is None:
+        return None
+    from .errors import InputError
+
+    w = angular_frequencies(omega)
+    bad = w[(w <= 0) | (w > 1e100)]
+    if bad.size:
+        raise InputError(f"omega: a Bode diagram's frequencies must lie in (0, 1e100] rad/s (log axis), got {bad[0]:g}")
+    return w
 
 
 def _draw_bands(resp, hz, title, fig):
@@ -137,7 +161,8 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     InputError
-        ``omega`` is not a non-empty 1-D array of finite angular frequencies (rad/s).
+        ``omega`` is not a non-empty 1-D array of positive finite angular frequencies (rad/s, at
+        most 1e100).
 
     Examples
     --------
@@ -149,8 +174,7 @@ def table_bode_plot(table, omega=None, *, hz: bool = False, title: str | None = 
     2
     """
     require_table(table, "table_bode_plot")
-    if omega is not None:
-        omega = angular_frequencies(omega)
+    omega = _plot_frequencies(omega)
     from .analysis import FrequencyResponse, default_frequencies
     from .verify import band_polynomials
 

@@ -266,3 +266,18 @@ def test_a_frequency_grid_that_is_not_one_is_named(omega, dckf3):
         with pytest.raises(InputError, match=r"omega must be a non-empty 1-D array of finite angular frequencies"):
             call()
     assert len(cfdesign.frequency_response(cfdesign.cf2().with_gains(k=2), omega=[0.1, 1.0]).omega) == 2
+
+
+@pytest.mark.parametrize("omega", [[0.0], [0.0, 1.0, 10.0], [-1.0, 1.0], [1e300]])
+def test_a_bode_diagram_refuses_frequencies_its_log_axis_cannot_hold(omega, dckf3):
+    """0 gave matplotlib's raw 'Axis limits cannot be NaN or Inf' (a rate band is infinite there), a
+    negative frequency was dropped from the plot without a word, 1e300 overflowed the continuous responses;
+    frequency_response keeps 0 (the DC value of a band)."""
+    from cfdesign.errors import InputError
+
+    for call in (lambda: cfdesign.bode_plot(cfdesign.cf2().with_gains(k=2), omega=omega),
+                 lambda: dckf3.bode(omega=omega)):
+        with pytest.raises(InputError, match=r"frequencies must lie in \(0, 1e100\] rad/s"):
+            call()
+    resp = cfdesign.frequency_response(cfdesign.cf2().with_gains(k=2), omega=[0.0, 1.0])
+    assert np.allclose(resp.bands["angle"][0], 1.0)
