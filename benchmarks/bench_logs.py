@@ -9,7 +9,14 @@ Prints, from one run:
    plainly as possible in the same run: ``pandas.read_csv`` + one ``scipy.signal.lfilter`` per
    column + ``DataFrame.to_csv`` (the baseline; it ignores time, gaps and offsets);
 2. the peak memory (max RSS) of ``cfdesign run`` on a ``--big-rows`` log, in a child process;
-3. ``--logs`` logs run with 1 and 2 Dask workers: the speed-up.
+3. ``--logs`` logs run with 1 and 2 Dask workers: the speed-up;
+4. rows/s of ``run_log`` (CSV in, CSV out, as ``cfdesign run``) on ``--path-rows`` rows of each
+   path a log can take (``--paths`` alone runs only this): (a) every sensor on the table's
+   schedule; (b) slow sensors late by their own offsets (recomputed gains); (c) jittered times
+   and a compass that slips a tick now and then (the Kalman filter over the arrivals); (d) a
+   quarter of the slow readings missed (Runtime bridged by that filter); (e) the compass's clock
+   0.5 % fast.  Each beside ``Runtime.run`` on the same rows' readings in memory (the batch
+   baseline, measured in the same run): the ratio is how much slower the whole log run is.
 """
 
 from __future__ import annotations
@@ -48,6 +55,57 @@ def write_log(path, rows, seed=0, chunk=1_000_000):
                                   "gyro": 0.3 + 0.3 * np.cos(0.05 * t) + 0.01 * rng.standard_normal(len(k)),
                                   "odometry": wrap(odo), "compass": wrap(com)})
             frame.to_csv(fh, index=False, header=start == 0, lineterminator="\n")
+
+
+def path_log(n, case, seed=0):
+    """A heading log of ``n`` rows taking path ``case`` (module docstring, 4.) as a DataFrame."""
+    import pandas as pd
+
+    from cfdesign.linear import wrap
+
+    rng = np.random.default_rng(seed)
+    k = np.arange(n)
+    t = k * 0.01
+    psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t
+    odo_rows, com_rows = k[k % 10 == (0 if case == "a" else 3)], k[k % 100 == (0 if case == "a" else 37)]
+    if case == "c":
+        com_rows = np.minimum(com_rows + rng.integers(0, 2, len(com_rows)), n - 1)
+        t = t + 3e-4 * rng.standard_normal(n)
+    if case == "d":
+        odo_rows = np.sort(rng.choice(odo_rows, 3 * len(odo_rows) // 4, replace=False))
+        com_rows = np.sort(rng.choice(com_rows, 3 * len(com_rows) // 4, replace=False))
+    if case == "e":
+        com_rows = np.round(37 + np.arange(0, n - 40, 100 / 1.005)).astype(int)
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[odo_rows] = psi[odo_rows] + 0.005 * rng.standard_normal(len(odo_rows))
+    com[com_rows] = psi[com_rows] + 0.05 * rng.standard_normal(len(com_rows))
+    return pd.DataFrame({"time": t, "gyro": 0.3 + 0.3 * np.cos(0.05 * t) + 0.01 * rng.standard_normal(n),
+                         "odometry": wrap(odo), "compass": wrap(com)})
+
+
+PATHS = {"a": "on schedule", "b": "late by offsets", "c": "jitter + slipping compass",
+         "d": "missed readings (bridged)", "e": "compass clock 0.5 % fast"}
+
+
+def paths(table, tmp, rows):
+    """Section 4: rows/s of run_log per path beside Runtime.run on the same readings."""
+    from cfdesign.logs import run_log
+    from cfdesign.runtime import Runtime
+
+    print(f"\n4. {rows:,} rows per path: run_log (CSV in and out) against Runtime.run on the readings in memory")
+    for case, what in PATHS.items():
+        log = path_log(rows, case)
+        log.to_csv(tmp / "path.csv", index=False)
+        readings = {s: log[s].to_numpy() for s in ("gyro", "odometry", "compass")}
+        t0 = time.perf_counter()
+        Runtime(table).run(readings, states=True)
+        batch = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        result = run_log(table, tmp / "path.csv", output=tmp / "path_est.csv", std=True)
+        mine = time.perf_counter() - t0
+        kalman = any("as they arrive" in n or "readings a second" in n for n in result.notes)
+        print(f"   ({case}) {what:27s} {rows / mine:10,.0f} rows/s; Runtime.run {rows / batch:12,.0f} rows/s; "
+              f"ratio {mine / batch:6.1f}x{'  (Kalman filter over the arrivals)' if kalman else ''}")
 
 
 def baseline(log, out, table):
@@ -100,6 +158,8 @@ def main(argv=None):
     ap.add_argument("--big-rows", type=int, default=10_000_000)
     ap.add_argument("--logs", type=int, default=8)
     ap.add_argument("--fleet-rows", type=int, default=500_000)
+    ap.add_argument("--path-rows", type=int, default=1_000_000)
+    ap.add_argument("--paths", action="store_true", help="run only section 4 (the paths a log can take)")
     args = ap.parse_args(argv)
 
     import cfdesign
@@ -110,6 +170,9 @@ def main(argv=None):
         tmp = Path(tmp)
         tpath = table.save(tmp / "g.json")
         print(f"machine: {os.cpu_count()} CPUs; threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+        if args.paths:
+            paths(table, tmp, args.path_rows)
+            return
 
         write_log(tmp / "log.csv", args.rows)
         base = min(baseline(tmp / "log.csv", tmp / "base.csv", table) for _ in range(2))
@@ -134,6 +197,7 @@ def main(argv=None):
         two = fleet(tpath, folder, tmp / "out2", 2)
         print(f"\n3. {args.logs} logs of {args.fleet_rows:,} rows: 1 worker {one:.2f} s, 2 workers {two:.2f} s: "
               f"speed-up {one / two:.2f}x (target >= 1.6x)")
+        paths(table, tmp, args.path_rows)
     print(f"\n(this process: max RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)")
 
 
