@@ -85,6 +85,7 @@ class ArrivalKalman:
         self._measurements = [s.name for s in table.measurements]
         self.counts = {}
         self._rows = {}  # the H, R rows of each set of sensors read at a tick
+        self._power_cache = None  # (Phi, W, T) of the ticks coasted in closed form (_powers)
 
     def run(self, u, y):
         """Run the ticks of ``u`` (inputs, NaN where missing) and ``y`` (readings, NaN where none).
@@ -107,21 +108,24 @@ class ArrivalKalman:
         states, stds = np.empty((N, self.n)), np.empty((N, self.n))
         u, y = self._cleaned(u, y)
         seen = ~np.isnan(y)
+        read = np.flatnonzero(seen.any(axis=1))
         F, B, Q = self.F, self.B, self.Q
         x, P = self.x, self.P
-        for k in range(N):
-            rows = seen[k]
-            if rows.any():
-                x_post, P_post = self._update(x, P, y[k], rows)
-            else:
-                x_post, P_post = x, P
+        k = 0
+        for e in [*read.tolist(), N]:  # the ticks k..e-1 read nothing: coasted at once; e reads
+            if e > k:
+                x, P = self._coast(x, P, u[k:e], states[k:e], stds[k:e])
+            if e == N:
+                break
+            x_post, P_post = self._update(x, P, y[e], seen[e])
             out, cov = (x_post, P_post) if self.posterior else (x, P)
-            states[k] = out
-            stds[k] = np.sqrt(np.maximum(np.diag(cov), 0.0))
-            x = F @ x_post + B @ u[k]
+            states[e] = out
+            stds[e] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+            x = F @ x_post + B @ u[e]
             P = F @ P_post @ F.T + Q
             if self.wrap_angle:
                 x[0] = wrap_scalar(x[0])
+            k = e + 1
         if self.wrap_angle:
             wrap_inplace(states[:, 0])
         self.x, self.P = x, 0.5 * (P + P.T)
@@ -129,17 +133,64 @@ class ArrivalKalman:
             self.u_last = u[-1].copy()
         return states, stds
 
+    def _coast(self, x, P, u, states, stds):
+        """Ticks that read nothing, from the prior ``x, P`` of the first with inputs ``u``: their
+        output states and standard deviations written into ``states, stds``, the prior of the
+        tick after them returned.  The steps ``x <- F x + B u, P <- F P F' + Q`` are taken in
+        closed form, :attr:`COAST` ticks at a time (``F^i x`` plus the inputs through ``F^j B``,
+        ``F^i P F^i' + W_i``): the same recursion to rounding (about 1e-15 relative), without a
+        numpy call per tick.  In an angle table whose state 0 feeds back other than as itself
+        (``F[:, 0]`` not the first unit vector), one tick at a time: the angle is wrapped every
+        tick there (elsewhere a wrap moves no other state, so the rows are wrapped afterwards)."""
+        Phi, W, T = self._powers()
+        C, n, p = len(Phi) - 1, self.n, self.B.shape[1]
+        for a in range(0, len(u), C):
+            c = min(C, len(u) - a)
+            X = Phi[:c + 1] @ x + (T[:(c + 1) * n, :c * p] @ u[a:a + c].ravel()).reshape(c + 1, n)
+            if self.wrap_angle and not -np.pi < X[:, 0].min() <= X[:, 0].max() <= np.pi:
+                wrap_inplace(X[:, 0])
+            states[a:a + c] = X[:c]
+            M = Phi[:c + 1] @ P
+            stds[a:a + c] = np.sqrt(np.maximum(np.einsum("iab,iab->ia", M[:c], Phi[:c]) + W[:c].diagonal(0, 1, 2),
+                                               0.0))
+            x, P = X[c], M[c] @ Phi[c].T + W[c]
+        return x, P
+
+    #: ticks coasted at once in closed form (:meth:`_coast`)
+    COAST = 64
+
+    def _powers(self):
+        """``(Phi, W, T)`` of :meth:`_coast`: ``Phi[i] = F^i`` and ``W[i] = sum_{l<i} F^l Q F^l'``
+        for ``i = 0..C``, and ``T`` the ``((C + 1) n, C p)`` map from ``C`` ticks of inputs to
+        their sums ``sum_{l<i} F^(i-1-l) B u_l`` over rows ``i = 0..C``."""
+        if self._power_cache is None:
+            F, B, Q, n, p = self.F, self.B, self.Q, self.n, self.B.shape[1]
+            C = self.COAST if not self.wrap_angle or np.array_equal(F[:, 0], np.eye(n)[0]) else 1
+            Phi, W = [np.eye(n)], [np.zeros((n, n))]
+            for _ in range(C):
+                W.append(F @ W[-1] @ F.T + Q)
+                Phi.append(F @ Phi[-1])
+            T = np.zeros(((C + 1) * n, C * p))
+            for i in range(1, C + 1):
+                for j in range(i):  # the input of tick j reaches row i through F^(i-1-j) B
+                    T[i * n:(i + 1) * n, j * p:(j + 1) * p] = Phi[i - 1 - j] @ B
+            self._power_cache = (np.array(Phi), np.array(W), T)
+        return self._power_cache
+
     def _update(self, x, P, y, rows):
         key = rows.tobytes()
         if key not in self._rows:
             idx = np.flatnonzero(rows)
-            self._rows[key] = (idx, self.H[idx], self.R[np.ix_(idx, idx)], self._wrap_rows[idx])
-        idx, H, R, wrap_rows = self._rows[key]
+            H = self.H[idx]
+            self._rows[key] = (idx, H, H.T.copy(), self.R[np.ix_(idx, idx)],
+                               np.flatnonzero(self._wrap_rows[idx]).tolist())
+        idx, H, Ht, R, wrap_rows = self._rows[key]
         e = y[idx] - H @ x
-        for i in np.flatnonzero(wrap_rows):
+        for i in wrap_rows:
             e[i] = wrap_scalar(e[i])
-        PHt = P @ H.T
-        L = np.linalg.solve(H @ PHt + R, PHt.T).T
+        PHt = P @ Ht
+        S = H @ PHt + R
+        L = PHt / S[0, 0] if len(idx) == 1 else np.linalg.solve(S, PHt.T).T  # one reading: no LAPACK call
         return x + L @ e, posterior_covariance(P, H, L, R)
 
     def _cleaned(self, u, y):
