@@ -264,14 +264,17 @@ def mixed_log(n=6000, seed=3):
     return log, psi
 
 
-def per_tick_kalman(table, x0, u, y):
+def per_tick_kalman(table, x0, u, y, prior=False):
     """The Kalman filter over the arrivals written out plainly, one tick at a time (the
     reference of :class:`ArrivalKalman`, whose ticks without a reading are taken in closed form):
-    the posterior states and standard deviations of a heading table (every reading an angle)."""
+    the states and standard deviations of a heading table (every reading an angle) after each
+    tick's readings and, with ``prior``, before them."""
     F, B, H, Q, R = (np.asarray(M, dtype=float) for M in (table.F, table.B, table.H, table.Q, table.R))
     x, P = np.array(x0, dtype=float), np.array(table.P[0], dtype=float)
     states, stds = np.empty((len(u), len(x))), np.empty((len(u), len(x)))
+    priors, prior_stds = np.empty((len(u), len(x))), np.empty((len(u), len(x)))
     for k, (uk, yk) in enumerate(zip(u, y, strict=True)):
+        priors[k], prior_stds[k] = x, np.sqrt(np.diag(P))
         rows = np.flatnonzero(~np.isnan(yk))
         if rows.size:
             Hk, Rk = H[rows], R[np.ix_(rows, rows)]
@@ -281,7 +284,7 @@ def per_tick_kalman(table, x0, u, y):
         states[k], stds[k] = x, np.sqrt(np.diag(P))
         x, P = F @ x + B @ uk, F @ P @ F.T + Q
         x[0] = wrap(x[0])
-    return states, stds
+    return (priors, prior_stds) if prior else (states, stds)
 
 
 def test_the_arrival_kalman_filter_coasts_as_it_steps(heading, monkeypatch):
@@ -297,16 +300,17 @@ def test_the_arrival_kalman_filter_coasts_as_it_steps(heading, monkeypatch):
     u = log[["gyro"]].to_numpy()
     y = log[[s.name for s in heading.measurements]].to_numpy()
     x0 = [float(log["odometry"][0]), 0.0]
-    expected, expected_std = per_tick_kalman(heading, x0, u, y)
-    kf = ArrivalKalman(heading, x0=x0)
     cut = 2345  # a tick between readings: the second call starts mid-gap
-    parts = [kf.run(u[:cut], y[:cut]), kf.run(u[cut:], y[cut:])]
-    states, stds = (np.concatenate(a) for a in zip(*parts, strict=True))
     assert (~np.isnan(y)).any(axis=1)[cut - 1:cut + 1].sum() == 0
-    diff = np.abs(states - expected)
-    diff[:, 0] = np.abs(wrap(diff[:, 0]))
-    assert np.all(diff <= 1e-12 * np.abs(expected).max(axis=0)), diff.max(axis=0)
-    assert np.allclose(stds, expected_std, rtol=1e-12, atol=0)
+    for output in ("posterior", "prior"):
+        expected, expected_std = per_tick_kalman(heading, x0, u, y, prior=output == "prior")
+        kf = ArrivalKalman(heading, output, x0=x0)
+        parts = [kf.run(u[:cut], y[:cut]), kf.run(u[cut:], y[cut:])]
+        states, stds = (np.concatenate(a) for a in zip(*parts, strict=True))
+        diff = np.abs(states - expected)
+        diff[:, 0] = np.abs(wrap(diff[:, 0]))
+        assert np.all(diff <= 1e-12 * np.abs(expected).max(axis=0)), (output, diff.max(axis=0))
+        assert np.allclose(stds, expected_std, rtol=1e-12, atol=0), output
 
     on_schedule, _ = heading_log(0, 0, n=len(log), seed=3, jitter=0.0)
     bridged = log.copy()  # the middle stretch back on the schedule: Runtime stretches, bridged where missed
