@@ -9,7 +9,15 @@ Prints, from one run:
    plainly as possible in the same run: ``pandas.read_csv`` + one ``scipy.signal.lfilter`` per
    column + ``DataFrame.to_csv`` (the baseline; it ignores time, gaps and offsets);
 2. the peak memory (max RSS) of ``cfdesign run`` on a ``--big-rows`` log, in a child process;
-3. ``--logs`` logs run with 1 and 2 Dask workers: the speed-up.
+3. ``--logs`` logs run with 1 and 2 Dask workers: the speed-up;
+4. rows/s of ``run_log`` (CSV in, CSV out, as ``cfdesign run``) on ``--path-rows`` rows of each
+   path a log can take (``--paths`` alone runs only this): (a) every sensor on the table's
+   schedule; (b) slow sensors late by their own offsets (recomputed gains); (c) jittered times
+   and a compass that slips a tick now and then (the Kalman filter over the arrivals); (d) a
+   quarter of the slow readings missed (Runtime bridged by that filter); (e) the compass's clock
+   0.5 % fast.  The ratio is to ``Runtime.run`` on the readings of (a) in memory, as many rows
+   (the batch baseline, measured in the same run); the time of reading and writing the CSV
+   alone (pandas) is shown beside each.
 """
 
 from __future__ import annotations
@@ -48,6 +56,73 @@ def write_log(path, rows, seed=0, chunk=1_000_000):
                                   "gyro": 0.3 + 0.3 * np.cos(0.05 * t) + 0.01 * rng.standard_normal(len(k)),
                                   "odometry": wrap(odo), "compass": wrap(com)})
             frame.to_csv(fh, index=False, header=start == 0, lineterminator="\n")
+
+
+def path_log(n, case, seed=0):
+    """A heading log of ``n`` rows taking path ``case`` (module docstring, 4.) as a DataFrame."""
+    import pandas as pd
+
+    from cfdesign.linear import wrap
+
+    rng = np.random.default_rng(seed)
+    k = np.arange(n)
+    t = k * 0.01
+    psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t
+    odo_rows, com_rows = k[k % 10 == (0 if case == "a" else 3)], k[k % 100 == (0 if case == "a" else 37)]
+    if case == "c":
+        com_rows = np.minimum(com_rows + rng.integers(0, 2, len(com_rows)), n - 1)
+        t = t + 3e-4 * rng.standard_normal(n)
+    if case == "d":
+        odo_rows = np.sort(rng.choice(odo_rows, 3 * len(odo_rows) // 4, replace=False))
+        com_rows = np.sort(rng.choice(com_rows, 3 * len(com_rows) // 4, replace=False))
+    if case == "e":
+        com_rows = np.round(37 + np.arange(0, n - 40, 100 / 1.005)).astype(int)
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[odo_rows] = psi[odo_rows] + 0.005 * rng.standard_normal(len(odo_rows))
+    com[com_rows] = psi[com_rows] + 0.05 * rng.standard_normal(len(com_rows))
+    return pd.DataFrame({"time": t, "gyro": 0.3 + 0.3 * np.cos(0.05 * t) + 0.01 * rng.standard_normal(n),
+                         "odometry": wrap(odo), "compass": wrap(com)})
+
+
+PATHS = {"a": "on schedule", "b": "late by offsets", "c": "jitter + slipping compass",
+         "d": "missed readings (bridged)", "e": "compass clock 0.5 % fast"}
+
+
+def paths(table, tmp, rows, repeat=2):
+    """Section 4: rows/s of run_log per path beside Runtime.run on the same readings (best of
+    ``repeat`` each: the machine may be shared), and the part of it that is the CSV itself
+    (pandas.read_csv of the log plus DataFrame.to_csv of the estimates)."""
+    import pandas as pd
+
+    from cfdesign.logs import run_log
+    from cfdesign.runtime import Runtime
+
+    def best(fn, *args, **kw):
+        times, out = [], None
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            out = fn(*args, **kw)
+            times.append(time.perf_counter() - t0)
+        return min(times), out
+
+    def csv_alone(log, est, out):
+        pd.read_csv(log)
+        est.to_csv(out, index=False)
+
+    regular = path_log(rows, "a")
+    batch, _ = best(Runtime(table).run, {s: regular[s].to_numpy() for s in ("gyro", "odometry", "compass")},
+                    states=True)
+    print(f"\n4. {rows:,} rows per path, best of {repeat}: run_log (CSV in and out, --std); the ratio to Runtime.run "
+          f"on the regular log's readings in memory (the batch baseline: {rows / batch:,.0f} rows/s); csv: "
+          "read_csv of the log + to_csv of the estimates alone")
+    for case, what in PATHS.items():
+        path_log(rows, case).to_csv(tmp / "path.csv", index=False)
+        mine, result = best(run_log, table, tmp / "path.csv", output=tmp / "path_est.csv", std=True)
+        io, _ = best(csv_alone, tmp / "path.csv", pd.read_csv(tmp / "path_est.csv"), tmp / "again.csv")
+        kalman = "  (Kalman over the arrivals)" if any("as they arrive" in n or "readings a second" in n
+                                                      for n in result.notes) else ""
+        print(f"   ({case}) {what:27s} {rows / mine:9,.0f} rows/s ({mine:5.1f} s; csv alone {io:4.1f} s); "
+              f"ratio {mine / batch:5.1f}x{kalman}")
 
 
 def baseline(log, out, table):
@@ -100,6 +175,9 @@ def main(argv=None):
     ap.add_argument("--big-rows", type=int, default=10_000_000)
     ap.add_argument("--logs", type=int, default=8)
     ap.add_argument("--fleet-rows", type=int, default=500_000)
+    ap.add_argument("--path-rows", type=int, default=1_000_000)
+    ap.add_argument("--paths", action="store_true", help="run only section 4 (the paths a log can take)")
+    ap.add_argument("--repeat", type=int, default=2, help="section 4: the best of this many runs")
     args = ap.parse_args(argv)
 
     import cfdesign
@@ -110,6 +188,9 @@ def main(argv=None):
         tmp = Path(tmp)
         tpath = table.save(tmp / "g.json")
         print(f"machine: {os.cpu_count()} CPUs; threads: OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+        if args.paths:
+            paths(table, tmp, args.path_rows, args.repeat)
+            return
 
         write_log(tmp / "log.csv", args.rows)
         base = min(baseline(tmp / "log.csv", tmp / "base.csv", table) for _ in range(2))
@@ -134,6 +215,7 @@ def main(argv=None):
         two = fleet(tpath, folder, tmp / "out2", 2)
         print(f"\n3. {args.logs} logs of {args.fleet_rows:,} rows: 1 worker {one:.2f} s, 2 workers {two:.2f} s: "
               f"speed-up {one / two:.2f}x (target >= 1.6x)")
+        paths(table, tmp, args.path_rows, args.repeat)
     print(f"\n(this process: max RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)")
 
 

@@ -674,11 +674,13 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
         patterns[name] = (ticks, phases, step)
     runs = {name: _offset_runs(t, ph, st, P) for name, (t, ph, st) in patterns.items() if len(t) and st < P + 1}
     breaks = sorted({t for r in runs.values() for t, _ in r} | {0})
+    starts = {name: [t for t, _ in r] for name, r in runs.items()}  # listed once, not per break: time
+    # quadratic in the breaks (a compass 0.5 % fast, 5000 breaks in 1M rows: 0.87 s, now 0.19 s)
     segments, life = [], {}
     for a, b in zip(breaks, [*breaks[1:], n_ticks], strict=True):
         if a >= n_ticks:
             break
-        offs = {name: _current(r, a) for name, r in runs.items()}
+        offs = {name: _current(r, starts[name], a) for name, r in runs.items()}
         seg = _segment(a, b, offs, patterns, P, recompute)
         segments.append(seg)
         life[tuple(sorted(offs.items()))] = life.get(tuple(sorted(offs.items())), 0) + (b - a)
@@ -728,9 +730,10 @@ def _arrival_rate(ticks, per_period: int, dt: float) -> float:
     return q / (max(span, float(q)) * dt)
 
 
-def _current(runs, tick):
-    """The offset of the run in force at ``tick`` (the first run's before it starts)."""
-    i = bisect.bisect_right([t for t, _ in runs], tick) - 1
+def _current(runs, starts, tick):
+    """The offset of the run in force at ``tick`` (the first run's before it starts); ``starts``
+    the runs' first ticks."""
+    i = bisect.bisect_right(starts, tick) - 1
     return runs[max(i, 0)][1]
 
 

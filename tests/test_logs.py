@@ -243,6 +243,90 @@ def test_the_arrival_kalman_filter_is_the_table_on_its_own_schedule(heading):
     assert np.allclose(stds, table_std, rtol=1e-9)
 
 
+def mixed_log(n=6000, seed=3):
+    """A heading log of three stretches: on the table's schedule, then odometry three ticks late
+    with a compass that slips a tick now and then, then a third of the slow readings missed and
+    a 3-s outage of both.  Returns the log (exact times) and the true heading."""
+    log, psi = heading_log(0, 0, n=n, seed=seed, jitter=0.0)
+    rng = np.random.default_rng(seed)
+    odo, com = log["odometry"].to_numpy().copy(), log["compass"].to_numpy().copy()
+    third = n // 3
+    odo[third:2 * third], com[third:2 * third] = np.nan, np.nan
+    late = np.arange(third + 3, 2 * third, 10)
+    odo[late] = wrap(psi[late] + 0.005 * rng.standard_normal(len(late)))
+    slip = np.arange(third + 37, 2 * third, 100) + rng.integers(0, 2, len(range(third + 37, 2 * third, 100)))
+    com[slip] = wrap(psi[slip] + 0.05 * rng.standard_normal(len(slip)))
+    for col in (odo, com):
+        read = np.flatnonzero(~np.isnan(col[2 * third:])) + 2 * third
+        col[rng.choice(read, len(read) // 3, replace=False)] = np.nan
+        col[2 * third + 700:2 * third + 1000] = np.nan
+    log["odometry"], log["compass"] = odo, com
+    return log, psi
+
+
+def per_tick_kalman(table, x0, u, y, prior=False):
+    """The Kalman filter over the arrivals written out plainly, one tick at a time (the
+    reference of :class:`ArrivalKalman`, whose ticks without a reading are taken in closed form):
+    the states and standard deviations of a heading table (every reading an angle) after each
+    tick's readings and, with ``prior``, before them."""
+    F, B, H, Q, R = (np.asarray(M, dtype=float) for M in (table.F, table.B, table.H, table.Q, table.R))
+    x, P = np.array(x0, dtype=float), np.array(table.P[0], dtype=float)
+    states, stds = np.empty((len(u), len(x))), np.empty((len(u), len(x)))
+    priors, prior_stds = np.empty((len(u), len(x))), np.empty((len(u), len(x)))
+    for k, (uk, yk) in enumerate(zip(u, y, strict=True)):
+        priors[k], prior_stds[k] = x, np.sqrt(np.diag(P))
+        rows = np.flatnonzero(~np.isnan(yk))
+        if rows.size:
+            Hk, Rk = H[rows], R[np.ix_(rows, rows)]
+            L = P @ Hk.T @ np.linalg.inv(Hk @ P @ Hk.T + Rk)
+            A = np.eye(len(x)) - L @ Hk
+            x, P = x + L @ wrap(yk[rows] - Hk @ x), A @ P @ A.T + L @ Rk @ L.T
+        states[k], stds[k] = x, np.sqrt(np.diag(P))
+        x, P = F @ x + B @ uk, F @ P @ F.T + Q
+        x[0] = wrap(x[0])
+    return (priors, prior_stds) if prior else (states, stds)
+
+
+def test_the_arrival_kalman_filter_coasts_as_it_steps(heading, monkeypatch):
+    """The ticks without a reading are taken in closed form, 64 at a time: on a log mixing
+    on-schedule stretches, late and slipping readings and missed ones (and an outage longer than
+    64 ticks), in two calls split mid-gap, the states and stds are those of the filter stepped
+    one tick at a time, to rounding (1e-12 of each column's largest value); and run_log, whose
+    Runtime stretches hand over to that filter where readings are missed, gives the same
+    estimates as with the closed form cut to one tick."""
+    from cfdesign.runtime.arrivals import ArrivalKalman
+
+    log, _ = mixed_log()
+    u = log[["gyro"]].to_numpy()
+    y = log[[s.name for s in heading.measurements]].to_numpy()
+    x0 = [float(log["odometry"][0]), 0.0]
+    cut = 2345  # a tick between readings: the second call starts mid-gap
+    assert (~np.isnan(y)).any(axis=1)[cut - 1:cut + 1].sum() == 0
+    for output in ("posterior", "prior"):
+        expected, expected_std = per_tick_kalman(heading, x0, u, y, prior=output == "prior")
+        kf = ArrivalKalman(heading, output, x0=x0)
+        parts = [kf.run(u[:cut], y[:cut]), kf.run(u[cut:], y[cut:])]
+        states, stds = (np.concatenate(a) for a in zip(*parts, strict=True))
+        diff = np.abs(states - expected)
+        diff[:, 0] = np.abs(wrap(diff[:, 0]))
+        assert np.all(diff <= 1e-12 * np.abs(expected).max(axis=0)), (output, diff.max(axis=0))
+        assert np.allclose(stds, expected_std, rtol=1e-12, atol=0), output
+
+    on_schedule, _ = heading_log(0, 0, n=len(log), seed=3, jitter=0.0)
+    bridged = log.copy()  # the middle stretch back on the schedule: Runtime stretches, bridged where missed
+    middle = slice(len(log) // 3, 2 * len(log) // 3)
+    bridged.loc[middle, ["odometry", "compass"]] = on_schedule.loc[middle, ["odometry", "compass"]]
+    fast = [run_log(heading, x, std=True) for x in (log, bridged)]
+    monkeypatch.setattr(ArrivalKalman, "COAST", 1)
+    slow = [run_log(heading, x, std=True) for x in (log, bridged)]
+    assert any("as they arrive" in n for n in fast[0].notes) and not any("changes" in n for n in fast[1].notes)
+    for f, s in zip(fast, slow, strict=True):
+        for col in ("heading", "gyro_correction", "heading_std", "gyro_correction_std"):
+            a, b = f.estimates[col].to_numpy(), s.estimates[col].to_numpy()
+            d = np.abs(wrap(a - b)) if col == "heading" else np.abs(a - b)
+            assert d.max() <= 1e-12 * np.abs(b).max(), (col, d.max())
+
+
 # ---------------------------------------------------------------------- the logs people have
 def test_dates_as_times_run_as_seconds(heading, tmp_path):
     """ISO 8601 text in a CSV and a time-zone-aware datetime column in Parquet are placed as the

@@ -85,6 +85,8 @@ class ArrivalKalman:
         self._measurements = [s.name for s in table.measurements]
         self.counts = {}
         self._rows = {}  # the H, R rows of each set of sensors read at a tick
+        self._closed_cache = {}  # (Z, K, W) of c ticks coasted in closed form (_closed)
+        self._coast_ticks = self.COAST if not self.wrap_angle or np.array_equal(self.F[:, 0], np.eye(self.n)[0]) else 1
 
     def run(self, u, y):
         """Run the ticks of ``u`` (inputs, NaN where missing) and ``y`` (readings, NaN where none).
@@ -112,21 +114,16 @@ class ArrivalKalman:
         N = len(u)
         states, stds = np.empty((N, self.n)), np.empty((N, self.n))
         seen = ~np.isnan(y)
-        F, B, Q = self.F, self.B, self.Q
+        read = np.flatnonzero(seen.any(axis=1)).tolist()
         x, P = self.x, self.P
-        for k in range(N):
-            rows = seen[k]
-            if rows.any():
-                x_post, P_post = self._update(x, P, y[k], rows)
-            else:
-                x_post, P_post = x, P
-            out, cov = (x_post, P_post) if self.posterior else (x, P)
-            states[k] = out
-            stds[k] = np.sqrt(np.maximum(np.diag(cov), 0.0))
-            x = F @ x_post + B @ u[k]
-            P = F @ P_post @ F.T + Q
-            if self.wrap_angle:
-                x[0] = wrap_scalar(x[0])
+        if not read or read[0]:  # the ticks before the first reading
+            x, P = self._coast(x, P, u[:read[0] if read else N], states, stds)
+        for e, end in zip(read, [*read[1:], N][:len(read)], strict=True):  # a tick that reads, those up to the next
+            x_post, P_post = self._update(x, P, y[e], seen[e])
+            x_next, P_next = self._coast(x_post, P_post, u[e:end], states[e:end], stds[e:end])
+            if not self.posterior:
+                states[e], stds[e] = x, np.sqrt(np.maximum(np.diag(P), 0.0))
+            x, P = x_next, P_next
         if self.wrap_angle:
             wrap_inplace(states[:, 0])
         self.x, self.P = x, 0.5 * (P + P.T)
@@ -134,17 +131,52 @@ class ArrivalKalman:
             self.u_last = u[-1].copy()
         return states, stds
 
+    def _coast(self, x, P, u, states, stds):
+        """Ticks from one with state ``x`` and covariance ``P`` (after its readings) on, with inputs
+        ``u``, the ticks after the first reading nothing: their states and standard deviations
+        written into ``states, stds``, the prior of the tick after them returned.  The steps
+        ``x <- F x + B u, P <- F P F' + Q`` are taken in closed form, up to :attr:`COAST` ticks
+        at a time (:meth:`_closed`): the same recursion to rounding, without a numpy call per
+        tick.  In an angle table whose state 0 feeds back other than as itself (``F[:, 0]`` not
+        the first unit vector), one tick at a time: the angle is wrapped every tick there
+        (elsewhere a wrap moves no other state, so the rows are wrapped afterwards)."""
+        n, C = self.n, self._coast_ticks
+        for a in range(0, len(u), C):
+            c = min(C, len(u) - a)
+            Z, K, W = self._closed(c)
+            X = (Z @ np.concatenate([x, u[a:a + c].ravel()])).reshape(c + 1, n)
+            if self.wrap_angle and not -np.pi < X[:, 0].min() <= X[:, 0].max() <= np.pi:
+                wrap_inplace(X[:, 0])
+            V = K @ P.ravel() + W
+            states[a:a + c] = X[:c]
+            stds[a:a + c] = np.sqrt(np.maximum(V[:c * n], 0.0)).reshape(c, n)
+            x, P = X[c], V[c * n:].reshape(n, n)
+        return x, P
+
+    #: ticks coasted at once in closed form (:meth:`_coast`)
+    COAST = 64
+
+    def _closed(self, c):
+        """``(Z, K, W)`` of ``c`` ticks in closed form (:func:`_closed_form`, built once per table
+        and ``c``)."""
+        if c not in self._closed_cache:
+            self._closed_cache[c] = _closed_form(self.F, self.B, self.Q, c)
+        return self._closed_cache[c]
+
     def _update(self, x, P, y, rows):
         key = rows.tobytes()
         if key not in self._rows:
             idx = np.flatnonzero(rows)
-            self._rows[key] = (idx, self.H[idx], self.R[np.ix_(idx, idx)], self._wrap_rows[idx])
-        idx, H, R, wrap_rows = self._rows[key]
+            H = self.H[idx]
+            self._rows[key] = (idx, H, H.T.copy(), self.R[np.ix_(idx, idx)],
+                               np.flatnonzero(self._wrap_rows[idx]).tolist())
+        idx, H, Ht, R, wrap_rows = self._rows[key]
         e = y[idx] - H @ x
-        for i in np.flatnonzero(wrap_rows):
+        for i in wrap_rows:
             e[i] = wrap_scalar(e[i])
-        PHt = P @ H.T
-        L = np.linalg.solve(H @ PHt + R, PHt.T).T
+        PHt = P @ Ht
+        S = H @ PHt + R
+        L = PHt / S[0, 0] if len(idx) == 1 else np.linalg.solve(S, PHt.T).T  # one reading: no LAPACK call
         return x + L @ e, posterior_covariance(P, H, L, R)
 
     def _cleaned(self, u, y):
@@ -166,6 +198,53 @@ class ArrivalKalman:
             if c:
                 bucket = self.counts.setdefault("rejected", {})
                 bucket[name] = bucket.get(name, 0) + int(c)
+
+
+#: closed forms built (:func:`_closed_form`), by the model's bytes and the ticks; a new
+#: ArrivalKalman starts at every missed reading of a bridged log
+_CLOSED = {}
+
+
+def _closed_form(F, B, Q, c):
+    """``(Z, K, W)``: ``c`` ticks without a reading in closed form.  The states of the ``c`` ticks
+    and the next prior, ``F^i x + sum_{j<i} F^(i-1-j) B u_j`` for ``i = 0..c``, are
+    ``Z [x; u_0; ...; u_(c-1)]``; the variances of those ticks and the next prior's covariance
+    (row by row), ``diag(F^i P F^i' + W_i)`` and ``F^c P F^c' + W_c`` with
+    ``W_i = sum_{j<i} F^j Q F^j'``, are ``K vec(P) + W``.
+
+    Parameters
+    ----------
+    F, B, Q : ndarray
+        The model's transition ``(n, n)``, input ``(n, p)`` and process-noise ``(n, n)``
+        matrices, per tick.
+    c : int
+        Ticks.
+
+    Returns
+    -------
+    tuple of ndarray
+        ``Z`` ``((c + 1) n, n + c p)``, ``K`` ``(c n + n^2, n^2)``, ``W`` ``(c n + n^2,)``.
+    """
+    key = (F.shape, B.shape, F.tobytes(), B.tobytes(), Q.tobytes(), c)
+    if key not in _CLOSED:
+        if len(_CLOSED) > 256:
+            _CLOSED.clear()
+        n, p = F.shape[0], B.shape[1]
+        Phi, Ws = [np.eye(n)], [np.zeros((n, n))]
+        for _ in range(c):
+            Ws.append(F @ Ws[-1] @ F.T + Q)
+            Phi.append(F @ Phi[-1])
+        G = [M @ B for M in Phi]
+        Z = np.zeros(((c + 1) * n, n + c * p))
+        for i in range(c + 1):
+            Z[i * n:(i + 1) * n, :n] = Phi[i]
+            for j in range(i):  # the input of tick j reaches tick i through F^(i-1-j) B
+                Z[i * n:(i + 1) * n, n + j * p:n + (j + 1) * p] = G[i - 1 - j]
+        diag = [np.kron(Phi[i], Phi[i])[np.arange(n) * (n + 1)] for i in range(c)]  # the rows of (a, a)
+        K = np.vstack([*diag, np.kron(Phi[c], Phi[c])])
+        W = np.concatenate([*(np.diag(Ws[i]) for i in range(c)), Ws[c].ravel()])
+        _CLOSED[key] = (Z, K, W)
+    return _CLOSED[key]
 
 
 class MissedReadings:
