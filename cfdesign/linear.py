@@ -1023,8 +1023,18 @@ def _resolvent_outputs(base, shift, G, c) -> np.ndarray:
     if n <= 6:
         X = np.linalg.solve(shift[:, None, None] * np.eye(n) + base, np.broadcast_to(G, (len(shift), *G.shape)))
         return np.einsum("i,kij->kj", c, X)
+    from .blas import one_thread
+
+    with one_thread():  # one solve per frequency, each too small to share (cfdesign.blas)
+        return _schur_outputs(base, shift, G, c)
+
+
+def _schur_outputs(base, shift, G, c):
+    """:func:`_resolvent_outputs` of a balanced state of more than 6: the Schur route, checked
+    frequency by frequency, and LU with refinement where its bound does not hold."""
     from scipy.linalg import schur, solve_triangular
 
+    n = len(base)
     S, Z = schur(base.astype(complex), output="complex")
     W, cz = Z.conj().T @ G, c @ Z
     out = np.empty((len(shift), G.shape[1]), dtype=complex)
