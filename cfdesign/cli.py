@@ -364,7 +364,7 @@ def _log_paths(items) -> tuple:
     out = []
     fleet = len(items) > 1
     for item in items:
-        p = Path("/dev/stdin" if item == "-" else item)  # '-': the log on standard input (copied: logs._spooled)
+        p = Path("/dev/stdin" if item == "-" else item)  # '-': the log on standard input (copied: logs.read._spooled)
         if is_dir(p):
             found = sorted(q for q in p.iterdir() if "".join(q.suffixes[-2:]).lower() in LOG_SUFFIXES
                            or q.suffix.lower() in LOG_SUFFIXES)

@@ -293,7 +293,7 @@ def test_cli_time_column_of_dates(cli, tmp_path):
     code, _, err = cli("noise", tmp_path / "d.csv", "--column", "gyro", "--time", "time")
     assert code == 2 and "line 4002" in err and "ISO 8601 date" in err
     # the same column through cfdesign run reads the same times (one date reader)
-    from cfdesign.logs import _numeric
+    from cfdesign.logs.columns import _numeric
     from cfdesign.timing import date_seconds
 
     pd = pytest.importorskip("pandas")

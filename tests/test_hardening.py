@@ -484,7 +484,7 @@ def test_a_symlink_loop_as_output_is_a_named_error(heading, tmp_path, cli):
 
 
 def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp_path):
-    from cfdesign.logs import _run_one
+    from cfdesign.logs.fleet import _run_one
 
     (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
     row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})

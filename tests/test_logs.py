@@ -396,7 +396,7 @@ def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_p
     ``--time-unit ns`` as the seconds do, the column written as it was; without it, the error
     names nanoseconds (it asked 'are the times in seconds?' of a 'gap' of 1e7 s); milliseconds
     in Python with ``time_unit='ms'``."""
-    from cfdesign.logs import _time_axis
+    from cfdesign.logs.plot import _time_axis
 
     log, _ = heading_log(0, 0, n=1000, jitter=0.0)
     expected = run_log(heading, log).estimates["heading"].to_numpy()
@@ -635,10 +635,10 @@ def test_sensor_columns_named_in_another_case_are_the_sensors(heading):
 def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp_path, cli, monkeypatch):
     """A big log is read in blocks: a broken row (an unclosed quote, a row of extra cells) far
     into it stopped cfdesign run as an internal error (exit 3), and extra cells were dropped."""
-    import cfdesign.logs
+    import cfdesign.logs.run
 
-    monkeypatch.setattr(cfdesign.logs, "ONE_PASS_BYTES", 0)
-    monkeypatch.setattr(cfdesign.logs, "BLOCK_ROWS", 300)
+    monkeypatch.setattr(cfdesign.logs.run, "ONE_PASS_BYTES", 0)
+    monkeypatch.setattr(cfdesign.logs.run, "BLOCK_ROWS", 300)
     table = heading.save(tmp_path / "g.json")
     lines = heading_log(3, 37, n=1000)[0].to_csv(index=False).splitlines()
     for name, row, message in (("quote.csv", '"0.5,1,2', "EOF inside string"),
@@ -894,7 +894,7 @@ def test_compressed_csv_logs_and_estimates(heading, tmp_path, cli):
     import zipfile
 
     from cfdesign.cli import _log_paths
-    from cfdesign.logs import _log_stem
+    from cfdesign.logs.fleet import _log_stem
 
     log, _ = heading_log(0, 0, n=1000)
     text = log.to_csv(index=False).encode()
@@ -1162,7 +1162,7 @@ def test_readings_logged_before_the_first_input_row_are_counted_not_used_late(he
 def test_text_columns_pass_through_csv_and_parquet_in_blocks(heading, tmp_path, monkeypatch):
     """Columns that are not sensors are passed through whatever they hold: text (empty in the
     first block), integers with a gap in a later block; also when the file is read in chunks."""
-    import cfdesign.logs
+    import cfdesign.logs.run
 
     log, _ = heading_log(0, 0, n=900)
     note = np.full(900, None, dtype=object)
@@ -1175,7 +1175,7 @@ def test_text_columns_pass_through_csv_and_parquet_in_blocks(heading, tmp_path, 
     assert ref["note"].dropna().tolist() == ["bump", "stop, then go"]
     for chunked in (False, True):
         if chunked:
-            monkeypatch.setattr(cfdesign.logs, "ONE_PASS_BYTES", 0)
+            monkeypatch.setattr(cfdesign.logs.run, "ONE_PASS_BYTES", 0)
         for source in (log, tmp_path / "log.csv"):
             for suffix in (".csv", ".parquet"):
                 out = tmp_path / f"est{suffix}"
@@ -1377,16 +1377,16 @@ def test_a_gap_of_many_ticks_runs_in_bounded_pieces(heading, monkeypatch):
     """A log paused for a day (8.6 million ticks without a row between two rows) ran those ticks as
     one array (2.6 GB for 6000 rows): they run in pieces of at most BLOCK_ROWS ticks, with the
     estimates of one piece."""
-    import cfdesign.logs
+    import cfdesign.logs.run
 
     log, _ = heading_log(3, 37, n=2000, jitter=0.0)
     log.loc[1000:, "time"] += 50.0  # 5000 ticks without a row
     whole = run_log(heading, log, block_rows=700).estimates["heading"].to_numpy()
     spans = []
-    dense = cfdesign.logs._Runner._dense
-    monkeypatch.setattr(cfdesign.logs._Runner, "_dense", lambda self, ticks, readings, first, last: spans.append(
+    dense = cfdesign.logs.run._Runner._dense
+    monkeypatch.setattr(cfdesign.logs.run._Runner, "_dense", lambda self, ticks, readings, first, last: spans.append(
         last - first + 1) or dense(self, ticks, readings, first, last))
-    monkeypatch.setattr(cfdesign.logs, "BLOCK_ROWS", 1000)
+    monkeypatch.setattr(cfdesign.logs.run, "BLOCK_ROWS", 1000)
     pieces = run_log(heading, log, block_rows=700).estimates["heading"].to_numpy()
     assert max(spans) <= 1000 and sum(spans) == 7000
     assert np.max(np.abs(wrap(pieces - whole))) < 1e-9
@@ -1593,12 +1593,14 @@ def test_a_fault_of_cfdesign_on_one_log_of_a_fleet_is_one_summary_line_exit_3(he
     the worker printed the traceback and the summary said only "'__index_level_0__'", exit 2 as
     for a bad log.  The log's task returns a row naming an internal error; the others run; exit 3."""
     import cfdesign.logs
-    from cfdesign.logs import INTERNAL, _run_one
+    import cfdesign.logs.fleet
+    from cfdesign.logs import INTERNAL
+    from cfdesign.logs.fleet import _run_one
 
     def broken(table, path, **kw):
         raise KeyError("__index_level_0__")
 
-    monkeypatch.setattr(cfdesign.logs, "run_log", broken)
+    monkeypatch.setattr(cfdesign.logs.fleet, "run_log", broken)
     row = _run_one(heading.to_json(), "a.parquet", str(tmp_path / "a.csv"), {})
     assert row == {"log": "a.parquet", "samples": 0,
                    "error": f"{INTERNAL} (KeyError: '__index_level_0__'); please report it with the log"}

@@ -153,7 +153,7 @@ class ArrivalKalman:
             x, P = X[c], V[c * n:].reshape(n, n)
         return x, P
 
-    #: ticks coasted at once in closed form (:meth:`_coast`)
+    #: ticks coasted at once in closed form (``_coast``)
     COAST = 64
 
     def _closed(self, c):

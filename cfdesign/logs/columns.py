@@ -1,0 +1,197 @@
+"""Which log column is what: time column names and units, the optional pandas, cells to numbers."""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import CfdesignError, DataError
+
+#: column names taken as the time (seconds) when none is given
+TIME_COLUMNS = ("time", "t", "timestamp")
+#: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+#: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
+MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
+
+
+def _pandas(parquet=False):
+    """pandas, and with ``parquet`` pyarrow (pandas reads and writes Parquet through it); a
+    missing one is a one-line error naming the extra that installs it."""
+    try:
+        import pandas as pd
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise CfdesignError('reading logs needs pandas: pip install "cfdesign[logs]"') from None
+    if parquet:
+        try:
+            import pyarrow.parquet  # noqa: F401
+        except ImportError:
+            raise CfdesignError('Parquet logs and estimates need pyarrow: pip install "cfdesign[logs]"') from None
+    return pd
+
+
+@dataclass(frozen=True)
+class _Columns:
+    """Which log column feeds what."""
+
+    sensors: dict          # sensor -> column
+    time: str | None
+    references: dict       # state -> column
+    extra: list            # passed through
+    time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
+    lines: object = None     # _Lines: the file line of each row (after the header, the comments before it, blank lines)
+
+    @property
+    def time_scale(self) -> float:
+        """Seconds per unit of a numeric time column."""
+        return TIME_UNITS[self.time_unit]
+
+    @property
+    def numeric(self) -> list:
+        """The columns that must hold numbers (time, sensors, references), each once."""
+        cols = ([self.time] if self.time else []) + [*self.sensors.values(), *self.references.values()]
+        return list(dict.fromkeys(cols))
+
+    @property
+    def read(self) -> list:
+        """Every column read, each once (a reference may be a sensor's or the time column)."""
+        return list(dict.fromkeys(self.numeric + self.extra))
+
+
+#: how a time column's name may write its unit (``time [sec]``, ``t (µs)``)
+_UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
+               **{w: "ms" for w in ("ms", "msec", "millisecond", "milliseconds")},
+               **{w: "us" for w in ("us", "\u00b5s", "\u03bcs", "usec", "microsecond", "microseconds")},
+               **{w: "ns" for w in ("ns", "nsec", "nanosecond", "nanoseconds")}}
+
+
+def _unit(name) -> tuple:
+    """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``, or a unit of
+    time after an underscore: ``time_ms``), else ``(name, None)``; a unit of time as
+    :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
+    m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
+    if not (m and m.group(1)):
+        m = re.fullmatch(r"(.+?)_([^_]+)", str(name).strip())
+        unit = _UNIT_NAMES.get(m.group(2).lower()) if m else None
+        return (m.group(1), unit) if unit else (name, None)
+    unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
+    return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
+
+
+def _time_with_unit(name):
+    """The time column name (one of :data:`TIME_COLUMNS`, in lower case) that ``name`` is with a unit
+    of time (``time [ms]``, ``t_us``), else None."""
+    base, unit = _unit(name)
+    return str(base).lower() if str(base).lower() in TIME_COLUMNS and unit in TIME_UNITS else None
+
+
+def _time_name(name) -> bool:
+    """Whether ``name`` is taken as the time when no time column is given: one of
+    :data:`TIME_COLUMNS` in any case, or with a unit of time (:func:`_time_with_unit`)."""
+    name = str(name).strip()
+    return name.lower() in TIME_COLUMNS or _time_with_unit(name) is not None
+
+
+def _time_unit(source, time, time_unit, units=None) -> str:
+    """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
+    (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
+    seconds; a given unit that contradicts the name or the row is refused."""
+    if time_unit is not None and time_unit not in TIME_UNITS:
+        raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
+    written = (units or {}).get(time, "").strip(" []()").lower()
+    named = (_unit(time)[1] or _UNIT_NAMES.get(written)) if time is not None else None  # in its name or units row
+    if named in TIME_UNITS and time_unit not in (None, named):
+        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
+    return time_unit or (named if named in TIME_UNITS else "s")
+
+
+def _listed(header, limit=300) -> str:
+    """The column names for a message, cut to about ``limit`` characters (a file read as one
+    column - JSON, a spreadsheet - or a log of thousands of columns gave a line of megabytes)."""
+    text = ", ".join(str(h) for h in header)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(header)} columns)"
+
+
+def _numeric(df, columns, source, line, time=None, time_scale=1.0):
+    """The columns as float arrays; a cell that is not a number is an error naming its line
+    (``line(i)``: the file line of row ``i`` of ``df``).
+
+    The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
+    in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
+    without a time zone is taken as UTC; only differences matter); durations (a timedelta
+    column) become seconds.  Numbers in the ``time`` column are multiplied by ``time_scale``
+    (seconds per unit: milliseconds, nanoseconds ...)."""
+    pd = _pandas()
+    out = {}
+    for c in columns:
+        s = df[c]
+        if s.dtype.kind in "fiub":
+            out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+            continue
+        if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
+            out[c] = _epoch_seconds(s)
+            continue
+        if c == time and s.dtype.kind == "m":  # durations (a Parquet duration column): seconds; NaT is NaN
+            out[c] = s.dt.total_seconds().to_numpy(dtype=float)
+            continue
+        text = s.astype("string").str.strip()
+        text = text.where(~text.str.lower().isin(MISSING))  # 'NaN ' padded by a fixed-width export: missing too
+        values = pd.to_numeric(text, errors="coerce")
+        bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy())
+        if bad.size and c == time and len(bad) == int(text.notna().sum()):  # no number: dates?
+            dates, not_date = _dates(text)
+            if not_date is None:
+                out[c] = dates
+                continue
+            bad = [not_date]  # the first cell that is no date either
+        if len(bad):
+            what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
+                    "(2024-05-01T12:00:00.010)" if c == time else "not a number")
+            cell = str(text.iloc[bad[0]])
+            hint = (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
+                    "show one, not in one separated by commas; write decimal points)"
+                    if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
+                    " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")
+            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
+                            + hint)
+        out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+    return out
+
+
+def _cell_text(cell, limit=40) -> str:
+    """A cell for a message: its repr, cut to about ``limit`` characters (a row of the NUL bytes a
+    log cut off by a power loss ends in printed thousands of ``\\x00``)."""
+    text = repr(cell)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(str(cell))} characters)"
+
+
+def _dates(text):
+    """``(epoch seconds, None)`` for a column of ISO 8601 dates (:func:`cfdesign.timing.date_seconds`),
+    or ``(None, i)`` with ``i`` the first cell that is not one."""
+    from ..timing import date_seconds
+
+    def seconds(cell):
+        try:
+            return date_seconds(cell)
+        except (TypeError, ValueError):  # NA (an empty cell) is a TypeError: NaN, the others are named
+            return math.nan
+
+    values = text.map(seconds, na_action="ignore").to_numpy(dtype=float)
+    wrong = np.flatnonzero(np.isnan(values) & text.notna().to_numpy())
+    return (None, int(wrong[0])) if wrong.size else (values, None)
+
+
+def _epoch_seconds(s):
+    """A datetime series as float seconds since 1970-01-01 UTC (naive dates taken as UTC); NaT is NaN."""
+    pd = _pandas()
+    s = pd.Series(s)
+    if s.dt.tz is None:
+        s = s.dt.tz_localize("UTC")
+    return ((s - pd.Timestamp(0, tz="UTC")) / pd.Timedelta(seconds=1)).to_numpy(dtype=float)
+
+
+def _first_line(exc) -> str:
+    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

@@ -1,0 +1,182 @@
+"""Many logs on Dask: :func:`~cfdesign.logs.run_logs` and its ``summary.csv``."""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+from ..errors import CfdesignError, DataError
+from ..files import write_text
+from ..gains import require_table
+from .columns import _first_line
+from .run import _same_file, run_log
+
+#: how the summary of :func:`run_logs` begins the error of a log that met a fault of cfdesign, not of the log
+INTERNAL = "internal error"
+
+
+#: the endings of a compressed file's name, left off the names of the estimate files of a fleet
+_PACKED_SUFFIXES = (".gz", ".bz2", ".xz", ".zip")
+
+
+def _log_stem(path) -> str:
+    """A log's name without its extensions: ``flight`` of ``flight.csv``, ``flight.csv.gz``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+
+    Returns
+    -------
+    str
+        The name an estimate file of a fleet takes (:func:`run_logs`) before its own suffix.
+    """
+    path = Path(path)
+    if path.suffix.lower() in _PACKED_SUFFIXES:
+        path = Path(path.stem)
+    return path.stem
+
+
+def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv", **options) -> list:
+    """Run a table on many logs in parallel on Dask; write one estimate file per log and a
+    summary table (``summary.csv``: one row per log) in ``outdir`` (created if missing).
+
+    Parameters
+    ----------
+    table : GainTable
+        The gain table every log is run through.
+    paths : list of str or Path
+        The logs (CSV or Parquet).
+    outdir : str or Path
+        Folder the estimates are written to, one file per log.
+    workers : int, optional
+        Processes of a local Dask cluster (default: the number of CPUs).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:8786``) instead of a local cluster.
+    suffix : str
+        Extension of the estimate files (``.csv`` or ``.parquet``).
+    **options
+        As :func:`run_log` (time, mapping, reference, std, prediction).
+
+    Returns
+    -------
+    list of dict
+        The summary rows, in the order of ``paths``; a log that could not be run has ``error``:
+        its one-line message, beginning with :data:`INTERNAL` for a fault of cfdesign.
+
+    Raises
+    ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
+    CfdesignError
+        Dask is not installed, ``workers`` and ``scheduler`` are both given, the scheduler
+        cannot be reached, ``outdir`` cannot be created, or the table cannot run any log (a
+        continuous or unstable table, as :func:`run_log` and
+        :class:`~cfdesign.runtime.Runtime` refuse it), named before the workers start.
+    DataError
+        Two logs of the same name (their estimates would overwrite each other), or a log
+        that cannot be run (as :func:`run_log`).
+    """
+    require_table(table, "run_logs")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
+    if workers is not None and scheduler:
+        raise CfdesignError("workers and scheduler exclude each other: an existing scheduler has its own workers")
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise CfdesignError('running many logs needs Dask: pip install "cfdesign[fleet]"') from None
+    outdir = Path(outdir)
+    targets = [outdir / (_log_stem(p) + suffix) for p in paths]
+    first = {}
+    for i, t in enumerate(targets):
+        j = first.setdefault(t, i)
+        if j != i:
+            raise DataError(f"{paths[j]} and {paths[i]} have the same name; their estimates would both be {t}")
+    same = [str(p) for p, t in zip(paths, targets, strict=True) if _same_file(p, t)]
+    if same:
+        raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
+                        "or with another --format)")
+    from ..runtime.filter import Runtime
+
+    # a table no log can run (continuous, unstable, no posterior) is named once, before the workers start
+    Runtime(table, output="prior" if options.get("prediction") else None)
+    text = table.to_json()
+    if scheduler:
+        try:
+            client, cluster = Client(scheduler), None
+        except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
+            raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
+    else:
+        # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
+        # warned on stderr when another cluster (another fleet run at the same time) had that port
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                               dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)  # no shutdown warnings
+        client = Client(cluster)
+    try:
+        try:  # once connected: an unreachable scheduler leaves no empty folder
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
+        futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
+                   for p, t in zip(paths, targets, strict=True)]
+        rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log
+        done = {r["log"]: r for r in rows}
+        rows = [done.get(str(p)) or {"log": str(p), "samples": 0, "error": _failure(f)}
+                for p, f in zip(paths, futures, strict=True)]
+    finally:
+        dask_log = logging.getLogger("distributed")  # closing: a slow worker is killed after 4 s, which it
+        level = dask_log.level                          # logged as a WARNING on stderr (a busy machine, not a fault)
+        dask_log.setLevel(logging.ERROR)
+        try:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+        finally:
+            dask_log.setLevel(level)
+    write_text(outdir / "summary.csv", _summary_csv(rows))
+    return rows
+
+
+def _failure(future) -> str:
+    try:
+        exc = future.exception()
+    except Exception as e:  # noqa: BLE001 - a cancelled future reports why
+        exc = e
+    return str(exc).splitlines()[0] if exc else "failed"
+
+
+def _run_one(table_json, path, target, options):
+    import json
+
+    from ..gains import GainTable
+
+    table = GainTable.from_dict(json.loads(table_json))
+    try:
+        return run_log(table, path, output=target, source=path, **options).summary()
+    except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
+        return {"log": path, "samples": 0, "error": _first_line(exc)}
+    except Exception as exc:  # noqa: BLE001 - a fault of cfdesign on one log: the others still run
+        # a failed task printed Dask's traceback of it and summarised it as the bare exception ("'__index_level_0__'")
+        return {"log": path, "samples": 0, "error": f"{INTERNAL} ({type(exc).__name__}: {_first_line(exc)}); "
+                                                    "please report it with the log"}
+
+
+def _summary_csv(rows) -> str:
+    keys = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    lines = [",".join(keys)]
+    for r in rows:
+        lines.append(",".join(_cell(r.get(k, "")) for k in keys))
+    return "\n".join(lines) + "\n"
+
+
+def _cell(v) -> str:
+    if isinstance(v, float):
+        return repr(v)
+    text = str(v)
+    return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text or "\n" in text) else text

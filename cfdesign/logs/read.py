@@ -1,0 +1,719 @@
+"""Reading logs: file kinds (CSV plain or compressed, Parquet, a pipe), CSV format sniffing,
+:func:`~cfdesign.logs.read_log`, :func:`~cfdesign.logs.read_columns`, and which columns of a
+header feed a table's sensors (``_columns``)."""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CfdesignError, DataError
+from .columns import (
+    MISSING,
+    TIME_COLUMNS,
+    TIME_UNITS,
+    _Columns,
+    _first_line,
+    _listed,
+    _numeric,
+    _pandas,
+    _time_unit,
+    _time_with_unit,
+    _unit,
+)
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
+             lines=None, units=None) -> _Columns:
+    header = [str(h).strip() for h in header]
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise DataError(f"{source}: duplicate column(s) {', '.join(dup)}")
+    if mapping is not None and not isinstance(mapping, dict):  # a list of pairs gave dict()'s raw ValueError
+        raise CfdesignError(f"mapping must be a dict {{sensor: column}}, got {type(mapping).__name__} {mapping!r:.80}")
+    mapping = dict(mapping or {})
+    unknown = sorted(set(mapping) - set(table.sensor_names()))
+    if unknown:
+        raise DataError(f"--map {unknown[0]}: {table.name} has no sensor {unknown[0]!r} "
+                        f"(sensors: {', '.join(table.sensor_names())})")
+    sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
+    for s, c in sensors.items():  # a sensor's name in another case ('Gyro', 'GYRO'), as the time column's
+        like = [h for h in header if h.lower() == s.lower()]
+        if s not in mapping and c not in header and len(like) == 1:
+            sensors[s] = like[0]
+    missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
+    if missing:
+        # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
+        like = [(s, h) for s, c in sensors.items() if c not in header and s not in mapping
+                for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()]
+        hint = " ".join(f'--map "{s}={h}"' for s, h in like)
+        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
+                        + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                           "the header is one column: cells are separated by commas, by the semicolons or tabs "
+                           "of a header without a comma, or by spaces where the first row has as many cells"
+                           if len(header) == 1 else
+                           "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
+    if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
+        time = next((c for c in TIME_COLUMNS if c in header), None) or next(
+            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
+            (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
+    elif time not in header:
+        raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
+    time_unit = _time_unit(source, time, time_unit, units)
+    shared = {c: [s for s, col in sensors.items() if col == c] for c in sensors.values()}
+    shared = {c: names for c, names in shared.items() if len(names) > 1}
+    if shared:  # one column read as two sensors (a --map typo) ran a filter on the wrong readings in silence
+        c, names = next(iter(shared.items()))
+        raise DataError(f"{source}: column {c!r} is given to sensors {' and '.join(names)} "
+                        "(each sensor needs a column of its own: --map SENSOR=COLUMN)")
+    if time is not None and time in sensors.values():
+        s = next(s for s, c in sensors.items() if c == time)
+        raise DataError(f"{source}: column {time!r} is both the time and sensor {s} "
+                        "(--time COLUMN, --map SENSOR=COLUMN)")
+    refs = _references(table, reference, header, source)
+    used = {time, *sensors.values()}  # a reference column is passed through as well
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, lines or _Lines())
+
+
+def _references(table, reference, header, source) -> dict:
+    """``{state: column}`` from ``COLUMN`` (the first state) or ``STATE=COLUMN`` items."""
+    out = {}
+    items = [reference] if isinstance(reference, str) else reference or []
+    if not isinstance(items, (list, tuple)) or not all(isinstance(item, str) for item in items):
+        raise CfdesignError(f"reference must be a column name or a list of COLUMN / STATE=COLUMN texts, "
+                            f"got {reference!r:.80}")
+    for item in items:
+        state, sep, col = item.partition("=")
+        state, col = (state, col) if sep else (table.states[0], state)
+        if state not in table.states:
+            raise DataError(f"--reference {item}: {table.name} has no state {state!r} "
+                            f"(states: {', '.join(table.states)})")
+        if col not in header:
+            raise DataError(f"{source}: no reference column {col!r} (columns: {_listed(header)})")
+        if state in out:
+            raise DataError(f"--reference {item}: state {state} already has the reference {out[state]!r}")
+        out[state] = col
+    return out
+
+
+#: the first bytes of the compressions a CSV log may come in (pandas and Python's modules read them)
+COMPRESSIONS = {b"\x1f\x8b": "gzip", b"BZh": "bz2", b"\xfd7zXZ\x00": "xz", b"PK\x03\x04": "zip"}
+#: what cfdesign reads, for the messages about a file it cannot
+_READS = "CSV (plain, or compressed with gzip, bz2, xz or zip) and Parquet"
+
+
+def _kind(path) -> str:
+    """``'parquet'``, ``'csv'`` or the compression of a CSV (:data:`COMPRESSIONS`), from the
+    file's first bytes, whatever its name (``log.csv.gz``, a Parquet file named ``.bin``); a
+    ``.parquet`` name without Parquet's bytes is read as Parquet, for pyarrow to name the fault."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(8)
+    except OSError as exc:
+        raise _read_error(Path(path), exc) from None
+    if head.startswith(b"PAR1"):
+        return "parquet"
+    kind = next((k for magic, k in COMPRESSIONS.items() if head.startswith(magic)), None)
+    if kind:
+        return kind
+    return "parquet" if Path(path).suffix.lower() in (".parquet", ".pq") else "csv"
+
+
+def _open_csv(path, kind):
+    """The bytes of a CSV log, decompressed (a zip must hold one file)."""
+    if kind == "csv":
+        return open(path, "rb")
+    if kind == "zip":
+        import zipfile
+
+        try:
+            archive = zipfile.ZipFile(path)
+        except zipfile.BadZipFile as exc:
+            raise DataError(f"cannot read {path}: {exc} (a damaged zip archive)") from None
+        names = [n for n in archive.namelist() if not n.endswith("/")]
+        if len(names) != 1:
+            archive.close()
+            raise DataError(f"cannot read {path}: a zip archive of {len(names)} files (a spreadsheet's own format "
+                            "is one: export it as CSV); cfdesign reads a zip that holds one CSV")
+        return archive.open(names[0])
+    import bz2
+    import gzip
+    import lzma
+
+    return {"gzip": gzip.open, "bz2": bz2.open, "xz": lzma.open}[kind](path, "rb")
+
+
+def read_log(path, columns=None, *, chunksize=None):
+    """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
+
+    What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
+    compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
+    separator is a comma, or the semicolon or tab of its header line when that has no
+    comma, or spaces when the header and the first row split into as many cells at spaces
+    (``numpy.savetxt``; a semicolon-, tab- or space-separated file may write decimal commas:
+    ``0,01``); column names are stripped of spaces, and a row with more cells than the header is
+    an error naming its line (it was read without its extra cells), but empty cells after the first
+    row's last (a separator ending every row) are columns without a name.  The first cells of a
+    row are never an index.  The end of a plain CSV cut off while it was written
+    (a power loss) is not read: the NUL bytes it may end in, and its last line when that has no
+    line end and has fewer cells than the header or NUL bytes after it (its last cell may have
+    lost digits); :func:`run_log` notes it.
+
+    Parameters
+    ----------
+    path : str or Path
+        A Parquet file (by its content, or named ``.parquet`` / ``.pq``), else a CSV.
+    columns : list of str, optional
+        Keep only these.
+    chunksize : int, optional
+        Yield blocks of this many rows instead of one DataFrame.
+
+    Returns
+    -------
+    pandas.DataFrame or iterator of DataFrame
+        The log, or an iterator of blocks of ``chunksize`` rows.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, is empty, is not text (UTF-8) or not a table (also while blocks
+        are read).
+    """
+    path = Path(path)
+    kind = _kind(path)
+    pd = _pandas(kind == "parquet")
+    try:
+        if kind == "parquet":
+            return _parquet_blocks(path, columns, chunksize) if chunksize else next(_parquet_blocks(path, columns))
+        fmt = _csv_format(path, kind)
+        hashed = fmt.pop("_hashed", False)
+        if fmt.pop("_units", None) is not None:  # the line under the header: units
+            fmt["skiprows"] = [*range(fmt.get("skiprows", 0)), fmt.get("skiprows", 0) + 1]
+        end = _tail(path)[0] if kind == "csv" else None
+        source = path if end is None else io.BufferedReader(_Upto(path, end))  # a cut end left out
+        reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
+                             low_memory=False, index_col=False, compression=None if kind == "csv" else kind, **fmt)
+        if chunksize:
+            return _csv_blocks(path, reader, columns, hashed, closing=None if end is None else source)
+        with contextlib.closing(source) if end is not None else contextlib.nullcontext():
+            return _stripped(reader, columns, hashed)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeDecodeError, ValueError,
+            *_unpack_errors()) as exc:
+        raise _read_error(path, exc) from None
+
+
+class _Upto(io.RawIOBase):
+    """The bytes of a file up to ``end`` (pandas reads a log without its cut end)."""
+
+    def __init__(self, path, end):
+        self._fh, self._left = open(path, "rb"), end
+
+    def readable(self):
+        return True
+
+    def readinto(self, b):
+        n = self._fh.readinto(memoryview(b)[:min(len(b), self._left)])
+        self._left -= n
+        return n
+
+    def close(self):
+        self._fh.close()
+        super().close()
+
+
+def _tail(path) -> tuple:
+    """``(end, nul, cells)`` of a plain CSV cut off while it was written: ``end`` the byte its
+    rows end at (None: the file is whole), ``nul`` the NUL bytes it ends in (a file system
+    that had given the file its space before a power loss), ``cells`` the ``(cells, header
+    cells)`` of a last line with no line end and fewer cells than the header or NUL bytes after
+    it (else None: a last line without its end is common in files written by hand)."""
+    size = os.path.getsize(path)
+    text_end = size
+    with open(path, "rb") as fh:
+        while text_end:  # the NUL bytes at the end, read backwards
+            step = min(text_end, 1 << 16)
+            fh.seek(text_end - step)
+            kept = fh.read(step).rstrip(b"\x00")
+            text_end -= step - len(kept)
+            if kept:
+                break
+        start = max(0, text_end - (1 << 16))
+        fh.seek(start)
+        last = fh.read(text_end - start)
+    end, cells = text_end, None
+    newline = last.rfind(b"\n")
+    if last and not last.endswith(b"\n") and newline >= 0:  # a last line without its end (not the header)
+        row = _cells(last[newline + 1:], _csv_format(path).get("sep", ","))
+        header = len(_header(path))
+        if len(row) < header or text_end < size:  # fewer cells, or NUL bytes where the rest was not written
+            cells, end = (len(row), header), start + newline + 1
+    return (None if end == size else end), size - text_end, cells
+
+
+def _row_units(path) -> dict:
+    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``."""
+    kind = _kind(path)
+    units = None if kind == "parquet" else _csv_format(path, kind).get("_units")
+    return dict(zip(_header(path), units, strict=False)) if units else {}
+
+
+def _units_note(path, source) -> list:
+    """The note on a row of units under a CSV's header, which :func:`read_log` skips, if any."""
+    if _kind(path) == "parquet":
+        return []
+    fmt = _csv_format(path, _kind(path))
+    if "_units" not in fmt:
+        return []
+    return [f"{source} line {2 + fmt.get('skiprows', 0)} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
+            "units and not read; the readings are used as they are, in the units the table was designed in"]
+
+
+def _tail_note(path, source) -> list:
+    """The note on the cut end of a CSV that :func:`read_log` leaves out (:func:`_tail`), if any."""
+    if _kind(path) != "csv":
+        return []
+    end, nul, cells = _tail(path)
+    if end is None:
+        return []
+    what = []
+    if cells:
+        with open(path, "rb") as fh:  # the line's number: one after the line ends before it
+            line, left = 1, end
+            while left > 0:
+                chunk = fh.read(min(left, 1 << 22))
+                line, left = line + chunk.count(b"\n"), left - len(chunk)
+        what.append(f"its last line ({line}) is cut short ({cells[0]} of {cells[1]} cells, no line end)"
+                    if cells[0] < cells[1] else f"its last line ({line}) has no line end")
+    if nul:
+        what.append(f"it ends in {nul} NUL bytes")
+    return [f"{source} was cut off while it was written: {' and '.join(what)}; "
+            + ("that line is" if cells else "they are") + " not read"]
+
+
+def _unpack_errors() -> tuple:
+    """What a truncated or damaged compressed CSV raises while it is read (gzip's is an OSError)."""
+    import lzma
+    import zlib
+
+    return EOFError, zlib.error, lzma.LZMAError
+
+
+def _read_error(path, exc) -> DataError:
+    """The one-line DataError of a log pandas cannot read."""
+    pd = _pandas()
+    if isinstance(exc, FileNotFoundError):
+        return DataError(f"cannot read {path}: no such file")
+    if isinstance(exc, UnicodeDecodeError):  # Latin-1 or UTF-16 text, or a file that is not text
+        return DataError(f"cannot read {path}: not UTF-8 text (byte {exc.object[exc.start:exc.start + 1].hex()} "
+                         f"at byte {exc.start}); cfdesign reads {_READS}: save the log as UTF-8")
+    if isinstance(exc, OSError):
+        return DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}")
+    if isinstance(exc, pd.errors.EmptyDataError):
+        return DataError(f"{path}: empty file (expected a header row naming the columns)")
+    return DataError(f"{path}: not a readable log: {_first_line(exc)}")
+
+
+#: most comment lines before a CSV's header (``# logged by ...``) that are skipped
+COMMENT_LINES = 1000
+
+
+def _csv_format(path, kind="csv") -> dict:
+    """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
+    has none and has semicolons or tabs, else spaces where the header and the first row split into
+    as many cells (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
+    cell of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
+    A first row with more cells than the header is :func:`_wider_rows`'.
+    A first line ``sep=;`` (written for spreadsheets) names the separator and is skipped.
+    Blank lines and lines starting with ``#`` before the header are skipped (``skiprows``); when
+    the first line after them is numbers, the last ``#`` line is the header (``numpy.savetxt``'s
+    ``# time,gyro``) and ``_hashed`` says so.  A first row under the header with text and no
+    number or date (``s,rad/s,rad``) over a row with numbers is a row of units: ``_units`` holds
+    it (:func:`read_log` skips it).  A file whose first 64 kB hold a NUL byte is not
+    text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
+    try:
+        with _open_csv(path, kind) as fh:
+            skipped, comment = 0, None
+            line = fh.readline(1 << 16)
+            forced = re.fullmatch(rb"(?:\xef\xbb\xbf)?sep=(.)\r?\n", line)  # a spreadsheet's 'sep=;' line
+            if forced:
+                skipped, forced, line = 1, forced.group(1).decode("latin-1"), fh.readline(1 << 16)
+            while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
+                                               or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
+                comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
+                skipped += 1
+                line = fh.readline(1 << 16)
+            rows = fh.read(1 << 16)
+    except DataError:
+        raise
+    except (OSError, EOFError, ValueError) as exc:  # a truncated or corrupt archive
+        raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    if b"\x00" in (line + rows).rstrip(b"\x00"):  # NUL bytes after the text: a log cut off (_tail)
+        what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
+        raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
+                        + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
+    out = {"skiprows": skipped} if skipped else {}
+    if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
+        out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
+        rows, line = line + rows, comment
+    sep = forced or _separator(line, rows)
+    if sep == WHITESPACE and out.get("_hashed"):  # '# time gyro': the '#' is no column of its own
+        out = {**out, "header": 0, "names": _cells(line.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), sep)}
+    if sep in (";", "\t", WHITESPACE):
+        cut = rb"\s+" if sep == WHITESPACE else re.escape(sep.encode())
+        cell = rb'(?:^|%s)[ "]*[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?[ "]*(?=%s|\r?$)' % (cut, cut)
+        out = {**out, "sep": sep, "decimal": ","} if re.search(cell, rows, re.MULTILINE) else {**out, "sep": sep}
+    if not out.get("_hashed"):
+        units = _units_row(rows, line, sep or ",")
+        if units is not None:
+            out["_units"] = units
+    if sep == WHITESPACE:
+        _short_rows(path, out, line, rows)
+    return _wider_rows(path, out, line, rows, sep or ",")
+
+
+#: the separator of a log whose columns are separated by spaces (``numpy.savetxt``'s default)
+WHITESPACE = r"\s+"
+
+
+def _separator(header, rows):
+    """The separator of a CSV from its header line: a comma, else a semicolon or a tab; else
+    spaces (:data:`WHITESPACE`) when the header and the first row of ``rows`` split into as many
+    cells, at least two; else None (one column)."""
+    for sep in (",", ";", "\t"):
+        if sep.encode() in header:
+            return sep
+    first = next((r for r in rows.split(b"\n")[:-1] if r.strip()), b"")
+    names = _cells(header.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), WHITESPACE)
+    return WHITESPACE if len(names) > 1 and len(_cells(first, WHITESPACE)) == len(names) else None
+
+
+def _cells(line, sep) -> list:
+    """The cells of a CSV line (bytes or text) split at ``sep`` (quotes as the csv module reads
+    them; :data:`WHITESPACE`: runs of spaces and tabs)."""
+    text = line.decode("utf-8-sig", "replace") if isinstance(line, bytes) else line
+    text = text.strip("\r\n")
+    if sep == WHITESPACE:
+        return text.split()
+    try:
+        return next(csv.reader([text], delimiter=sep), [])
+    except csv.Error:
+        return []
+
+
+def _short_rows(path, fmt, header, rows):
+    """A DataError naming the first row of the first 64 kB (``rows``, whole lines) of a log
+    separated by spaces that has fewer cells than its header: an empty cell of a column-aligned
+    table (a slow sensor between its readings) is no cell at all there, so pandas read the cells
+    after it into the columns before them and left the last column empty (the reference read as
+    the GPS, exit 0).  Blank lines, ``#`` lines and the row of units are not rows of cells."""
+    names = fmt.get("names") or _cells(header, WHITESPACE)
+    units = "_units" in fmt
+    for i, row in enumerate(rows.split(b"\n")[:-1]):
+        cells = _cells(row, WHITESPACE)
+        if not cells or cells[0].startswith("#"):
+            continue
+        if units:  # the first row of cells is the units row
+            units = False
+            continue
+        if len(cells) < len(names):
+            raise DataError(f"{path} line {2 + fmt.get('skiprows', 0) + i}: {len(cells)} cells under a header of "
+                            f"{len(names)} columns separated by spaces: an empty cell cannot be told from the "
+                            "spaces around it (write nan in it, or separate the cells by commas or tabs)")
+
+
+def _wider_rows(path, fmt, header, rows, sep) -> dict:
+    """``fmt`` for a CSV whose first row has more cells than its header: pandas took the first
+    cells as an index and every column from the wrong cell (the gyro's cells read as times).
+    Empty cells at the end (a separator after each row's last cell) are columns without a name
+    (``names``); cells with values are a DataError naming the line (a decimal comma in a
+    comma-separated file: ``0,01`` is two cells)."""
+    lines = rows.split(b"\n")[:-1]
+    at = next((i for i, r in enumerate(lines) if r.strip()), None)
+    if at is None:
+        return fmt
+    if "_units" in fmt:
+        at = next((i for i in range(at + 1, len(lines)) if lines[i].strip()), None)
+        if at is None:
+            return fmt
+    names = fmt.get("names") or _cells(header, sep)
+    cells = _cells(lines[at], sep)
+    if len(cells) <= len(names):
+        return fmt
+    if any(c.strip() for c in cells[len(names):]):
+        line = 2 + fmt.get("skiprows", 0) + at
+        raise DataError(f"{path} line {line}: {len(cells)} cells under a header of {len(names)} columns"
+                        + (" (decimal commas in a log separated by commas? 0,01 is two cells: separate the cells "
+                           "by semicolons or write decimal points)" if sep == "," else ""))
+    return {**fmt, "header": 0, "names": [*names, *(f"Unnamed: {i}" for i in range(len(names), len(cells)))]}
+
+
+def _units_row(rows, header, sep):
+    """The cells of a row of units under a CSV's header (``s,rad/s,rad``: text in as many cells
+    as the header, no number, no date, and a row with a number after it), or None."""
+    from ..timing import date_seconds
+
+    lines = rows.split(b"\n", 2)
+    if len(lines) < 3:
+        return None
+
+    first, second, names = _cells(lines[0], sep), _cells(lines[1], sep), _cells(header, sep)
+    text = [c.strip() for c in first if c.strip().lower() not in MISSING]
+    if len(first) != len(names) or not text:
+        return None
+    for c in text:
+        for read in (lambda c: float(c.replace(",", ".")), date_seconds):
+            try:
+                read(c)
+                return None  # a number or a date: a row of data
+            except ValueError:
+                pass
+    for c in second:
+        try:
+            float(c.strip().replace(",", "."))
+            return [c.strip() for c in first]
+        except ValueError:
+            pass
+    return None
+
+
+def _numbers(line, header) -> bool:
+    """Whether a CSV line is a row of numbers (or empty cells), split as its ``header`` line is."""
+    try:
+        for cell in _cells(line.strip(), _separator(header, line + b"\n") or ","):
+            cell = cell.strip(' "')
+            if cell:
+                float(cell.replace(",", "."))
+    except ValueError:
+        return False
+    return bool(line.strip())
+
+
+def _column_name(i: int, name, hashed=False) -> str:
+    """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
+    name) when nothing is left.  The one rule for the header read as written and for pandas'
+    frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
+    other, and its lookup raised KeyError (an internal error).  A ``hashed`` header (``# time,gyro``)
+    loses the ``#`` of its first name."""
+    name = str(name).strip()
+    return (name.lstrip("#").strip() if hashed and i == 0 else name) or f"Unnamed: {i}"
+
+
+def _stripped(frame, columns=None, hashed=False):
+    """A block read from a CSV with its column names stripped (and only ``columns``, if given)."""
+    frame.columns = [_column_name(i, c, hashed) for i, c in enumerate(frame.columns)]
+    return frame if columns is None else frame[list(columns)]
+
+
+def _csv_blocks(path, reader, columns, hashed=False, closing=None):
+    """The blocks of a CSV reader; a row pandas cannot parse is a DataError here too.  ``closing``:
+    the file the reader reads, closed with it."""
+    pd = _pandas()
+    with reader, contextlib.closing(closing) if closing is not None else contextlib.nullcontext():
+        while True:
+            try:
+                block = next(reader)
+            except StopIteration:
+                return
+            except (pd.errors.ParserError, UnicodeDecodeError, ValueError, OSError, *_unpack_errors()) as exc:
+                raise _read_error(path, exc) from None
+            yield _stripped(block, columns, hashed)
+
+
+def _parquet_names(schema) -> dict:
+    """``{field: column}``: the columns of a Parquet file as cfdesign reads them.
+
+    A frame saved by pandas keeps its index as a field: one with a name (``time``) is a column
+    like the others; an unnamed one (``__index_level_0__``) is the time column ``time`` when it
+    holds dates or durations and no column is named ``time`` or ``t`` (a frame indexed by a
+    DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out otherwise
+    (row labels).  It was asked for by its field name and not found: an internal error."""
+    import pyarrow as pa
+
+    index = {c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)}
+    unnamed = {f.name for f in schema if f.name in index and re.fullmatch(r"__index_level_\d+__", f.name)}
+    timed = any(f.name.strip().lower() in TIME_COLUMNS for f in schema if f.name not in unnamed)
+    names = {}
+    for f in schema:
+        if f.name not in unnamed:
+            names[f.name] = f.name
+        elif not timed and (pa.types.is_timestamp(f.type) or pa.types.is_duration(f.type)):
+            names[f.name], timed = "time", True
+    return names
+
+
+def _parquet_blocks(path, columns, rows=None):
+    """A Parquet log's blocks of ``rows`` rows (all of it in one when None), columns named as
+    :func:`_parquet_names` names them."""
+    import pyarrow.parquet as pq
+
+    with pq.ParquetFile(path) as f:
+        names = _parquet_names(f.schema_arrow)
+        fields = {c: k for k, c in names.items()}
+        wanted = [fields.get(c, c) for c in columns] if columns is not None else list(names)
+        if rows is None:
+            yield f.read(columns=wanted).to_pandas(ignore_metadata=True).rename(columns=names)
+            return
+        for batch in f.iter_batches(batch_size=rows, columns=wanted):
+            yield batch.to_pandas(ignore_metadata=True).rename(columns=names)
+
+
+def _pipe(path) -> bool:
+    """Whether ``path`` is a pipe or a socket (``/dev/stdin`` of ``cat log.csv |``, ``<(zcat log.gz)``)."""
+    import stat
+
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError, TypeError):
+        return False
+    return stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode)
+
+
+def _spooled(path, source):
+    """A context giving a temporary copy of a pipe's log (its header is read before its rows, and
+    a pipe gives its bytes once: the first data row became the header, 'duplicate column(s) 0.5')."""
+    import contextlib
+    import shutil
+    import tempfile
+
+    @contextlib.contextmanager
+    def copy():
+        with tempfile.TemporaryDirectory(prefix="cfdesign-log-") as folder:
+            target = Path(folder) / "log"
+            try:
+                with open(path, "rb") as src, open(target, "wb") as dst:
+                    shutil.copyfileobj(src, dst, 1 << 20)
+            except OSError as exc:
+                raise DataError(f"cannot read {source}: {exc.strerror or exc}") from None
+            try:
+                yield target
+            except DataError as exc:  # messages name the pipe, not the copy
+                raise DataError(str(exc).replace(str(target), str(source))) from None
+
+    return copy()
+
+
+class _Lines:
+    """The file line of each row of a log (rows numbered from 0 as read): ``first`` for the
+    first, one more for each row after it, and, in a CSV file, one more for each blank line
+    between them, which pandas skips (a bad row after a blank line was named a line early).
+    The blank lines are looked for when a message first names a line (:meth:`__call__`)."""
+
+    def __init__(self, first=2, path=None, kind="csv", sep=","):
+        self.first, self.path, self.kind, self.sep = first, path, kind, sep
+        self._after = None  # the rows before each blank line
+
+    def __call__(self, row) -> int:
+        """The file line of row ``row``."""
+        if self.path is None:
+            return self.first + int(row)
+        if self._after is None:
+            self._after = self._blank_lines()
+        return self.first + int(row) + int(np.searchsorted(self._after, row, side="right"))
+
+    def _blank_lines(self):
+        """The rows before each blank line after the header: lines of nothing but spaces other
+        than the separator (a tab-separated line of tabs is a row of empty cells)."""
+        space = b"".join(re.escape(bytes([c])) for c in b" \t\r\f\v" if bytes([c]) != self.sep.encode())
+        blank = re.compile(rb"\n[" + space + rb"]*(?=\n)")
+        after, lines, carry = [], 0, b"\n"  # a newline before the first row's line: each match starts a line
+        with _open_csv(self.path, self.kind) as fh:
+            for _ in range(self.first - 1):
+                fh.readline()
+            while True:
+                chunk = fh.read(1 << 22)
+                text = carry + chunk
+                end = text.rfind(b"\n") if chunk else len(text)
+                pos = 0
+                for m in blank.finditer(text, 0, end + 1 if chunk else end):
+                    lines += text.count(b"\n", pos, m.start())
+                    pos = m.start()
+                    after.append(lines - len(after))
+                if not chunk:
+                    return np.array(after, dtype=np.int64)
+                lines += text.count(b"\n", pos, end)
+                carry = text[end:]
+
+
+def _lines(path) -> _Lines:
+    """The :class:`_Lines` of a log file: its first row on line 2, after the comment lines of a CSV."""
+    kind = _kind(path)
+    if kind == "parquet":
+        return _Lines()
+    fmt = _csv_format(path, kind)
+    return _Lines(2 + fmt.get("skiprows", 0) + ("_units" in fmt), path, kind, fmt.get("sep", ","))
+
+
+def _header(path) -> list:
+    import io
+
+    path = Path(path)
+    kind = _kind(path)
+    pd = _pandas(kind == "parquet")
+    if kind == "parquet":
+        import pyarrow.parquet as pq
+
+        try:
+            return list(_parquet_names(pq.read_schema(path)).values())
+        except (OSError, ValueError) as exc:
+            raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
+    fmt = _csv_format(path, kind)
+    try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
+        with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
+            for _ in range(fmt.get("skiprows", 0)):
+                fh.readline()
+            sep = fmt.get("sep", ",")
+            header = fmt.get("names") or (fh.readline().split() if sep == WHITESPACE else
+                                           next(csv.reader(fh, delimiter=sep), None))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise _read_error(path, exc) from None
+    if not header:
+        raise _read_error(path, pd.errors.EmptyDataError())
+    return [_column_name(i, h, fmt.get("_hashed", False)) for i, h in enumerate(header)]
+
+
+def read_columns(path, columns, time=None, time_unit=None) -> dict:
+    """Whole numeric columns of a log, read as :func:`run_log` reads them (``cfdesign noise``).
+
+    Parameters
+    ----------
+    path : str or Path
+        A CSV or Parquet log (:func:`read_log`).
+    columns : sequence of str
+        Columns to read.
+    time : str, optional
+        A column of times: numbers in ``time_unit``, or dates (ISO 8601 text, a datetime
+        column) as seconds since 1970-01-01 UTC.
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
+        The unit of a numeric ``time`` column (:data:`TIME_UNITS`), returned in seconds; by
+        default the one its name gives (``time [ms]``), else seconds.
+
+    Returns
+    -------
+    dict
+        ``{column: float ndarray}``; an empty cell is NaN.
+
+    Raises
+    ------
+    DataError
+        The file cannot be read, a column is missing or named twice, a cell is not a number
+        (naming its line).
+    """
+    wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
+    if _pipe(path):
+        with _spooled(path, str(path)) as spooled:
+            return read_columns(spooled, columns, time, time_unit)
+    header = _header(path)
+    missing = [c for c in wanted if c not in header]
+    if missing:
+        raise DataError(f"{path}: no column {missing[0]!r} (columns: {_listed(header)})")
+    dup = sorted({c for c in wanted if header.count(c) > 1})
+    if dup:
+        raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
+    scale = TIME_UNITS[_time_unit(path, time, time_unit, _row_units(path))]
+    return _numeric(read_log(path, wanted), wanted, path, _lines(path), time=time, time_scale=scale)

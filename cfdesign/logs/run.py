@@ -1,0 +1,682 @@
+"""Running a gain table on one log: :func:`~cfdesign.logs.run_log`, its checks, and the filter
+run block by block (``_Runner``: segments, pauses, restarts)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import numbers
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CfdesignError, DataError, OutputError
+from ..files import check_distinct, is_dir, not_a_device, write_bytes
+from ..gains import require_table
+from ..linear import wrap
+from .columns import _numeric, _pandas, _time_name
+from .plot import plot_log
+from .read import (
+    COMPRESSIONS,
+    _columns,
+    _header,
+    _kind,
+    _Lines,
+    _lines,
+    _pipe,
+    _row_units,
+    _spooled,
+    _tail_note,
+    _units_note,
+    read_log,
+)
+from .result import LogResult
+from .ticks import _arrow_types, _first_direct, _lock, _Pass, _startup_ticks, _unique
+from .write import _estimates, _rms, _Writer
+
+#: rows read, run and written at a time (and ticks run at a time across a gap without rows)
+BLOCK_ROWS = 1_000_000
+#: a file smaller than this is read once; a larger one twice (arrivals first, then in blocks)
+ONE_PASS_BYTES = 200_000_000
+
+
+def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
+            prediction=False, plot=None, start="reading", block_rows=None, progress=False,
+            source=None, time_unit=None) -> LogResult:
+    """Run a discrete gain table on a timestamped log (module docstring).
+
+    Parameters
+    ----------
+    table : GainTable
+        The gain table the log is run through.
+    data : str, Path or pandas.DataFrame
+        A CSV or Parquet file, or a DataFrame.
+    output : str or Path, optional
+        Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
+        no DataFrame (bounded memory for big logs).
+    time : str, optional
+        The time column (seconds, or dates: ISO 8601 text, a datetime column); default ``time``,
+        ``t`` or ``timestamp`` (in any case, or named with a unit: ``time [ms]``, ``time_ms``) when
+        present, or a DataFrame's index when it is a DatetimeIndex or is named so; else every row
+        is one base tick (said in a note).
+    mapping : dict, optional
+        ``{sensor: column}`` where the log names a sensor differently.
+    reference : str or list of str, optional
+        ``COLUMN`` (a reference for the first state, e.g. the true heading) or
+        ``STATE=COLUMN`` items: the RMS error of each is in the result, over every row and after
+        the start-up, beside the predicted standard deviation.
+    std : bool
+        Add ``<state>_std`` columns: the predicted standard deviation at each row's phase.
+    prediction : bool
+        Output the one-step prediction instead of the table's output.
+    plot : str or Path, optional
+        Also draw :func:`plot_log` to this image file.
+    start : {'reading', 'zero'}
+        The initial state: the quantity from the first reading of a sensor that measures it
+        directly (the others zero), or all zero (as :class:`~cfdesign.runtime.Runtime`).
+    block_rows : int, optional
+        Rows per block (default :data:`BLOCK_ROWS`).
+    progress : bool
+        A progress bar on stderr for long logs.
+    source : str, optional
+        The log's name in messages.
+    time_unit : {'s', 'ms', 'us', 'ns'}, optional
+        The unit of a numeric time column (:data:`TIME_UNITS`): ``'ns'`` for the integer
+        nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Default: the unit the
+        column's name gives (``time [ms]``, ``t (us)``), else seconds.  Dates and durations are
+        read as they are.
+
+    Returns
+    -------
+    LogResult
+        The estimates (None when written to ``output``), the RMS error of each reference (over every
+        row, and after the start-up beside the predicted standard deviation), the unused readings
+        and notes.
+
+    Raises
+    ------
+    GainTableError
+        ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
+    CfdesignError
+        A continuous-time table (logs run discrete tables), a ``block_rows`` that is not a
+        positive whole number, a ``mapping`` that is not a dict or a ``reference`` that is not
+        text or a list of it.
+    DataError
+        A missing or non-numeric column (naming the line), bad times (naming the line), a base
+        rate more than 1 % off the table's, an empty log.
+    OutputError
+        The output cannot be written; nothing is left half-written.
+    """
+    require_table(table, "run_log")
+    if table.domain != "z":
+        from ..runtime.filter import DISCRETE_HINT
+
+        raise CfdesignError(f"{table.name} is a continuous-time table; logs run discrete tables ({DISCRETE_HINT})")
+    if block_rows is not None and (isinstance(block_rows, bool) or not isinstance(block_rows, numbers.Integral)
+                                   or block_rows < 1):  # -5 read no row ('a header but no rows'), True one a block
+        raise CfdesignError(f"block_rows must be a positive whole number of rows, got {block_rows!r}")
+    block_rows = int(block_rows or BLOCK_ROWS)
+    frame, source = _source(data, source, time)
+    if frame is None and not_a_device(data):  # /dev/zero: an endless line
+        raise DataError(f"cannot read {source}: {not_a_device(data)}")
+    if frame is None and _pipe(data):  # read once into a file: a log is read more than once
+        with _spooled(data, source) as path:
+            return run_log(table, path, output=output, time=time, mapping=mapping, reference=reference, std=std,
+                           prediction=prediction, plot=plot, start=start, block_rows=block_rows, progress=progress,
+                           source=source, time_unit=time_unit)
+    if frame is None and output is not None and _same_file(data, output):
+        raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
+    check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
+    _pandas(output is not None and Path(output).suffix.lower() in (".parquet", ".pq"))  # before the log is read
+    if output is not None and Path(output).suffix.lower() == ".zip":
+        raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
+                          ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
+    header = list(frame.columns) if frame is not None else _header(data)
+    cols = _columns(table, header, source, time, mapping, reference, time_unit,
+                    _Lines() if frame is not None else _lines(data), None if frame is not None else _row_units(data))
+    _check_output_names(table, cols, std, source)
+    blocks, whole = _blocks(data, frame, cols, block_rows)
+    parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
+    lock, n_rows, types, (grid, rephased, first) = _lock(table, blocks, cols, source, types=parquet and whole is None)
+    if n_rows == 0:
+        raise DataError(f"{source}: the log has a header but no rows")
+    if start not in ("reading", "zero"):
+        raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
+    if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
+        _check_plot_target(plot)
+    runner = _Runner(table, lock, "prior" if prediction else None, start == "reading",
+                     covariances=bool(std or cols.references), first_reading=first)
+    if parquet and whole is not None:
+        types = _arrow_types(whole[cols.extra])
+    writer = _Writer(output, keep=output is None or plot is not None, types=types)
+    place = _Pass(table, cols, source, grid=grid, rephased=rephased)  # ticks where the first pass put them
+    startup = _startup_ticks(table)
+
+    def run_rows(block, values, ticks):
+        if len(ticks):
+            states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            _check_bounded(table, states, ticks, source)
+            writer.write(_estimates(table, block, cols, values, states, stds, std), runner.settled(ticks, startup))
+            bar.update(len(ticks))
+
+    with _progress(n_rows, progress) as bar, writer:
+        pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
+        for block in blocks():
+            values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines(start + i),
+                              cols.time, cols.time_scale)
+            ticks = place.ticks(values)
+            if pending is not None:
+                pd = _pandas()
+                block = pd.concat([pending[0], block])
+                values = {k: np.concatenate([pending[1][k], v]) for k, v in values.items()}
+                ticks = np.concatenate([pending[2], ticks])
+            cut = int(np.searchsorted(ticks, ticks[-1])) if len(ticks) else 0
+            held = runner.held_from(ticks[:cut], {s: values[c][:cut] for s, c in cols.sensors.items()})
+            if len(ticks) - held <= block_rows:  # rows after a pause wait for the reading that moves them
+                cut = held
+            pending = (block.iloc[cut:], {k: v[cut:] for k, v in values.items()}, ticks[cut:])
+            run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
+        if pending is not None:
+            run_rows(*pending)
+        est = writer.frame()
+        if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
+            from ..plot import figure_bytes
+
+            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit,
+                                                          restarts=runner.restarts), plot))
+    if place.early:
+        _merge(runner.counts, {"before_start": place.early})
+    notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
+    notes += lock.notes + [n for n in [runner.pause_note(table.sample_time_s)] if n]
+    settled, predicted = writer.settled()
+    return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
+                     Path(output) if output else None, source, settled, predicted,
+                     startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
+                     len(runner.pauses))
+
+
+def _check_bounded(table, states, ticks, source):
+    """An estimate that leaves :data:`~cfdesign.runtime.filter.STATE_LIMIT` (or overflows to
+    inf or NaN) is a filter that diverges, not an estimate: an unstable table (an edited gain
+    or model) wrote empty estimate columns with exit status 0."""
+    from ..runtime.filter import STATE_LIMIT
+
+    bad = ~np.all(np.abs(states) <= STATE_LIMIT, axis=1)
+    if bad.any():
+        tick = int(ticks[np.argmax(bad)])
+        raise DataError(f"{source}: the estimates of {table.name!r} diverge (beyond {STATE_LIMIT:g} at tick {tick}): "
+                        "the table's filter is not stable (cfdesign verify names the check)")
+
+
+def _same_file(a, b) -> bool:
+    """``a`` and ``b`` name one existing file (through links or relative paths as well)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one does not exist (yet): not the same file
+        return False
+
+
+def _check_plot_target(plot):
+    from ..plot import FIGURE_FORMATS
+
+    path = Path(plot)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    if fmt not in FIGURE_FORMATS:
+        raise OutputError(f"cannot write {plot}: unknown image format {fmt!r} "
+                          f"(use {', '.join('.' + f for f in FIGURE_FORMATS)})")
+    if is_dir(path) or not is_dir(path.parent if str(path.parent) else Path(".")):
+        raise OutputError(f"cannot write {plot}: " + ("it is a directory" if is_dir(path) else
+                                                      f"no folder {path.parent}"))
+
+
+def _source(data, source, time=None):
+    """``(frame or None, name)``; a DataFrame whose time is its index (a DatetimeIndex, or an
+    index named as a time column is, :func:`_time_name`: ``time``, ``t``, ``timestamp``, ``time_ms``)
+    and not a column has it made its first column."""
+    pd = _pandas()
+    if isinstance(data, pd.DataFrame):
+        index = data.index
+        named = index.name is not None and _time_name(index.name)
+        if time is None and not any(_time_name(c) for c in data.columns) and (
+                named or isinstance(index, pd.DatetimeIndex)):
+            data = data.reset_index(names=str(index.name) if index.name is not None else "time")
+        return data, source or "log"
+    return None, source or str(data)
+
+
+def _time_note(cols) -> list:
+    """A note when the log has no time column: its rows are taken one a tick."""
+    if cols.time is not None:
+        return []
+    like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec"))]
+    return ["the log has no time column ('time', 't' or 'timestamp'): every row is taken as one base tick"
+            + (f" (column {like[0]!r} looks like a time: --time {like[0]})" if like else " (--time COLUMN)")]
+
+
+def _blocks(data, frame, cols, rows):
+    """``(blocks, whole)``: a function giving the log's blocks each time it is called (two passes
+    need two), and the whole log when it is in memory (a DataFrame, or a file read once), else None."""
+    if frame is not None:
+        whole = frame
+    else:
+        path = Path(data)
+        packed = 10 if _kind(path) in COMPRESSIONS.values() else 1  # a compressed CSV unpacks to several times its size
+        if packed * os.path.getsize(path) >= ONE_PASS_BYTES:
+            return (lambda: read_log(path, cols.read, chunksize=rows)), None
+        whole = read_log(path, cols.read)
+    return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
+
+
+def _check_output_names(table, cols, std, source):
+    """A column of the log passed through must not take the name of a column the estimates add."""
+    made = [*table.states, *(f"{s}_std" for s in table.states if std or cols.references),
+            *(f"{s}_reference" for s in cols.references)]
+    clash = [c for c in [*([cols.time] if cols.time else []), *cols.extra] if c in made]
+    if clash:
+        raise DataError(f"{source}: column {clash[0]!r} has the name of a column of the estimates "
+                        f"({', '.join(made)}); rename it in the log")
+
+
+#: a pause of the logger restarts state 0 when the first direct reading after it is more than
+#: this many standard deviations of the innovation from the state carried over the pause
+RESTART_GATE = 3.0
+
+
+class _Runner:
+    """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
+
+    def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None):
+        from ..runtime import Runtime
+
+        self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
+        # (tick, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
+        # when it lies in a later block than the first
+        self.first_reading = first_reading
+        self.covariances = covariances  # standard deviations that follow missed readings
+        self.P_missed = None
+        from ..designer import has_kalman_gains
+
+        # a table with a model: missed readings are bridged by the Kalman filter over the arrivals
+        self.kalman = has_kalman_gains(table) and table.Q is not None and table.R is not None
+        self.bridge = None  # that filter while it runs (:meth:`_run_bridged`)
+        self._Runtime = Runtime
+        self.runtimes = {}
+        self.counts = {}
+        self.x, self.u_last = None, None
+        self.next_tick = 0
+        self.quiet = 0  # ticks since an input sensor last read (carried from call to call)
+        self.pauses = []  # (first tick without an input reading, ticks) of each pause
+        self.restarts = []  # ticks where a pause ended (state 0 started again from a direct reading)
+        self.pending = False  # a pause ended, no direct reading since: start again at the first one
+
+    def _runtime(self, seg):
+        key = (seg.rotation, seg.offsets) if seg.offsets else ("rotation",)
+        if key not in self.runtimes:
+            table = self.table
+            if seg.offsets:
+                from ..designer import gains_for_schedule
+
+                table = gains_for_schedule(self.table, self.table.schedule.shifted(dict(seg.offsets)))
+            self.runtimes[key] = self._Runtime(table, output=self.output)
+        return self.runtimes[key]
+
+    def _phase(self, seg, tick):
+        return (tick - seg.rotation) % self.table.period if not seg.offsets else tick % self.table.period
+
+    def run(self, ticks, readings):
+        """Output states, phases and predicted standard deviations (of the table that ran each
+        tick) at ``ticks`` (ascending, may repeat or skip) from the rows' readings; rows on a tick
+        already run get that tick's estimate and their readings are counted as ``same_tick``
+        (:func:`run_log` keeps the rows of one tick in one call, so this does not happen there)."""
+        n = self.table.F.shape[0]
+        if not len(ticks):
+            return np.zeros((0, n)), np.zeros(0, np.int64), np.zeros((0, n))
+        late = ticks < self.next_tick
+        if late.any():
+            _merge(self.counts, {"same_tick": {k: int(np.sum(~np.isnan(v[late]))) for k, v in readings.items()
+                                               if np.any(~np.isnan(v[late]))}})
+            states, phases, stds = self.run(ticks[~late], {k: v[~late] for k, v in readings.items()})
+            out, ph, sd = np.empty((len(ticks), n)), np.empty(len(ticks), dtype=np.int64), np.empty((len(ticks), n))
+            out[late], ph[late], sd[late] = self.last_out, self.last_phase, self.last_std
+            out[~late], ph[~late], sd[~late] = states, phases, stds
+            return out, ph, sd
+        if ticks[-1] - self.next_tick >= BLOCK_ROWS:  # a gap of many ticks without rows: run it in bounded pieces
+            ends = np.arange(self.next_tick + BLOCK_ROWS - 1, ticks[-1], BLOCK_ROWS)
+            cuts = np.searchsorted(ticks, ends, side="right")
+            parts = [self._ticks(ticks[a:b], {k: v[a:b] for k, v in readings.items()}, int(end))
+                     for a, b, end in zip([0, *cuts], [*cuts, len(ticks)], [*ends, ticks[-1]], strict=True)]
+            return tuple(np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        return self._ticks(ticks, readings, int(ticks[-1]))
+
+    def _ticks(self, ticks, readings, last):
+        """Ticks ``next_tick .. last`` (those of the rows at ``ticks`` and the ones between, without
+        a row): the estimates at ``ticks``.  After a pause (:meth:`_restart_ticks`) the ticks from
+        the first direct reading on run from state 0 started again from it."""
+        first = self.next_tick
+        dense = self._dense(ticks, readings, first, last)
+        if self.x is None and self.from_reading:
+            self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
+        parts, shifts = [], []
+        restarts = self._restart_ticks(dense, first)
+        cuts = [first, *(r for _, r in restarts), last + 1]
+        for k, (a, b) in enumerate(itertools.pairwise(cuts)):
+            moved = self._restart(dense, a - first) if k else None
+            if moved is not None:
+                shifts.append((max(restarts[k - 1][0], first), a, *moved))
+                self.restarts.append(restarts[k - 1][0])
+            if a < b:
+                part = {name: v[a - first:b - first] for name, v in dense.items()}
+                parts.append(self._run_arrivals(part, a, b - 1) if self.lock.varying
+                             else self._run_segments(part, a, b - 1))
+        out, phases, stds = (np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        F = self.table.F
+        if np.array_equal(F[:, 0], np.eye(len(F))[0]):  # state 0 feeds no other state: a shift of it stays
+            for e, r, delta, std in shifts:  # the ticks from the pause's end to the reading, moved onto it
+                out[e - first:r - first, 0] += delta
+                stds[e - first:r - first, 0] = np.maximum(stds[e - first:r - first, 0], std)
+            if self.table.wrap_angle and shifts:
+                out[:, 0] = wrap(out[:, 0])
+        self.next_tick = last + 1
+        self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
+        return out[ticks - first], phases[ticks - first], stds[ticks - first]
+
+    def settled(self, ticks, startup):
+        """Whether each of ``ticks`` is after the start-up (``startup`` ticks) of the log and of the
+        restart after every pause so far."""
+        out = np.asarray(ticks) >= startup
+        for e in self.restarts:
+            out &= ~((ticks >= e) & (ticks < e + startup))
+        return out
+
+    def pause_note(self, dt):
+        """One line on the pauses, or None."""
+        from ..timing import PAUSE_TICKS
+
+        if not self.pauses:
+            return None
+        start, longest = max(self.pauses, key=lambda p: p[1])
+        return (f"the inputs have no reading for more than {PAUSE_TICKS} ticks {len(self.pauses)} time"
+                f"{'s' * (len(self.pauses) > 1)} (a logger paused), the longest {longest * dt:.3g} s from "
+                f"{start * dt:.6g} s: {self.table.states[0]} started again from the first direct reading after "
+                f"{len(self.restarts)} of them (where it disagreed with the state carried over the pause by more "
+                f"than {RESTART_GATE:g} sigma), each start-up shaded and left out of the settled RMS")
+
+    def held_from(self, ticks, readings) -> int:
+        """The first of rows at ``ticks`` (ascending, the next to run) whose estimates are not known
+        until a later block: those from the end of a pause (:meth:`_restart_ticks`) on when no direct
+        reading follows it among them, as that reading may move them (:meth:`_restart`); else
+        ``len(ticks)``.  (Rows written before the reading came in the next block stayed where the
+        held inputs took them: 0.69 rad off, where one block moved them.)"""
+        from ..runtime.filter import usable
+        from ..timing import PAUSE_TICKS
+
+        inputs, direct, n = self.table.inputs, self._direct(), len(ticks)
+        if not (inputs and direct and n):
+            return n
+        have = np.zeros(n, dtype=bool)
+        for s in inputs:
+            have |= usable(readings[s.name])
+        at = np.flatnonzero(have)
+        quiet = np.diff(np.concatenate([[self.next_tick - 1 - self.quiet], ticks[at]])) - 1
+        ends = at[quiet >= PAUSE_TICKS]
+        if not ends.size:
+            return n
+        read = np.zeros(n, dtype=bool)
+        for i in direct:
+            read |= usable(readings[self.table.measurements[i].name])
+        return n if read[ends[-1]:].any() else int(ends[-1])
+
+    def _direct(self):
+        """Indices (in the table's measurements) of the sensors that read state 0 directly."""
+        e0 = np.eye(self.table.F.shape[0])[0]
+        return [i for i, s in enumerate(self.table.measurements) if np.array_equal(self.table.H[s.index], e0)]
+
+    def _restart_ticks(self, dense, first) -> list:
+        """Ticks (ascending) of the direct readings that start state 0 again: the first one at or
+        after the end of each pause (more than :data:`~cfdesign.timing.PAUSE_TICKS` ticks without
+        a reading of any input sensor: the logger stopped, the vehicle moved on, and what it did
+        meanwhile is unknown), pauses counted in :attr:`pauses`."""
+        from ..runtime.filter import usable
+        from ..timing import PAUSE_TICKS
+
+        inputs, direct = self.table.inputs, self._direct()
+        if not inputs or not direct:
+            return []
+        n = len(dense[inputs[0].name])
+        have = np.zeros(n, dtype=bool)
+        for s in inputs:
+            have |= usable(dense[s.name])
+        at = np.flatnonzero(have)
+        before = np.concatenate([[at[0] + self.quiet] if at.size else [], np.diff(at) - 1]).astype(np.int64)
+        ends = at[before >= PAUSE_TICKS]
+        self.pauses += [(first + int(e - q), int(q)) for e, q in zip(ends, before[before >= PAUSE_TICKS], strict=True)]
+        self.quiet = int(n - 1 - at[-1]) if at.size else self.quiet + n
+        read = np.zeros(n, dtype=bool)
+        for i in direct:
+            read |= usable(dense[self.table.measurements[i].name])
+        due, out, self.pending = ([0] if self.pending else []) + ends.tolist(), [], False
+        for e in due:
+            if out and out[-1][1] >= e:  # the reading that ends an earlier pause ends this one too
+                continue
+            r = np.flatnonzero(read[e:])
+            if not r.size:  # no direct reading yet: at the first one of a later call
+                self.pending = True
+                break
+            out.append((e, e + int(r[0])))
+        return [(first + e, first + r) for e, r in out]
+
+    def _restart(self, dense, k):
+        """State 0 started again from the direct reading at index ``k`` of ``dense`` (the most
+        precise one there), as at the log's start; its error is that reading's noise, independent
+        of the other states' errors, so the covariance carried (grown over the pause) gets row and
+        column 0 of that: variance ``R`` of the sensor, no correlation.  The other states carry on.
+        Only where the reading disagrees with the state carried over the pause by more than
+        :data:`RESTART_GATE` standard deviations of the innovation (``P00 + R``, the prior grown
+        over the pause): a short gap of a fast IMU, bridged well by the held inputs, would
+        otherwise swap a precise heading for one noisy compass reading.
+        Returns ``(delta, std)``: the move of state 0 and the reading's noise std, or None
+        (no restart)."""
+        from ..runtime.filter import usable
+
+        ms, R = self.table.measurements, self.table.R
+        here = [i for i in self._direct() if usable(dense[ms[i].name][k:k + 1])[0]]
+        best = min(here, key=lambda i: R[i, i] if R is not None else 0.0)
+        kf = getattr(self, "_arrivals", None)  # the Kalman filter over the arrivals carries its own state
+        x = np.zeros(self.table.F.shape[0]) if (kf.x if kf is not None else self.x) is None else \
+            (kf.x if kf is not None else self.x).copy()
+        delta = dense[ms[best].name][k] - x[0]
+        if self.table.wrap_angle:
+            delta = float(wrap(delta))
+        # the prior grown over the pause
+        P = kf.P if kf is not None else self.bridge.P if self.bridge is not None else self.P_missed
+        var0 = float(P[0, 0]) if P is not None else max(float(c[0, 0]) for c in self.table.P)
+        if R is not None and delta ** 2 <= RESTART_GATE ** 2 * (var0 + R[best, best]):
+            return None  # the inputs held over the pause still agree with the reading: carry on
+        x[0] += delta
+        if kf is not None:
+            kf.x = x
+        else:
+            self.x = x
+        for P in (self.P_missed, None if kf is None else kf.P, None if self.bridge is None else self.bridge.P):
+            if P is not None and R is not None:
+                P[0, :] = P[:, 0] = 0.0
+                P[0, 0] = R[best, best]
+        return delta, math.sqrt(R[best, best]) if R is not None else 0.0
+
+    def _run_arrivals(self, dense, first, last):
+        """Ticks ``first..last`` through the Kalman filter over the actual arrivals
+        (:class:`~cfdesign.runtime.arrivals.ArrivalKalman`), its state carried between blocks."""
+        if not hasattr(self, "_arrivals"):
+            from ..runtime.arrivals import ArrivalKalman
+
+            self._arrivals = ArrivalKalman(self.table, self.output, self.x)
+        kf = self._arrivals
+        N = last - first + 1
+        u = np.column_stack([dense[s.name] for s in self.table.inputs]) if self.table.inputs else np.zeros((N, 0))
+        y = np.column_stack([dense[s.name] for s in self.table.measurements])
+        kf.counts = {}
+        out, stds = kf.run(u, y)
+        _merge(self.counts, kf.counts)
+        return out, np.arange(first, last + 1) % self.table.period, stds
+
+    def _run_segments(self, dense, first, last):
+        """Ticks ``first..last`` through the table's segments (:class:`~cfdesign.timing.Lock`)."""
+        n = self.table.F.shape[0]
+        out = np.empty((last - first + 1, n))
+        phases = np.empty(last - first + 1, dtype=np.int64)
+        stds = np.empty((last - first + 1, n))
+        for seg in self.lock.segments:
+            a, b = max(seg.start, first), min(seg.stop, last + 1)
+            if a >= b:
+                continue
+            rt = self._runtime(seg)
+            if self.x is not None:
+                rt.x, rt.u_last = self.x.copy(), self.u_last.copy()
+            rt.phase = self._phase(seg, a)
+            rt.counts = {}
+            part = {k: v[a - first:b - first] for k, v in dense.items()}
+            phases[a - first:b - first] = (rt.phase + np.arange(b - a)) % rt.period
+            if self.kalman:
+                out[a - first:b - first], stds[a - first:b - first] = self._run_bridged(rt, part)
+            else:
+                _, xs = rt.run(part, states=True)
+                out[a - first:b - first] = xs
+                stds[a - first:b - first] = self._std(rt)[phases[a - first:b - first]]
+                if self.covariances:
+                    stds[a - first:b - first] = self._missed(rt, part, phases[a - first:b - first],
+                                                             stds[a - first:b - first])
+            self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
+            _merge(self.counts, rt.counts)
+        return out, phases, stds
+
+    def _run_bridged(self, rt, part):
+        """A segment of a table with Kalman gains: its own (vectorised) gains wherever every
+        scheduled reading is present, and from a missed one (a dropout, an outage, a sensor that
+        starts late or stops early) the Kalman filter of the table's model over the readings that
+        did arrive (:class:`~cfdesign.runtime.arrivals.ArrivalKalman`), until its covariance is
+        back on the table's (to :attr:`~cfdesign.runtime.arrivals.MissedReadings.RTOL`): the
+        table's fixed gains are those of every reading present, and after an outage they kept a
+        small gain on the readings that came back (or, with a sensor gone, on the one left) -
+        3.9 times the RMS error of the Kalman filter over the same readings on a simulated log
+        whose odometry stopped early beside a compass.  Returns the output states and their predicted standard
+        deviations; the bridging filter is carried from segment to segment and block to block."""
+        from ..runtime.arrivals import ArrivalKalman, MissedReadings
+        from ..runtime.filter import usable
+
+        table, N, n = rt.table, len(next(iter(part.values()))), rt.table.F.shape[0]
+        phases = (rt.phase + np.arange(N)) % rt.period
+        ms = table.measurements
+        present = np.column_stack([usable(part[s.name]) for s in ms])
+        missed = (table.schedule.mask()[phases] & ~present).any(axis=1)
+        std = self._std(rt)
+        out, stds = np.empty((N, n)), np.empty((N, n))
+        every = rt.period * -(-16 // rt.period)  # the covariance compared with the table's every whole period
+        if self.bridge is not None:  # carried on from the last call, with the state as it was left (or restarted)
+            self.bridge.x, self.bridge.u_last = rt.x.copy(), rt.u_last.copy()
+        i = 0
+        while i < N:
+            kf = self.bridge
+            if kf is None:  # the table's gains up to the next missed reading
+                m = i + int(np.argmax(missed[i:])) if missed[i:].any() else N
+                if m > i:
+                    _, out[i:m] = rt.run({k: v[i:m] for k, v in part.items()}, states=True)
+                    stds[i:m] = std[phases[i:m]]
+                if m == N:
+                    break
+                kf = self.bridge = ArrivalKalman(table, rt.output, rt.x)
+                kf.P, kf.u_last = np.array(table.P[phases[m]], dtype=float), rt.u_last.copy()
+                i = m
+            j = min(N, i + every)
+            u = np.column_stack([part[s.name][i:j] for s in table.inputs]) if table.inputs else np.zeros((j - i, 0))
+            kf.counts = {}
+            out[i:j], stds[i:j] = kf.run(u, np.column_stack([part[s.name][i:j] for s in ms]))
+            _merge(self.counts, kf.counts)
+            rt.x, rt.u_last, rt.phase = kf.x.copy(), kf.u_last.copy(), int((phases[j - 1] + 1) % rt.period)
+            ref = np.asarray(table.P[rt.phase], dtype=float)
+            if not missed[i:j].any() and np.max(np.abs(kf.P - ref)) <= MissedReadings.RTOL * np.max(np.diag(ref)):
+                self.bridge = None  # back on the table's gains
+            i = j
+        return out, stds
+
+    def _missed(self, rt, part, phases, base):
+        """``base`` (the table's standard deviations) where every scheduled reading was present;
+        from a missed one until the error is back on the table's, the error of the gains that ran
+        over the readings present (:class:`~cfdesign.runtime.arrivals.MissedReadings`; its
+        covariance carried from segment to segment and block to block)."""
+        if rt.table.Q is None or rt.table.R is None:
+            return base
+        if not hasattr(rt, "_missed"):
+            from ..runtime.arrivals import MissedReadings
+
+            rt._missed = MissedReadings(rt.table, rt.output)
+        from ..runtime.filter import usable
+
+        present = np.column_stack([usable(part[s.name]) for s in rt.table.measurements])
+        missed = rt._missed
+        missed.P = self.P_missed
+        out = missed.stds(phases, present, base)
+        self.P_missed = missed.P
+        return out
+
+    def _std(self, rt):
+        """``(period, n)``: predicted standard deviation of every state at each phase of ``rt``'s
+        table, for the estimate it outputs."""
+        if not hasattr(rt, "_log_std"):
+            covs = rt.table.P_filtered if rt.output == "posterior" else rt.table.P
+            rt._log_std = np.sqrt(np.maximum(np.array([np.diag(P) for P in covs]), 0.0))
+        return rt._log_std
+
+    def _start(self, dense):
+        """The quantity from the first reading of a sensor whose row of H picks it (state 0): the
+        log's (``first_reading``, found by the first pass over every block) or, without it, the
+        first in ``dense``."""
+        x = np.zeros(self.table.F.shape[0])
+        first = self.first_reading or _first_direct(self.table, np.arange(len(next(iter(dense.values())))), dense)
+        if first is not None:
+            x[0] = first[2]
+        return x
+
+    def _dense(self, ticks, readings, first, last):
+        """One value per tick: rows on the same tick merged (a second reading counted)."""
+        n = last - first + 1
+        dense = {}
+        for name, col in readings.items():
+            arr = np.full(n, np.nan)
+            ok = np.flatnonzero(~np.isnan(col))
+            idx, first_row = _unique(ticks[ok] - first, return_index=True)  # the first reading of a tick
+            arr[idx] = col[ok[first_row]]
+            twice = len(ok) - len(idx)
+            if twice:
+                _merge(self.counts, {"same_tick": {name: twice}})
+            dense[name] = arr
+        return dense
+
+
+
+def _merge(into, counts):
+    for kind, per in counts.items():
+        bucket = into.setdefault(kind, {})
+        for name, c in per.items():
+            bucket[name] = bucket.get(name, 0) + c
+
+
+class _NoBar:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def update(self, n):
+        pass
+
+
+def _progress(total, show):
+    if not show or total < BLOCK_ROWS:
+        return _NoBar()
+    import sys
+
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="row", file=sys.stderr)
