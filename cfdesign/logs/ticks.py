@@ -308,5 +308,9 @@ class _Held:
         ticks, row = self.longest
         line = lines(row)
         longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
+        # the table knows nothing of how the input moves, so no std can carry the hold's error: a
+        # position filter's accelerometer held 22 s had 11.9 m RMS error against 1.07 m predicted
+        std = ("; the predicted std leaves out the error of the held value, which grows with the gap"
+               if ticks > 1 else "")
         return (f"{name} (an input) has no reading at {self.missing(last_tick)} of {last_tick + 1} ticks{longest}: "
-                "its last reading is held there")
+                f"its last reading is held there{std}")
