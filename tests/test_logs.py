@@ -1821,3 +1821,35 @@ def test_a_log_without_a_pause_runs_as_before(heading):
     log, _ = heading_log(3, 37, n=3000)
     res = run_log(heading, log.drop(index=range(1000, 1049)), reference="truth")
     assert res.pauses == 0 and not any("logger paused" in n for n in res.notes)
+
+
+@pytest.mark.parametrize("name", ["time_ms", "t [ms]", "Time (ms)"])
+def test_a_parquet_time_column_named_with_its_unit_is_the_time_beside_a_datetime_index(heading, tmp_path, name):
+    """A Parquet log's time column follows the one naming rule of CSV logs and DataFrames (``_time_name``):
+    ``time_ms`` beside an unnamed DatetimeIndex was not taken as a time column, so the index took
+    its place as ``time`` (a 100 Hz log read at the 20 Hz of the index was refused).  The index is
+    left out as row labels, the estimates equal those of the CSV log."""
+    log, _ = heading_log(3, 37, n=3000)
+    timed = log.assign(time=log["time"] * 1000).rename(columns={"time": name})
+    timed.to_csv(tmp_path / "log.csv", index=False)
+    dates = pd.Timestamp("2024-05-01T12:00:00") + pd.to_timedelta(np.arange(len(log)) * 0.05, unit="s")
+    timed.set_index(pd.DatetimeIndex(dates)).to_parquet(tmp_path / "log.parquet")
+    expected = run_log(heading, tmp_path / "log.csv").estimates
+    got = run_log(heading, tmp_path / "log.parquet").estimates
+    assert list(got.columns) == list(expected.columns) and got.columns[0] == name
+    assert np.allclose(got["heading"].to_numpy(), expected["heading"].to_numpy(), atol=1e-12, rtol=0)
+    assert cfdesign.logs.read_columns(tmp_path / "log.parquet", ["gyro"], time=name)[name][1] == pytest.approx(
+        log["time"].iloc[1])
+
+
+def test_a_note_on_a_parquet_log_names_a_row_not_a_line(heading, tmp_path):
+    """Parquet has no lines: the note on an input's held ticks names the row (counted from 1) after
+    which the longest gap starts; a CSV log's names its file line."""
+    log, _ = heading_log(3, 37, n=3000)
+    log.loc[1000:1004, "gyro"] = np.nan  # rows 1000..1004 (0-based) without a gyro reading
+    log.to_csv(tmp_path / "log.csv", index=False)
+    log.to_parquet(tmp_path / "log.parquet", index=False)
+    csv_note = next(n for n in run_log(heading, tmp_path / "log.csv").notes if "(an input)" in n)
+    note = next(n for n in run_log(heading, tmp_path / "log.parquet").notes if "(an input)" in n)
+    assert "after line 1001" in csv_note, csv_note  # row 999 on line 1001 (the header is line 1)
+    assert "after row 1000" in note and "line" not in note, note  # the 1000th row

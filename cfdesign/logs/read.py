@@ -23,6 +23,7 @@ from .columns import (
     _listed,
     _numeric,
     _pandas,
+    _time_name,
     _time_unit,
     _time_with_unit,
     _unit,
@@ -530,14 +531,15 @@ def _parquet_names(schema) -> dict:
 
     A frame saved by pandas keeps its index as a field: one with a name (``time``) is a column
     like the others; an unnamed one (``__index_level_0__``) is the time column ``time`` when it
-    holds dates or durations and no column is named ``time`` or ``t`` (a frame indexed by a
-    DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out otherwise
-    (row labels).  It was asked for by its field name and not found: an internal error."""
+    holds dates or durations and no column is named as a time column (the one rule of CSV logs and
+    DataFrames, :func:`~cfdesign.logs.columns._time_name`: ``time``, ``t [ms]``, ``time_ms``; a frame
+    indexed by a DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out
+    otherwise (row labels).  It was asked for by its field name and not found: an internal error."""
     import pyarrow as pa
 
     index = {c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)}
     unnamed = {f.name for f in schema if f.name in index and re.fullmatch(r"__index_level_\d+__", f.name)}
-    timed = any(f.name.strip().lower() in TIME_COLUMNS for f in schema if f.name not in unnamed)
+    timed = any(_time_name(f.name) for f in schema if f.name not in unnamed)
     names = {}
     for f in schema:
         if f.name not in unnamed:
@@ -602,11 +604,17 @@ class _Lines:
     """The file line of each row of a log (rows numbered from 0 as read): ``first`` for the
     first, one more for each row after it, and, in a CSV file, one more for each blank line
     between them, which pandas skips (a bad row after a blank line was named a line early).
-    The blank lines are looked for when a message first names a line (:meth:`__call__`)."""
+    The blank lines are looked for when a message first names a line (:meth:`__call__`).
+    A Parquet file has no lines: :meth:`at` names its rows, counted from 1."""
 
     def __init__(self, first=2, path=None, kind="csv", sep=","):
         self.first, self.path, self.kind, self.sep = first, path, kind, sep
         self._after = None  # the rows before each blank line
+
+    def at(self, row) -> str:
+        """Where row ``row`` is, for a message: ``line N`` of a text log, ``row N`` of a Parquet log
+        (rows counted from 1)."""
+        return f"row {int(row) + 1}" if self.kind == "parquet" else f"line {self(row)}"
 
     def __call__(self, row) -> int:
         """The file line of row ``row``."""
@@ -644,7 +652,7 @@ def _lines(path) -> _Lines:
     """The :class:`_Lines` of a log file: its first row on line 2, after the comment lines of a CSV."""
     kind = _kind(path)
     if kind == "parquet":
-        return _Lines()
+        return _Lines(kind=kind)
     fmt = _csv_format(path, kind)
     return _Lines(2 + fmt.get("skiprows", 0) + ("_units" in fmt), path, kind, fmt.get("sep", ","))
 

@@ -304,9 +304,8 @@ class _Held:
         return self.gaps + (last_tick - self.last)
 
     def note(self, name, last_tick, dt, lines) -> str:
-        """The note on the held ticks; ``lines(row)`` gives a row's file line."""
+        """The note on the held ticks; ``lines.at(row)`` names where a row is (a line, a Parquet row)."""
         ticks, row = self.longest
-        line = lines(row)
-        longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
+        longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after {lines.at(row)}" if ticks > 1 else ""
         return (f"{name} (an input) has no reading at {self.missing(last_tick)} of {last_tick + 1} ticks{longest}: "
                 "its last reading is held there")
