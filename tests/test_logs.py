@@ -1853,3 +1853,33 @@ def test_a_note_on_a_parquet_log_names_a_row_not_a_line(heading, tmp_path):
     note = next(n for n in run_log(heading, tmp_path / "log.parquet").notes if "(an input)" in n)
     assert "after line 1001" in csv_note, csv_note  # row 999 on line 1001 (the header is line 1)
     assert "after row 1000" in note and "line" not in note, note  # the 1000th row
+
+
+@pytest.mark.parametrize("rows", [None, 500])
+def test_an_empty_cell_past_the_first_64_kb_of_a_log_separated_by_spaces_is_refused(heading, tmp_path, rows):
+    """Every row of a log separated by spaces is checked for fewer cells than its header, not only
+    those of its first 64 kB: a compass that stops partway (blank cells from row 2000, 180 kB in)
+    was read with each later cell in the column before it (the truth as the compass), exit 0.
+    Refused naming the line (counting a blank line before it), plain and gzipped, whole and in blocks;
+    the same log with 'nan' in the cells runs."""
+    import gzip
+
+    log, _ = heading_log(0, 0, n=3000)
+    log = log.ffill()  # every cell filled (a logger that repeats its last reading) ...
+    log.loc[2000:, "compass"] = np.nan  # ... until the compass stops
+    lines = log.to_string(index=False, na_rep="", float_format="{:.17g}".format).splitlines()
+    lines.insert(1000, "")  # a blank line: the rows after it are a line further on
+    text = "\n".join(lines) + "\n"
+    (tmp_path / "stops.txt").write_text(text)
+    (tmp_path / "stops.txt.gz").write_bytes(gzip.compress(text.encode()))
+    first = 2 + 2000 + 1  # the header on line 1, row 2000 (0-based) on line 2002, one blank line before it
+    assert len(lines[first - 2].split()) == 6 and len(lines[first - 1].split()) == 5
+    assert text.index(lines[first - 1]) > 1 << 16
+    for name in ("stops.txt", "stops.txt.gz"):
+        with pytest.raises(DataError, match=rf"{name} line {first}: 5 cells under a header of 6 columns"):
+            run_log(heading, tmp_path / name, block_rows=rows)
+    with pytest.raises(DataError, match=rf"stops.txt line {first}: 5 cells"):
+        cfdesign.logs.read_columns(tmp_path / "stops.txt", ["gyro"])
+    (tmp_path / "nan.txt").write_text(log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format))
+    assert np.allclose(run_log(heading, tmp_path / "nan.txt", block_rows=rows).estimates["heading"],
+                       run_log(heading, log).estimates["heading"], rtol=0, atol=1e-9)
