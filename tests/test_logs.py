@@ -1883,3 +1883,24 @@ def test_an_empty_cell_past_the_first_64_kb_of_a_log_separated_by_spaces_is_refu
     (tmp_path / "nan.txt").write_text(log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format))
     assert np.allclose(run_log(heading, tmp_path / "nan.txt", block_rows=rows).estimates["heading"],
                        run_log(heading, log).estimates["heading"], rtol=0, atol=1e-9)
+
+
+def test_jitter_of_a_tenth_of_a_tick_with_a_row_in_seven_missing_is_the_table_rate_and_more_is_ambiguous():
+    """+-0.1 tick of jitter with every 7th row, or a random one in seven, missing: accepted for 20
+    seeds, and placed on a grid of the table's spacing.  +-0.4 tick with every 7th row missing fits
+    6 rows in 7 ticks at 100 Hz as well as every row at 85.7 Hz: the message says the rate cannot
+    be told from the times (it named 85.7 Hz as the log's rate)."""
+    from cfdesign.timing import check_rate, grid_fit
+
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        k = np.arange(4000)
+        for kept in (k[k % 7 != 6][:3000], k[rng.uniform(size=4000) > 1 / 7][:3000]):
+            t = (kept + rng.uniform(-0.1, 0.1, len(kept))) * 0.01 + 12.3
+            check_rate(t, 0.01, "log")
+            assert abs(grid_fit(t, 0.01)[1] / 0.01 - 1) < 1e-3
+    rng = np.random.default_rng(1)
+    kept = k[k % 7 != 6][:3000]
+    with pytest.raises(DataError, match=r"^log: the log's base rate is 85.71\d* Hz with every row present or "
+                                        r"99.\d+ Hz with rows missing, .* the rate cannot be told from the times"):
+        check_rate(np.sort(kept * 0.01 + 0.004 * rng.uniform(-1, 1, 3000)), 0.01, "log")
