@@ -44,8 +44,8 @@ import numpy as np
 from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
-           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "SWAP_ROWS", "rephase", "date_seconds", "nearest_tick",
-           "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+           "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "SWAP_ROWS", "BLURRED_TICKS", "rephase", "date_seconds",
+           "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01
@@ -424,6 +424,10 @@ def _row_spacing(t, dt):
 
 #: rows in a row that jitter may put a tick off their own before they are taken for rows missing
 SWAP_ROWS = 3
+#: RMS distance (ticks) of times from the grid fitted to them beyond which the grid does not
+#: tell the rate (:func:`check_rate`): times spread evenly over a tick are 1/sqrt(12) = 0.289
+#: from any grid, jitter of +-0.4 tick is 0.23 from its own
+BLURRED_TICKS = 0.25
 
 
 def _misfit(t, spacing) -> float:
@@ -511,19 +515,37 @@ def check_rate(t, dt, source):
     ------
     DataError
         The log's base rate differs from ``1/dt`` by more than the tolerance; the message gives
-        both rates.
+        both rates.  Where the times fit the table's rate with rows missing as well as another
+        with every row present, or lie about as far from the grid fitted to them as from any
+        (more than :data:`BLURRED_TICKS` RMS: jitter of +-0.4 tick with a row in seven missing),
+        the message says the rate cannot be told from them instead of naming a wrong one.
     """
     t = np.asarray(t, dtype=float)
     if len(t) < 3:
         return
     rows, spacing, span = _row_spacing(t, dt), _tick_spacing(t), t[-1] - t[0]
+    skipped = spacing  # the spacing of ticks with some skipped
     if rows is not None and not (spacing > 0 and _misfit(rows[1], spacing) < 0.5 * _misfit(rows[1], rows[0])):
         spacing, span = rows[0], rows[1][-1] - rows[1][0]  # the rows one a tick, unless ticks with some
         # skipped fit their times far closer (every 7th row missing from exact times: 6 rows in 7 ticks)
     if not spacing > 0:
         return
-    ticks = max(float(span) / spacing, 1.0)
-    if abs(spacing - dt) > (RATE_RTOL + 2 * JITTER_TICKS / ticks) * dt:
+
+    def off(s):
+        return abs(s - dt) > (RATE_RTOL + 2 * JITTER_TICKS / max(float(span) / s, 1.0)) * dt
+
+    if off(spacing):
+        rms = np.sqrt(_misfit(t[:FIT_ROWS], spacing)) / spacing  # ticks from the grid fitted
+        # the times fit the table's rate with rows missing as well, or lie off any grid
+        if (not off(skipped)) if spacing != skipped else rms > BLURRED_TICKS:
+            raise DataError(f"{source}: the log's base rate is "
+                            + (f"{1.0 / spacing:.6g} Hz with every row present or {1.0 / skipped:.6g} Hz with rows "
+                               "missing" if spacing != skipped else
+                               f"{1.0 / spacing:.6g} Hz at best, its times as far from that grid as from none "
+                               f"({rms:.2f} tick RMS)")
+                            + f", and the table runs at {1.0 / dt:.6g} Hz: the rate cannot be told from the times "
+                            "(time-stamp jitter of a third of a tick or more with rows missing blurs one tick into "
+                            "two); stamp the rows with the sensor's sample time, or log every row")
         unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
                      for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
         raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "

@@ -1822,3 +1822,86 @@ def test_a_log_without_a_pause_runs_as_before(heading):
     log, _ = heading_log(3, 37, n=3000)
     res = run_log(heading, log.drop(index=range(1000, 1049)), reference="truth")
     assert res.pauses == 0 and not any("logger paused" in n for n in res.notes)
+
+
+@pytest.mark.parametrize("name", ["time_ms", "t [ms]", "Time (ms)"])
+def test_a_parquet_time_column_named_with_its_unit_is_the_time_beside_a_datetime_index(heading, tmp_path, name):
+    """A Parquet log's time column follows the one naming rule of CSV logs and DataFrames (``_time_name``):
+    ``time_ms`` beside an unnamed DatetimeIndex was not taken as a time column, so the index took
+    its place as ``time`` (a 100 Hz log read at the 20 Hz of the index was refused).  The index is
+    left out as row labels, the estimates equal those of the CSV log."""
+    log, _ = heading_log(3, 37, n=3000)
+    timed = log.assign(time=log["time"] * 1000).rename(columns={"time": name})
+    timed.to_csv(tmp_path / "log.csv", index=False)
+    dates = pd.Timestamp("2024-05-01T12:00:00") + pd.to_timedelta(np.arange(len(log)) * 0.05, unit="s")
+    timed.set_index(pd.DatetimeIndex(dates)).to_parquet(tmp_path / "log.parquet")
+    expected = run_log(heading, tmp_path / "log.csv").estimates
+    got = run_log(heading, tmp_path / "log.parquet").estimates
+    assert list(got.columns) == list(expected.columns) and got.columns[0] == name
+    assert np.allclose(got["heading"].to_numpy(), expected["heading"].to_numpy(), atol=1e-12, rtol=0)
+    assert cfdesign.logs.read_columns(tmp_path / "log.parquet", ["gyro"], time=name)[name][1] == pytest.approx(
+        log["time"].iloc[1])
+
+
+def test_a_note_on_a_parquet_log_names_a_row_not_a_line(heading, tmp_path):
+    """Parquet has no lines: the note on an input's held ticks names the row (counted from 1) after
+    which the longest gap starts; a CSV log's names its file line."""
+    log, _ = heading_log(3, 37, n=3000)
+    log.loc[1000:1004, "gyro"] = np.nan  # rows 1000..1004 (0-based) without a gyro reading
+    log.to_csv(tmp_path / "log.csv", index=False)
+    log.to_parquet(tmp_path / "log.parquet", index=False)
+    csv_note = next(n for n in run_log(heading, tmp_path / "log.csv").notes if "(an input)" in n)
+    note = next(n for n in run_log(heading, tmp_path / "log.parquet").notes if "(an input)" in n)
+    assert "after line 1001" in csv_note, csv_note  # row 999 on line 1001 (the header is line 1)
+    assert "after row 1000" in note and "line" not in note, note  # the 1000th row
+
+
+@pytest.mark.parametrize("rows", [None, 500])
+def test_an_empty_cell_past_the_first_64_kb_of_a_log_separated_by_spaces_is_refused(heading, tmp_path, rows):
+    """Every row of a log separated by spaces is checked for fewer cells than its header, not only
+    those of its first 64 kB: a compass that stops partway (blank cells from row 2000, 180 kB in)
+    was read with each later cell in the column before it (the truth as the compass), exit 0.
+    Refused naming the line (counting a blank line before it), plain and gzipped, whole and in blocks;
+    the same log with 'nan' in the cells runs."""
+    import gzip
+
+    log, _ = heading_log(0, 0, n=3000)
+    log = log.ffill()  # every cell filled (a logger that repeats its last reading) ...
+    log.loc[2000:, "compass"] = np.nan  # ... until the compass stops
+    lines = log.to_string(index=False, na_rep="", float_format="{:.17g}".format).splitlines()
+    lines.insert(1000, "")  # a blank line: the rows after it are a line further on
+    text = "\n".join(lines) + "\n"
+    (tmp_path / "stops.txt").write_text(text)
+    (tmp_path / "stops.txt.gz").write_bytes(gzip.compress(text.encode()))
+    first = 2 + 2000 + 1  # the header on line 1, row 2000 (0-based) on line 2002, one blank line before it
+    assert len(lines[first - 2].split()) == 6 and len(lines[first - 1].split()) == 5
+    assert text.index(lines[first - 1]) > 1 << 16
+    for name in ("stops.txt", "stops.txt.gz"):
+        with pytest.raises(DataError, match=rf"{name} line {first}: 5 cells under a header of 6 columns"):
+            run_log(heading, tmp_path / name, block_rows=rows)
+    with pytest.raises(DataError, match=rf"stops.txt line {first}: 5 cells"):
+        cfdesign.logs.read_columns(tmp_path / "stops.txt", ["gyro"])
+    (tmp_path / "nan.txt").write_text(log.to_string(index=False, na_rep="nan", float_format="{:.17g}".format))
+    assert np.allclose(run_log(heading, tmp_path / "nan.txt", block_rows=rows).estimates["heading"],
+                       run_log(heading, log).estimates["heading"], rtol=0, atol=1e-9)
+
+
+def test_jitter_of_a_tenth_of_a_tick_with_a_row_in_seven_missing_is_the_table_rate_and_more_is_ambiguous():
+    """+-0.1 tick of jitter with every 7th row, or a random one in seven, missing: accepted for 20
+    seeds, and placed on a grid of the table's spacing.  +-0.4 tick with every 7th row missing fits
+    6 rows in 7 ticks at 100 Hz as well as every row at 85.7 Hz: the message says the rate cannot
+    be told from the times (it named 85.7 Hz as the log's rate)."""
+    from cfdesign.timing import check_rate, grid_fit
+
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        k = np.arange(4000)
+        for kept in (k[k % 7 != 6][:3000], k[rng.uniform(size=4000) > 1 / 7][:3000]):
+            t = (kept + rng.uniform(-0.1, 0.1, len(kept))) * 0.01 + 12.3
+            check_rate(t, 0.01, "log")
+            assert abs(grid_fit(t, 0.01)[1] / 0.01 - 1) < 1e-3
+    rng = np.random.default_rng(1)
+    kept = k[k % 7 != 6][:3000]
+    with pytest.raises(DataError, match=r"^log: the log's base rate is 85.71\d* Hz with every row present or "
+                                        r"99.\d+ Hz with rows missing, .* the rate cannot be told from the times"):
+        check_rate(np.sort(kept * 0.01 + 0.004 * rng.uniform(-1, 1, 3000)), 0.01, "log")

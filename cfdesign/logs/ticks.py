@@ -304,10 +304,9 @@ class _Held:
         return self.gaps + (last_tick - self.last)
 
     def note(self, name, last_tick, dt, lines) -> str:
-        """The note on the held ticks; ``lines(row)`` gives a row's file line."""
+        """The note on the held ticks; ``lines.at(row)`` names where a row is (a line, a Parquet row)."""
         ticks, row = self.longest
-        line = lines(row)
-        longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after line {line}" if ticks > 1 else ""
+        longest = f", the longest {ticks} ticks ({ticks * dt:.3g} s) after {lines.at(row)}" if ticks > 1 else ""
         # the table knows nothing of how the input moves, so no std can carry the hold's error: a
         # position filter's accelerometer held 22 s had 11.9 m RMS error against 1.07 m predicted
         std = ("; the predicted std leaves out the error of the held value, which grows with the gap"
