@@ -56,7 +56,7 @@ def test_one_column_matches_pandas(column):
 
 
 def test_blocks_longer_than_a_chunk(monkeypatch):
-    monkeypatch.setattr(write_mod, "_FAST_ROWS", 777)
+    monkeypatch.setattr(write_mod, "_FAST_CELLS", 7_777)  # 972 rows of 8 columns a chunk
     frame = awkward_frame(5_000)
     assert _fast_csv(frame) == pandas_rows(frame)
 
