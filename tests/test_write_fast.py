@@ -67,7 +67,27 @@ def test_other_columns_left_to_pandas(monkeypatch):
     assert _fast_csv(frame.astype({"normal": np.float32})) is None
     assert _fast_csv(frame.astype({"gapped": "Float64"})) is None
     monkeypatch.setitem(sys.modules, "pyarrow", None)  # pyarrow not installed
+    write_mod._arrow_agrees.cache_clear()
     assert _fast_csv(frame) is None
+    monkeypatch.undo()
+    write_mod._arrow_agrees.cache_clear()
+    assert _fast_csv(frame) is not None
+
+
+def test_arrow_that_lays_numbers_out_otherwise_is_not_used(monkeypatch):
+    """Another Arrow's notation (here: exponents without their sign) turns the fast path off."""
+    import pyarrow.compute as pc
+
+    cast = pc.cast
+    monkeypatch.setattr(pc, "cast", lambda *a, **k: pc.replace_substring(cast(*a, **k), "e+", "e"))
+    write_mod._arrow_agrees.cache_clear()
+    try:
+        assert not write_mod._arrow_agrees()
+        assert _fast_csv(awkward_frame(100)) is None
+    finally:
+        monkeypatch.undo()
+        write_mod._arrow_agrees.cache_clear()
+    assert write_mod._arrow_agrees()
 
 
 def hidden(frame):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -208,11 +209,11 @@ def _fast_csv(frame):
     str or None
         The rows, each ended by a newline.
     """
-    try:
-        import pyarrow as pa
-        import pyarrow.compute as pc
-    except ImportError:
+    if not _arrow_agrees():
         return None
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
     # numpy's own dtypes only: pandas writes a nullable column's <NA> and a text column's quotes itself
     if not len(frame.dtypes) or not all(isinstance(d, np.dtype) and (d == np.float64 or d.kind in "iu")
                                         for d in frame.dtypes):
@@ -227,6 +228,25 @@ def _fast_csv(frame):
         offsets = np.frombuffer(lines.buffers()[1], np.int32, len(lines) + 1, lines.offset * 4)
         text.append(lines.buffers()[2].to_pybytes()[offsets[0]:offsets[-1]].decode("ascii"))
     return "".join(text)
+
+
+#: doubles of every notation: Arrow's text of them mended must be numpy's (checked once per process)
+_PROBE = (0.0, -0.0, 1.0, -3.0, 0.1, 1 / 3, 1e-4, 9.999e-5, -1.25e-5, 1e-6, 9.9e-7, 1e-7, 5e-324, 2.0 ** 53,
+          123456789012345.6, 1e15, 1e16, 1e21, 1.7976931348623157e308, math.inf, -math.inf, math.nan)
+
+
+@functools.lru_cache(maxsize=1)
+def _arrow_agrees() -> bool:
+    """Whether pyarrow is installed and its text of :data:`_PROBE`, mended, is numpy's (another
+    version of Arrow may lay its numbers out otherwise: pandas writes them then)."""
+    try:
+        import pyarrow as pa
+        import pyarrow.compute as pc
+    except ImportError:
+        return False
+    probe = np.array(_PROBE)
+    want = np.where(np.isnan(probe), None, probe.astype(str).astype(object))
+    return _cells(probe, pa, pc).to_pylist() == want.tolist()
 
 
 def _cells(values, pa, pc):
