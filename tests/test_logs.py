@@ -1950,3 +1950,32 @@ def test_the_reading_that_restarts_the_state_after_a_pause_counts_once(gps3, pat
         stds.append(est["position_std"].to_numpy()[rows])
     ratio = np.sqrt(np.mean(np.square(errors), axis=0)) / np.mean(stds, axis=0)
     assert abs(ratio[0] - 1) < 0.15 and np.all(np.abs(ratio[1:] - 1) < 0.3), ratio  # 40 seeds: +-11 % (1 sigma)
+
+
+@pytest.mark.parametrize("block_rows", [None, 128])
+def test_a_parquet_log_is_named_by_its_rows_in_the_messages_of_its_cells_and_times(heading, tmp_path, block_rows):
+    """A Parquet log has no lines: a cell that is not a number, a time that is empty, goes back,
+    repeats with a second reading or leaps were named 'line N' (one past the row, as if it had a
+    header line); they name 'row N' (from 1), as the note on held inputs does, and the same log as
+    CSV still names its file lines (the header on line 1), whole and in blocks."""
+    log = heading_log(3, 37, n=1000)[0]
+    bad_cell = log.assign(gyro=log["gyro"].map(repr))  # a column of text, as a logger may write it
+    bad_cell.loc[300, "gyro"] = "abc"
+    cases = [(bad_cell, "column 'gyro' is not a number: 'abc'", 300)]
+    for message, value in {"no time (an empty cell": np.nan, "goes back from": 3.0,
+                           "repeats 4.0 on the {} before (times must increase, and rows at one time": 4.0,
+                           "s after the {} before, a gap of more than 1000000 ticks": None}.items():
+        broken = log.copy()
+        if value is None:  # 1e5 s later from row 401 on
+            broken.loc[401:, "time"] += 1e5
+        else:
+            broken.loc[400 if value == 4.0 else 401, "time"] = broken.loc[401, "time"] = value  # 4.0: the gyro twice
+        cases.append((broken, message, 401))
+    for frame, message, row in cases:
+        frame.to_parquet(tmp_path / "log.parquet")
+        frame.to_csv(tmp_path / "log.csv", index=False)
+        for name, where, noun in (("log.parquet", f"row {row + 1}", "row"), ("log.csv", f"line {row + 2}", "line")):
+            with pytest.raises(DataError) as info:
+                run_log(heading, tmp_path / name, block_rows=block_rows)
+            text = str(info.value)
+            assert text.startswith(f"{tmp_path / name} {where}: ") and message.format(noun) in text, text

@@ -103,8 +103,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         positive whole number, a ``mapping`` that is not a dict or a ``reference`` that is not
         text or a list of it.
     DataError
-        A missing or non-numeric column (naming the line), bad times (naming the line), a base
-        rate more than 1 % off the table's, an empty log.
+        A missing or non-numeric column or bad times (naming the line; a Parquet log's row), a
+        base rate more than 1 % off the table's, an empty log.
     OutputError
         The output cannot be written; nothing is left half-written.
     """
@@ -163,7 +163,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     with _progress(n_rows, progress) as bar, writer:
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
-            values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines(start + i),
+            values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines.at(start + i),
                               cols.time, cols.time_scale)
             ticks = place.ticks(values)
             if pending is not None:
