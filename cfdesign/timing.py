@@ -319,7 +319,7 @@ def _written_to(t):
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
-          readings=None, line=None):
+          readings=None, where=None):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -343,9 +343,10 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         are then allowed when no sensor reads in two of them (a log with one row per reading,
         the compass stamped at the time of a gyro sample); without it every repeated time is
         refused.
-    line : callable, optional
-        ``line(i)``: the file line of row ``i``, where the rows are not one a line (a CSV with
-        blank lines between them); default ``first_line + i``.
+    where : callable, optional
+        ``where(i)``: where row ``i`` is, for a message: ``'line N'`` where the rows are not one a
+        line (a CSV with blank lines between them), ``'row N'`` in a Parquet log, which has no
+        lines (:meth:`_Lines.at <cfdesign.logs.read._Lines.at>`); default ``line first_line + i``.
 
     Returns
     -------
@@ -356,16 +357,16 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     ------
     DataError
         A time that is not finite, goes back, or repeats with a second reading of one sensor
-        (naming the line), a gap of more than :data:`MAX_GAP_TICKS` ticks after a row (naming the
-        line), or a base rate more than :data:`RATE_RTOL` off the table's (naming both).
+        (naming its line, or a Parquet log's row), a gap of more than :data:`MAX_GAP_TICKS` ticks
+        after a row (naming it so), or a base rate more than :data:`RATE_RTOL` off the table's (naming both).
     """
     t = np.asarray(time, dtype=float)
     if not t.size:
         return np.zeros(0, dtype=np.int64)
-    line = line or (lambda i: first_line + int(i))
+    where = where or (lambda i: f"line {first_line + int(i)}")
     bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:  # an empty cell is NaN: say so (a spreadsheet's rows of empty cells below the data)
-        raise DataError(f"{source} line {line(bad[0])}: " + (
+        raise DataError(f"{source} {where(bad[0])}: " + (
             "no time (an empty cell; every row needs one)" if np.isnan(t[bad[0]])
             else f"time {float(t[bad[0]])!r} is not a finite number of seconds"))
     d = np.diff(t)
@@ -383,9 +384,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         i = back[0] + 1
         what = "repeats" if d[back[0]] == 0 else "goes back from"
         coarse = _written_to(t) if what == "repeats" else None
-        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
-                        "line before (times must increase" + (", and rows at one time must read different sensors)"
-                                                             if readings is not None else ")")
+        raise DataError(f"{source} {where(i)}: time {float(t[i])!r} {what} {float(t[i - 1])!r} on the "
+                        f"{_noun(where, i)} before (times must increase"
+                        + (", and rows at one time must read different sensors)" if readings is not None else ")")
                         + (f": the times are written to {coarse:g} s, coarser than the table's tick of {dt:g} s "
                            "(write them with more digits)" if coarse is not None and coarse > dt else ""))
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
@@ -396,12 +397,18 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
                      for name, short, scale in _TIME_UNITS[1:]
                      if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
                     "are the times in seconds? Split the log at the gap")
-        raise DataError(f"{source} line {line(i)}: time {float(t[i])!r} is {step:.6g} s after the "
-                        f"line before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter runs every "
-                        f"tick): {unit}")
+        raise DataError(f"{source} {where(i)}: time {float(t[i])!r} is {step:.6g} s after the "
+                        f"{_noun(where, i)} before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter "
+                        f"runs every tick): {unit}")
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)
+
+
+def _noun(where, i) -> str:
+    """What ``where(i)`` counts the log in (``line`` of a text log, ``row`` of a Parquet log): the
+    row before ``i`` is named as ``where`` names ``i``."""
+    return where(i).split(" ", 1)[0]
 
 
 def _row_spacing(t, dt):

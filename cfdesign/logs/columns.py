@@ -115,9 +115,10 @@ def _listed(header, limit=300) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(header)} columns)"
 
 
-def _numeric(df, columns, source, line, time=None, time_scale=1.0):
-    """The columns as float arrays; a cell that is not a number is an error naming its line
-    (``line(i)``: the file line of row ``i`` of ``df``).
+def _numeric(df, columns, source, where, time=None, time_scale=1.0):
+    """The columns as float arrays; a cell that is not a number is an error naming where it is
+    (``where(i)``: row ``i`` of ``df`` for a message, :meth:`_Lines.at <cfdesign.logs.read._Lines.at>`:
+    ``line N`` of a text log, ``row N`` of a Parquet log).
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
@@ -155,7 +156,7 @@ def _numeric(df, columns, source, line, time=None, time_scale=1.0):
                     "show one, not in one separated by commas; write decimal points)"
                     if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
                     " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")
-            raise DataError(f"{source} line {line(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
+            raise DataError(f"{source} {where(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
                             + hint)
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out

@@ -115,7 +115,7 @@ def _time_axis(estimates, time, scale=1.0):
         return (raw - raw[0]).astype(float) * scale, f"{time} (s after the first row)"
     if col.dtype.kind in "fiu":
         return col.to_numpy(dtype=float), f"{time} (s)"
-    x = _numeric(estimates, [time], "estimates", _Lines(), time)[time]
+    x = _numeric(estimates, [time], "estimates", _Lines().at, time)[time]
     return x - x[0], f"{time} (s after {col.iloc[0]})"
 
 

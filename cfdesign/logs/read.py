@@ -777,7 +777,7 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
     ------
     DataError
         The file cannot be read, a column is missing or named twice, a cell is not a number
-        (naming its line).
+        (naming its line; a Parquet log's row).
     """
     wanted = list(dict.fromkeys([*columns, *([time] if time else [])]))
     if _pipe(path):
@@ -791,4 +791,4 @@ def read_columns(path, columns, time=None, time_unit=None) -> dict:
     if dup:
         raise DataError(f"{path}: column {dup[0]!r} appears twice in the header")
     scale = TIME_UNITS[_time_unit(path, time, time_unit, _row_units(path))]
-    return _numeric(read_log(path, wanted), wanted, path, _lines(path), time=time, time_scale=scale)
+    return _numeric(read_log(path, wanted), wanted, path, _lines(path).at, time=time, time_scale=scale)

@@ -48,7 +48,7 @@ class _Pass:
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             start = self.rows - len(tail_t)
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  line=lambda i: self.cols.lines(start + i),
+                  where=lambda i: self.cols.lines.at(start + i),
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
             rows, pauses = self._pauses(t[base], np.flatnonzero(base))
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
@@ -106,7 +106,7 @@ class _Pass:
                 continue
             block, at = block.iloc[max(row - first, 0):], max(row, first)
             values = _numeric(block, [self.cols.time, *sensors], self.source,
-                              lambda i, at=at: self.cols.lines(at + i), self.cols.time, self.cols.time_scale)
+                              lambda i, at=at: self.cols.lines.at(at + i), self.cols.time, self.cols.time_scale)
             base = np.ones(len(block), dtype=bool)
             for c in sensors:
                 base &= ~np.isnan(values[c])
@@ -205,7 +205,7 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          lambda i, start=place.rows: cols.lines(start + i), cols.time, cols.time_scale)
+                          lambda i, start=place.rows: cols.lines.at(start + i), cols.time, cols.time_scale)
         if cols.time is not None and block[cols.time].dtype == np.float32:
             _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
         first_row = place.rows
