@@ -346,7 +346,7 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     where : callable, optional
         ``where(i)``: where row ``i`` is, for a message: ``'line N'`` where the rows are not one a
         line (a CSV with blank lines between them), ``'row N'`` in a Parquet log, which has no
-        lines (:meth:`_Lines.at <cfdesign.logs.read._Lines.at>`); default ``line first_line + i``.
+        lines (``cfdesign.logs.read._Lines.at``); default ``line first_line + i``.
 
     Returns
     -------

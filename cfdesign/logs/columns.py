@@ -117,7 +117,7 @@ def _listed(header, limit=300) -> str:
 
 def _numeric(df, columns, source, where, time=None, time_scale=1.0):
     """The columns as float arrays; a cell that is not a number is an error naming where it is
-    (``where(i)``: row ``i`` of ``df`` for a message, :meth:`_Lines.at <cfdesign.logs.read._Lines.at>`:
+    (``where(i)``: row ``i`` of ``df`` for a message, ``cfdesign.logs.read._Lines.at``:
     ``line N`` of a text log, ``row N`` of a Parquet log).
 
     The ``time`` column may also hold dates (a datetime column of a Parquet file, ISO 8601 text
