@@ -24,7 +24,7 @@ def timed(job, pandas):
     """``(writer seconds, whole seconds)`` of ``job()``, the writer forced to pandas or not."""
     from cfdesign.logs import write
 
-    fast, csv = write._fast_csv, write._Writer._csv
+    fast, csv = write._fast_pieces, write._Writer._csv
     spent = [0.0]
 
     def timed_csv(self, shown, header):
@@ -34,13 +34,13 @@ def timed(job, pandas):
 
     write._Writer._csv = timed_csv
     if pandas:
-        write._fast_csv = lambda frame: None
+        write._fast_pieces = lambda frame: None
     try:
         t0 = time.perf_counter()
         job()
         return spent[0], time.perf_counter() - t0
     finally:
-        write._fast_csv, write._Writer._csv = fast, csv
+        write._fast_pieces, write._Writer._csv = fast, csv
 
 
 def compare(label, job, out, repeat):

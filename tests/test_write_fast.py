@@ -132,7 +132,7 @@ def test_run_log_file_same_with_and_without_arrow(tmp_path, monkeypatch):
                   "compass": np.where(k % 100 == 37, psi + 0.05 * rng.standard_normal(n), np.nan),
                   "seq": k}).to_csv(tmp_path / "log.csv", index=False)
     run_log(table, tmp_path / "log.csv", output=tmp_path / "fast.csv.gz", std=True, block_rows=1_500)
-    monkeypatch.setattr(write_mod, "_fast_csv", lambda frame: None)
+    monkeypatch.setattr(write_mod, "_fast_pieces", lambda frame: None)
     run_log(table, tmp_path / "log.csv", output=tmp_path / "pandas.csv.gz", std=True, block_rows=1_500)
     fast, slow = (gzip.decompress((tmp_path / f).read_bytes()) for f in ("fast.csv.gz", "pandas.csv.gz"))
     assert fast == slow
