@@ -622,6 +622,23 @@ def main(argv=None) -> int:
         sys.stdout = stdout
 
 
+def console() -> int:
+    """The ``cfdesign`` command (and ``python -m cfdesign``): :func:`main` in a process of its own.
+
+    Such a process may go without what only a library user's process can need: jsonschema is
+    imported without its optional IRI format checker, ``rfc3987_syntax`` (installed with Jupyter),
+    which compiles some forty grammars at import: 1 s of every command that reads a gain table.
+    No table's schema has a ``format`` keyword, so its checks are the same.
+
+    Returns
+    -------
+    int
+        The exit status, as :func:`main`.
+    """
+    sys.modules.setdefault("rfc3987_syntax", None)  # None: its import fails, and jsonschema goes without it
+    return main()
+
+
 def _main(argv, debug) -> int:
     try:
         nul = next((i for i, a in enumerate(argv) if "\x00" in a), None)

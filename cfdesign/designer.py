@@ -33,7 +33,7 @@ from functools import reduce
 from pathlib import Path
 
 import numpy as np
-from scipy import linalg, optimize
+from scipy import linalg
 
 from . import __version__, linear
 from .blas import single_thread
@@ -918,14 +918,6 @@ def _periodic_gains(F, H, Q, R, schedule, form) -> dict:
                        "monodromy_multipliers": _pairs(sol.monodromy_multipliers)}}
 
 
-def has_kalman_gains(table: GainTable) -> bool:
-    """The table's gains came from its model by a Riccati equation (DARE, periodic DARE, CARE),
-    so :func:`gains_for_schedule` can recompute them for another arrival pattern."""
-    solver = table.provenance.get("solver", {})
-    method = str(solver.get("method", "") if isinstance(solver, dict) else "")
-    return method.startswith(("dare", "periodic_dare", "care"))
-
-
 def gains_for_schedule(table: GainTable, schedule: Schedule) -> GainTable:
     """The table's Kalman gains recomputed for another arrival pattern of its sensors.
 
@@ -939,7 +931,7 @@ def gains_for_schedule(table: GainTable, schedule: Schedule) -> GainTable:
         The table's gains are not Kalman gains (fixed or sparse: they have no model to be
         recomputed from), or the pattern leaves the filter undetectable.
     """
-    if not has_kalman_gains(table):
+    if not table.has_kalman_gains:
         method = str(table.provenance.get("solver", {}).get("method", ""))
         raise CfdesignError(f"{table.name}: its gains are not Kalman gains ({method or 'unknown method'}), so they "
                             "cannot be recomputed for another arrival pattern")
@@ -1087,6 +1079,8 @@ def _sparse_gains(obs, F, H, Q, R, form, output):
             except (linalg.LinAlgWarning, np.linalg.LinAlgError):
                 return np.inf  # too close to the stability boundary to evaluate
         return P[0, 0] if np.all(np.isfinite(P)) and P[0, 0] > 0 else np.inf
+
+    from scipy import optimize  # here only: its import is a quarter of a second of every `cfdesign run`
 
     optimum = _kalman_gain(F, H, Q, R, form)
     K_opt = optimum[0]

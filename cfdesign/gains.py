@@ -713,6 +713,15 @@ class GainTable:
         """Measurement sensors, by row of ``H``."""
         return tuple(s for s in self.sensors if s.role == "measurement")
 
+    @property
+    def has_kalman_gains(self) -> bool:
+        """The gains came from the table's model by a Riccati equation (DARE, periodic DARE,
+        CARE), so :func:`~cfdesign.designer.gains_for_schedule` can recompute them for another
+        arrival pattern; fixed or hand-typed gains have no model to recompute them from."""
+        solver = self.provenance.get("solver", {})
+        method = str(solver.get("method", "") if isinstance(solver, dict) else "")
+        return method.startswith(("dare", "periodic_dare", "care"))
+
     def sensor(self, name: str) -> SensorPort:
         """The port of one sensor.
 

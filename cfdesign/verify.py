@@ -408,11 +408,7 @@ def _named_gains_differ(spec_gains, table_gains, rtol) -> str:
 
 
 def _field(table, name):
-    if name == "kalman_gains":
-        from .designer import has_kalman_gains
-
-        return has_kalman_gains(table)
-    return getattr(table, name)
+    return table.has_kalman_gains if name == "kalman_gains" else getattr(table, name)
 
 
 def _at(worst) -> str:

@@ -487,7 +487,7 @@ def test_a_bad_log_among_many_is_a_summary_row_not_a_dask_traceback(heading, tmp
     from cfdesign.logs.fleet import _run_one
 
     (tmp_path / "bad.csv").write_text("time,x\n0,1\n")
-    row = _run_one(heading.to_json(), str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
+    row = _run_one(heading, str(tmp_path / "bad.csv"), str(tmp_path / "e.csv"), {})
     assert row["samples"] == 0 and "missing column(s) gyro" in row["error"]
 
 

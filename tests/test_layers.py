@@ -72,3 +72,35 @@ def test_nav_filters_run_without_sympy():
     assert "cfdesign.nav.position" in modules and "cfdesign.designer" in modules
     assert _under(modules, "sympy", "cfdesign.symbolic") == []
 
+
+
+def test_the_command_reads_tables_without_jsonschemas_iri_checker(tmp_path):
+    """``cfdesign`` checks a table against its schema with jsonschema, whose optional IRI checker
+    (rfc3987_syntax, installed with Jupyter) took 1 s to import; the command's process goes
+    without it (no table's schema asks for a format), a library user's process keeps it."""
+    from cfdesign import design
+    from cfdesign.spec import parse_spec
+
+    spec = {"name": "h", "structure": "cf2", "discrete": True,
+            "sensors": {"rate": {"rate_hz": 100.0, "noise": {"std": 0.01}},
+                        "angle": {"rate_hz": 100.0, "noise": {"std": 0.05}}}}
+    path = design(parse_spec(spec)).save(tmp_path / "g.json")
+    modules = _modules_after(f"""
+        import sys
+        from cfdesign.cli import console
+        sys.argv = ["cfdesign", "verify", {str(path)!r}]
+        assert console() == 0
+        """)
+    assert "jsonschema" in modules and _under(modules, "rfc3987_syntax") in ([], ["rfc3987_syntax"])
+    modules = _modules_after(f"""
+        import cfdesign
+        cfdesign.load_gains({str(path)!r})
+        import rfc3987_syntax  # where it is installed, a library user still has it
+        """) if _installed("rfc3987_syntax") else None
+    assert modules is None or "rfc3987_syntax.syntax_helpers" in modules
+
+
+def _installed(name) -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec(name) is not None

@@ -1602,7 +1602,7 @@ def test_a_fault_of_cfdesign_on_one_log_of_a_fleet_is_one_summary_line_exit_3(he
         raise KeyError("__index_level_0__")
 
     monkeypatch.setattr(cfdesign.logs.fleet, "run_log", broken)
-    row = _run_one(heading.to_json(), "a.parquet", str(tmp_path / "a.csv"), {})
+    row = _run_one(heading, "a.parquet", str(tmp_path / "a.csv"), {})
     assert row == {"log": "a.parquet", "samples": 0,
                    "error": f"{INTERNAL} (KeyError: '__index_level_0__'); please report it with the log"}
     monkeypatch.setattr(cfdesign.logs, "run_logs", lambda *a, **kw: [row, {"log": "b.csv", "samples": 10}])

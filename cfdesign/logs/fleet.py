@@ -16,13 +16,23 @@ from .run import _same_file, run_log
 INTERNAL = "internal error"
 
 
-#: Dask's local workers start with ``MALLOC_TRIM_THRESHOLD_=65536`` (so that freed memory goes back to
-#: the system at once): every block's arrays then come fresh from the kernel, page by page, and a log of
-#: 500,000 rows ran 1.75 times slower in a worker (1.26 against 0.72 s).  The workers of
-#: :func:`run_logs` keep glibc's own adaptive threshold (None unsets a variable of Dask's list); a
-#: MALLOC_TRIM_THRESHOLD_ of the user's environment still reaches them.  Memory stays bounded by the
-#: blocks (:data:`~cfdesign.logs.run.BLOCK_ROWS`) either way.
-_KEEP_MALLOC = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+#: Dask settings of the local cluster of :func:`run_logs` (a batch job with no dashboard), each measured
+#: on 8 logs of a million rows, 2 workers on 2 cores:
+#:
+#: - Dask's local workers start with ``MALLOC_TRIM_THRESHOLD_=65536`` (so that freed memory goes back to
+#:   the system at once): every block's arrays then come fresh from the kernel, page by page, and a log
+#:   of 500,000 rows ran 1.75 times slower in a worker (1.26 against 0.72 s).  The workers keep glibc's
+#:   own adaptive threshold (None unsets a variable of Dask's list); a MALLOC_TRIM_THRESHOLD_ of the
+#:   user's environment still reaches them.  Memory stays bounded by the blocks
+#:   (:data:`~cfdesign.logs.run.BLOCK_ROWS`) either way.
+#: - A worker samples its running task's stack every 10 ms for the dashboard's profile, and checks its
+#:   memory every 100 ms and the machine's every 500 ms; with as many workers as cores these threads
+#:   take the cores' time from the logs (8.9 against 7.9 s).  No profile; memory every second (the
+#:   memory limits still hold), the machine every 5 s.
+_CLUSTER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                   "distributed.worker.profile.enabled": False,
+                   "distributed.worker.memory.monitor-interval": "1s",
+                   "distributed.admin.system-monitor.interval": "5s"}
 
 
 #: the endings of a compressed file's name, left off the names of the estimate files of a fleet
@@ -113,7 +123,6 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
 
     # a table no log can run (continuous, unstable, no posterior) is named once, before the workers start
     Runtime(table, output="prior" if options.get("prediction") else None)
-    text = table.to_json()
     if scheduler:
         try:
             client, cluster = Client(scheduler), None
@@ -122,7 +131,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     else:
         # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
         # warned on stderr when another cluster (another fleet run at the same time) had that port
-        with dask.config.set(_KEEP_MALLOC):
+        with dask.config.set(_CLUSTER_CONFIG):
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                    dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                    silence_logs=logging.ERROR)  # no shutdown warnings
@@ -132,7 +141,7 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
             outdir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
-        futures = [client.submit(_run_one, text, str(p), str(t), options, pure=False)
+        futures = [client.submit(_run_one, table, str(p), str(t), options, pure=False)
                    for p, t in zip(paths, targets, strict=True)]
         rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log
         done = {r["log"]: r for r in rows}
@@ -160,12 +169,10 @@ def _failure(future) -> str:
     return str(exc).splitlines()[0] if exc else "failed"
 
 
-def _run_one(table_json, path, target, options):
-    import json
-
-    from ..gains import GainTable
-
-    table = GainTable.from_dict(json.loads(table_json))
+def _run_one(table, path, target, options):
+    """Run one log in a worker; the table arrives pickled, as checked by the parent (a worker that
+    validated it again against the JSON schema imported jsonschema, 1 s of its first log where
+    jsonschema's optional IRI checker, rfc3987_syntax, is installed)."""
     try:
         return run_log(table, path, output=target, source=path, **options).summary()
     except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)

@@ -295,10 +295,8 @@ class _Runner:
         self.first_reading = first_reading
         self.covariances = covariances  # standard deviations that follow missed readings
         self.P_missed = None
-        from ..designer import has_kalman_gains
-
         # a table with a model: missed readings are bridged by the Kalman filter over the arrivals
-        self.kalman = has_kalman_gains(table) and table.Q is not None and table.R is not None
+        self.kalman = table.has_kalman_gains and table.Q is not None and table.R is not None
         self.bridge = None  # that filter while it runs (:meth:`_run_bridged`)
         self._Runtime = Runtime
         self.runtimes = {}

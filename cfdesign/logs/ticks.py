@@ -224,9 +224,7 @@ def _lock(table, blocks, cols, source, types=False):
         import pyarrow as pa
 
         schemas = pa.unify_schemas(schemas, promote_options="permissive")
-    from ..designer import has_kalman_gains  # fixed gains have no model to recompute them from
-
-    lock = lock_schedule(table, arrivals, last + 1, recompute=has_kalman_gains(table))
+    lock = lock_schedule(table, arrivals, last + 1, recompute=table.has_kalman_gains)
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
