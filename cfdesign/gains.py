@@ -716,7 +716,7 @@ class GainTable:
     @property
     def has_kalman_gains(self) -> bool:
         """The gains came from the table's model by a Riccati equation (DARE, periodic DARE,
-        CARE), so :func:`~cfdesign.designer.gains_for_schedule` can recompute them for another
+        CARE), so ``cfdesign.designer.gains_for_schedule`` can recompute them for another
         arrival pattern; fixed or hand-typed gains have no model to recompute them from."""
         solver = self.provenance.get("solver", {})
         method = str(solver.get("method", "") if isinstance(solver, dict) else "")
