@@ -107,7 +107,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     >>> "void imu_att_init(imu_att_state *s);" in files["imu_att.h"]
     True
     """
-    from ..nav.attitude_filter import STATE_FIELDS, TILT_SETTLE, AttitudeFilter, _coefficients
+    from ..nav.attitude_filter import HEADING_VAR0, STATE_FIELDS, TILT_SETTLE, AttitudeFilter, _coefficients
 
     if not isinstance(attitude_filter, AttitudeFilter):
         raise CfdesignError(f"an AttitudeFilter is needed, got {type(attitude_filter).__name__}")
@@ -136,6 +136,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "hold_var": _hex(hold_var),
         "rest_lp_var": _hex(lp_var),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
+        "heading_var0": _hex(HEADING_VAR0),
         "n_velocity": len(velocity),
         "velocity": ",\n".join(f"    {{{_hex(k1)}, {_hex(k2)}}}" for k1, k2 in velocity),
         "tilt": ", ".join(_hex(v) for v in tilt), "heading": ", ".join(_hex(v) for v in heading),

@@ -87,6 +87,12 @@ Every threshold is in physical units, derived from the noise figures where it ca
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
+  A gap in the gyro longer than the tilt's start-up (``1 / omega``, 2 s by default) has lost the
+  attitude (the body turned unseen; the held rate only extrapolates): the first rate after it
+  runs the start-up again from the specific force, keeping the heading held through the gap (in
+  9D the field then sets it: the heading channel's prior is reopened) and the gyro bias.  Without
+  it the tilt error a gap leaves is read as a sustained acceleration and the dip it skews as a
+  magnetic disturbance, which held it for tens of seconds.
 
 The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
 ``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
@@ -124,6 +130,10 @@ DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
 #: in which it removes what the start-up left of a sensor that was moving (the velocity it had)
 TILT_SETTLE = 1.0 + 4.0 * math.sqrt(2.0)
 
+#: the variance of a heading not known at all (uniform on the circle): the 9D heading channel's prior
+#: without a given initial attitude, and after a gap in the gyro
+HEADING_VAR0 = math.pi * math.pi / 3.0
+
 #: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
 STATE_FIELDS = (
     "qw", "qx", "qy", "qz",              # attitude, body -> ENU
@@ -148,6 +158,7 @@ STATE_FIELDS = (
     "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
+    "gap_n",                             # rates missing in a row since the start (a gap in the gyro)
 )
 _INDEX = {name: i for i, name in enumerate(STATE_FIELDS)}
 #: the largest magnitude :meth:`AttitudeFilter.restore` accepts in a state field that has no
@@ -159,7 +170,7 @@ STATE_LIMIT = 1e100
 _NORMS = ("norm_lp", "norm_ref", "norm_new")
 _MAX_NORM = math.sqrt(sys.float_info.max)
 #: the state's counters: whole numbers from 0 (readings averaged, samples missing)
-_COUNTERS = ("ref_n", "new_n", "tilt_n", "missing_gyr", "missing_acc", "missing_mag")
+_COUNTERS = ("ref_n", "new_n", "tilt_n", "missing_gyr", "missing_acc", "missing_mag", "gap_n")
 
 
 @dataclass(frozen=True)
@@ -473,7 +484,7 @@ def _prior(name, table, p) -> tuple:
     if p.gyro_bias_std0 == 0:
         return float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
     r = float(np.asarray(table.R, dtype=float).reshape(-1)[0])
-    angle = {"heading": math.pi ** 2 / 3, "rest": r}.get(name, r)
+    angle = {"heading": HEADING_VAR0, "rest": r}.get(name, r)
     return angle, 0.0, (p.heading_bias_std0 if name == "heading" else p.gyro_bias_std0) ** 2
 
 
@@ -675,7 +686,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (55, 1.0, 0.0)
+        (56, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -828,7 +839,7 @@ class AttitudeFilter:
         Parameters
         ----------
         gyr : sequence of 3 float
-            Body rate, rad/s, body (sensor) frame.
+            Body rate, rad/s, body (sensor) frame (an array of shape (3,), (1, 3) or (3, 1)).
         acc : sequence of 3 float
             Specific force, m/s², body frame (points up at rest).
         mag : sequence of 3 float, optional
@@ -941,7 +952,10 @@ _NAN3 = (math.nan, math.nan, math.nan)
 
 def _three(name, value) -> tuple:
     """``value`` as three Python floats (``cfdesign.runtime.step.real_float``), or
-    :class:`~cfdesign.errors.AttitudeInputError` naming ``name``."""
+    :class:`~cfdesign.errors.AttitudeInputError` naming ``name``.  A one-row or one-column array (a
+    sample sliced from a log, ``gyr[k:k + 1]``) is its three numbers."""
+    if isinstance(value, np.ndarray) and value.ndim == 2 and value.size == 3 and 1 in value.shape:
+        value = value.ravel()
     try:
         x, y, z = value
     except (TypeError, ValueError):
@@ -1049,18 +1063,28 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check, use_levels,
      use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = coef
+    heading_var0 = HEADING_VAR0
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
      ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
-     lgz, started, miss_g, miss_a, miss_m) = s
+     lgz, started, miss_g, miss_a, miss_m, gap_n) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
     if gx * gx + gy * gy + gz * gz <= g_range2:
         lgx, lgy, lgz = gx, gy, gz
+        if gap_n * tilt_alpha >= 1.0:
+            # the gyro was missing for longer than the tilt's start-up: the held rate has lost the attitude
+            # (the body turned unseen), which the velocity channel would take for a sustained acceleration
+            # and the field check for a disturbance; the start-up runs again, keeping the heading and the bias
+            started = 0.0
+        elif started == 2.0:
+            gap_n = 0.0
     else:
         miss_g += 1.0
         gx, gy, gz = lgx, lgy, lgz
+        if started == 2.0:
+            gap_n += 1.0
     f2 = ax * ax + ay * ay + az * az
     acc_ok = 0.0 < f2 <= a_range2
     if not acc_ok:
@@ -1077,10 +1101,12 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         # the first step: the attitude is the initial one (given, or the tilt of this specific force)
         if started == 0.0:
             if not acc_ok:
-                s[_INDEX["lgx"]:] = [lgx, lgy, lgz, started, miss_g, miss_a, miss_m]
+                s[_INDEX["lgx"]:] = [lgx, lgy, lgz, started, miss_g, miss_a, miss_m, gap_n]
                 return jv
             fn = math.sqrt(f2)
             uw = 1.0 + az / fn
+            # the heading (ZYX yaw) to keep: after a gap in the gyro, the one held through it
+            yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)) if gap_n > 0.0 else 0.0
             if uw > 1e-9:
                 qw, qx, qy, qz = uw, ay / fn, -ax / fn, 0.0           # shortest rotation from up_body to e_z
             else:
@@ -1088,6 +1114,12 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
             n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
             qw, qx, qy, qz = qw / n, qx / n, qy / n, qz / n
             tilt_n, tilt_f = 1.0, fn
+            if gap_n > 0.0:
+                # turned about ENU z onto the held heading, which in 9D the field then sets (its prior reopened)
+                d = 0.5 * (yaw - math.atan2(2.0 * qx * qy, 1.0 - 2.0 * qy * qy))
+                cw, sz = math.cos(d), math.sin(d)
+                qw, qx, qy, qz = cw * qw - sz * qz, cw * qx - sz * qy, cw * qy + sz * qx, cw * qz + sz * qw
+                h00, h01, gap_n = heading_var0, 0.0, 0.0
         glx, gly, glz = gx, gy, gz
         if acc_ok:
             flx, fly, flz = ax, ay, az
@@ -1355,5 +1387,5 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
             ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
-            lgz, started, miss_g, miss_a, miss_m)
+            lgz, started, miss_g, miss_a, miss_m, gap_n)
     return jv

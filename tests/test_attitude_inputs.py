@@ -1,0 +1,161 @@
+"""AttitudeFilter on the inputs real IMU users bring, one class per test: units, rates, missing data and
+gaps, shapes and dtypes.  Synthetic tracks of a known attitude (tests/test_attitude_filter.py's
+``motion`` and ``imu``); the cases test_attitude_filter.py and test_hardening.py cover are not redone."""
+
+import math
+
+import numpy as np
+import pytest
+from test_attitude_codegen import needs_cc, run_c
+from test_attitude_filter import RATE, errors, imu, motion
+
+from cfdesign.nav import AttitudeFilter
+from cfdesign.nav.attitude_filter import STATE_FIELDS
+
+
+def total(est, q):
+    """Angle (deg) between the estimated and the true attitudes, per sample."""
+    return np.degrees(2 * np.arccos(np.clip(np.abs(np.sum(est * q, axis=1)), 0, 1)))
+
+
+def gap_log(which=("gyr", "acc", "mag"), start_s=15.0, length_s=3.0, rate=RATE):
+    """A 40 s track whose sensors ``which`` read NaN for ``length_s`` from ``start_s``: (q, gyr, acc, mag)."""
+    q = motion(int(40 * rate), rate=rate, still_s=3.0)
+    logs = dict(zip(("gyr", "acc", "mag"), imu(q, rate=rate), strict=True))
+    for name in which:
+        logs[name][int(start_s * rate):int((start_s + length_s) * rate)] = np.nan
+    return q, logs["gyr"], logs["acc"], logs["mag"]
+
+
+# ---------------------------------------------------------------------- gaps
+@pytest.mark.parametrize("which", [("gyr", "acc", "mag"), ("gyr",)])
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_a_gap_of_seconds_is_recovered_from_in_seconds(which, magnetometer):
+    """A 3 s gap (every sensor, or the gyro alone) while turning at ~1 rad/s: the held rate spun the
+    attitude by ~65 deg, and the tilt error it left was read as a sustained acceleration (the speed
+    grew to 60 m/s) and the skewed dip as a magnetic disturbance, so 20 s after the gap the error was
+    still 64 deg.  Now the start-up runs again: 3 s after the gap the inclination is within 2 deg (9D:
+    the attitude too), the bias learnt before the gap is kept and the missing rates are counted."""
+    q, gyr, acc, mag = gap_log(which)
+    f = AttitudeFilter(RATE, magnetometer=magnetometer)
+    out = f.run(gyr, acc, mag if magnetometer else None, details=True)
+    after = slice(int(21 * RATE), None)
+    _, incl = errors(out.quaternion[after], q[after])
+    assert np.abs(incl).max() < 2.0
+    if magnetometer:
+        assert total(out.quaternion[after], q[after]).max() < 3.0
+    assert out.speed[after].max() < 1.0 and not out.accel_level[after].any()
+    np.testing.assert_allclose(out.bias[-1], out.bias[int(15 * RATE) - 1], atol=2e-3)
+    assert f.missing["gyr"] == 300 and f.state()["gap_n"] == 0.0
+    assert np.allclose(np.linalg.norm(out.quaternion, axis=1), 1.0)
+
+
+def test_a_6d_gap_keeps_the_heading_it_held_through_the_gap():
+    """6D has no field to set the heading after a gap: the restart keeps the heading the filter
+    held (the tilt alone is set anew), so the heading changes by the tilt's turn only; a restart from
+    heading zero (the first start's) would jump it by the track's whole heading."""
+    _, gyr, acc, _ = gap_log(("gyr", "acc"))
+    f = AttitudeFilter(RATE, magnetometer=False)
+    est = f.run(gyr, acc)
+    k = int(18 * RATE)                                         # the first sample after the gap
+
+    def yaw(w):
+        return math.degrees(math.atan2(2 * (w[0] * w[3] + w[1] * w[2]), 1 - 2 * (w[2] ** 2 + w[3] ** 2)))
+
+    assert abs((yaw(est[k]) - yaw(est[k - 1]) + 180) % 360 - 180) < 1e-6
+
+
+@pytest.mark.parametrize("length_s", [0.05, 1.0])
+def test_a_gap_shorter_than_the_start_up_holds_the_rate_and_runs_on(length_s):
+    """A gap shorter than the tilt's start-up (2 s) is bridged by the held rate, no restart: the run
+    is the same as one whose restart threshold is never reached (the gyro-only gap of 0.05 s is within
+    0.3 deg of the complete log)."""
+    q, gyr, acc, mag = gap_log(("gyr",), length_s=length_s)
+    f = AttitudeFilter(RATE)
+    out = f.run(gyr, acc, mag)
+    assert f.state()["started"] == 2.0 and f.state()["gap_n"] == 0.0
+    clean = AttitudeFilter(RATE).run(*imu(q))
+    if length_s < 0.1:
+        assert total(out, clean).max() < 0.3
+
+
+def test_a_gap_before_the_first_start_does_not_count():
+    """Rates missing before the filter has started (the log's first rows) are no gap to restart from:
+    the start is the same as a log without them."""
+    _, gyr, acc, _ = gap_log(("gyr",), start_s=0.0, length_s=3.0)
+    f = AttitudeFilter(RATE, magnetometer=False)
+    f.run(gyr[:400], acc[:400])
+    assert f.state()["gap_n"] == 0.0 and f.missing["gyr"] == 300
+
+
+@needs_cc
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_c_agrees_with_python_through_a_gap(tmp_path, magnetometer):
+    """The generated C runs the restart after a gap as the Python step does."""
+    _, gyr, acc, mag = gap_log(("gyr", "acc", "mag"), start_s=10.0, length_s=2.5)
+    gyr, acc, mag = gyr[:2000], acc[:2000], mag[:2000]
+    f = AttitudeFilter(RATE, magnetometer=magnetometer)
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag if magnetometer else None)
+    q_py = f.run(gyr, acc, mag if magnetometer else None)
+    assert np.abs(q_c - q_py).max() <= 1e-9
+    state_py = f.state()
+    assert max(abs(state_c[k] - state_py[k]) / max(1.0, abs(state_py[k])) for k in STATE_FIELDS) <= 1e-9
+
+
+# ---------------------------------------------------------------------- missing magnetometer readings
+def test_a_magnetometer_at_a_lower_rate_logged_with_nan_between_its_readings():
+    """A 10 Hz magnetometer in a 100 Hz log (NaN rows between its readings) gives the heading as the
+    full-rate one does, and a magnetometer that never reads runs the 6D filter, sample for sample."""
+    q = motion(4000, still_s=3.0)
+    gyr, acc, mag = imu(q)
+    sparse = mag.copy()
+    sparse[np.arange(len(mag)) % 10 != 0] = np.nan
+    full, slow = AttitudeFilter(RATE).run(gyr, acc, mag), AttitudeFilter(RATE).run(gyr, acc, sparse)
+    assert total(slow, q)[500:].max() < 2.0 and np.sqrt(np.mean(total(slow, q) ** 2)) < 1.2 * np.sqrt(
+        np.mean(total(full, q) ** 2))
+    none = AttitudeFilter(RATE).run(gyr, acc, np.full_like(mag, np.nan))
+    np.testing.assert_allclose(none, AttitudeFilter(RATE, magnetometer=False).run(gyr, acc), atol=1e-12)
+
+
+# ---------------------------------------------------------------------- rates
+@pytest.mark.parametrize("rate", [25.0, 50.0, 400.0, 1000.0])
+def test_the_same_motion_at_any_sample_rate_is_tracked_alike(rate):
+    """Tables, thresholds and start-up derive from the densities per sample: at 25 to 1000 Hz the
+    error over the same motion is within a degree RMS (0.5-0.6 deg measured)."""
+    q = motion(int(30 * rate), rate=rate, still_s=3.0)
+    est = AttitudeFilter(rate).run(*imu(q, rate=rate))
+    assert np.sqrt(np.mean(total(est, q) ** 2)) < 1.0
+
+
+# ---------------------------------------------------------------------- shapes and dtypes
+def test_a_sample_sliced_as_one_row_steps_as_its_three_numbers():
+    """``gyr[k:k + 1]`` (shape (1, 3)) was refused by step ('gyr must be three real numbers'); a
+    one-row or one-column array is one sample now, other shapes are still refused by name."""
+    from cfdesign.errors import AttitudeInputError
+
+    q = motion(50)
+    gyr, acc, mag = imu(q)
+    flat, rows = AttitudeFilter(RATE), AttitudeFilter(RATE)
+    for k in range(len(q)):
+        a = flat.step(gyr[k], acc[k], mag[k])
+        b = rows.step(gyr[k:k + 1], acc[k:k + 1].T, mag[k:k + 1])
+        assert a == b
+    with pytest.raises(AttitudeInputError, match=r"^gyr must be three real numbers"):
+        rows.step(gyr[:2], acc[0], mag[0])
+
+
+@pytest.mark.parametrize("form", ["float32", "int", "list"])
+def test_arrays_of_any_numeric_form_run_as_their_float64_values(form):
+    """float32, integer (raw counts already in the filter's units) and nested lists run as the
+    float64 array of the same values."""
+    q = motion(600)
+    gyr, acc, mag = imu(q)
+    convert = {"float32": lambda a: a.astype(np.float32), "int": lambda a: np.round(a).astype(np.int32),
+               "list": lambda a: a.tolist()}[form]
+    ref = {"float32": lambda a: a.astype(np.float32).astype(float), "int": np.round,
+           "list": lambda a: a}[form]
+    gyr_in = convert(gyr) if form != "int" else gyr                      # rad/s in ints would be no rate
+    gyr_ref = ref(gyr) if form != "int" else gyr
+    got = AttitudeFilter(RATE).run(gyr_in, convert(acc), convert(mag))
+    want = AttitudeFilter(RATE).run(gyr_ref, ref(acc), ref(mag))
+    np.testing.assert_array_equal(got, want)
