@@ -159,3 +159,70 @@ def test_arrays_of_any_numeric_form_run_as_their_float64_values(form):
     got = AttitudeFilter(RATE).run(gyr_in, convert(acc), convert(mag))
     want = AttitudeFilter(RATE).run(gyr_ref, ref(acc), ref(mag))
     np.testing.assert_array_equal(got, want)
+
+
+# ---------------------------------------------------------------------- a tilt error read as an acceleration
+def spike_log():
+    """A sensor still for 40 s whose gyro reads one in-range spike of 50 rad/s about x at 20 s (28 deg of
+    rotation that never happened): (q, gyr, acc, mag)."""
+    q = motion(int(40 * RATE), still_s=1e9)
+    gyr, acc, mag = imu(q)
+    gyr[int(20 * RATE)] += [50.0, 0.0, 0.0]
+    return q, gyr, acc, mag
+
+
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_a_gyro_spike_s_tilt_error_is_recovered_from_in_seconds(magnetometer):
+    """The spike left the estimate 28 deg off; its tilt error was read as a sustained acceleration (the
+    speed passing max_speed_mps) and held for max_accel_time_s: still 19.5 deg off 8 s later.  The steady
+    specific force whose norm is gravity's shows it is the estimate that is tilted: the start-up runs
+    again, and 5 s after the spike the inclination is within 2 deg (9D: the attitude too)."""
+    q, gyr, acc, mag = spike_log()
+    out = AttitudeFilter(RATE, magnetometer=magnetometer).run(gyr, acc, mag if magnetometer else None, details=True)
+    _, incl = errors(out.quaternion, q)
+    assert abs(incl[int(20 * RATE) + 1]) > 25.0                    # the spike did tilt the estimate
+    after = slice(int(25 * RATE), None)
+    assert np.abs(incl[after]).max() < 2.0
+    if magnetometer:
+        assert total(out.quaternion[after], q[after]).max() < 3.0
+
+
+@pytest.mark.parametrize("still_s", [1e9, 3.0])
+def test_a_real_sustained_acceleration_does_not_restart_the_tilt(still_s):
+    """5 m/s² east for 10 s (still, or turning): the specific force's norm is sqrt(g² + a²), not g, so it
+    is not taken for a tilt error while it lasts (a restart would set the tilt on it, 27 deg off);
+    the tilt error it leaves behind may be (a restart after 30 s), and the run ends within 2 deg."""
+    n = int(50 * RATE)
+    q = motion(n, still_s=still_s)
+    t = np.arange(n) / RATE
+    accel = np.zeros((n, 3))
+    accel[(t >= 20) & (t < 30), 0] = 5.0
+    gyr, acc, _ = imu(q, accel_enu=accel)
+    f = AttitudeFilter(RATE, magnetometer=False)
+    restarts, levels = [], []
+    for k in range(n):
+        f.step(gyr[k], acc[k])
+        state = f.state()
+        levels.append(state["level"])
+        if state["started"] == 0.0:
+            restarts.append(t[k])
+    assert max(levels[int(20 * RATE):int(30 * RATE)]) > 0            # taken as a sustained acceleration
+    assert all(r >= 30.0 for r in restarts)
+    _, incl = errors(np.array([f.quaternion]), q[-1:])
+    assert abs(incl[0]) < 2.0
+
+
+@needs_cc
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_c_agrees_with_python_through_a_tilt_error_restart(tmp_path, magnetometer):
+    """The generated C takes the tilt error for one and restarts as the Python step does."""
+    part = slice(int(15 * RATE), int(30 * RATE))
+    q, gyr, acc, mag = (x[part] for x in spike_log())
+    f = AttitudeFilter(RATE, magnetometer=magnetometer)
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag if magnetometer else None)
+    out = f.run(gyr, acc, mag if magnetometer else None, details=True)
+    assert np.abs(q_c - out.quaternion).max() <= 1e-9
+    _, incl = errors(out.quaternion[-1:], q[-1:])
+    assert out.accel_level.any() and abs(incl[0]) < 2.0               # the levels engaged, then the restart
+    state_py = f.state()
+    assert max(abs(state_c[k] - state_py[k]) / max(1.0, abs(state_py[k])) for k in STATE_FIELDS) <= 1e-9

@@ -64,7 +64,10 @@ for longer than a hand's stroke, ``max_reach_m / max_speed_mps``
 (level ``1 + floor(log2(v² / max_speed²))``) (a sustained acceleration: the specific force
 is not gravity plus a bounded velocity change, so the tilt corrections are weighted down), for at
 most ``max_accel_time_s`` at a time (longer, it is a tilt error: the velocity restarts from zero
-on the motion design).
+on the motion design).  Sooner, once the designs have run for the start-up's time ``1 / omega``, a
+specific force that is steady and whose norm is gravity's (the start-up's) is a tilt error of the
+estimate (a gyro spike, a clipped accelerometer), not an acceleration, which would add to the norm:
+the start-up runs again, as after a gap in the gyro (``_tilt_error``).
 Every threshold is in physical units, derived from the noise figures where it can be:
 
 * rest: for ``rest_time_s`` the gyro and the specific force stay within
@@ -158,7 +161,8 @@ STATE_FIELDS = (
     "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
-    "gap_n",                             # rates missing in a row since the start (a gap in the gyro)
+    "gap_n",                             # rates missing in a row since the start (a gap in the gyro); with
+                                         # started 0 and gap_n > 0 the start-up keeps the heading (a restart)
 )
 _INDEX = {name: i for i, name in enumerate(STATE_FIELDS)}
 #: the largest magnitude :meth:`AttitudeFilter.restore` accepts in a state field that has no
@@ -1055,6 +1059,23 @@ def _settle_ratio(design: AttitudeDesign) -> float:
     return 2.0 * math.sqrt(2.0) / omega * error2 / density2
 
 
+def _tilt_error(flx, fly, flz, fdev, tilt_f, r0, r1, r2, r3, r4, r5) -> bool:
+    """Whether the specific force the velocity channel takes for a sustained acceleration is gravity seen
+    through a tilt error of the estimate.
+
+    The rest detector's low-passed specific force ``f`` (body, m/s²) is steady (its mean squared deviation
+    ``fdev`` below an eighth of its horizontal part squared ``h²``, ``h`` seen through the estimated
+    attitude, whose first two rows are ``r0 .. r5``) and its norm is gravity's as the start-up measured it
+    (``tilt_f``): ``| |f|² - g² | < h² / 2``.  A tilt error of ``theta`` shows a horizontal part
+    ``h = g sin(theta)`` with the norm unchanged; a real horizontal acceleration ``a`` (estimate upright)
+    shows ``h = a`` and ``|f|² = g² + a²``, so the test halves the margin between the two.
+    """
+    hx = r0 * flx + r1 * fly + r2 * flz
+    hy = r3 * flx + r4 * fly + r5 * flz
+    h2 = hx * hx + hy * hy
+    return 8.0 * fdev < h2 and 2.0 * abs(flx * flx + fly * fly + flz * flz - tilt_f * tilt_f) < h2
+
+
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """One sample on the state list ``s`` (:data:`STATE_FIELDS`); returns the velocity design used (-1: none).
 
@@ -1215,6 +1236,11 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                     if acc_time >= hold_s:
                         # longer than a hand's stroke: a sustained acceleration
                         level = min(float(len(velocity) - 2), 1.0 + math.floor(math.log2(vv / speed2)))
+                        if acc_time * tilt_alpha >= T and _tilt_error(flx, fly, flz, fdev, tilt_f,
+                                                                      r0, r1, r2, r3, r4, r5):
+                            # not an acceleration but the estimate's tilt error: the start-up runs again at
+                            # the next step, keeping the heading (as after a gap in the gyro) and the bias
+                            started, gap_n = 0.0, max(gap_n, 1.0)
                 else:
                     # longer than an acceleration lasts: a tilt error, which only the motion design corrects
                     vx = vy = 0.0
