@@ -1,5 +1,5 @@
-"""Logs as users bring them, one class of quirk a test: a forward-filled column, a file without
-a header, numbers with thousands separators."""
+"""Logs as users bring them, one class of quirk a test: a slow sensor that starts late, a
+forward-filled column, a file without a header, numbers with thousands separators."""
 
 import numpy as np
 import pandas as pd
@@ -33,6 +33,33 @@ def turning_log(n=6000, seed=0):
     com[37::100] = psi[37::100] + 0.05 * rng.standard_normal(len(com[37::100]))
     gyro = np.gradient(psi, 0.01) + 0.01 * rng.standard_normal(n)
     return pd.DataFrame({"time": t, "gyro": gyro, "odometry": wrap(odo), "compass": wrap(com)}), psi
+
+
+def test_rows_before_the_first_direct_reading_are_moved_back_onto_it(heading):
+    """A log whose odometry and compass start 30 s after the gyro: the state had started from the
+    first reading at tick 0, so the rows before it were that reading plus the turn since the
+    start (2.4 rad RMS off, with a predicted std of 0.0014 rad).  They are now the reading moved
+    back by the gyro's turn, whatever the block size, with a note naming when it came."""
+    log, psi = turning_log()
+    log.loc[:2999, ["odometry", "compass"]] = np.nan
+    result = run_log(heading, log, std=True)
+    est = result.estimates
+    before = wrap(est["heading"].to_numpy()[:3000] - psi[:3000])
+    assert np.sqrt(np.mean(before ** 2)) < 0.03  # was 2.4 rad
+    assert np.all(est["heading_std"].to_numpy()[:3000] >= 0.005)  # at least the odometry's noise
+    assert any("no sensor reads heading before 30.03 s" in n for n in result.notes), result.notes
+    for rows in (700, 2000):
+        assert np.allclose(run_log(heading, log, std=True, block_rows=rows).estimates["heading"], est["heading"],
+                           atol=1e-12)
+
+
+def test_a_log_whose_first_direct_reading_is_at_once_keeps_its_start(heading):
+    """The move is that of a late start only: a log read from its first row is run from it."""
+    log, psi = turning_log()
+    log.loc[0, "odometry"] = wrap(psi[0])
+    result = run_log(heading, log)
+    assert result.estimates["heading"].iloc[0] == pytest.approx(wrap(psi[0]), abs=1e-3)
+    assert not any("no sensor reads" in n for n in result.notes)
 
 
 @pytest.mark.parametrize("block_rows", [None, 777])
@@ -91,3 +118,18 @@ def test_numbers_with_thousands_separators_are_named_so(heading, tmp_path, sep, 
     with pytest.raises(DataError, match=r"line 102: column 'time \[ms\]' .*\(a thousands separator: write numbers "
                                         r"without one\)"):
         run_log(heading, tmp_path / "log.csv")
+
+
+@pytest.mark.parametrize("columns, named", [(["compass"], ["compass"]), (["gyro", "odometry", "compass"],
+                                                                        ["compass", "odometry"])])
+def test_readings_in_other_units_than_the_table_s_are_named(heading, columns, named):
+    """A compass in degrees (or the whole log: the gyro in deg/s too) ran with exit status 0 and
+    no word: the compass's readings wrapped to noise, 3.1 rad off where all were in degrees.  A
+    note names each sensor most of whose readings lie beyond 5 predicted standard deviations of
+    the estimate; the log in radians has none (not one reading of the compass beyond)."""
+    log, _ = turning_log()
+    assert not any("predicted standard deviations from the estimate" in n for n in run_log(heading, log).notes)
+    log[columns] = np.degrees(log[columns])
+    notes = [n for n in run_log(heading, log).notes if "predicted standard deviations from the estimate" in n]
+    assert sorted(n.split(":")[0] for n in notes) == named, notes
+    assert all("other units than the table's (degrees for radians" in n for n in notes)
