@@ -115,6 +115,12 @@ def _listed(header, limit=300) -> str:
     return text if len(text) <= limit else f"{text[:limit]}... ({len(header)} columns)"
 
 
+#: a number written with thousands separators: groups of 3 digits after commas, points, spaces or
+#: apostrophes, with a decimal separator of the other kind (``1,234.5``, ``1.234,5``, ``1 234``)
+_THOUSANDS = re.compile(r"[-+]?[0-9]{1,3}(?:(?:,[0-9]{3})+\.[0-9]*|(?:\.[0-9]{3})+,[0-9]*|(?:\.[0-9]{3}){2,}"
+                        r"|(?:[' \u00a0\u202f][0-9]{3})+(?:[.,][0-9]*)?)")
+
+
 def _numeric(df, columns, source, where, time=None, time_scale=1.0):
     """The columns as float arrays; a cell that is not a number is an error naming where it is
     (``where(i)``: row ``i`` of ``df`` for a message, ``cfdesign.logs.read._Lines.at``:
@@ -148,11 +154,13 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
                 out[c] = dates
                 continue
             bad = [not_date]  # the first cell that is no date either
-        if len(bad):
+        if len(bad):  # a number with thousands separators first: it left the others unread (0,5 by 1.234,5)
+            bad = np.flatnonzero(text.str.fullmatch(_THOUSANDS.pattern).fillna(False).to_numpy())[:1].tolist() or bad
             what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
                     "(2024-05-01T12:00:00.010)" if c == time else "not a number")
             cell = str(text.iloc[bad[0]])
-            hint = (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
+            hint = (" (a thousands separator: write numbers without one)" if _THOUSANDS.fullmatch(cell) else
+                    " (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
                     "show one, not in one separated by commas; write decimal points)"
                     if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
                     " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")

@@ -30,6 +30,13 @@ from .columns import (
 )
 
 
+def _numbers_only(header) -> bool:
+    """Whether every name of ``header`` is a number or a column pandas named for an empty cell."""
+    named = [h for h in header if not re.fullmatch(r"Unnamed: [0-9]+", h)]
+    return bool(named) and all(re.fullmatch(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?(?:\.[0-9]+)?", h)
+                               for h in named)
+
+
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
              lines=None, units=None) -> _Columns:
     header = [str(h).strip() for h in header]
@@ -54,6 +61,10 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         like = [(s, h) for s, c in sensors.items() if c not in header and s not in mapping
                 for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()]
         hint = " ".join(f'--map "{s}={h}"' for s, h in like)
+        if not like and _numbers_only(header):  # the first row of a file without a header read as one
+            raise DataError(f"{source}: the header holds numbers ({_listed(header)}), not column names: the log "
+                            f"has no header; add a first line naming its columns ("
+                            f"{', '.join(['time', *sensors.values()])})")
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
                         + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
                            "the header is one column: cells are separated by commas, by the semicolons or tabs "

@@ -152,11 +152,14 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
     place = _Pass(table, cols, source, grid=grid, rephased=rephased)  # ticks where the first pass put them
     startup = _startup_ticks(table)
+    far = {}  # sensor -> [readings far from the estimate, readings] (_far)
 
     def run_rows(block, values, ticks):
         if len(ticks):
-            states, _, stds = runner.run(ticks, {s: values[c] for s, c in cols.sensors.items()})
+            readings = {s: values[c] for s, c in cols.sensors.items()}
+            states, _, stds = runner.run(ticks, readings)
             _check_bounded(table, states, ticks, source)
+            _far(table, readings, states, stds, far)
             writer.write(_estimates(table, block, cols, values, states, stds, std), runner.settled(ticks, startup))
             bar.update(len(ticks))
 
@@ -173,7 +176,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
                 ticks = np.concatenate([pending[2], ticks])
             cut = int(np.searchsorted(ticks, ticks[-1])) if len(ticks) else 0
             held = runner.held_from(ticks[:cut], {s: values[c][:cut] for s, c in cols.sensors.items()})
-            if len(ticks) - held <= block_rows:  # rows after a pause wait for the reading that moves them
+            # rows after a pause wait for the reading that moves them (those before the log's first, a million)
+            if len(ticks) - held <= (max(block_rows, BLOCK_ROWS) if runner.late_start else block_rows):
                 cut = held
             pending = (block.iloc[cut:], {k: v[cut:] for k, v in values.items()}, ticks[cut:])
             run_rows(block.iloc[:cut], {k: v[:cut] for k, v in values.items()}, ticks[:cut])
@@ -188,7 +192,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
-    notes += lock.notes + [n for n in [runner.pause_note(table.sample_time_s)] if n]
+    notes += lock.notes + _far_note(far) + [n for n in [runner.start_note(table.sample_time_s),
+                                                        runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
@@ -207,6 +212,42 @@ def _check_bounded(table, states, ticks, source):
         tick = int(ticks[np.argmax(bad)])
         raise DataError(f"{source}: the estimates of {table.name!r} diverge (beyond {STATE_LIMIT:g} at tick {tick}): "
                         "the table's filter is not stable (cfdesign verify names the check)")
+
+
+#: a reading this many predicted standard deviations from the estimate disagrees with it; a note
+#: names a sensor when most of its readings (FAR_SHARE) do
+FAR_SIGMA, FAR_SHARE = 5.0, 0.5
+
+
+def _far(table, readings, states, stds, counts):
+    """Count, per measurement sensor, its readings and those more than :data:`FAR_SIGMA`
+    predicted standard deviations (its noise and the estimate's, ``H`` of ``stds``) from the
+    estimate ``H x`` of their row, into ``counts`` (``{sensor: [far, readings]}``): a column in
+    degrees for radians, in mrad/s, of another sign or sensor ran with exit status 0 (a compass
+    in degrees moved the 100/10/1 Hz heading 0.004 rad, all in degrees 3.1 rad)."""
+    if table.R is None:
+        return
+    e0 = np.eye(table.F.shape[0])[0]
+    for s in table.measurements:
+        z, h = readings[s.name], table.H[s.index]
+        ok = np.isfinite(z)
+        if not ok.any():
+            continue
+        r = z[ok] - states[ok] @ h
+        if table.wrap_angle and np.array_equal(h, e0):
+            r = wrap(r)
+        var = table.R[s.index, s.index] + (stds[ok] ** 2) @ (h ** 2)
+        c = counts.setdefault(s.name, [0, 0])
+        c[0] += int(np.sum(r ** 2 > FAR_SIGMA ** 2 * var))
+        c[1] += int(ok.sum())
+
+
+def _far_note(counts) -> list:
+    """The notes of :func:`_far`'s counts: the sensors most of whose readings disagree."""
+    return [f"{name}: {far} of its {n} readings lie more than {FAR_SIGMA:g} predicted standard deviations from "
+            f"the estimate: its column, or an input's, may be in other units than the table's (degrees for "
+            f"radians, mrad/s), of another sign or of another sensor" for name, (far, n) in counts.items()
+            if n and far > FAR_SHARE * n]
 
 
 def _same_file(a, b) -> bool:
@@ -288,6 +329,7 @@ class _Runner:
 
     def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None):
         from ..runtime import Runtime
+        from ..timing import PAUSE_TICKS
 
         self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
         # (tick, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
@@ -307,6 +349,10 @@ class _Runner:
         self.pauses = []  # (first tick without an input reading, ticks) of each pause
         self.restarts = []  # ticks where a pause ended (state 0 started again from a direct reading)
         self.pending = False  # a pause ended, no direct reading since: start again at the first one
+        # the log's first direct reading comes after a pause's worth of ticks (PAUSE_TICKS): the ticks
+        # before it move onto it, as after a pause (nearer, it is the start, a few ticks' turn off)
+        self.late_start = bool(from_reading and first_reading and first_reading[0] > PAUSE_TICKS)
+        self.start_tick = None  # and the tick of that reading, once run
 
     def _runtime(self, seg):
         key = (seg.rotation, seg.offsets) if seg.offsets else ("rotation",)
@@ -355,14 +401,19 @@ class _Runner:
         dense = self._dense(ticks, readings, first, last)
         if self.x is None and self.from_reading:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
+            self.pending = self.late_start
         parts, shifts = [], []
         restarts = self._restart_ticks(dense, first)
         cuts = [first, *(r for _, r in restarts), last + 1]
         for k, (a, b) in enumerate(itertools.pairwise(cuts)):
-            moved = self._restart(dense, a - first) if k else None
+            start = k == 1 and self.late_start  # the log's first direct reading: no gate
+            moved = self._restart(dense, a - first, gate=not start) if k else None
             if moved is not None:
                 shifts.append((max(restarts[k - 1][0], first), a, *moved))
-                self.restarts.append(restarts[k - 1][0])
+                # the start-up after a pause runs from its end; the log's, from that first reading
+                self.restarts.append(a if start else restarts[k - 1][0])
+                if start:
+                    self.late_start, self.start_tick = False, a
             if a < b:
                 part = {name: v[a - first:b - first] for name, v in dense.items()}
                 parts.append(self._run_arrivals(part, a, b - 1) if self.lock.varying
@@ -397,8 +448,18 @@ class _Runner:
         return (f"the inputs have no reading for more than {PAUSE_TICKS} ticks {len(self.pauses)} time"
                 f"{'s' * (len(self.pauses) > 1)} (a logger paused), the longest {longest * dt:.3g} s from "
                 f"{start * dt:.6g} s: {self.table.states[0]} started again from the first direct reading after "
-                f"{len(self.restarts)} of them (where it disagreed with the state carried over the pause by more "
-                f"than {RESTART_GATE:g} sigma), each start-up shaded and left out of the settled RMS")
+                f"{len(self.restarts) - (self.start_tick is not None)} of them (where it disagreed with the state "
+                f"carried over the pause by more than {RESTART_GATE:g} sigma), each start-up shaded and left out of "
+                f"the settled RMS")
+
+    def start_note(self, dt):
+        """One line on a first direct reading more than a pause after the log's start, or None."""
+        if self.start_tick is None:
+            return None
+        name = self.table.states[0]
+        return (f"no sensor reads {name} before {self.start_tick * dt:.6g} s: {name} there is that first "
+                f"reading moved back by the inputs (a drift of theirs is not in its predicted std), and the "
+                f"start-up runs from it")
 
     def held_from(self, ticks, readings) -> int:
         """The first of rows at ``ticks`` (ascending, the next to run) whose estimates are not known
@@ -412,6 +473,8 @@ class _Runner:
         inputs, direct, n = self.table.inputs, self._direct(), len(ticks)
         if not (inputs and direct and n):
             return n
+        if self.late_start and ticks[-1] < self.first_reading[0]:  # the log's first direct reading moves them
+            return 0
         have = np.zeros(n, dtype=bool)
         for s in inputs:
             have |= usable(readings[s.name])
@@ -464,7 +527,7 @@ class _Runner:
             out.append((e, e + int(r[0])))
         return [(first + e, first + r) for e, r in out]
 
-    def _restart(self, dense, k):
+    def _restart(self, dense, k, gate=True):
         """State 0 started again from the direct reading at index ``k`` of ``dense`` (the most
         precise one there), as at the log's start; its error is that reading's noise, independent
         of the other states' errors, so the covariance carried (grown over the pause) gets row and
@@ -478,6 +541,8 @@ class _Runner:
         :data:`RESTART_GATE` standard deviations of the innovation (``P00 + R``, the prior grown
         over the pause): a short gap of a fast IMU, bridged well by the held inputs, would
         otherwise swap a precise heading for one noisy compass reading.
+        Without ``gate`` (the log's first direct reading after tick 0, whose value the state
+        started from: the state carried to it holds nothing else of state 0) always.
         Returns ``(delta, std)``: the move of state 0 and the reading's noise std, or None
         (no restart)."""
         from ..runtime.filter import usable
@@ -494,7 +559,7 @@ class _Runner:
         # the prior grown over the pause
         P = kf.P if kf is not None else self.bridge.P if self.bridge is not None else self.P_missed
         var0 = float(P[0, 0]) if P is not None else max(float(c[0, 0]) for c in self.table.P)
-        if R is not None and delta ** 2 <= RESTART_GATE ** 2 * (var0 + R[best, best]):
+        if gate and R is not None and delta ** 2 <= RESTART_GATE ** 2 * (var0 + R[best, best]):
             return None  # the inputs held over the pause still agree with the reading: carry on
         x[0] += delta
         dense[ms[best].name][k] = np.nan  # consumed here: the tick's update does not read it again

@@ -13,6 +13,10 @@ from .columns import _numeric
 
 #: rows where the inputs read over which the log's base rate is measured (the first ones)
 RATE_SAMPLE = 1_000_000
+#: a slow sensor's column is forward-filled (its last reading repeated on the rows between readings)
+#: when it has more than this many times the readings its rate gives and at least half of them repeat
+#: the one before exactly
+FILLED_RATIO = 1.5
 
 
 class _Pass:
@@ -31,10 +35,42 @@ class _Pass:
         self.base_times = []  # of the first RATE_SAMPLE rows where the inputs read: the base rate
         self._sampled = 0
         self.last_base = None  # the time of the last row so far where the inputs read
+        self.filled = {}  # slow sensor -> its last value, where its column is forward-filled (_unfill)
+        self.judged = set()  # sensors whose column was looked at for that
+
+    def _unfill(self, values):
+        """Forward-filled columns of slow sensors (a logger or a spreadsheet that repeats the last
+        reading on every row) read as the readings they hold: a value equal to the one before it is
+        no reading (NaN).  Each repeated as a reading of its own made a 1 Hz compass a 100 Hz one
+        whose noise averaged away: a predicted std far too small and the estimate pulled to it.
+        Judged on a sensor's first block with 20 readings: more than :data:`FILLED_RATIO` times the
+        readings its rate gives over the block's span, half of them repeats."""
+        n = len(next(iter(values.values()))) if values else 0
+        dt = self.table.sample_time_s
+        for s in self.table.measurements:
+            col = values[self.cols.sensors[s.name]]
+            if s.name not in self.judged:
+                read = col[~np.isnan(col)]
+                if read.size < 20:
+                    continue
+                self.judged.add(s.name)
+                expected = n * dt * (s.rate_hz or 1 / dt)
+                if read.size > FILLED_RATIO * expected and np.mean(read[1:] == read[:-1]) >= 0.5:
+                    self.filled[s.name] = np.nan
+            if s.name in self.filled:
+                keep = ~np.isnan(col)
+                v = col[keep]
+                prev = np.concatenate([[self.filled[s.name]], v[:-1]])
+                if v.size:
+                    self.filled[s.name] = v[-1]
+                out = np.full(n, np.nan)
+                out[np.flatnonzero(keep)[v != prev]] = v[v != prev]
+                values[self.cols.sensors[s.name]] = out
 
     def ticks(self, values):
         """Ticks of a block's rows (``row index`` when the log has no time column)."""
         n = len(next(iter(values.values()))) if values else 0
+        self._unfill(values)
         if self.cols.time is None:
             ticks = self.rows + np.arange(n, dtype=np.int64)
         else:
@@ -228,6 +264,10 @@ def _lock(table, blocks, cols, source, types=False):
     lock.notes[:0] = [f"{name} (an input) has no reading in the log: the estimates run on an input of zero"
                       if held.last is None else held.note(name, last, table.sample_time_s, cols.lines)
                       for name, held in inputs.items() if held.last is None or held.missing(last)]
+    lock.notes[:0] = [f"{name} repeats its last reading on the rows between its readings (a forward-filled "
+                      f"column): a value that differs from the one before is read as a reading "
+                      f"({len(arrivals[name])} of them), a repeat is not (nor a reading equal to the one before)"
+                      for name in place.filled]
     return lock, place.rows, schemas or None, (place.grid, place.rephased, first)
 
 

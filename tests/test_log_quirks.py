@@ -1,0 +1,135 @@
+"""Logs as users bring them, one class of quirk a test: a slow sensor that starts late, a
+forward-filled column, a file without a header, numbers with thousands separators."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import cfdesign
+from cfdesign.errors import DataError
+from cfdesign.linear import wrap
+from cfdesign.logs import run_log
+from cfdesign.spec import parse_spec
+
+HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
+    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
+    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
+
+
+@pytest.fixture(scope="module")
+def heading():
+    return cfdesign.design(parse_spec(HEADING))
+
+
+def turning_log(n=6000, seed=0):
+    """A robot turning at up to 0.9 rad/s: 100 Hz gyro, odometry at rows 3, 13, ..., compass at
+    rows 37, 137, ... (empty cells between), wrapped headings.  Returns the log and the truth."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[3::10] = psi[3::10] + 0.005 * rng.standard_normal(len(odo[3::10]))
+    com[37::100] = psi[37::100] + 0.05 * rng.standard_normal(len(com[37::100]))
+    gyro = np.gradient(psi, 0.01) + 0.01 * rng.standard_normal(n)
+    return pd.DataFrame({"time": t, "gyro": gyro, "odometry": wrap(odo), "compass": wrap(com)}), psi
+
+
+def test_rows_before_the_first_direct_reading_are_moved_back_onto_it(heading):
+    """A log whose odometry and compass start 30 s after the gyro: the state had started from the
+    first reading at tick 0, so the rows before it were that reading plus the turn since the
+    start (2.4 rad RMS off, with a predicted std of 0.0014 rad).  They are now the reading moved
+    back by the gyro's turn, whatever the block size, with a note naming when it came."""
+    log, psi = turning_log()
+    log.loc[:2999, ["odometry", "compass"]] = np.nan
+    result = run_log(heading, log, std=True)
+    est = result.estimates
+    before = wrap(est["heading"].to_numpy()[:3000] - psi[:3000])
+    assert np.sqrt(np.mean(before ** 2)) < 0.03  # was 2.4 rad
+    assert np.all(est["heading_std"].to_numpy()[:3000] >= 0.005)  # at least the odometry's noise
+    assert any("no sensor reads heading before 30.03 s" in n for n in result.notes), result.notes
+    for rows in (700, 2000):
+        assert np.allclose(run_log(heading, log, std=True, block_rows=rows).estimates["heading"], est["heading"],
+                           atol=1e-12)
+
+
+def test_a_log_whose_first_direct_reading_is_at_once_keeps_its_start(heading):
+    """The move is that of a late start only: a log read from its first row is run from it."""
+    log, psi = turning_log()
+    log.loc[0, "odometry"] = wrap(psi[0])
+    result = run_log(heading, log)
+    assert result.estimates["heading"].iloc[0] == pytest.approx(wrap(psi[0]), abs=1e-3)
+    assert not any("no sensor reads" in n for n in result.notes)
+
+
+@pytest.mark.parametrize("block_rows", [None, 777])
+def test_a_forward_filled_slow_sensor_reads_as_its_gapped_readings(heading, block_rows):
+    """A logger that repeats a slow sensor's last reading on every row: each repeat had been a
+    reading of its own (a 1 Hz compass read at 100 Hz, its noise averaged away: 0.035 rad off the
+    gapped log's estimates).  Only the changes are read: the estimates are the gapped log's, and a
+    note names the sensor and its readings."""
+    log, _ = turning_log()
+    filled = log.copy()
+    filled[["odometry", "compass"]] = filled[["odometry", "compass"]].ffill()
+    ref = run_log(heading, log, block_rows=block_rows)
+    got = run_log(heading, filled, block_rows=block_rows)
+    assert np.allclose(got.estimates["heading"], ref.estimates["heading"], atol=1e-12)
+    notes = " ".join(got.notes)
+    assert "compass repeats its last reading" in notes and "(60 of them)" in notes, notes
+    assert "odometry repeats its last reading" in notes and "(600 of them)" in notes, notes
+
+
+def test_equal_readings_of_a_gapped_slow_sensor_are_all_read(heading):
+    """A compass at its own rate that reads one value again and again (a robot standing still, a
+    coarse sensor) is no forward-filled column: every reading is used."""
+    log, _ = turning_log()
+    log["gyro"] = 0.0
+    log.loc[log["compass"].notna(), "compass"] = 1.0
+    log.loc[log["odometry"].notna(), "odometry"] = 1.0
+    result = run_log(heading, log)
+    assert not any("repeats its last reading" in n for n in result.notes)
+    assert not result.unused
+
+
+def test_a_log_without_a_header_is_named_so(heading, tmp_path, cli):
+    """Rows of numbers from the first line had their first row taken as column names ('0.0',
+    '0.5975...') and were refused as missing the sensors' columns."""
+    log, _ = turning_log(n=300)
+    (tmp_path / "log.csv").write_text(log.to_csv(index=False, header=False))
+    table = heading.save(tmp_path / "g.json")
+    code, _, err = cli("run", table, tmp_path / "log.csv", "-o", tmp_path / "out.csv")
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "the log has no header; add a first line naming its columns (time, gyro" in err, err
+    assert not (tmp_path / "out.csv").exists()
+
+
+@pytest.mark.parametrize("sep, cell", [(",", '"1,000.000"'), (";", "1.000,000"), (";", "1 000,000")])
+def test_numbers_with_thousands_separators_are_named_so(heading, tmp_path, sep, cell):
+    """Times in ms exported with thousands separators: refused naming the first such cell and the
+    separator (a semicolon export's `0,000` before it was named a decimal comma not read)."""
+    log, _ = turning_log(n=300)
+    ms = [f"{1000 * t:.3f}" for t in log["time"]]
+    point = "," if sep == ";" else "."
+    rows = [sep.join([cell if i == 100 else m.replace(".", point),
+                      *("" if np.isnan(v) else repr(float(v)).replace(".", point) for v in r)])
+            for i, (m, r) in enumerate(zip(ms, log[["gyro", "odometry", "compass"]].to_numpy(), strict=True))]
+    (tmp_path / "log.csv").write_text(sep.join(["time [ms]", "gyro", "odometry", "compass"]) + "\n"
+                                      + "\n".join(rows) + "\n")
+    with pytest.raises(DataError, match=r"line 102: column 'time \[ms\]' .*\(a thousands separator: write numbers "
+                                        r"without one\)"):
+        run_log(heading, tmp_path / "log.csv")
+
+
+@pytest.mark.parametrize("columns, named", [(["compass"], ["compass"]), (["gyro", "odometry", "compass"],
+                                                                        ["compass", "odometry"])])
+def test_readings_in_other_units_than_the_table_s_are_named(heading, columns, named):
+    """A compass in degrees (or the whole log: the gyro in deg/s too) ran with exit status 0 and
+    no word: the compass's readings wrapped to noise, 3.1 rad off where all were in degrees.  A
+    note names each sensor most of whose readings lie beyond 5 predicted standard deviations of
+    the estimate; the log in radians has none (not one reading of the compass beyond)."""
+    log, _ = turning_log()
+    assert not any("predicted standard deviations from the estimate" in n for n in run_log(heading, log).notes)
+    log[columns] = np.degrees(log[columns])
+    notes = [n for n in run_log(heading, log).notes if "predicted standard deviations from the estimate" in n]
+    assert sorted(n.split(":")[0] for n in notes) == named, notes
+    assert all("other units than the table's (degrees for radians" in n for n in notes)
