@@ -3,6 +3,7 @@ gaps, shapes and dtypes.  Synthetic tracks of a known attitude (tests/test_attit
 ``motion`` and ``imu``); the cases test_attitude_filter.py and test_hardening.py cover are not redone."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -226,3 +227,72 @@ def test_c_agrees_with_python_through_a_tilt_error_restart(tmp_path, magnetomete
     assert out.accel_level.any() and abs(incl[0]) < 2.0               # the levels engaged, then the restart
     state_py = f.state()
     assert max(abs(state_c[k] - state_py[k]) / max(1.0, abs(state_py[k])) for k in STATE_FIELDS) <= 1e-9
+
+
+# ---------------------------------------------------------------------- a gyro in deg/s
+BROAD = Path(__file__).resolve().parents[2] / "shared" / "data" / "broad"
+SLOW = (0.25, 0.08, 0.07)                                   # rad: the motion's amplitudes about z, x, y
+
+
+def test_a_slowly_moving_gyro_in_deg_s_is_warned_of_by_run_and_step():
+    """Slow motion logged in deg/s ran silently (its median rate, 4, is under the median check's 20) with
+    large errors.  Over quiet windows the gyro turns gravity ~57 times faster than the accelerometer shows
+    it turning: run and step warn, once each, and still agree."""
+    q = motion(int(60 * RATE), still_s=3.0, amplitude=SLOW)
+    gyr, acc, mag = imu(q)
+    gyr = np.degrees(gyr)
+    assert np.median(np.linalg.norm(gyr, axis=1)) < 20.0
+    f = AttitudeFilter(RATE)
+    with pytest.warns(UserWarning, match=r"^gyr: the gyro turns gravity .* times faster .*deg/s") as caught:
+        est = f.run(gyr, acc, mag)
+    assert len([w for w in caught if "gyr:" in str(w.message)]) == 1
+    streamed = AttitudeFilter(RATE)
+    with pytest.warns(UserWarning, match="deg/s") as caught:
+        stepped = [streamed.step(gyr[k], acc[k], mag[k]) for k in range(len(q))]
+    assert len([w for w in caught if "gyr:" in str(w.message)]) == 1
+    np.testing.assert_allclose(est, stepped, atol=1e-12)
+
+
+def test_the_median_check_and_the_turn_check_warn_once_together():
+    """A still gyro in deg/s with a 40 deg/s offset trips both checks: one warning."""
+    rng = np.random.default_rng(0)
+    gyr, acc = np.degrees(0.01 * rng.standard_normal((2000, 3))) + 40.0, np.tile([0.0, 0.0, 9.81], (2000, 1))
+    with pytest.warns(UserWarning, match="deg/s") as caught:
+        AttitudeFilter(RATE, magnetometer=False).run(gyr, acc)
+    assert len(caught) == 1 and "median rate" in str(caught[0].message)
+
+
+@pytest.mark.parametrize("rate", [25.0, 100.0, 1000.0])
+@pytest.mark.parametrize("amplitude", [(2.5, 0.8, 0.7), SLOW, (2.5, 0.0, 0.0)], ids=["normal", "slow", "yaw"])
+def test_a_gyro_in_rad_s_is_never_warned_of(rate, amplitude):
+    """A correct configuration runs without a warning at 25 to 1000 Hz (warnings as errors); the same
+    track in deg/s warns (the check does judge these tracks)."""
+    import warnings
+
+    q = motion(int(60 * rate), rate=rate, still_s=3.0, amplitude=amplitude)
+    gyr, acc, _ = imu(q, rate=rate)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        AttitudeFilter(rate, magnetometer=False).run(gyr, acc)
+    with pytest.warns(UserWarning, match="deg/s"):
+        AttitudeFilter(rate, magnetometer=False).run(np.degrees(gyr), acc)
+
+
+def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
+    """Every BROAD development trial as logged (rad/s) runs without a warning; the slow-rotation trial with
+    its gyro in deg/s warns."""
+    import warnings
+
+    from cfdesign.nav.broad import load_trial
+
+    paths = sorted(BROAD.glob("*.mat"))
+    if not paths:
+        pytest.skip(f"BROAD data not found at {BROAD} (shared/data/broad sits beside the checkout)")
+    for path in paths:
+        d = load_trial(path)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            AttitudeFilter(d["rate"], magnetometer=False).run(d["gyr"], d["acc"])
+    d = load_trial(BROAD / "01_undisturbed_slow_rotation_A.mat")
+    with pytest.warns(UserWarning, match="deg/s"):
+        AttitudeFilter(d["rate"], magnetometer=False).run(np.degrees(d["gyr"]), d["acc"])

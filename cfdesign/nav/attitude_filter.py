@@ -95,7 +95,10 @@ Every threshold is in physical units, derived from the noise figures where it ca
   runs the start-up again from the specific force, keeping the heading held through the gap (in
   9D the field then sets it: the heading channel's prior is reopened) and the gyro bias.  Without
   it the tilt error a gap leaves is read as a sustained acceleration and the dip it skews as a
-  magnetic disturbance, which held it for tens of seconds.
+  magnetic disturbance, which held it for tens of seconds;
+* units: readings in g or deg/s are warned of (the filter runs on): a median specific force far
+  from gravity, and a gyro that turns gravity, over short quiet windows, more than 5 times faster
+  than the accelerometer shows it turning (57 times in deg/s, slow motion too; :class:`_GyroUnits`).
 
 The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
 ``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
@@ -671,6 +674,8 @@ class AttitudeFilter:
             # a given heading is known as well as a running filter knows it (the heading table's DARE variance)
             s[_INDEX["h00"]] = float(self.design.tables["heading"].P[0][0][0])
         self._s = s
+        c = self.design.constants
+        self._units = _GyroUnits(self.rate_hz, c["gyro_range2"], c["accel_range2"])
 
     def state(self) -> dict:
         """A copy of the filter's state, to save it or to continue it later with :meth:`restore`.
@@ -750,6 +755,7 @@ class AttitudeFilter:
         if problem:
             raise AttitudeInputError(f"state: {problem}")
         self._s = values
+        self._units.buffer = None if self._units.buffer is None else []   # no window across two runs
 
     def _impossible(self, v) -> str | None:
         """What makes the state ``v`` (``{name: float}``, finite) one no run of this filter reaches,
@@ -868,7 +874,9 @@ class AttitudeFilter:
         UserWarning
             The specific force the filter starts from (the first usable one) is below 3 or above
             30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
-            arrays instead.
+            arrays instead.  Once: the gyro turns gravity more than 5 times faster than the
+            accelerometer shows it turning (``gyr`` in deg/s?; checked in blocks of about 4096
+            samples, :class:`_GyroUnits`).
 
         Examples
         --------
@@ -890,6 +898,12 @@ class AttitudeFilter:
             if 0.0 < f < 3.0 or 30.0 < f <= self.params.accel_range_mps2:
                 _warn_accel_unit("the first specific force", f, stacklevel=3)
         _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
+        units = self._units
+        buffer = units.buffer
+        if buffer is not None:
+            buffer += (gx, gy, gz, ax, ay, az)
+            if len(buffer) >= units.full:
+                units.feed(_NO_SAMPLES, _NO_SAMPLES, stacklevel=3)
         return self.quaternion
 
     def run(self, gyr, acc, mag=None, *, details=False):
@@ -919,9 +933,13 @@ class AttitudeFilter:
         -----
         UserWarning
             The arrays look like other units: a median specific force outside 3 to 30 (``acc``
-            in g?) or a median rate above 20 (``gyr`` in deg/s?).  The filter runs anyway.
+            in g?); a median rate above 20 or a gyro that turns gravity more than 5 times faster
+            than the accelerometer shows it turning (``gyr`` in deg/s?, once per filter, as
+            :meth:`step` checks it: :class:`_GyroUnits`).  The filter runs anyway.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
+        self._units.check_median(gyr, stacklevel=3)
+        self._units.feed(gyr, acc, stacklevel=3)
         n = len(gyr)
         coef, s, nine = self._coef, self._s, self.magnetometer
         out = [None] * n
@@ -952,6 +970,7 @@ class AttitudeFilter:
 
 
 _NAN3 = (math.nan, math.nan, math.nan)
+_NO_SAMPLES = np.empty((0, 3))
 
 
 def _three(name, value) -> tuple:
@@ -1006,20 +1025,14 @@ def _arrays(gyr, acc, mag, nine):
 
 
 def _check_units(gyr, acc):
-    """Warn when the arrays look like other units than rad/s and m/s²: the median specific
-    force of a hand-held or vehicle IMU is near g (9.8 m/s², 1 in g), its median rate far
-    below 20 rad/s (a median of 20 in deg/s is an ordinary motion).  The filter runs anyway."""
-    import warnings
-
+    """Warn when the specific forces look like other units than m/s²: the median specific force of a
+    hand-held or vehicle IMU is near g (9.8 m/s², 1 in g).  The filter runs anyway (the gyro's units:
+    :class:`_GyroUnits`)."""
     with np.errstate(invalid="ignore", over="ignore"):  # an impossible reading (1e200: inf) is the step's to count
         a = np.linalg.norm(acc, axis=1)
-        w = np.linalg.norm(gyr, axis=1)
-    a, w = a[np.isfinite(a)], w[np.isfinite(w)]
+    a = a[np.isfinite(a)]
     if len(a) and not 3.0 <= float(np.median(a)) <= 30.0:
         _warn_accel_unit("the median specific force", float(np.median(a)))
-    if len(w) and float(np.median(w)) > 20.0:
-        warnings.warn(f"gyr: the median rate is {float(np.median(w)):.3g}; the filter takes rad/s: readings in "
-                      "deg/s need multiplying by pi/180", UserWarning, stacklevel=3)
 
 
 def _warn_accel_unit(what, value, stacklevel=4):
@@ -1028,6 +1041,131 @@ def _warn_accel_unit(what, value, stacklevel=4):
 
     warnings.warn(f"acc: {what} is {value:.3g}; the filter takes m/s² (gravity 9.81): readings in g need "
                   "multiplying by 9.80665", UserWarning, stacklevel=stacklevel)
+
+
+#: the gyro-unit check (:class:`_GyroUnits`): its window (s); a quiet window's specific-force norm: mean within
+#: this of gravity, std below this (m/s²); the least gyro turn of a window it counts (rad); the summed gyro turn
+#: of the counted windows before it judges (rad); the ratio of the gyro's turn to the accelerometer's beyond
+#: which the gyro is in deg/s (57.3 times rad/s); the samples ``step`` gathers before checking them at once
+UNIT_WINDOW_S, UNIT_NORM_TOL, UNIT_NORM_STD, UNIT_MIN_TURN, UNIT_TURN, UNIT_RATIO, UNIT_CHUNK = (
+    0.1, 0.3, 0.5, 0.02, 5.0, 5.0, 4096)
+
+
+class _GyroUnits:
+    """Whether the gyro reads deg/s: it turns gravity faster than the accelerometer sees gravity turn.
+
+    Over a short quiet window (the specific force's norm steady and gravity's) the specific force is
+    gravity, fixed in the world, so in the body frame its direction ``u`` turns as the gyro says:
+    ``u' = -w x u``.  Per window of ``UNIT_WINDOW_S`` the accelerometer's turn ``da = u_end - u_start``
+    and the gyro's ``dg = -T sum_k w_k x u_(k-1)`` agree in rad/s; in deg/s ``dg`` is 57 times larger.
+    The least-squares ratio ``sum |dg|² / sum dg . da`` over the windows that turned by at least
+    ``UNIT_MIN_TURN`` is near 1 in rad/s (0.9 to 1.0 on every BROAD development trial and on synthetic
+    tracks at 25 to 1000 Hz) and from about 10 to infinite in deg/s (slow and yaw-only motion included:
+    about the vertical gravity does not turn, so those windows count for nothing).  Once the counted
+    windows have turned by ``UNIT_TURN`` (rad, by the gyro) the check judges, once: a ratio above
+    ``UNIT_RATIO`` warns, one at or below it is rad/s (0.77 to 1.01 there; 23 to infinite in deg/s), and
+    the check ends either way.
+
+    A median rate above 20 (rad/s: far beyond an ordinary motion, an ordinary one in deg/s) warns at
+    once in :meth:`AttitudeFilter.run` (it needs no quiet windows: a vibrating sensor has none); either
+    warning ends the check, so a filter warns of the gyro's units at most once.  Windows with a missing
+    or impossible reading (the step's) do not count.  The check reads the readings only: no estimate
+    depends on it.
+
+    Parameters
+    ----------
+    rate_hz : float
+        Sample rate (Hz).
+    gyro_range2, accel_range2 : float
+        The squared ranges of the gyro ((rad/s)²) and the accelerometer ((m/s²)²): readings beyond are
+        impossible (missing to the step).
+    """
+
+    def __init__(self, rate_hz, gyro_range2, accel_range2):
+        self.window = max(3, round(UNIT_WINDOW_S * rate_hz))
+        self.T, self.ranges = 1.0 / rate_hz, (gyro_range2, accel_range2)
+        #: ``step``'s samples not yet checked, ``gx, gy, gz, ax, ay, az`` each in a flat list (None once judged),
+        #: checked once it holds ``full`` numbers: whole windows of about ``UNIT_CHUNK`` samples
+        self.buffer = []
+        self.full = 6 * self.window * -(-UNIT_CHUNK // self.window)
+        #: over the counted windows: sum |dg|², sum dg . da, sum |da|², sum |dg| (rad), windows
+        self.sums = np.zeros(5)
+
+    def check_median(self, gyr, stacklevel):
+        """Warn (and end the check) when the median rate of ``gyr`` (N, 3) is above 20 (``stacklevel``: as
+        :func:`warnings.warn` would take it here); :meth:`AttitudeFilter.run` calls it on its arrays before
+        :meth:`feed`."""
+        if self.buffer is None:
+            return
+        with np.errstate(invalid="ignore", over="ignore"):  # an impossible reading (1e200: inf) is the step's to count
+            w = np.linalg.norm(gyr, axis=1)
+        w = w[np.isfinite(w)]
+        if len(w) and float(np.median(w)) > 20.0:
+            self.warn(f"the median rate is {float(np.median(w)):.3g}, beyond any ordinary motion in rad/s",
+                      stacklevel + 1)
+
+    def feed(self, gyr, acc, stacklevel):
+        """Check the samples gathered so far followed by ``gyr``, ``acc`` ((N, 3) arrays, rad/s and m/s²; N may be
+        0): every complete window in turn, the rest kept for the next call.  Warns once (``stacklevel``: as
+        :func:`warnings.warn` would take it here) when the counted windows show a gyro in deg/s."""
+        if self.buffer is None:
+            return
+        if self.buffer:
+            held = np.fromiter(self.buffer, dtype=float, count=len(self.buffer)).reshape(-1, 6)
+            gyr, acc = np.concatenate((held[:, :3], gyr)), np.concatenate((held[:, 3:], acc))
+        w = self.window
+        m = len(gyr) // w
+        self.buffer = np.hstack((gyr[m * w:], acc[m * w:])).ravel().tolist()
+        if m == 0:
+            return
+        dg, da = self._windows(gyr[:m * w].reshape(m, w, 3), acc[:m * w].reshape(m, w, 3))
+        if not len(dg):
+            return
+        gg = (dg * dg).sum(axis=1)
+        per = np.column_stack((gg, (dg * da).sum(axis=1), (da * da).sum(axis=1), np.sqrt(gg), np.ones(len(gg))))
+        sums = self.sums + np.cumsum(per, axis=0)
+        judged = np.flatnonzero(sums[:, 3] >= UNIT_TURN)
+        if not len(judged):
+            self.sums = sums[-1]
+        elif sums[judged[0], 0] > UNIT_RATIO * sums[judged[0], 1]:
+            self.warn(f"the gyro turns gravity {_times(*sums[judged[0], [0, 1, 2, 4]])} faster than the "
+                      "accelerometer shows it turning", stacklevel + 1)
+        else:
+            self.buffer = None                          # rad/s: the check is over
+
+    def _windows(self, g, a):
+        """The gyro's and the accelerometer's turns ``dg``, ``da`` (K, 3) of the counted windows among ``g``, ``a``
+        (M, W, 3): quiet, with no missing or impossible reading, turned by at least ``UNIT_MIN_TURN``."""
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            g2, f2 = (g * g).sum(axis=2), (a * a).sum(axis=2)
+            f = np.sqrt(f2)
+            u = a / f[..., None]
+            gp, up = g[:, 1:], u[:, :-1]
+            dg = -self.T * np.stack((gp[..., 1] * up[..., 2] - gp[..., 2] * up[..., 1],
+                                     gp[..., 2] * up[..., 0] - gp[..., 0] * up[..., 2],
+                                     gp[..., 0] * up[..., 1] - gp[..., 1] * up[..., 0]), axis=-1).sum(axis=1)
+            keep = ((g2 <= self.ranges[0]).all(axis=1) & (f2 <= self.ranges[1]).all(axis=1) & (f > 0.0).all(axis=1)
+                    & (np.abs(f.mean(axis=1) - GRAVITY) < UNIT_NORM_TOL) & (f.std(axis=1) < UNIT_NORM_STD)
+                    & ((dg * dg).sum(axis=1) >= UNIT_MIN_TURN * UNIT_MIN_TURN))
+        return dg[keep], u[keep, -1] - u[keep, 0]
+
+    def warn(self, what, stacklevel):
+        """Warn that the gyro looks like deg/s (``what``: why; ``stacklevel``: as :func:`warnings.warn` would take
+        it here), and end the check."""
+        import warnings
+
+        self.buffer = None
+        warnings.warn(f"gyr: {what}: readings look like deg/s (multiply by pi/180)", UserWarning,
+                      stacklevel=stacklevel)
+
+
+def _times(gg, ga, aa, n) -> str:
+    """How many times the gyro's turn is the accelerometer's, from the windows' sums ``sum |dg|²``, ``sum dg . da``,
+    ``sum |da|²`` and their number ``n``: the least-squares ratio when the accelerometer's turn is determined (the
+    slope ``ga / gg`` three standard errors from 0), else only that it is above ``UNIT_RATIO``."""
+    slope = ga / gg
+    se = math.sqrt(max(aa - ga * slope, 0.0) / max(n - 1.0, 1.0) / gg)
+    return f"about {1.0 / slope:.2g} times" if slope > 3.0 * se else f"more than {UNIT_RATIO:g} times"
 
 
 def _coefficients(design: AttitudeDesign) -> tuple:
