@@ -1155,7 +1155,8 @@ class _GyroUnits:
         import warnings
 
         self.buffer = None
-        warnings.warn(f"gyr: {what}: readings look like deg/s (multiply by pi/180)", UserWarning,
+        warnings.warn(f"gyr: {what}: readings look like deg/s (multiply by pi/180), or the gyro's bias is above "
+                      "0.2 rad/s (a still sensor that reads a turn)", UserWarning,
                       stacklevel=stacklevel)
 
 
