@@ -10,8 +10,10 @@ offsets), runs it with ``cfdesign run g.json log.csv -o est.csv --std`` (and ``-
 and prints, per case and state, the predicted std (the figure ``cfdesign design`` prints for the
 first state, else the table's covariance: the RMS over the period for a multirate table), the
 RMS of the written ``<state>_std`` column, the measured RMS error after the start-up, their
-ratio, and the Monte-Carlo standard error of the measured variance (batch means over 50
-batches, which allows for the errors' correlation in time).
+ratios, the Monte-Carlo standard error of the measured variance (batch means over 50 batches,
+which allows for the errors' correlation in time), and the ratio of the two figures
+``cfdesign run --reference`` prints itself (the RMS error after its start-up, and the
+predicted std beside it).
 
 Run: ``python benchmarks/bench_predicted.py [--scale X] [--case NAME ...]`` (all cases: about N minutes)
 """
@@ -225,6 +227,16 @@ def batch_se(sq: np.ndarray, batches: int = 50) -> float:
     return float(means.std(ddof=1) / np.sqrt(batches) / means.mean())
 
 
+def _rms_lines(stdout: str) -> dict:
+    """``{state: (settled RMS, predicted)}`` from the ``RMS error of STATE: ...`` lines that
+    ``cfdesign run --reference`` prints."""
+    found = {}
+    for m in re.finditer(r"RMS error of (\S+): .*?; ([0-9.e+-]+)(?: \S+)? after the start-up.*?; "
+                         r"predicted ([0-9.e+-]+)", stdout):
+        found[m.group(1)] = (float(m.group(2)), float(m.group(3)))
+    return found
+
+
 def compare(table_path: Path, table, log: pd.DataFrame, truth: dict, printed: dict, workdir: Path,
             prediction: bool, settle_s: float = SETTLE_S) -> list:
     """Run the log through ``cfdesign run ... --std`` (``--prediction`` too when ``prediction``)
@@ -232,11 +244,13 @@ def compare(table_path: Path, table, log: pd.DataFrame, truth: dict, printed: di
     prediction: the printed figure for the first state, else the table's covariance (RMS over the
     period), and the RMS of the written ``<state>_std`` column over the same rows."""
     log_path, est_path = workdir / "log.csv", workdir / "est.csv"
-    log.to_csv(log_path, index=False)
+    log.assign(**{f"true_{state}": truth[state] for state in table.states}).to_csv(log_path, index=False)
     argv = ["run", str(table_path), str(log_path), "-o", str(est_path), "--std"]
+    for state in table.states:
+        argv += ["--reference", f"{state}=true_{state}"]
     if prediction:
         argv.append("--prediction")
-    _quiet(argv)
+    said = _rms_lines(_quiet(argv))
     est = pd.read_csv(est_path)
     output = ("prior" if table.output == "posterior" else "posterior") if prediction else table.output
     covs = table.P_filtered if output == "posterior" else table.P
@@ -252,7 +266,8 @@ def compare(table_path: Path, table, log: pd.DataFrame, truth: dict, printed: di
         measured = float(np.sqrt(sq.mean()))
         rows.append({"output": output, "state": state, "predicted": predicted, "std_column": column,
                      "measured": measured, "ratio": measured / predicted,
-                     "ratio_column": measured / column, "mc_se_var": batch_se(sq)})
+                     "ratio_column": measured / column, "mc_se_var": batch_se(sq),
+                     "run_rms": said[state][0], "run_predicted": said[state][1]})
     return rows
 
 
@@ -285,7 +300,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     print(f"{'case':30s} {'output':9s} {'state':24s} {'predicted':>10s} {'std col':>10s} {'measured':>10s} "
-          f"{'ratio':>6s} {'r(col)':>6s} {'MC se(var)':>10s}")
+          f"{'ratio':>6s} {'r(col)':>6s} {'MC se(var)':>10s} {'run: RMS/predicted':>18s}")
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
         for name, (t_path, table, printed, fig, offsets, missing, rows) in cases(workdir).items():
@@ -299,7 +314,8 @@ def main(argv=None) -> int:
                 for r in compare(t_path, table, log, truth, printed, workdir, prediction):
                     print(f"{name:30s} {r['output']:9s} {r['state']:24s} {r['predicted']:10.4g} "
                           f"{r['std_column']:10.4g} {r['measured']:10.4g} {r['ratio']:6.3f} "
-                          f"{r['ratio_column']:6.3f} {100 * r['mc_se_var']:9.2f}%", flush=True)
+                          f"{r['ratio_column']:6.3f} {100 * r['mc_se_var']:9.2f}% "
+                          f"{r['run_rms'] / r['run_predicted']:18.3f}", flush=True)
     return 0
 
 

@@ -5,8 +5,9 @@ Each test designs a table through the command line, draws a log of 50,000 base t
 for the 3 Hz GPS) whose sensors follow the design file exactly (white noise of the stated std,
 a bias random walk of the stated density sampled exactly over each tick, a time column jittered
 by 3 % of a tick, slow sensors at offsets of their own), runs it with ``cfdesign run ... --std``
-(default output, and ``--prediction``), and checks the RMS error of the first state against the
-printed figure and against the written std column.  The simulation is
+(default output, and ``--prediction``, with ``--reference`` for every state), and checks the RMS
+error against the printed figure, the written std column, and the predicted figure that
+``cfdesign run --reference`` prints beside its own RMS error.  The simulation is
 ``benchmarks/bench_predicted.py``'s (which runs the long logs); it is checked here against the
 table's ``F``, ``B``, ``H``, ``Q``, ``R`` first.
 
@@ -89,6 +90,9 @@ def _check(row, against=("ratio", "ratio_column")):
     assert row["mc_se_var"] < MC_MAX, row
     for key in against:
         assert abs(row[key] - 1) < TOL + row["mc_se_var"], (key, row)
+    # the two figures `cfdesign run --reference` prints: the RMS error after its start-up, and the
+    # predicted std beside it
+    assert abs(row["run_rms"] / row["run_predicted"] - 1) < TOL + row["mc_se_var"], row
 
 
 def test_simulation_is_the_tables_model(tmp_path):
