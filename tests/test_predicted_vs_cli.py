@@ -20,6 +20,7 @@ variance is not hidden by a lucky draw, as the seeds are fixed.
 from __future__ import annotations
 
 import importlib.util
+import re
 from pathlib import Path
 
 import numpy as np
@@ -149,3 +150,21 @@ def test_missing_slow_readings_std_column(tmp_path):
     for output in ("posterior", "prior"):
         _check(out[output, "heading"], against=("ratio_column",))
         assert out[output, "heading"]["ratio"] > 1.2
+
+
+def test_multirate_example_redesign_hint_designs(tmp_path, capsys):
+    """The CKF3 example's 10 Hz position cannot be discretised with its 100 Hz sensors; the lines
+    ``cfdesign discretize`` names instead design a multirate table through the command line whose
+    predicted std is the continuous CKF3's within 1 % (0.0039748 against 0.0039759 m)."""
+    from cfdesign.cli import main
+
+    continuous = tmp_path / "ckf3.json"
+    assert main(["design", "--example", "ckf3", "-o", str(continuous)]) == 0
+    assert main(["discretize", str(continuous), "--rate-hz", "100", "-o", str(tmp_path / "d.json")]) == 2
+    hint = re.search(r"so write (.*) in the design file", capsys.readouterr().err).group(1)
+    lines = "\n".join(part.strip() for part in hint.split(", "))
+    text = Path(bench.example_path("ckf3")).read_text()
+    text = re.sub(r'^structure = .*$', lines, text, count=1, flags=re.M)
+    _, table, printed, _ = bench.design(tmp_path, "redesigned", spec_text=text)
+    assert table.period == 10 and table.schedule.rows(1) != table.schedule.rows(0)
+    assert printed["posterior"] == pytest.approx(bench.load_gains(continuous).predicted_std, rel=0.01)
