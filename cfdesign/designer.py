@@ -355,6 +355,30 @@ class Structure:
             raise SpecError(f"no stored structure {name!r} (stored: {known})") from None
 
 
+#: the design file lines of a discrete filter with multirate sensors, for structures that have no
+#: discrete form of their own (ckf3) or whose sparse gains are single-rate only (cf3): the CKF3's
+#: full gain over the same three bands
+_FULL_CF3 = 'structure = "cfn", bands = 3, full = true, discrete = true'
+
+
+def multirate_redesign(structure: str) -> str:
+    """What to write in a design file for a discrete multirate filter of ``structure``.
+
+    Parameters
+    ----------
+    structure : str
+        A structure's name (``cf3``, ``ckf3``, ``cf2``, ...).
+
+    Returns
+    -------
+    str
+        ``discrete = true`` where the structure's own discrete form takes multirate sensors;
+        for ``cf3`` and ``ckf3`` (sparse gains designed for single-rate sensors only, and no
+        discrete form) the ``cfn`` of three bands with a full gain.
+    """
+    return _FULL_CF3 if structure in ("cf3", "ckf3") else "discrete = true"
+
+
 def build_structure(spec: FilterSpec):
     """The symbolic observer a spec names, with its options and ports applied.
 
@@ -393,7 +417,8 @@ def build_structure(spec: FilterSpec):
     options = {"order": spec.order, "bands": spec.bands, "discrete": spec.discrete, "full": spec.full}
     for key, value in options.items():
         if value is not None and key not in STRUCTURE_OPTIONS[spec.structure]:
-            raise SpecError(f"{key}: does not apply to structure {spec.structure}")
+            hint = f"; a discrete CKF3 is {_FULL_CF3}" if (key, spec.structure) == ("discrete", "ckf3") else ""
+            raise SpecError(f"{key}: does not apply to structure {spec.structure}{hint}")
     if spec.structure == "cfn" and spec.bands is None:
         raise SpecError("bands: missing field (cfn needs the number of bands)")
     try:
@@ -890,7 +915,9 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="poster
     key = "K_filter" if form == "filter" else "K_predictor"
     if fixed is not None:
         if schedule.period != 1:
-            raise SpecError("gains: fixed gains apply to single-rate filters only")
+            also = "" if obs.full_pattern else f" and write {multirate_redesign(obs.name)} (the CKF3's full gain)"
+            raise SpecError("gains: fixed gains apply to single-rate filters only; for multirate sensors leave "
+                            f"[gains] out{also}")
         return _fixed_gains(obs, F, H, Q, R, form, fixed, output)
     if schedule.period == 1:
         if obs.full_pattern:
@@ -899,7 +926,8 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="poster
                     "solver": _solver_info(sol.solution)}
         return _sparse_gains(obs, F, H, Q, R, form, output)
     if not obs.full_pattern:
-        raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only")
+        raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only; for "
+                        f"multirate sensors write {multirate_redesign(obs.name)} (the CKF3's full gain)")
     return _periodic_gains(F, H, Q, R, schedule, form)
 
 

@@ -150,9 +150,12 @@ def _check_single_rate(table: GainTable) -> None:
     GainTableError
         Naming the slowest sensor and its rate.
     """
+    from .designer import multirate_redesign
+
     rates = {s.rate_hz for s in table.sensors}
     if len(rates) > 1:
         slow = min(table.sensors, key=lambda s: s.rate_hz)
         raise GainTableError(f"{table.name}: {slow.name} runs at {slow.rate_hz:g} Hz, slower than the other sensors "
-                             f"({max(rates):g} Hz); a discretised table reads every sensor at every step, so re-design "
-                             "with discrete = true in the design file (the periodic DARE gives the multirate gains)")
+                             f"({max(rates):g} Hz); a discretised table reads every sensor at every step, so write "
+                             f"{multirate_redesign(table.structure)} in the design file and design again (the periodic "
+                             "DARE gives the multirate gains)")
