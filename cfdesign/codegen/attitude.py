@@ -114,8 +114,8 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     prefix = _check_prefix(prefix)
     design = attitude_filter.design
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
-     new_s, new_rot, first_s, prov_s, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels, use_bias,
-     inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = _coefficients(design)
+     new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels,
+     use_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -134,7 +134,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "tilt_settle": _hex(TILT_SETTLE), "settle_ratio": _hex(settle_ratio),
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "mag_first_time": _hex(first_s),
-        "mag_provisional": _hex(prov_s), "hold_var": _hex(hold_var),
+        "mag_provisional": _hex(prov_s), "mag_follow": _hex(follow_f), "hold_var": _hex(hold_var),
         "rest_lp_var": _hex(lp_var),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
         "heading_var0": _hex(HEADING_VAR0),

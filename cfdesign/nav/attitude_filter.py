@@ -92,7 +92,12 @@ Every threshold is in physical units, derived from the noise figures where it ca
   (a device started beside a motor or on a steel table), so a new field replaces it once it has held
   as long as the reference had (at least ``mag_first_field_s``; the same turn), and the heading the
   provisional field set is reopened to the prior of a heading not known at all (VQF, too, accepts its
-  first field sooner than a later new one);
+  first field sooner than a later new one).  A provisional reference the field has left for longer than
+  the reference itself had held is no better evidence than the field that left it (a device started with
+  a magnet fixed beside it: its first fraction of a second set both the reference and the heading):
+  while it lasts the heading follows the field, its reading variance widened ``mag_follow_factor`` times
+  (the heading's bandwidth about halved) and no gyro bias learnt from it, so an error that turns with the
+  sensor averages out instead of the first moment's being held;
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
@@ -164,6 +169,7 @@ STATE_FIELDS = (
     "norm_ref", "dip_ref", "ref_n",      # reference field and how many readings it averages
     "norm_new", "dip_new", "new_n",      # candidate new field (while disturbed), readings averaged
     "new_time", "new_turn",              # time the candidate held (s) and the rotation meanwhile (rad)
+    "dist_time",                         # time the field has been disturbed without a break (s)
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
     "tilt_n",                            # start-up: specific forces the initial tilt averages
@@ -263,6 +269,14 @@ class AttitudeParams:
         started in the middle of their motion (``--proxies``: 30 s in, mean total 5.22 deg before,
         3.46 / 3.61 / 3.79 / 4.75 with 1 / 2 / 4 / 8 s; 2 s keeps a floor of seconds), and
         ``mag_provisional_s`` on synthetic tracks (a disturbance from 8 s on is rejected).
+    mag_follow_factor : float
+        While the field has left a provisional reference for longer than the reference had held, the
+        heading follows the field with its reading variance widened this many times, learning no gyro
+        bias from it (default 4: the heading's bandwidth about halved, as VQF halves its gain for a
+        field disturbed beyond its rejection time; chosen on BROAD's development trials started in the
+        middle of their motion, ``--proxies``: 4 / 8 / 16 give 6.50 / 6.55 / 6.78 deg mean total started
+        10 s in, 3.43 / 3.45 / 3.50 started 30 s in, against 7.83 / 3.61 without; the trials as recorded
+        start at rest, whose reference is no longer provisional, and do not depend on it).
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4); also the
@@ -312,6 +326,7 @@ class AttitudeParams:
     mag_new_field_rotation_rad: float = math.pi / 2
     mag_first_field_s: float = 2.0
     mag_provisional_s: float = 10.0
+    mag_follow_factor: float = 4.0
     max_speed_mps: float = 4.0
     max_accel_time_s: float = 30.0
     max_reach_m: float = 1.0
@@ -716,7 +731,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (56, 1.0, 0.0)
+        (57, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -813,7 +828,7 @@ class AttitudeFilter:
         if not 0.0 <= v["tilt_f"] <= p.accel_range_mps2 * tol:
             return (f"tilt_f = {v['tilt_f']!r} is not the norm of a mean specific force (from 0 to "
                     f"{p.accel_range_mps2:g})")
-        for name in ("rest_time", "new_time", "new_turn"):
+        for name in ("rest_time", "new_time", "new_turn", "dist_time"):
             if v[name] < 0.0:
                 return f"{name} = {v[name]!r} must not be negative"
         for name in ("dip_lp", "dip_ref", "dip_new"):
@@ -1196,7 +1211,7 @@ def _coefficients(design: AttitudeDesign) -> tuple:
     return (c["T"], c["rest_alpha"], c["rest_gyro_th2"], c["rest_accel_th2"], c["rest_bias_th2"], p.rest_time_s,
             c["mag_alpha"], c["mag_ref_alpha"], c["north"], c["speed2"], c["gyro_range2"], c["accel_range2"],
             p.mag_tolerance_rad, p.mag_new_field_s, p.mag_new_field_rotation_rad, p.mag_first_field_s,
-            p.mag_provisional_s, design.priors["rest"][0],
+            p.mag_provisional_s, p.mag_follow_factor, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
             c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design))
@@ -1243,13 +1258,13 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     Plain floats, in the order the generated C follows (``cfdesign/codegen/templates/attitude.c.in``).
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
-     tol, new_s, new_rot, first_s, prov_s, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check,
+     tol, new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check,
      use_levels, use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = coef
     heading_var0 = HEADING_VAR0
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
      gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-     ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
-     lgz, started, miss_g, miss_a, miss_m, gap_n) = s
+     ref_n, norm_new, dip_new, new_n, new_time, new_turn, dist_time, disturbed, level, acc_time, tilt_n, tilt_f,
+     lgx, lgy, lgz, started, miss_g, miss_a, miss_m, gap_n) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
@@ -1506,12 +1521,17 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                 dip_ref += a * (dip_lp - dip_ref)
                 new_n = new_time = new_turn = 0.0
             disturbed = 1.0 if dist else 0.0
-            if not dist and math.sqrt(mex * mex + mey * mey) > 1e-9 * nm:
+            dist_time = dist_time + T if dist else 0.0
+            q00, q01, q11, rr, kal, hk1, hk2 = heading
+            # a provisional reference the field has left for longer than it had held itself is no better
+            # evidence than the field that left it: the heading follows the field, its reading variance
+            # widened follow_f times, and learns no gyro bias from it (Kalman tables only)
+            follow = dist and kal and ref_n * T < prov_s and dist_time > ref_n * T
+            if (not dist or follow) and math.sqrt(mex * mex + mey * mey) > 1e-9 * nm:
                 eh = wrap_scalar(north - math.atan2(mey, mex))
-                q00, q01, q11, rr, kal, hk1, hk2 = heading
                 if kal:
-                    den = h00 + rr
-                    hk1, hk2 = h00 / den, h01 / den
+                    den = h00 + (rr * follow_f if follow else rr)
+                    hk1, hk2 = h00 / den, (0.0 if follow else h01 / den)
                     h00, h01, h11 = (1.0 - hk1) * h00, (1.0 - hk1) * h01, h11 - hk2 * h01
                     h11 = h11 if h11 > 0.0 else 0.0   # a variance, not negative by rounding
                 cz = hk1 * eh
@@ -1579,6 +1599,6 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
             gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
-            ref_n, norm_new, dip_new, new_n, new_time, new_turn, disturbed, level, acc_time, tilt_n, tilt_f, lgx, lgy,
-            lgz, started, miss_g, miss_a, miss_m, gap_n)
+            ref_n, norm_new, dip_new, new_n, new_time, new_turn, dist_time, disturbed, level, acc_time, tilt_n, tilt_f,
+            lgx, lgy, lgz, started, miss_g, miss_a, miss_m, gap_n)
     return jv
