@@ -109,7 +109,7 @@ Every threshold is in physical units, derived from the noise figures where it ca
   magnetic disturbance, which held it for tens of seconds;
 * units: readings in g or deg/s are warned of (the filter runs on): a median specific force far
   from gravity, and a gyro that turns gravity, over short quiet windows, more than 5 times faster
-  than the accelerometer shows it turning (57 times in deg/s, slow motion too; :class:`_GyroUnits`).
+  than the accelerometer shows it turning (57 times in deg/s, slow motion too; ``_GyroUnits``).
 
 The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
 ``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
@@ -912,7 +912,7 @@ class AttitudeFilter:
             30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
             arrays instead.  Once: the gyro turns gravity more than 5 times faster than the
             accelerometer shows it turning (``gyr`` in deg/s?; checked in blocks of about 4096
-            samples, :class:`_GyroUnits`).
+            samples, ``_GyroUnits``).
 
         Examples
         --------
@@ -971,7 +971,7 @@ class AttitudeFilter:
             The arrays look like other units: a median specific force outside 3 to 30 (``acc``
             in g?); a median rate above 20 or a gyro that turns gravity more than 5 times faster
             than the accelerometer shows it turning (``gyr`` in deg/s?, once per filter, as
-            :meth:`step` checks it: :class:`_GyroUnits`).  The filter runs anyway.
+            :meth:`step` checks it: ``_GyroUnits``).  The filter runs anyway.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
         self._units.check_median(gyr, stacklevel=3)
@@ -1063,7 +1063,7 @@ def _arrays(gyr, acc, mag, nine):
 def _check_units(gyr, acc):
     """Warn when the specific forces look like other units than m/s²: the median specific force of a
     hand-held or vehicle IMU is near g (9.8 m/s², 1 in g).  The filter runs anyway (the gyro's units:
-    :class:`_GyroUnits`)."""
+    ``_GyroUnits``)."""
     with np.errstate(invalid="ignore", over="ignore"):  # an impossible reading (1e200: inf) is the step's to count
         a = np.linalg.norm(acc, axis=1)
     a = a[np.isfinite(a)]
@@ -1079,7 +1079,7 @@ def _warn_accel_unit(what, value, stacklevel=4):
                   "multiplying by 9.80665", UserWarning, stacklevel=stacklevel)
 
 
-#: the gyro-unit check (:class:`_GyroUnits`): its window (s); a quiet window's specific-force norm: mean within
+#: the gyro-unit check (``_GyroUnits``): its window (s); a quiet window's specific-force norm: mean within
 #: this of gravity, std below this (m/s²); the least gyro turn of a window it counts (rad); the summed gyro turn
 #: of the counted windows before it judges (rad); the ratio of the gyro's turn to the accelerometer's beyond
 #: which the gyro is in deg/s (57.3 times rad/s); the samples ``step`` gathers before checking them at once
