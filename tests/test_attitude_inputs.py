@@ -262,6 +262,14 @@ def test_the_median_check_and_the_turn_check_warn_once_together():
     assert len(caught) == 1 and "median rate" in str(caught[0].message)
 
 
+def unit_check(gyr, acc, rate):
+    """What :meth:`AttitudeFilter.run` checks of its arrays' units before its loop, without the loop (the
+    tests above run the whole filter, step by step too)."""
+    units = AttitudeFilter(rate, magnetometer=False)._units
+    units.check_median(gyr, stacklevel=2)
+    units.feed(gyr, acc, stacklevel=2)
+
+
 @pytest.mark.parametrize("rate", [25.0, 100.0, 1000.0])
 @pytest.mark.parametrize("amplitude", [(2.5, 0.8, 0.7), SLOW, (2.5, 0.0, 0.0)], ids=["normal", "slow", "yaw"])
 def test_a_gyro_in_rad_s_is_never_warned_of(rate, amplitude):
@@ -273,9 +281,9 @@ def test_a_gyro_in_rad_s_is_never_warned_of(rate, amplitude):
     gyr, acc, _ = imu(q, rate=rate)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        AttitudeFilter(rate, magnetometer=False).run(gyr, acc)
+        unit_check(gyr, acc, rate)
     with pytest.warns(UserWarning, match="deg/s"):
-        AttitudeFilter(rate, magnetometer=False).run(np.degrees(gyr), acc)
+        unit_check(np.degrees(gyr), acc, rate)
 
 
 def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
@@ -292,10 +300,13 @@ def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
         d = load_trial(path)
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            AttitudeFilter(d["rate"], magnetometer=False).run(d["gyr"], d["acc"])
+            unit_check(d["gyr"], d["acc"], d["rate"])
     d = load_trial(BROAD / "01_undisturbed_slow_rotation_A.mat")
     with pytest.warns(UserWarning, match="deg/s"):
-        AttitudeFilter(d["rate"], magnetometer=False).run(np.degrees(d["gyr"]), d["acc"])
+        unit_check(np.degrees(d["gyr"]), d["acc"], d["rate"])
+    with pytest.warns(UserWarning, match="deg/s"):  # and run itself, on the first 60 s
+        n = int(60 * d["rate"])
+        AttitudeFilter(d["rate"], magnetometer=False).run(np.degrees(d["gyr"][:n]), d["acc"][:n])
 
 
 # ---------------------------------------------------------------------- a disturbed start
