@@ -53,3 +53,19 @@ def run_cli(*args) -> tuple:
 def cli():
     """:func:`run_cli` as a fixture."""
     return run_cli
+
+
+#: the heading filter of the log tests: 100 Hz gyro, 10 Hz odometry, 1 Hz compass
+HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
+    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
+    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
+    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
+
+
+@pytest.fixture(scope="session")
+def heading():
+    """The table of :data:`HEADING` (a module may define a ``heading`` of its own)."""
+    import cfdesign
+    from cfdesign.spec import parse_spec
+
+    return cfdesign.design(parse_spec(HEADING))

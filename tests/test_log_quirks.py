@@ -5,21 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import cfdesign
 from cfdesign.errors import DataError
 from cfdesign.linear import wrap
 from cfdesign.logs import run_log
-from cfdesign.spec import parse_spec
-
-HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
-    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
-    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
-    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
-
-
-@pytest.fixture(scope="module")
-def heading():
-    return cfdesign.design(parse_spec(HEADING))
 
 
 def turning_log(n=6000, seed=0):

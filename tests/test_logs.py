@@ -15,16 +15,6 @@ from cfdesign.runtime import Runtime
 from cfdesign.sim.gaussian import model_log
 from cfdesign.spec import parse_spec
 
-HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
-    "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
-    "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
-    "compass": {"rate_hz": 1.0, "noise": {"std": 0.05}}}}
-
-
-@pytest.fixture(scope="module")
-def heading():
-    return cfdesign.design(parse_spec(HEADING))
-
 
 def heading_log(odometry_row, compass_row, n=30_000, seed=0, jitter=0.03):
     """A turning robot at 100 Hz: gyro every row, odometry every 10th row from ``odometry_row``,
