@@ -45,17 +45,19 @@ wrap_angle = true
 [sensors.gyro]
 measures = "rate"
 rate_hz = 100.0
-noise = {{ std = 0.01 }}
-bias = {{ model = "random_walk", density = 1.0e-3 }}
+noise = {{ std = {gyro} }}
+bias = {{ model = "random_walk", density = {gyro_bias} }}
 [sensors.odometry]
 measures = "angle"
 rate_hz = 10.0
-noise = {{ std = 0.02 }}
+noise = {{ std = {odometry} }}
 [sensors.compass]
 measures = "angle"
 rate_hz = 1.0
-noise = {{ std = 0.05 }}
+noise = {{ std = {compass} }}
 """
+#: the noise of case b (a test takes other numbers, whose errors decorrelate faster)
+HEADING_NOISE = {"gyro": 0.01, "gyro_bias": 1.0e-3, "odometry": 0.02, "compass": 0.05}
 
 #: 3 Hz GPS beside a 100 Hz accelerometer: a non-integer rate ratio (case c)
 GPS_3HZ = """
@@ -65,13 +67,15 @@ gain_form = "{form}"
 [sensors.accelerometer]
 measures = "acceleration"
 rate_hz = 100.0
-noise = {{ std = 0.05 }}
-bias = {{ model = "random_walk", density = 1.0e-3 }}
+noise = {{ std = {accelerometer} }}
+bias = {{ model = "random_walk", density = {accelerometer_bias} }}
 [sensors.gps]
 measures = "position"
 rate_hz = 3.0
-noise = {{ std = 1.0 }}
+noise = {{ std = {gps} }}
 """
+#: the noise of case c
+GPS_NOISE = {"accelerometer": 0.05, "accelerometer_bias": 1.0e-3, "gps": 1.0}
 
 JITTER = 0.03  # time stamps: uniform jitter of +-3 % of a tick
 SETTLE_S = 300.0  # start-up left out of the comparison
@@ -284,11 +288,11 @@ def cases(workdir: Path) -> dict:
     made = design(workdir, "ckf3_discrete", spec_text=text)
     out["a:ckf3 as discrete cfn"] = (*made, {"position": 3}, 0.0, ROWS["ckf3"])
     for form in ("predictor", "filter"):
-        made = design(workdir, f"heading_{form}", spec_text=HEADING_MULTIRATE.format(form=form))
+        made = design(workdir, f"heading_{form}", spec_text=HEADING_MULTIRATE.format(form=form, **HEADING_NOISE))
         out[f"b/e:heading {form}"] = (*made, {"odometry": 3, "compass": 37}, 0.0, ROWS["heading"])
         if form == "predictor":
             out["d:heading 20% missing"] = (*made, {"odometry": 3, "compass": 37}, 0.2, ROWS["missing"])
-        made = design(workdir, f"gps3_{form}", spec_text=GPS_3HZ.format(form=form))
+        made = design(workdir, f"gps3_{form}", spec_text=GPS_3HZ.format(form=form, **GPS_NOISE))
         out[f"c/e:gps 3 Hz {form}"] = (*made, {"gps": 5}, 0.0, ROWS["gps3"])
     return out
 

@@ -38,41 +38,21 @@ MC_MAX = 0.045  # the measured variance's standard error must be below this for 
 
 #: multirate heading whose errors decorrelate within a second (a precise 10 Hz odometry, a noisy
 #: gyro): 100 Hz gyro, 10 Hz odometry, 1 Hz compass
-HEADING = """
-name = "heading, multirate, fast"
-structure = "dckf3"
-gain_form = "{form}"
-wrap_angle = true
-[sensors.gyro]
-measures = "rate"
-rate_hz = 100.0
-noise = {{ std = 0.1 }}
-bias = {{ model = "random_walk", density = 0.05 }}
-[sensors.odometry]
-measures = "angle"
-rate_hz = 10.0
-noise = {{ std = 0.001 }}
-[sensors.compass]
-measures = "angle"
-rate_hz = 1.0
-noise = {{ std = 0.05 }}
-"""
+HEADING = bench.HEADING_MULTIRATE.replace("{form}", "{form}", 1)
+HEADING_NOISE = {"gyro": 0.1, "gyro_bias": 0.05, "odometry": 0.001, "compass": 0.05}
 
 #: a precise 3 Hz GPS beside a noisy 100 Hz accelerometer (a rate ratio of 100/3)
-GPS = """
-name = "position, 3 Hz GPS, fast"
-structure = "position"
-gain_form = "{form}"
-[sensors.accelerometer]
-measures = "acceleration"
-rate_hz = 100.0
-noise = {{ std = 1.0 }}
-bias = {{ model = "random_walk", density = 0.1 }}
-[sensors.gps]
-measures = "position"
-rate_hz = 3.0
-noise = {{ std = 0.01 }}
-"""
+GPS_NOISE = {"accelerometer": 1.0, "accelerometer_bias": 0.1, "gps": 0.01}
+
+
+def heading_spec(form):
+    """The benchmark's multirate heading design file (case b) with :data:`HEADING_NOISE`."""
+    return bench.HEADING_MULTIRATE.format(form=form, **HEADING_NOISE)
+
+
+def gps_spec(form):
+    """The benchmark's 3 Hz GPS design file (case c) with :data:`GPS_NOISE`."""
+    return bench.GPS_3HZ.format(form=form, **GPS_NOISE)
 
 OFFSETS = {"odometry": 3, "compass": 37}
 
@@ -102,7 +82,7 @@ def test_simulation_is_the_tables_model(tmp_path):
     """The simulated truth and readings have the table's process and measurement noise: the
     one-step residuals' variances over 50,000 ticks are ``diag Q`` and ``R`` within 3 %
     (standard error of a variance over 50,000 samples: 0.6 %)."""
-    _, table, _, figures = bench.design(tmp_path, "h", spec_text=HEADING.format(form="predictor"))
+    _, table, _, figures = bench.design(tmp_path, "h", spec_text=heading_spec("predictor"))
     log, truth = bench.simulate(table, figures, 50_000, {}, np.random.default_rng(0))
     q_ratio, r_ratio = bench.model_check(table, log, truth)
     np.testing.assert_allclose(q_ratio, 1, atol=0.03)
@@ -130,7 +110,7 @@ def test_example_dckf3(tmp_path):
 def test_multirate_heading_at_own_offsets(tmp_path, form):
     """100 Hz gyro, 10 Hz odometry at rows 3, 13, ..., 1 Hz compass at rows 37, 137, ...: the
     runtime recomputes the gains for the arrivals, and the error is what the design predicted."""
-    _, out = _run(tmp_path, 50_000, OFFSETS, seed=3, spec_text=HEADING.format(form=form), prior=form == "filter")
+    _, out = _run(tmp_path, 50_000, OFFSETS, seed=3, spec_text=heading_spec(form), prior=form == "filter")
     for output in ("posterior", "prior")[: 1 + (form == "filter")]:
         _check(out[output, "heading"])
 
@@ -138,7 +118,7 @@ def test_multirate_heading_at_own_offsets(tmp_path, form):
 @pytest.mark.parametrize("form", ["predictor", "filter"])
 def test_gps_at_3_hz(tmp_path, form):
     """A rate ratio of 100/3 (the GPS on ticks 0, 33, 67 of every 100, shifted by 5)."""
-    _, out = _run(tmp_path, 100_000, {"gps": 5}, seed=4, spec_text=GPS.format(form=form))
+    _, out = _run(tmp_path, 100_000, {"gps": 5}, seed=4, spec_text=gps_spec(form))
     _check(out["posterior", "position"])
 
 
@@ -146,7 +126,7 @@ def test_missing_slow_readings_std_column(tmp_path):
     """20 % of the odometry and compass readings missing at random: the written std column (the
     bridged path's covariance) is the error's; the printed figure, for every reading present, is
     well below it."""
-    _, out = _run(tmp_path, 50_000, OFFSETS, seed=5, missing=0.2, spec_text=HEADING.format(form="predictor"),
+    _, out = _run(tmp_path, 50_000, OFFSETS, seed=5, missing=0.2, spec_text=heading_spec("predictor"),
                   prior=True)
     for output in ("posterior", "prior"):
         _check(out[output, "heading"], against=("ratio_column",))
