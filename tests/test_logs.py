@@ -1970,3 +1970,36 @@ def test_a_parquet_log_is_named_by_its_rows_in_the_messages_of_its_cells_and_tim
                 run_log(heading, tmp_path / name, block_rows=block_rows)
             text = str(info.value)
             assert text.startswith(f"{tmp_path / name} {where}: ") and message.format(noun) in text, text
+
+
+@pytest.mark.parametrize("output", ["posterior", "prior"])
+def test_the_error_of_fixed_gains_over_missed_readings_is_the_joseph_recursion(gps3, output):
+    """``MissedReadings.stds`` (whole stretches of the table's pattern, and of no reading, at once)
+    against the covariance of the fixed gains stepped tick by tick here, Joseph form: a 3 Hz GPS
+    table fed in chunks over an outage of 25 s, scattered dropped fixes and a reading at a
+    phase it does not schedule."""
+    from cfdesign.runtime.arrivals import MissedReadings
+
+    table, n_ticks = gps3, 9000
+    F, H, Q, R = (np.asarray(a, dtype=float) for a in (table.F, table.H, table.Q, table.R))
+    assert table.gain_form == "filter"
+    phases = np.arange(n_ticks) % table.period
+    mask = table.schedule.mask()
+    present = np.ones((n_ticks, len(table.measurements)), dtype=bool)
+    present[1500:4000] = False
+    present[np.random.default_rng(5).integers(0, n_ticks, 12)] = False
+    covs = table.P_filtered if output == "posterior" else table.P
+    base = np.sqrt(np.array([np.diag(P) for P in covs]))[phases]
+    missed = MissedReadings(table, output)
+    got = np.concatenate([missed.stds(phases[i:i + 700], present[i:i + 700], base[i:i + 700])
+                          for i in range(0, n_ticks, 700)])
+    P, want = np.asarray(table.P[0], dtype=float), np.empty_like(base)
+    for k, ph in enumerate(phases):
+        rows = np.flatnonzero(mask[ph] & present[k])
+        K = np.asarray(table.K[ph], dtype=float)[:, rows]
+        A = np.eye(len(F)) - K @ H[rows]
+        post = A @ P @ A.T + K @ R[np.ix_(rows, rows)] @ K.T
+        want[k] = np.sqrt(np.diag(post if output == "posterior" else P))
+        P = F @ post @ F.T + Q
+    assert not np.allclose(got, base)
+    np.testing.assert_allclose(got, want, rtol=1e-7)

@@ -319,14 +319,25 @@ class MissedReadings:
             return base
         out = np.square(base, dtype=float)  # variances
         P = self.P if self.P is not None else np.asarray(t.P[phases[k]], dtype=float)
+        L = self.every
         while k < len(phases):
             ph = phases[k]
-            M, N, A, c = self._tick(ph, read[k])
-            out[k] = np.einsum("ij,ij->i", A @ P, A) + c
-            P = M @ P @ M.T + N
-            k += 1
-            if missed[k - 1] or k % self.every:  # compared with the table's now and then, after a reading
-                continue
+            outage = k + L <= len(phases) and not read[k:k + L].any()
+            if k + L <= len(phases) and (outage or not missed[k:k + L].any()):
+                T, e, Phi, S = self._block(ph, outage)  # L ticks of the table's pattern, or of none, at once
+                out[k:k + L] = np.einsum("jab,bc,jac->ja", T, P, T) + e
+                P = Phi @ P @ Phi.T + S
+                k += L
+                ph = phases[k - 1]
+                if outage:
+                    continue
+            else:
+                M, N, A, c = self._tick(ph, read[k])
+                out[k] = np.einsum("ij,ij->i", A @ P, A) + c
+                P = M @ P @ M.T + N
+                k += 1
+                if missed[k - 1] or k % L:  # compared with the table's now and then, after a reading
+                    continue
             P = 0.5 * (P + P.T)
             ref = np.asarray(t.P[(ph + 1) % t.period], dtype=float)
             if np.max(np.abs(P - ref)) <= self.RTOL * np.max(np.abs(np.diag(ref))):
@@ -339,6 +350,25 @@ class MissedReadings:
         else:
             self.P = 0.5 * (P + P.T)
         return np.sqrt(np.maximum(out, 0.0))
+
+    def _block(self, phase, outage=False):
+        """``(T, e, Phi, S)`` of the ``every`` ticks from ``phase`` with every scheduled reading
+        present (or, ``outage``, none): the output variances of tick ``j`` are ``diag(T[j] P T[j]') + e[j]`` for the
+        prior ``P`` of the first tick, and the prior after them is ``Phi P Phi' + S`` (the
+        products of :meth:`_tick`'s maps, ``M`` and ``N``, over the ticks before)."""
+        key = ("block", phase, outage)
+        if key not in self._cache:
+            n, L = len(self.F), self.every
+            T, e = np.empty((L, n, n)), np.empty((L, n))
+            Phi, S = np.eye(n), np.zeros((n, n))
+            for j in range(L):
+                ph = (phase + j) % self.table.period
+                M, N, A, c = self._tick(ph, self.mask[ph] & (not outage))
+                T[j] = A @ Phi
+                e[j] = np.einsum("ij,ij->i", A @ S, A) + c
+                Phi, S = M @ Phi, M @ S @ M.T + N
+            self._cache[key] = (T, e, Phi, S)
+        return self._cache[key]
 
     def _tick(self, phase, read):
         """``(M, N, A, c)`` of a tick at ``phase`` reading the rows ``read``: the next prior

@@ -43,6 +43,9 @@ _BLOCK = 64
 _PIECE = 1 << 12
 #: states up to this size run the IIR and long-block batch paths; larger ones step block by block
 _SMALL = 12
+#: stretches shorter than this many blocks run step by step: lifting a block of L phases costs
+#: about what 8 L compiled steps do (a 3-state table of period 100, measured)
+_LOOP_BLOCKS = 6
 #: "every reading present" for the IIR path's innovation check
 _ALL = object()
 _NAN = float("nan")
@@ -580,6 +583,8 @@ class Runtime:
             unwrapped = np.nan_to_num(self._unwrapped(y), nan=0.0)  # an unread row has no gain: any value does
             out = lti.run(self, [*u.T, *unwrapped.T], read)
             return self._run_loop(u, y, states) if out is None else out
+        if self.n <= _SMALL and len(u) < _LOOP_BLOCKS * self._block_length():
+            return self._run_loop(u, y, states)  # a short stretch: the lifting would cost more
         # the blocked form piece by piece, each relative to the state it starts from
         # (_run_vectorised) and its angles unwrapped from there; a piece where an angle turns
         # more than pi between readings runs step by step
