@@ -11,9 +11,6 @@ from cfdesign.linear import wrap
 from cfdesign.nav.adaptive import AdaptiveCF, attitude_cutoffs, cutoff_plot, position_cutoff
 from cfdesign.sim.ground import ground_robot_scenario
 
-#: one worker runs the module: its module fixture (the scenario's run, about 1 s) is computed once, not per worker
-pytestmark = pytest.mark.xdist_group("adaptive")
-
 OUTAGE = (120.0, 180.0)
 
 

@@ -32,9 +32,6 @@ from cfdesign.sim import HeadingSensor, RateSensor, heading_error, mean_ci
 from cfdesign.sim import robot_heading as rh
 from cfdesign.symbolic.observer import z
 
-#: one worker runs the module: its module fixture (reproduce(20), about 4 s) is computed once, not per worker
-pytestmark = pytest.mark.xdist_group("carreira")
-
 SENSORS = set(rh.SENSORS)
 
 

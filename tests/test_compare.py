@@ -7,9 +7,6 @@ import pytest
 
 from cfdesign.reproduce.compare import compare, verdict
 
-#: one worker runs the module: its module fixture (the scenarios' runs, about 3 s) is computed once, not per worker
-pytestmark = pytest.mark.xdist_group("compare")
-
 
 @pytest.fixture(scope="module")
 def ground():

@@ -7,7 +7,6 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).resolve().parents[1] / "notebooks").glob("*.ipynb"))
 
 
-@pytest.mark.xdist_group("notebooks")  # one kernel at a time (pyproject: --dist loadgroup)
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.name for p in NOTEBOOKS])
 def test_notebook_runs(path, tmp_path, monkeypatch):
     """Each kernel talks over Unix sockets in the test's folder, not TCP ports: two kernels (or a
