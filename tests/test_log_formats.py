@@ -40,7 +40,7 @@ def test_inf_in_every_empty_cell_is_a_rejected_reading_not_a_forward_filled_colu
     """A logger that writes inf (or 1e999) where a slow sensor has no reading: the estimates are the
     empty cells', every such cell is counted as rejected, and no note calls the column forward-filled
     (the inf repeated on every row made it look so: 'a value that differs from the one before is
-    read as a reading', and the rejected count was that of the changes, 22 of 360)."""
+    read as a reading', and 46 of the 756 inf cells were counted as rejected)."""
     log, expected = reference
     gaps = {s: int(log[s].isna().sum()) for s in ("odometry", "compass")}
     for token in ("inf", "-inf", "1e999"):
