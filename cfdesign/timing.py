@@ -388,7 +388,8 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
                         f"{_noun(where, i)} before (times must increase"
                         + (", and rows at one time must read different sensors)" if readings is not None else ")")
                         + (f": the times are written to {coarse:g} s, coarser than the table's tick of {dt:g} s "
-                           "(write them with more digits)" if coarse is not None and coarse > dt else ""))
+                           "(write them with more digits)" if coarse is not None and coarse > dt else
+                           _back_hint(t[max(0, i - 101):i], float(t[i]), dt) if what != "repeats" else ""))
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
     if gap.size:
         i = gap[0] + 1
@@ -403,6 +404,31 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     if rate:
         check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)
+
+
+#: the widths (bits) of the counters a logger's clock may be, which wrap back to 0
+_COUNTER_BITS = (16, 31, 32)
+
+
+def _back_hint(before, after: float, dt: float) -> str:
+    """Why a time goes back, for the message that names it: a counter that wraps (a 32-bit count of
+    microseconds wraps every 71.6 min), a clock that restarts (two recordings in one file), or
+    rows out of order.  ``before``: the times of the rows before (s, the last one's time last);
+    ``after``: the time that goes back from it."""
+    steps = np.diff(before)
+    step = float(np.median(steps[steps > 0])) if np.any(steps > 0) else dt
+    for bits in _COUNTER_BITS:  # the time unwrapped is a step or a few after the row before
+        for _, short, scale in (("", "", 1.0), *_TIME_UNITS):
+            wrap = 2.0 ** bits / scale  # a counter's times lie in [0, wrap)
+            if 0 <= after and before[-1] < wrap and 0 < after + wrap - before[-1] <= PAUSE_TICKS * step:
+                span = next((f", {wrap / n:.4g} {w}" for n, w in ((86400, "days"), (3600, "h"), (60, "min"))
+                             if wrap >= 2 * n), "")
+                unit = f"{short} ({wrap:.7g} s{span})" if short else "of the column's unit"
+                return (f": a counter that wraps at 2^{bits} {unit}? Add 2^{bits}{' ' + short if short else ''} "
+                        "to the times from there on, or split the log there")
+    if before[-1] - after > PAUSE_TICKS * step:
+        return ": the clock restarted (a logger restart, or two recordings in one file)? Split the log there"
+    return ": rows out of order? Sort them by time"
 
 
 def _noun(where, i) -> str:

@@ -631,8 +631,8 @@ def test_a_row_pandas_cannot_parse_in_a_later_block_is_a_user_error(heading, tmp
     monkeypatch.setattr(cfdesign.logs.run, "BLOCK_ROWS", 300)
     table = heading.save(tmp_path / "g.json")
     lines = heading_log(3, 37, n=1000)[0].to_csv(index=False).splitlines()
-    for name, row, message in (("quote.csv", '"0.5,1,2', "EOF inside string"),
-                               ("cells.csv", lines[700] + ",1,2", "Expected 6 fields in line 701, saw 8")):
+    for name, row, message in (("quote.csv", '"0.5,1,2', 'line 701: a quote (") opened in a cell is never closed'),
+                               ("cells.csv", lines[700] + ",1,2", "line 701: 8 cells under a header of 6 columns")):
         (tmp_path / name).write_text("\n".join([*lines[:700], row, *lines[701:]]) + "\n")
         code, _, err = cli("run", table, tmp_path / name, "-o", tmp_path / "out.csv")
         assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
@@ -832,7 +832,8 @@ BAD_LOGS = {
     "nan.csv": ("time,gyro,compass,odometry\n0,1,2,3\n,1,2,3\n",
                 r"line 3: no time \(an empty cell; every row needs one\)"),
     "inf.csv": ("time,gyro,compass,odometry\n0,1,2,3\ninf,1,2,3\n", "line 3: time inf is not a finite number"),
-    "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n", "Expected 4 fields in line 3, saw 6"),
+    "cells.csv": ("time,gyro,compass,odometry\n0,1,2,3\n0.2,1,2,3,4,5\n",
+                  "line 3: 6 cells under a header of 4 columns"),
     "comment.csv": ("time,gyro,compass,odometry\n0,1,2,3\n# restarted\n0.2,1,2,3\n",
                     r"line 3: .*'# restarted' \(a comment line: only those before the header are skipped\)$"),
 }

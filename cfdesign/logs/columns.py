@@ -16,6 +16,9 @@ TIME_COLUMNS = ("time", "t", "timestamp")
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
 MISSING = ("", "nan", "-nan", "na", "n/a", "#n/a", "#na", "null", "none", "<na>", "nat")
+#: a spreadsheet's error values: a formula that failed in that cell (``#N/A`` is missing, above)
+_SHEET_ERRORS = re.compile(r"#(?:DIV/0!|VALUE!|REF!|NAME\?|NUM!|NULL!|SPILL!|CALC!|FIELD!|GETTING_DATA)",
+                           re.IGNORECASE)
 
 
 def _pandas(parquet=False):
@@ -63,9 +66,9 @@ class _Columns:
 
 #: how a time column's name may write its unit (``time [sec]``, ``t (µs)``)
 _UNIT_NAMES = {**{w: "s" for w in ("s", "sec", "secs", "second", "seconds")},
-               **{w: "ms" for w in ("ms", "msec", "millisecond", "milliseconds")},
-               **{w: "us" for w in ("us", "\u00b5s", "\u03bcs", "usec", "microsecond", "microseconds")},
-               **{w: "ns" for w in ("ns", "nsec", "nanosecond", "nanoseconds")}}
+               **{w: "ms" for w in ("ms", "msec", "millis", "millisecond", "milliseconds")},
+               **{w: "us" for w in ("us", "\u00b5s", "\u03bcs", "usec", "micros", "microsecond", "microseconds")},
+               **{w: "ns" for w in ("ns", "nsec", "nanos", "nanosecond", "nanoseconds")}}
 
 
 def _unit(name) -> tuple:
@@ -135,7 +138,9 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
     out = {}
     for c in columns:
         s = df[c]
-        if s.dtype.kind in "fiub":
+        if s.dtype.kind == "b":  # text True/False in an object column is named as not a number, below
+            _refuse_booleans(s, c, source, where)
+        if s.dtype.kind in "fiu":
             out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
@@ -159,15 +164,38 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
             what = ("neither a number (seconds, or the --time-unit ms|us|ns) nor an ISO 8601 date and time "
                     "(2024-05-01T12:00:00.010)" if c == time else "not a number")
             cell = str(text.iloc[bad[0]])
-            hint = (" (a thousands separator: write numbers without one)" if _THOUSANDS.fullmatch(cell) else
-                    " (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
-                    "show one, not in one separated by commas; write decimal points)"
-                    if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell) else
-                    " (a comment line: only those before the header are skipped)" if cell.startswith("#") else "")
             raise DataError(f"{source} {where(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
-                            + hint)
+                            + _cell_hint(cell, c))
         out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
     return out
+
+
+def _cell_hint(cell, column) -> str:
+    """What a cell that is not a number likely is, for the message naming it (or '')."""
+    if _THOUSANDS.fullmatch(cell):
+        return " (a thousands separator: write numbers without one)"
+    if re.fullmatch(r"[-+]?[0-9]+,[0-9]+(?:[eE][-+]?[0-9]+)?", cell):
+        return (" (a decimal comma: read in a log separated by semicolons, tabs or spaces whose first 64 kB "
+                "show one, not in one separated by commas; write decimal points)")
+    if _SHEET_ERRORS.fullmatch(cell):  # '#DIV/0!' was named a comment line
+        return " (a spreadsheet's error value: the formula of that cell failed; write a number or leave it empty)"
+    if cell.startswith("#"):
+        return " (a comment line: only those before the header are skipped)"
+    if re.fullmatch(r"[-–—]+", cell):  # a dash may be no reading or a number cut to its sign
+        return " (a dash: leave a cell without a reading empty, or write nan)"
+    if cell == str(column).strip():
+        return " (the header again: two logs written into one file? split it there)"
+    if "\n" in cell:  # a quote opened in a cell and closed lines later took the lines between as its text
+        return " (a quote opened in this cell is closed lines later: a line cut off inside quotes?)"
+    return ""
+
+
+def _refuse_booleans(s, column, source, where):
+    """A DataError naming the first true/false cell of a column that must hold numbers: pandas reads
+    ``True``/``False`` as booleans, which numpy takes as 1 and 0 (a gyro column of them ran, exit 0)."""
+    first = int(np.argmax(s.notna().to_numpy()))
+    raise DataError(f"{source} {where(first)}: column {column!r} holds true/false values, not numbers: "
+                    f"{bool(s.iloc[first])}")
 
 
 def _cell_text(cell, limit=40) -> str:

@@ -289,7 +289,10 @@ def _units_note(path, source) -> list:
     fmt = _csv_format(path, _kind(path))
     if "_units" not in fmt:
         return []
-    return [f"{source} line {2 + fmt.get('skiprows', 0)} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
+    line = 2 + fmt.get("skiprows", 0)
+    if [u.strip() for u in fmt["_units"]] == _header(path):  # the header written twice: no units
+        return [f"{source} line {line} repeats the header and is not read"]
+    return [f"{source} line {line} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
             "units and not read; the readings are used as they are, in the units the table was designed in"]
 
 
@@ -335,7 +338,30 @@ def _read_error(path, exc) -> DataError:
         return DataError(f"cannot read {path}: {getattr(exc, 'strerror', None) or exc}")
     if isinstance(exc, pd.errors.EmptyDataError):
         return DataError(f"{path}: empty file (expected a header row naming the columns)")
-    return DataError(f"{path}: not a readable log: {_first_line(exc)}")
+    text = _first_line(exc)
+    wide = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", text)
+    if wide:  # pandas counts the file's lines (comments, blank lines and all), as the messages do
+        columns, line, cells = (int(g) for g in wide.groups())
+        return DataError(f"{path} line {line}: {cells} cells under a header of {columns} columns (a line "
+                         "written into another, or an unquoted separator in a cell)")
+    if "EOF inside string" in text:  # its 'row N' counts neither the comment lines nor the blank ones
+        line = _unclosed_quote(path)
+        return DataError(f"{path}{f' line {line}' if line else ''}: a quote (\") opened in a cell is never closed "
+                         "(a line cut off inside quotes?)")
+    return DataError(f"{path}: not a readable log: {text}")
+
+
+def _unclosed_quote(path):
+    """The file line from which a CSV's quotes stay open (an odd count of ``"`` up to it), or None."""
+    start = None
+    try:
+        with _open_csv(path, _kind(path)) as fh:
+            for line, text in enumerate(fh, 1):
+                if text.count(b'"') % 2:
+                    start = line if start is None else None
+    except (OSError, DataError, *_unpack_errors()):
+        return None
+    return start
 
 
 #: most comment lines before a CSV's header (``# logged by ...``) that are skipped
@@ -566,13 +592,18 @@ def _numbers(line, header) -> bool:
 
 
 def _column_name(i: int, name, hashed=False) -> str:
-    """A CSV column's name as cfdesign uses it: stripped of white space, and ``Unnamed: i`` (pandas'
-    name) when nothing is left.  The one rule for the header read as written and for pandas'
+    """A CSV column's name as cfdesign uses it: stripped of white space (and of :data:`_INVISIBLE`),
+    and ``Unnamed: i`` (pandas' name) when nothing is left.  The one rule for the header read as written and for pandas'
     frames: a trailing comma or a tab as a name was '' in one and 'Unnamed: 0' or a tab in the
     other, and its lookup raised KeyError (an internal error).  A ``hashed`` header (``# time,gyro``)
     loses the ``#`` of its first name."""
-    name = str(name).strip()
+    name = str(name).strip().strip(_INVISIBLE).strip()
     return (name.lstrip("#").strip() if hashed and i == 0 else name) or f"Unnamed: {i}"
+
+
+#: characters that an editor or a spreadsheet leaves around a name and that print as nothing (a
+#: zero-width space after 'gyro' made it a column 'gyro\u200b' that printed as 'gyro ': missing)
+_INVISIBLE = "\u200b\u200c\u200d\u2060\ufeff"
 
 
 def _stripped(frame, columns=None, hashed=False):

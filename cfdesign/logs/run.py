@@ -15,7 +15,7 @@ from ..errors import CfdesignError, DataError, OutputError
 from ..files import check_distinct, is_dir, not_a_device, write_bytes
 from ..gains import require_table
 from ..linear import wrap
-from .columns import _numeric, _pandas, _time_name
+from .columns import _UNIT_NAMES, TIME_UNITS, _numeric, _pandas, _time_name, _unit
 from .plot import plot_log
 from .read import (
     COMPRESSIONS,
@@ -290,9 +290,14 @@ def _time_note(cols) -> list:
     """A note when the log has no time column: its rows are taken one a tick."""
     if cols.time is not None:
         return []
-    like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec"))]
+    like = [c for c in cols.extra if any(w in c.lower() for w in ("time", "stamp", "sec")) or c.lower() == "ts"
+            or _unit(c)[1] in TIME_UNITS or c.lower() in _UNIT_NAMES]  # 'elapsed_ms', an Arduino's 'millis'
+    import shlex
+
+    unit = _UNIT_NAMES.get(like[0].lower()) if like else None  # a name that is only a unit: it is not read from it
     return ["the log has no time column ('time', 't' or 'timestamp'): every row is taken as one base tick"
-            + (f" (column {like[0]!r} looks like a time: --time {like[0]})" if like else " (--time COLUMN)")]
+            + (f" (column {like[0]!r} looks like a time: --time {shlex.quote(like[0])}"
+               + (f" --time-unit {unit})" if unit not in (None, "s") else ")") if like else " (--time COLUMN)")]
 
 
 def _blocks(data, frame, cols, rows):

@@ -49,8 +49,8 @@ class _Pass:
         dt = self.table.sample_time_s
         for s in self.table.measurements:
             col = values[self.cols.sensors[s.name]]
-            if s.name not in self.judged:
-                read = col[~np.isnan(col)]
+            if s.name not in self.judged:  # an inf is a rejected reading, not a repeat ('inf' in every
+                read = col[np.isfinite(col)]  # empty cell made a column look forward-filled)
                 if read.size < 20:
                     continue
                 self.judged.add(s.name)

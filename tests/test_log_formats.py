@@ -1,0 +1,199 @@
+"""Logs as loggers and spreadsheets write them: placeholders in empty cells, true/false cells,
+spreadsheet error values, rows pandas cannot split, clocks that wrap or restart, a header written
+twice, invisible characters around names, time columns named as an Arduino names them."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cfdesign.errors import DataError
+from cfdesign.linear import wrap
+from cfdesign.logs import run_log
+from cfdesign.timing import place
+
+
+def small_log(n=400, seed=1):
+    """A turning robot: 100 Hz gyro, odometry at rows 3, 13, ..., compass at rows 37, 137, ...
+    (empty cells between), headings wrapped."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    psi = 2.0 + 0.6 * t + 0.2 * np.sin(t)
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[3::10] = psi[3::10] + 0.005 * rng.standard_normal(len(odo[3::10]))
+    com[37::100] = psi[37::100] + 0.05 * rng.standard_normal(len(com[37::100]))
+    gyro = np.gradient(psi, 0.01) + 0.01 * rng.standard_normal(n)
+    return pd.DataFrame({"time": t, "gyro": gyro, "odometry": wrap(odo), "compass": wrap(com)})
+
+
+@pytest.fixture(scope="module")
+def reference(heading):
+    """The small log and its estimates, run from the DataFrame."""
+    log = small_log()
+    return log, run_log(heading, log).estimates["heading"].to_numpy()
+
+
+def lines_of(log) -> list:
+    return log.to_csv(index=False).splitlines()
+
+
+def test_inf_in_every_empty_cell_is_a_rejected_reading_not_a_forward_filled_column(heading, reference, tmp_path):
+    """A logger that writes inf (or 1e999) where a slow sensor has no reading: the estimates are the
+    empty cells', every such cell is counted as rejected, and no note calls the column forward-filled
+    (the inf repeated on every row made it look so: 'a value that differs from the one before is
+    read as a reading', and 46 of the 756 inf cells were counted as rejected)."""
+    log, expected = reference
+    gaps = {s: int(log[s].isna().sum()) for s in ("odometry", "compass")}
+    for token in ("inf", "-inf", "1e999"):
+        log.to_csv(tmp_path / "log.csv", index=False, na_rep=token)
+        result = run_log(heading, tmp_path / "log.csv")
+        assert np.allclose(result.estimates["heading"], expected, rtol=0, atol=1e-12), token
+        assert result.unused["rejected"] == gaps, token
+        assert not any("forward-filled" in note for note in result.notes), result.notes
+
+
+@pytest.mark.parametrize("how", ["csv", "parquet", "frame"])
+def test_true_false_cells_of_a_sensor_are_refused_naming_the_first(heading, reference, tmp_path, how):
+    """pandas reads a column of True/False as booleans, which numpy takes as 1 and 0: a gyro column
+    of them ran with exit 0.  A CSV's, a Parquet file's and a DataFrame's are refused naming the
+    first cell (a CSV's line, a Parquet file's row)."""
+    log = reference[0].assign(gyro=reference[0]["gyro"] > 0.6)
+    where = {"csv": "line 2", "parquet": "row 1", "frame": "line 2"}[how]
+    data = log if how == "frame" else tmp_path / f"log.{how}"
+    if how == "csv":
+        log.to_csv(data, index=False)
+    elif how == "parquet":
+        log.to_parquet(data, index=False)
+    with pytest.raises(DataError, match=rf"{where}: column 'gyro' holds true/false values, not numbers: "
+                                        f"{bool(log['gyro'].iloc[0])}$"):
+        run_log(heading, data)
+
+
+@pytest.mark.parametrize("cell, hint", [
+    ("#DIV/0!", "a spreadsheet's error value: the formula of that cell failed"),
+    ("#VALUE!", "a spreadsheet's error value"),
+    ("-", "a dash: leave a cell without a reading empty, or write nan"),
+    ("--", "a dash"),
+])
+def test_spreadsheet_error_values_and_dashes_are_named_as_what_they_are(heading, reference, tmp_path, cell, hint):
+    """'#DIV/0!' in a cell was named 'a comment line'; a dash had no hint.  Both are refused naming
+    the cell's line, with what the cell likely is (a dash may be a number cut to its sign)."""
+    lines = lines_of(reference[0])
+    cells = lines[101].split(",")
+    cells[2] = cell
+    (tmp_path / "log.csv").write_text("\n".join([*lines[:101], ",".join(cells), *lines[102:]]) + "\n")
+    with pytest.raises(DataError, match=r"log\.csv line 102: column 'odometry' is not a number: .*"
+                                        rf"\({pytest.importorskip('re').escape(hint)}"):
+        run_log(heading, tmp_path / "log.csv")
+
+
+def test_rows_pandas_cannot_split_are_named_by_their_file_line(heading, reference, tmp_path):
+    """A row of extra cells and a quote never closed were pandas' words ('Error tokenizing data.
+    C error: Expected 4 fields in line 7, saw 5', 'EOF inside string starting at row 300', a row
+    that is no file line): now one line naming the file line, counted here over the comment and
+    blank lines before it; a quote closed lines later names the cell that swallowed them."""
+    lines = ["# logger 1.2", "", *lines_of(reference[0])]
+    extra = [*lines[:300], "", lines[300] + ",7", *lines[301:]]
+    (tmp_path / "extra.csv").write_text("\n".join(extra) + "\n")
+    with pytest.raises(DataError, match=r"extra\.csv line 302: 5 cells under a header of 4 columns \(a line "):
+        run_log(heading, tmp_path / "extra.csv")
+    quote = [*lines[:300], '2.97,"0.6', *lines[301:]]
+    (tmp_path / "quote.csv").write_text("\n".join(quote) + "\n")
+    with pytest.raises(DataError, match=r'quote\.csv line 301: a quote \(\"\) opened in a cell is never closed'):
+        run_log(heading, tmp_path / "quote.csv")
+    closed = [*quote[:350], '3.47,"0.6",,', *quote[351:]]
+    (tmp_path / "closed.csv").write_text("\n".join(closed) + "\n")
+    with pytest.raises(DataError, match=r"closed\.csv line 301: column 'gyro' is not a number: .*\(a quote opened "
+                                        r"in this cell is closed lines later"):
+        run_log(heading, tmp_path / "closed.csv")
+
+
+COUNTER = np.arange(300) * 10_000  # 100 Hz in microseconds
+
+
+@pytest.mark.parametrize("times, scale, hint", [
+    ((COUNTER + 2**32 - 1_000_000) % 2**32, 1e-6, r"a counter that wraps at 2\^32 us \(4294\.967 s, 71\.58 min\)\? "
+                                                   r"Add 2\^32 us to the times from there on"),
+    ((COUNTER + 2**32 - 1_000_000) % 2**32, 1.0, r"a counter that wraps at 2\^32 of the column's unit\? Add 2\^32 "),
+    ((COUNTER // 1000 + 2**16 - 1000) % 2**16, 1e-3, r"a counter that wraps at 2\^16 ms \(65\.536 s\)\? Add 2\^16 ms"),
+    (np.where(np.arange(300) < 150, COUNTER + 5_000_000, COUNTER - 1_500_000), 1e-6, "the clock restarted"),
+    (COUNTER[[*range(150), 151, 150, *range(152, 300)]], 1e-6, r"rows out of order\? Sort them by time$"),
+])
+def test_a_time_that_goes_back_says_why(times, scale, hint):
+    """A 32-bit microsecond counter wraps every 71.6 min, a 16-bit millisecond one every 65.5 s; a
+    logger that restarts, or two recordings in one file, starts its clock again; rows may be out of
+    order.  Each was 'time 0.0 goes back from 4294.96': the message now says which it likely is."""
+    t = times.astype(float) * scale
+    with pytest.raises(DataError, match=r"line \d+: time .* goes back from .*: " + hint):
+        place(t, 0.01, rate=False)
+
+
+def test_a_wrapping_counter_is_refused_on_one_line_leaving_no_output(heading, reference, tmp_path):
+    """End to end: a uint32 microsecond counter named ``time_us`` that wraps 1 s into the log is
+    refused on one line naming the line and the wrap, and no estimates file is left."""
+    log = reference[0].rename(columns={"time": "time_us"})
+    log["time_us"] = (np.arange(len(log)) * 10_000 + 2**32 - 1_000_000) % 2**32
+    log.to_csv(tmp_path / "log.csv", index=False)
+    with pytest.raises(DataError) as err:
+        run_log(heading, tmp_path / "log.csv", output=tmp_path / "e.csv")
+    assert "\n" not in str(err.value), err.value
+    assert "line 102: time 0.0 goes back from 4294.957296" in str(err.value), err.value
+    assert "wraps at 2^32 us" in str(err.value), err.value
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.csv"]
+
+
+def test_the_header_written_twice(heading, reference, tmp_path):
+    """Two logs written into one file: the second header is named as the header again (it was 'not
+    a number: time' alone).  A header written twice at the top is not read, and the note says so
+    (it called the names the columns' units)."""
+    log, expected = reference
+    lines = lines_of(log)
+    (tmp_path / "two.csv").write_text("\n".join([*lines[:201], lines[0], *lines[1:]]) + "\n")
+    with pytest.raises(DataError, match=r"two\.csv line 202: column 'time' is .*: 'time' \(the header again: two "
+                                        "logs written into one file"):
+        run_log(heading, tmp_path / "two.csv")
+    (tmp_path / "top.csv").write_text("\n".join([lines[0], *lines]) + "\n")
+    result = run_log(heading, tmp_path / "top.csv")
+    assert np.allclose(result.estimates["heading"], expected, rtol=0, atol=1e-12)
+    assert any(n.endswith("top.csv line 2 repeats the header and is not read") for n in result.notes), result.notes
+    assert not any("units" in n for n in result.notes), result.notes
+
+
+def test_invisible_characters_around_names_are_stripped(heading, reference, tmp_path):
+    """A zero-width space after 'gyro' (pasted from a web page) printed as 'gyro ' in 'missing
+    column(s) gyro (columns: time, gyro , ...)'; it is stripped as spaces are."""
+    log, expected = reference
+    lines = lines_of(log)
+    (tmp_path / "log.csv").write_text("\n".join(["time,gyro\u200b,\u2060odometry,compass\ufeff", *lines[1:]]) + "\n")
+    got = run_log(heading, tmp_path / "log.csv").estimates
+    assert list(got.columns[:1]) == ["time"] and np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+
+
+def test_time_columns_named_as_arduino_and_others_name_them(heading, reference, tmp_path):
+    """``time_millis`` is the time in milliseconds, as ``time_ms``; a column named ``millis`` (an
+    Arduino's clock), ``elapsed_ms`` or ``ts`` is no time column, and the note that rows are taken
+    one a tick names it with the options that read it."""
+    log, expected = reference
+    ms = log.rename(columns={"time": "time_millis"}).assign(time_millis=np.arange(len(log)) * 10)
+    assert np.allclose(run_log(heading, ms).estimates["heading"], expected, rtol=0, atol=1e-12)
+    for name, options in (("millis", "--time millis --time-unit ms"), ("elapsed_ms", "--time elapsed_ms"),
+                          ("ts", "--time ts")):
+        notes = run_log(heading, ms.rename(columns={"time_millis": name})).notes
+        assert any(f"column {name!r} looks like a time: {options})" in n for n in notes), notes
+
+
+def test_a_row_without_its_trailing_empty_cells_reads_them_as_empty(heading, reference, tmp_path):
+    """A writer that leaves a row's trailing empty cells out (``2.5,0.61`` under four columns): the
+    missing cells are empty, as in the same log written whole; a row of its time alone holds the gyro
+    and the note on input gaps counts it (nothing is read in silence from another cell)."""
+    log, expected = reference
+    lines = lines_of(log)
+    short = [*lines[:251], ",".join(lines[251].split(",")[:2]), *lines[252:]]
+    assert log.iloc[250][["odometry", "compass"]].isna().all()  # the row's own trailing cells are empty
+    (tmp_path / "short.csv").write_text("\n".join(short) + "\n")
+    assert np.allclose(run_log(heading, tmp_path / "short.csv").estimates["heading"], expected, rtol=0, atol=1e-12)
+    alone = [*lines[:251], lines[251].split(",")[0], *lines[252:]]
+    (tmp_path / "alone.csv").write_text("\n".join(alone) + "\n")
+    held = log.assign(gyro=log["gyro"].where(log.index != 250))
+    result = run_log(heading, tmp_path / "alone.csv")
+    assert np.allclose(result.estimates["heading"], run_log(heading, held).estimates["heading"], rtol=0, atol=1e-12)
+    assert any(n.startswith("gyro (an input) has no reading at 1 of 400 ticks") for n in result.notes), result.notes
