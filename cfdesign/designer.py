@@ -559,8 +559,19 @@ def _apply_ports(spec, obs):
         if x.port is not None and x.port not in known:
             raise SpecError(f"sensors.{x.name}.port: {obs.name} has no sensor {x.port!r} "
                             f"(it has {', '.join(sorted(known))})")
-    if len(ports) != sum(x.port is not None for x in spec.sensors):
-        raise SpecError("sensors: two sensors name the same port")
+    players = {}
+    for x in spec.sensors:
+        if x.port is not None and players.setdefault(x.port, x.name) != x.name:
+            raise SpecError(f"sensors.{x.name}.port: {players[x.port]} and {x.name} both play {obs.name}'s port "
+                            f"{x.port!r}; one sensor plays each port")
+    # a sensor that plays another port keeps its name only if the structure's port of that name is
+    # played too: the renamed structure had two sensors of one name (an unnamed StructureError)
+    final = [ports.get(s.name, s.name) for s in obs.sensors]
+    clash = next((n for n in final if final.count(n) > 1), None)
+    if clash is not None:
+        raise SpecError(f"sensors.{clash}.port: {clash} plays {obs.name}'s port {spec.sensor(clash).port!r}, and "
+                        f"no sensor plays its port {clash!r} (port = {clash!r}): two sensors would be called "
+                        f"{clash}; rename the sensor, or name the sensor that plays {clash!r}")
     return obs.renamed(ports)
 
 
