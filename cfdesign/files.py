@@ -349,6 +349,9 @@ def write_into(directory, texts: dict) -> list:
     directory = Path(directory)
     try:
         directory.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a file, a device, a dangling link: "File exists" named nothing
+        raise OutputError(f"cannot write to {directory}: it exists and is not a directory (this writes a "
+                          f"directory of {len(texts)} files: name a new or existing directory)") from None
     except OSError as exc:
         raise OutputError(f"cannot write to {directory}: {exc.strerror or exc}") from None
     return write_files({directory / name: text for name, text in texts.items()})

@@ -3,6 +3,7 @@ test is one class of input that gave a traceback-free but unclear error, or a si
 result, before; the outcome allowed is a named one-line error with exit status 2 (a verify FAIL:
 1) or a correct result, and no file replaced."""
 
+import dataclasses
 import sys
 
 import pytest
@@ -10,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import cfdesign
-from cfdesign.errors import SpecError
+from cfdesign.errors import CfdesignError, SpecError
+from cfdesign.runtime import Runtime
 from cfdesign.spec import parse_spec
 
 # as the ``cfdesign`` command's own process (cli.console): jsonschema without its optional IRI
@@ -76,4 +78,45 @@ def test_a_sensor_playing_a_port_that_leaves_two_of_one_name_is_named(tmp_path_f
         cfdesign.design(cfdesign.load_spec(path))
 
 
+# ---------------------------------------------------------------------- C of a filter that diverges
+@FUZZ
+@given(scale=st.sampled_from([0.5, 1.0, 3.0, 60.0, 1e4]), row=st.integers(0, 1))
+def test_c_export_refuses_what_the_runtime_refuses(tilt, tmp_path_factory, cli, scale, row):
+    """A gain edited so that the filter diverges was exported to C in silence, while
+    :class:`Runtime` (and ``cfdesign run``) refused the same table: the firmware got a filter
+    whose estimates grow whatever the readings.  Reference: the Runtime's verdict."""
+    K = tilt.K[0].copy()
+    K[row] *= scale
+    table = dataclasses.replace(tilt, K=[K])
+    folder = tmp_path_factory.mktemp("c")
+    path = table.save(folder / "g.json")
+    try:
+        Runtime(table)
+        runs = True
+    except CfdesignError as exc:
+        runs, why = False, str(exc)
+    code, _, err = cli("export", path, "--format", "c", "-o", folder / "c")
+    if runs:
+        assert code == 0 and len(list((folder / "c").iterdir())) == 3, err
+    else:
+        _one_line_error(code, err)
+        assert why in err and "unstable" in err and not (folder / "c").exists()
 
+
+# ---------------------------------------------------------------------- a C export onto a file
+@pytest.mark.parametrize("target", ["file", "link to nothing", "/dev/null"])
+def test_c_export_onto_something_not_a_directory_says_so(tilt, tmp_path, cli, target):
+    """``export --format c -o gains.csv`` said 'cannot write to gains.csv: File exists'."""
+    table = tilt.save(tmp_path / "g.json")
+    out = tmp_path / "out"
+    if target == "file":
+        out.write_text("keep me")
+    elif target == "link to nothing":
+        out.symlink_to(tmp_path / "nowhere")
+    else:
+        out = "/dev/null"
+    code, _, err = cli("export", table, "--format", "c", "-o", out)
+    _one_line_error(code, err)
+    assert "is not a directory" in err and "3 files" in err
+    if target == "file":
+        assert out.read_text() == "keep me"
