@@ -111,6 +111,7 @@ def _numeric(args):
             raise GainError(f"--sample-time must be positive, got {args.sample_time}")
     elif obs.discrete:
         raise GainError(f"{obs.name} is discrete: give --sample-time T (seconds)")
+    _within_design_limits(values)
     extra = sorted(set(values) - {p.name for p in obs.parameters})
     if extra:
         raise GainError(f"{obs.name} has no gain(s) {', '.join(extra)} (gains: {', '.join(obs.gains)})")
@@ -118,6 +119,18 @@ def _numeric(args):
     if missing:
         raise GainError(f"{obs.name} needs a value for gain(s) {', '.join(missing)}")
     return obs.with_gains(values)
+
+
+def _within_design_limits(values):
+    """Refuse a gain or sample time a design file would refuse: beyond them the frequency grid
+    and the responses lose every digit (``--sample-time 1e-300`` drew a plot of nothing)."""
+    from .spec import GAIN_RANGE, RATE_RANGE
+
+    for name, value in values.items():
+        what, span = ("--sample-time", RATE_RANGE) if name == "T" else (f"gain {name}", GAIN_RANGE)
+        if value and not span[0] <= abs(float(value)) <= span[1]:  # as the file's number, a double
+            raise GainError(f"{what}: {float(value):g} is outside the limits {span[0]:g} to {span[1]:g} of a design "
+                            "file (check the units)")
 
 
 def cmd_prove(args) -> int:

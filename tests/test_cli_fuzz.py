@@ -120,3 +120,35 @@ def test_c_export_onto_something_not_a_directory_says_so(tilt, tmp_path, cli, ta
     assert "is not a directory" in err and "3 files" in err
     if target == "file":
         assert out.read_text() == "keep me"
+
+
+# ---------------------------------------------------------------------- bode numbers a design refuses
+def _design_accepts(gain, sample_time) -> bool:
+    """The reference: whether a design file with these numbers passes its checks."""
+    spec = {**CF2, "sample_time_s": sample_time, "gains": {"k1": gain, "k2": 0.001}}
+    try:
+        parse_spec(spec)
+    except SpecError:
+        return False
+    return True
+
+
+NUMBERS = ["1e-300", "1e-101", "1e-100", "0.5", "1e100", "1e101", "1e300", "1e-320", "5e-400"]
+
+
+@FUZZ
+@given(gain=st.sampled_from(NUMBERS), sample_time=st.sampled_from(["0.01", "1e-9", "1e-10", "1e9", "2e9", "1e-5000"]))
+def test_bode_takes_the_numbers_a_design_file_takes(tmp_path_factory, cli, gain, sample_time):
+    """``bode --sample-time 1e-300`` (or 1e-5000, a number no double holds: it was 0 in the
+    plot) drew a figure of nothing with exit 0; a gain of 1e300 likewise.  Reference: the design
+    file's own limits (parse_spec) on the same numbers."""
+    out = tmp_path_factory.mktemp("bode") / "b.png"
+    code, _, err = cli("bode", "cf2", "--order", "2", "--discrete", "--gains", f"k1={gain},k2=0.001",
+                       "--sample-time", sample_time, "-o", out)
+    if _design_accepts(float(gain), float(sample_time)) and float(gain) != 0 and float(sample_time) != 0:
+        assert code in (0, 2) and (code == 0) == out.exists(), err  # 2: a response beyond a double, named
+        if code:
+            _one_line_error(code, err)
+    else:
+        _one_line_error(code, err)
+        assert ("gain k1" in err or "--sample-time" in err) and not out.exists()
