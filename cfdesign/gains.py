@@ -145,7 +145,17 @@ def _check_schema(data, source):
         jsonschema.validate(_one_phase(data), schema())
     except jsonschema.ValidationError as exc:
         where = "/".join(map(str, exc.absolute_path)) or "(top level)"
-        raise GainTableError(f"{source}: schema violation at {where}: {exc.message}") from None
+        raise GainTableError(f"{source}: schema violation at {where}: {_schema_message(exc)}") from None
+
+
+def _schema_message(exc) -> str:
+    """jsonschema's message with the value it quotes cut short: a whole table quoted (a list at
+    the top level, ``sensors`` as an object) pushed what is wrong past the end of the line."""
+    text, quoted = exc.message, repr(exc.instance)
+    if len(quoted) > 80 and quoted in text:
+        kind = {dict: "an object", list: "an array", str: "a string"}.get(type(exc.instance), "a value")
+        text = text.replace(quoted, f"{quoted[:60]}... ({kind})", 1)
+    return text
 
 
 #: the per-phase fields of the JSON form and the type of their leaves: the schema gives each phase

@@ -4,8 +4,10 @@ result, before; the outcome allowed is a named one-line error with exit status 2
 1) or a correct result, and no file replaced."""
 
 import dataclasses
+import json
 import sys
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -152,3 +154,28 @@ def test_bode_takes_the_numbers_a_design_file_takes(tmp_path_factory, cli, gain,
     else:
         _one_line_error(code, err)
         assert ("gain k1" in err or "--sample-time" in err) and not out.exists()
+
+
+# ---------------------------------------------------------------------- schema messages that quote a table
+@pytest.mark.parametrize("edit", ["table in a list", "sensors as an object", "K as an object"])
+def test_a_schema_violation_says_what_is_wrong_within_the_line(tilt, tmp_path, cli, edit):
+    """jsonschema quotes the value it refuses: a whole table in a list (or ``sensors`` given as
+    an object) filled the 2000-character line with numbers, and 'is not of type' fell off it."""
+    data = tilt.to_dict()
+    if edit == "table in a list":
+        data = [data] * 50
+    elif edit == "sensors as an object":
+        data["sensors"] = {s["name"]: s for s in data["sensors"]} | {f"x{i}": {"a": list(range(50))} for i in range(50)}
+    else:
+        data["K"] = {"phase": data["K"] * 2000}
+    path = tmp_path / "g.json"
+    path.write_text(json.dumps(data))
+    code, _, err = cli("verify", path)
+    _one_line_error(code, err)
+    assert "is not of type" in err and len(err) < 400, err
+
+
+def test_the_reference_numbers_are_what_the_tests_assume():
+    """The tests above lean on these facts of the limits: a guard against a limit moved."""
+    assert _design_accepts(1e100, 0.01) and not _design_accepts(1e101, 0.01) and not _design_accepts(0.5, 1e-10)
+    assert float("5e-400") == 0 and np.finfo(float).tiny > 1e-320 > 0
