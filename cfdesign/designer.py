@@ -407,6 +407,7 @@ def build_structure(spec: FilterSpec):
         if spec.sample_time_s is not None and not obs.discrete:
             raise SpecError("sample_time_s: the chain is continuous (set discrete = true)")
         _check_sensors(spec, obs)
+        _check_offsets(spec, obs)
         return obs
     if spec.structure not in STRUCTURES:
         raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of "
@@ -429,6 +430,7 @@ def build_structure(spec: FilterSpec):
     if spec.sample_time_s is not None and not obs.discrete:
         raise SpecError(f"sample_time_s: {obs.name} is continuous (set discrete = true where the structure allows)")
     _check_sensors(spec, obs)
+    _check_offsets(spec, obs)
     return obs
 
 
@@ -590,6 +592,21 @@ def _check_sensors(spec, obs):
             if order != s.order:
                 raise SpecError(f"sensors.{s.name}.measures: {obs.name} uses {s.name} as a sensor of derivative "
                                 f"order {s.order}, not {given.measures!r}")
+
+
+def _check_offsets(spec, obs):
+    """Refuse an ``offset_s`` the design would drop in silence: the schedule places only the
+    measurements of a discrete design (a continuous one has no ticks; an input is read at
+    every base tick)."""
+    for s in obs.sensors:
+        if not spec.sensor(s.name).offset_s:
+            continue
+        if not obs.discrete:
+            raise SpecError(f"sensors.{s.name}.offset_s: {obs.name} is continuous, without ticks to delay a reading "
+                            "to; offsets apply to discrete designs (discrete = true where the structure allows)")
+        if s.role == "input":
+            raise SpecError(f"sensors.{s.name}.offset_s: {s.name} is an input, read at every base tick; offsets "
+                            "apply to measurement sensors")
 
 
 def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):

@@ -28,6 +28,7 @@ A design file names a structure and describes each of its sensors::
     bias = { model = "random_walk", density = 1e-4 }   # u/sqrt(s); or constant, value
     # port = "compass"             # optional: the structure's sensor this one plays (default: its name)
     # offset_s = 0.37              # optional: the first reading arrives this long after the base tick 0
+    #                              # (a measurement of a discrete design)
 
 Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
 design file is only ever read as TOML data: nothing in it is evaluated.

@@ -179,3 +179,20 @@ def test_the_reference_numbers_are_what_the_tests_assume():
     """The tests above lean on these facts of the limits: a guard against a limit moved."""
     assert _design_accepts(1e100, 0.01) and not _design_accepts(1e101, 0.01) and not _design_accepts(0.5, 1e-10)
     assert float("5e-400") == 0 and np.finfo(float).tiny > 1e-320 > 0
+
+
+# ---------------------------------------------------------------------- offsets the design dropped
+@FUZZ
+@given(discrete=st.booleans(), sensor=st.sampled_from(["gyro", "accel"]), offset=st.sampled_from([0.0, 0.004, 0.0099]))
+def test_an_offset_the_design_cannot_place_is_named(discrete, sensor, offset):
+    """``offset_s`` on a continuous design, or on an input (read at every base tick), was
+    accepted and dropped: the table was the one without it.  A measurement of a discrete design
+    takes one (at the base rate it reads every tick whatever the offset: period 1)."""
+    data = json.loads(json.dumps(CF2))
+    data["discrete"] = discrete
+    data["sensors"][sensor]["offset_s"] = offset
+    if offset and (not discrete or sensor == "gyro"):
+        with pytest.raises(SpecError, match=rf"sensors\.{sensor}\.offset_s: .*(continuous|an input)"):
+            cfdesign.design(parse_spec(data))
+    else:
+        assert cfdesign.design(parse_spec(data)).period == 1  # a base-rate measurement reads at every tick
