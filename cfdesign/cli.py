@@ -38,6 +38,16 @@ def _named(text: str) -> str:
     return text
 
 
+#: what ``-`` names where a command reads a file: standard input (``cat d.toml | cfdesign design -``)
+STDIN = "/dev/stdin"
+
+
+def _input(text: str) -> str:
+    """argparse ``type`` of a file a command reads: :func:`_named`, and ``-`` is standard input,
+    as for ``cfdesign run``'s logs (it was a file named '-': 'No such file or directory')."""
+    return STDIN if _named(text) == "-" else text
+
+
 def _output(text: str) -> str:
     """argparse ``type`` of every file a command writes: :func:`_named`, and not ``-``.
 
@@ -283,6 +293,8 @@ def cmd_verify(args) -> int:
     from .spec import load_spec
     from .verify import verify_table
 
+    if args.table == args.spec == STDIN:
+        raise CfdesignError("cfdesign verify: the gain table and --spec cannot both be standard input ('-')")
     table = load_gains(args.table)
     spec = load_spec(args.spec) if args.spec else None
     checks = verify_table(table, spec, args.rtol)
@@ -506,7 +518,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_bode)
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
-    p.add_argument("spec", nargs="?", type=_named, help="design file (TOML); omitted: the built-in example")
+    p.add_argument("spec", nargs="?", type=_input,
+                   help="design file (TOML), - for standard input; omitted: the built-in example")
     p.add_argument("--example", type=_named,
                    help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
                    "ckf3, position, tilt")
@@ -518,7 +531,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_design)
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
-    p.add_argument("table", type=_named, help="gain table (JSON) from cfdesign design")
+    p.add_argument("table", type=_input, help="gain table (JSON) from cfdesign design (- for standard input)")
     p.add_argument("--format", choices=["json", "csv", "c"], required=True,
                    help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
     p.add_argument("-o", "--output", required=True, type=_output, help="file (json, csv) or directory (c)")
@@ -532,8 +545,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_export)
 
     p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
-    p.add_argument("table", type=_named, help="gain table (JSON)")
-    p.add_argument("--spec", type=_named, help="design file the table should come from")
+    p.add_argument("table", type=_input, help="gain table (JSON), - for standard input")
+    p.add_argument("--spec", type=_input, help="design file the table should come from (- for standard input)")
     p.add_argument("--rtol", type=float, default=1e-9,
                    help="relative tolerance of the comparison with --spec (default 1e-9)")
     p.set_defaults(run=cmd_verify)
@@ -574,7 +587,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
-    p.add_argument("log", type=_named, help="CSV (with a header row) or Parquet log, sensor at rest")
+    p.add_argument("log", type=_input, help="CSV (with a header row) or Parquet log, sensor at rest; - for "
+                                            "standard input")
     p.add_argument("--column", action="append", required=True,
                    help="column to analyse (repeat, or comma-separate, for several axes)")
     p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
@@ -590,7 +604,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_noise)
 
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
-    p.add_argument("table", type=_named, help="continuous gain table (JSON)")
+    p.add_argument("table", type=_input, help="continuous gain table (JSON), - for standard input")
     p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
     p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor",
                    help="gain form of the discrete table (default predictor)")

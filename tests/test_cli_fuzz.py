@@ -196,3 +196,50 @@ def test_an_offset_the_design_cannot_place_is_named(discrete, sensor, offset):
             cfdesign.design(parse_spec(data))
     else:
         assert cfdesign.design(parse_spec(data)).period == 1  # a base-rate measurement reads at every tick
+
+
+# ---------------------------------------------------------------------- '-' for a file a command reads
+@pytest.fixture
+def stdin_from():
+    """Point file descriptor 0 at a file for one call (the CLI reads '-' as /dev/stdin)."""
+    import contextlib
+    import os
+
+    @contextlib.contextmanager
+    def point(path):
+        saved = os.dup(0)
+        with open(path, "rb") as fh:
+            os.dup2(fh.fileno(), 0)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 0)
+            os.close(saved)
+    return point
+
+
+@pytest.mark.parametrize("command", ["design", "verify", "verify --spec", "export", "discretize"])
+def test_dash_reads_standard_input_as_run_reads_its_logs(tilt, tmp_path, cli, stdin_from, command):
+    """``cfdesign design -`` (and verify, export, discretize) looked for a file named '-'; the
+    result from standard input is the result from the file (the reference)."""
+    spec = tmp_path / "d.toml"
+    spec.write_text(HEADING_TOML)
+    table = tilt.save(tmp_path / "g.json")
+    continuous = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("tilt"))).save(tmp_path / "c.json")
+    out = tmp_path / "out.json"
+    argv, source = {"design": (["design", "-", "-o", out], spec),
+                    "verify": (["verify", "-"], table),
+                    "verify --spec": (["verify", table, "--spec", "-"], spec),
+                    "export": (["export", "-", "--format", "json", "-o", out], table),
+                    "discretize": (["discretize", "-", "--rate-hz", "50", "-o", out], continuous)}[command]
+    with stdin_from(source):
+        piped = cli(*argv)
+    named = cli(*[source if a == "-" else a for a in argv])
+    assert piped[0] == named[0] == (1 if command == "verify --spec" else 0), piped  # tilt is not the file's design
+    assert piped[1].replace(str(source), "/dev/stdin") == named[1].replace(str(source), "/dev/stdin")
+
+
+def test_the_table_and_its_spec_cannot_both_be_standard_input(tilt, tmp_path, cli):
+    code, _, err = cli("verify", "-", "--spec", "-")
+    _one_line_error(code, err)
+    assert "both be standard input" in err
