@@ -310,6 +310,8 @@ def cmd_run(args) -> int:
     from .logs import INTERNAL, run_log, run_logs
 
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
+    if args.table == STDIN and "-" in args.data:
+        raise CfdesignError("cfdesign run: the gain table and a log cannot both be standard input ('-')")
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
     options = {"time": args.time, "time_unit": args.time_unit, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
@@ -555,7 +557,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                        description="Each row is placed on the table's base tick by its time (nearest tick); slow "
                                    "sensors' columns are empty between readings; the schedule locks to when they "
                                    "arrive.  Readings not used are reported on stderr.")
-    p.add_argument("table", type=_named, help="gain table (JSON)")
+    p.add_argument("table", type=_input, help="gain table (JSON), - for standard input")
     p.add_argument("data", nargs="+", type=_named,
                    help="log file(s), a directory or a glob; one column per sensor (named as in "
                                            "the table, or --map), a time column, any others (passed through)")

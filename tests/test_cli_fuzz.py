@@ -239,7 +239,20 @@ def test_dash_reads_standard_input_as_run_reads_its_logs(tilt, tmp_path, cli, st
     assert piped[1].replace(str(source), "/dev/stdin") == named[1].replace(str(source), "/dev/stdin")
 
 
-def test_the_table_and_its_spec_cannot_both_be_standard_input(tilt, tmp_path, cli):
-    code, _, err = cli("verify", "-", "--spec", "-")
+@pytest.mark.parametrize("argv", [["verify", "-", "--spec", "-"], ["run", "-", "-", "-o", "e.csv"]])
+def test_two_inputs_cannot_both_be_standard_input(cli, argv):
+    code, _, err = cli(*argv)
     _one_line_error(code, err)
     assert "both be standard input" in err
+
+
+def test_run_reads_its_table_from_standard_input(tilt, tmp_path, cli, stdin_from):
+    """``cfdesign run - log.csv``: the estimates are those of the table named by its file."""
+    table = tilt.save(tmp_path / "g.json")
+    log = tmp_path / "log.csv"
+    log.write_text("time,gyro,accel\n" + "".join(f"{k / 100},0.01,{0.001 * k}\n" for k in range(50)))
+    with stdin_from(table):
+        piped = cli("run", "-", log, "-o", tmp_path / "piped.csv")
+    named = cli("run", table, log, "-o", tmp_path / "named.csv")
+    assert piped[0] == named[0] == 0, piped
+    assert (tmp_path / "piped.csv").read_text() == (tmp_path / "named.csv").read_text()
