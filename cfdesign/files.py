@@ -24,7 +24,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device"]
+           "read_limited", "not_a_device", "utf8_text"]
 
 
 def is_dir(path) -> bool:
@@ -77,6 +77,36 @@ def read_limited(path, limit: int) -> bytes:
     """
     with open(path, "rb") as fh:
         return fh.read(limit + 1)
+
+
+def utf8_text(raw: bytes) -> str:
+    """The text of a file cfdesign reads (a design file, a gain table): UTF-8, a byte-order mark
+    dropped (some Windows editors write one; a gain table with one was refused).
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's bytes.
+
+    Returns
+    -------
+    str
+        The text.
+
+    Raises
+    ------
+    ValueError
+        The bytes are not UTF-8 text: the message names the first bad byte and its offset, or
+        the NUL bytes of UTF-16 (what Notepad's "Unicode" writes) or of a binary file.
+    """
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in raw:
+        kind = "is UTF-16 text" if raw.startswith((b"\xff\xfe", b"\xfe\xff")) else "holds NUL bytes (UTF-16 or binary)"
+        raise ValueError(f"not UTF-8 text: it {kind}; save it as UTF-8")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text (byte {raw[exc.start:exc.start + 1].hex()} at byte {exc.start}, "
+                         "Latin-1 or another code page?); save it as UTF-8") from None
 
 
 def not_a_device(path) -> str | None:

@@ -30,7 +30,7 @@ import numpy as np
 
 from . import linear
 from .errors import GainTableError
-from .files import read_limited
+from .files import read_limited, utf8_text
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
@@ -1130,7 +1130,15 @@ def _array(value, shape, what) -> np.ndarray:
 
 
 def _no_constant(token):
-    raise json.JSONDecodeError(f"{token} is not a JSON number (gain tables hold finite numbers only)", token, 0)
+    raise ValueError(f"{token} is not a JSON number (gain tables hold finite numbers only)")
+
+
+def _integer(token):
+    """A JSON integer; one of more digits than any double has (309) is refused here, as Python's
+    limit of 4300 digits refused it with advice to call sys.set_int_max_str_digits()."""
+    if len(token.lstrip("-")) > 309:
+        raise ValueError(f"an integer of {len(token.lstrip('-'))} digits is beyond the range of a double")
+    return int(token)
 
 
 def _no_duplicates(pairs) -> dict:
@@ -1140,7 +1148,7 @@ def _no_duplicates(pairs) -> dict:
     if len(out) != len(pairs):
         seen = set()
         dup = next(k for k, _ in pairs if k in seen or seen.add(k))
-        raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
+        raise ValueError(f"key {dup!r} given twice in one object")
     return out
 
 
@@ -1213,14 +1221,18 @@ def load_gains(path) -> GainTable:
         raw = read_limited(path, MAX_TABLE_BYTES)
         if len(raw) > MAX_TABLE_BYTES:  # a device or a pipe: no size until it is read
             raise GainTableError(f"{path}: more than {MAX_TABLE_BYTES} bytes, more than a gain table holds")
-        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constant,
-                          object_pairs_hook=_no_duplicates)
-    except RecursionError:
-        raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except OSError as exc:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
     except ValueError as exc:  # a NUL character in the path
         raise GainTableError(f"cannot read gain table {str(path)!r}: {exc}") from None
+    try:
+        text = utf8_text(raw)
+    except ValueError as exc:
+        raise GainTableError(f"{path}: {exc}") from None
+    try:
+        data = json.loads(text, parse_constant=_no_constant, parse_int=_integer, object_pairs_hook=_no_duplicates)
+    except RecursionError:
+        raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
+    except ValueError as exc:  # JSONDecodeError (with the place), and the hooks' refusals (a NaN, a key twice)
+        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
     return GainTable.from_dict(data, str(path))

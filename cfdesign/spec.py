@@ -45,7 +45,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SpecError
-from .files import read_limited
+from .files import read_limited, utf8_text
 from .noise import Bias, WhiteNoise
 
 if sys.version_info >= (3, 11):
@@ -317,8 +317,12 @@ def load_spec(path) -> FilterSpec:
     except ValueError as exc:  # a NUL character in the path
         raise SpecError(f"cannot read design file {str(path)!r}: {exc}") from None
     try:
-        data = tomllib.loads(text.decode("utf-8-sig"))  # a BOM (a Windows editor) is not TOML; dropped
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        source = utf8_text(text)  # a BOM (a Windows editor) is not TOML; dropped
+    except ValueError as exc:
+        raise SpecError(f"{path}: {exc}") from None
+    try:
+        data = tomllib.loads(source)
+    except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path}: malformed TOML: {exc}") from None
     except RecursionError:
         raise SpecError(f"{path}: malformed TOML: nested too deeply") from None

@@ -256,3 +256,41 @@ def test_run_reads_its_table_from_standard_input(tilt, tmp_path, cli, stdin_from
     named = cli("run", table, log, "-o", tmp_path / "named.csv")
     assert piped[0] == named[0] == 0, piped
     assert (tmp_path / "piped.csv").read_text() == (tmp_path / "named.csv").read_text()
+
+
+# ---------------------------------------------------------------------- encodings of files a command reads
+ENCODINGS = {"utf-8 with a BOM": lambda t: b"\xef\xbb\xbf" + t.encode(), "utf-16": lambda t: t.encode("utf-16"),
+             "utf-16-be": lambda t: t.encode("utf-16-be"), "latin-1": lambda t: t.replace('"h"', '"h\u00e9"')
+             .replace('"tilt"', '"tilt\u00e9"').encode("latin-1"), "crlf": lambda t: t.replace("\n", "\r\n").encode()}
+
+
+@pytest.mark.parametrize("encoding", sorted(ENCODINGS))
+@pytest.mark.parametrize("kind", ["design file", "gain table"])
+def test_a_file_in_another_encoding_is_read_or_named_as_such(tilt, tmp_path, cli, kind, encoding):
+    """A gain table with a byte-order mark was refused ('decode using utf-8-sig') where a design
+    file with one was read; UTF-16 and Latin-1 files gave Python's codec messages; a UTF-16 file
+    without a BOM was 'malformed TOML: Invalid statement'.  UTF-8 (with or without a BOM, any
+    line ends) reads as the plain file does; another encoding is named."""
+    text = HEADING_TOML if kind == "design file" else tilt.to_json()
+    path = tmp_path / "f"
+    path.write_bytes(ENCODINGS[encoding](text))
+    plain = tmp_path / "plain"
+    plain.write_text(text)
+    argv = ["design"] if kind == "design file" else ["verify"]
+    code, out, err = cli(*argv, path)
+    if encoding in ("utf-8 with a BOM", "crlf"):
+        assert (code, out.replace(str(path), "")) == cli(*argv, plain)[:2] and code == 0, err
+    else:
+        _one_line_error(code, err)
+        assert f"{path}: not UTF-8 text" in err and "save it as UTF-8" in err
+        assert ("byte e9 at byte" if encoding == "latin-1" else "UTF-16") in err, err
+
+
+def test_an_integer_beyond_a_double_in_a_table_is_named(tilt, tmp_path, cli):
+    """An integer of 5,000 digits met Python's conversion limit, whose message advised calling
+    sys.set_int_max_str_digits()."""
+    path = tmp_path / "g.json"
+    path.write_text(tilt.to_json().replace('"sample_time_s": 0.01', '"sample_time_s": 1' + "0" * 5000))
+    code, _, err = cli("verify", path)
+    _one_line_error(code, err)
+    assert "an integer of 5001 digits is beyond the range of a double" in err and "sys." not in err
