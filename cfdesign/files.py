@@ -24,7 +24,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device", "utf8_text"]
+           "read_limited", "not_a_device", "utf8_text", "path_of"]
 
 
 def is_dir(path) -> bool:
@@ -77,6 +77,40 @@ def read_limited(path, limit: int) -> bytes:
     """
     with open(path, "rb") as fh:
         return fh.read(limit + 1)
+
+
+def path_of(value, error, what: str) -> Path:
+    """The path a loader was given, or ``error`` naming what it was given instead.
+
+    ``load_spec(None)`` (or a number, a list) raised Python's TypeError from deep in
+    :mod:`pathlib`, and ``load_gains("")`` read the current directory ('.: Is a directory').
+
+    Parameters
+    ----------
+    value : str, bytes or os.PathLike
+        What the caller passed as the file.
+    error : type
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise.
+    what : str
+        The function, as the message names it (``'load_spec'``).
+
+    Returns
+    -------
+    Path
+        The path (bytes decoded as the file system does).
+
+    Raises
+    ------
+    CfdesignError
+        ``error``: ``value`` is not a path, or an empty or blank one.
+    """
+    if isinstance(value, (bytes, os.PathLike)):
+        value = os.fsdecode(value)
+    if not isinstance(value, str):
+        raise error(f"{what} takes a path (str or os.PathLike), got {type(value).__name__}")
+    if not value.strip():
+        raise error(f"{what}: {value!r} is empty or blank: it names no file")
+    return Path(value)
 
 
 def utf8_text(raw: bytes) -> str:

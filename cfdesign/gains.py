@@ -30,7 +30,7 @@ import numpy as np
 
 from . import linear
 from .errors import GainTableError
-from .files import read_limited, utf8_text
+from .files import path_of, read_limited, utf8_text
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
@@ -1201,9 +1201,10 @@ def load_gains(path) -> GainTable:
     Raises
     ------
     GainTableError
-        The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
-        Infinity tokens and keys given twice in one object included), fails the schema, or its
-        parts do not fit together; the message names the file and the field.
+        ``path`` is not a path (or is empty), the file cannot be read, is larger than a gain
+        table can be, is not UTF-8 JSON (NaN and Infinity tokens and keys given twice in one
+        object included), fails the schema, or its parts do not fit together; the message
+        names the file and the field.
 
     Examples
     --------
@@ -1213,7 +1214,7 @@ def load_gains(path) -> GainTable:
     >>> loaded.sensor_names(), bool((loaded.K[0] == table.K[0]).all())
     (['odometry_rate', 'gyro_heading', 'compass'], True)
     """
-    path = Path(path)
+    path = path_of(path, GainTableError, "load_gains")
     try:
         size = path.stat().st_size
         if size > MAX_TABLE_BYTES:

@@ -39,13 +39,14 @@ from __future__ import annotations
 import hashlib
 import keyword
 import math
+import numbers
 import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SpecError
-from .files import read_limited, utf8_text
+from .files import path_of, read_limited, utf8_text
 from .noise import Bias, WhiteNoise
 
 if sys.version_info >= (3, 11):
@@ -294,8 +295,9 @@ def load_spec(path) -> FilterSpec:
     Raises
     ------
     SpecError
-        The file cannot be read, is larger than :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not TOML, or a
-        field is missing or invalid; the message names the file and the field.
+        ``path`` is not a path (or is empty), the file cannot be read, is larger than
+        :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not UTF-8 TOML, or a field is missing or
+        invalid; the message names the file and the field.
 
     Examples
     --------
@@ -304,7 +306,7 @@ def load_spec(path) -> FilterSpec:
     >>> spec.structure, [s.name for s in spec.sensors]
     ('dckf3', ['odometry_rate', 'gyro_heading', 'compass'])
     """
-    path = Path(path)
+    path = path_of(path, SpecError, "load_spec")
     try:
         size = path.stat().st_size
         if size > MAX_SPEC_BYTES:
@@ -422,12 +424,15 @@ def _gains(table):
         return None
     if not isinstance(table, dict) or not table:
         raise SpecError("gains must be a table of name = number")
+    bad = next((name for name in table if not isinstance(name, str)), None)
+    if bad is not None:  # (a dict from Python: a TOML key is a string)
+        raise SpecError(f"gains: the name {bad!r} is not a string")
     return {name: _number(table, name, f"gains.{name}", signed=True, span=GAIN_RANGE) for name in table}
 
 
 def _sensor(name, body) -> SensorSpec:
     field = f"sensors.{name}"
-    if not (name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
+    if not (isinstance(name, str) and name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
         raise SpecError(f"{field}: sensor names must be ASCII identifiers (letters, digits, _; not starting "
                         "with a digit) and not Python keywords: they name log columns and C macros")
     if not isinstance(body, dict):
@@ -457,7 +462,7 @@ def _sensor(name, body) -> SensorSpec:
 
 
 def _no_unknown(table, allowed, prefix):
-    unknown = sorted(set(table) - allowed)
+    unknown = sorted(set(table) - allowed, key=str)  # (keys of a dict from Python may be of any type)
     if unknown:
         raise SpecError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
 
@@ -491,9 +496,9 @@ def _flag(table, key):
 
 def _integer(table, key):
     value = table.get(key)
-    if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+    if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Integral)):
         raise SpecError(f"{key} must be an integer, got {value!r}")
-    return value
+    return None if value is None else int(value)
 
 
 def _number(table, key, field, positive=False, required=False, signed=False, span=None):
@@ -504,7 +509,7 @@ def _number(table, key, field, positive=False, required=False, signed=False, spa
         if required:
             raise SpecError(f"{field}: missing field")
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's and Fraction, from Python
         raise SpecError(f"{field} must be a number, got {value!r}")
     try:
         value = float(value)

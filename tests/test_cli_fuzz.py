@@ -6,6 +6,7 @@ result, before; the outcome allowed is a named one-line error with exit status 2
 import dataclasses
 import json
 import sys
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -294,3 +295,50 @@ def test_an_integer_beyond_a_double_in_a_table_is_named(tilt, tmp_path, cli):
     code, _, err = cli("verify", path)
     _one_line_error(code, err)
     assert "an integer of 5001 digits is beyond the range of a double" in err and "sys." not in err
+
+
+# ---------------------------------------------------------------------- the Python API: what a dict or a path may be
+NUMBER_TYPES = {"rate_hz": [np.int64(100), np.uint16(100), Fraction(100), np.float32(100)],
+                "std": [Fraction(1, 100), np.float32(0.01), np.int32(1)]}
+
+
+@FUZZ
+@given(field=st.sampled_from(sorted(NUMBER_TYPES)), data=st.data())
+def test_a_design_dict_takes_any_real_number_type(tilt, field, data):
+    """``rate_hz = np.int64(100)`` (or a Fraction) was 'must be a number' while np.float64 passed.
+    Reference: the design from the same numbers as floats."""
+    value = data.draw(st.sampled_from(NUMBER_TYPES[field]))
+    typed, plain = json.loads(json.dumps(CF2)), json.loads(json.dumps(CF2))
+    for spec, number in ((typed, value), (plain, float(value))):
+        if field == "std":
+            spec["sensors"]["accel"]["noise"] = {"std": number}
+        else:
+            spec["sensors"]["accel"]["rate_hz"] = spec["sensors"]["gyro"]["rate_hz"] = number
+    assert np.array_equal(cfdesign.design(parse_spec(typed)).K[0], cfdesign.design(parse_spec(plain)).K[0])
+
+
+@pytest.mark.parametrize("where", ["sensor name", "gain name", "top-level key"])
+def test_a_design_dict_with_keys_that_are_not_strings_is_named(where):
+    """A sensor or gain named by an int (a dict from Python) raised a raw AttributeError or
+    TypeError; two unknown keys of different types made the sort of the message raise."""
+    data = json.loads(json.dumps(CF2))
+    if where == "sensor name":
+        data["sensors"][1] = data["sensors"].pop("accel")
+    elif where == "gain name":
+        data["gains"] = {1: 0.5}
+    else:
+        data.update({1: 1, "zz": 2})
+    with pytest.raises(SpecError, match={"sensor name": r"sensors\.1: sensor names", "gain name": "gains: the name 1",
+                                         "top-level key": "1: unknown field"}[where]):
+        parse_spec(data)
+
+
+@pytest.mark.parametrize("value", [None, 123, ["g.json"], "", "  "])
+@pytest.mark.parametrize("loader", ["load_spec", "load_gains"])
+def test_the_loaders_name_a_value_that_is_no_path(loader, value):
+    """``load_spec(None)`` raised pathlib's TypeError; ``load_gains("")`` read '.' ('Is a directory')."""
+    from cfdesign.errors import GainTableError
+
+    error = SpecError if loader == "load_spec" else GainTableError
+    with pytest.raises(error, match=f"^{loader}: |^{loader} takes a path"):
+        getattr(cfdesign, loader)(value)
