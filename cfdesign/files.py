@@ -92,7 +92,7 @@ def path_of(value, error, what: str) -> Path:
     error : type
         The :class:`~cfdesign.errors.CfdesignError` subclass to raise.
     what : str
-        The function, as the message names it (``'load_spec'``).
+        What the message starts with: the function (``'load_spec'``), or ``'cannot write'``.
 
     Returns
     -------
@@ -107,7 +107,7 @@ def path_of(value, error, what: str) -> Path:
     if isinstance(value, (bytes, os.PathLike)):
         value = os.fsdecode(value)
     if not isinstance(value, str):
-        raise error(f"{what} takes a path (str or os.PathLike), got {type(value).__name__}")
+        raise error(f"{what}: {value!r:.60} is not a path (str or os.PathLike) but {type(value).__name__}")
     if not value.strip():
         raise error(f"{what}: {value!r} is empty or blank: it names no file")
     return Path(value)
@@ -216,9 +216,11 @@ def write_files(contents: dict) -> list:
     Raises
     ------
     OutputError
-        A target cannot be written (its directory is missing or read-only, it is a directory,
-        the disk is full) or two targets are one file; no target was changed.
+        A target is not a path, cannot be written (its directory is missing or read-only, it is
+        a directory, the disk is full) or two targets are one file; no target was changed.
     """
+    for path in contents:
+        path_of(path, OutputError, "cannot write")
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
     staged, streams = [], []
     try:
@@ -325,7 +327,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     >>> with open_atomic("estimates.csv", newline="") as fh:   # doctest: +SKIP
     ...     fh.write("time,heading\n")
     """
-    path = Path(path)
+    path = path_of(path, OutputError, "cannot write")
     if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
         try:
             with open(path, mode, **kwargs) as fh:
@@ -410,7 +412,7 @@ def write_into(directory, texts: dict) -> list:
     OutputError
         The directory cannot be created or a file cannot be written; no file was replaced.
     """
-    directory = Path(directory)
+    directory = path_of(directory, OutputError, "cannot write")
     try:
         directory.mkdir(parents=True, exist_ok=True)
     except FileExistsError:  # a file, a device, a dangling link: "File exists" named nothing

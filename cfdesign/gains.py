@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from . import linear
-from .errors import GainTableError
+from .errors import GainTableError, InputError
 from .files import path_of, read_limited, utf8_text
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
@@ -448,9 +448,12 @@ class Schedule:
 
         Raises
         ------
-        ValueError
-            ``name`` is not a measurement of the schedule.
+        InputError
+            ``name`` is not a measurement of the schedule (a ValueError, as before).
         """
+        if name not in self.measurements:  # (tuple.index raised 'tuple.index(x): x not in tuple')
+            raise InputError(f"the schedule has no measurement {name!r} (measurements: "
+                             f"{', '.join(self.measurements) or 'none'})")
         i = self.measurements.index(name)
         return tuple(k for k in range(self.period) if i in self.active[k])
 
@@ -811,7 +814,14 @@ class GainTable:
         F, B, H_k, K_k : ndarray
             ``H_k`` keeps the rows of the sensors measured at that phase and ``K_k`` their gain
             columns (the per-phase view of a multirate table); ``F`` and ``B`` are the table's.
+
+        Raises
+        ------
+        InputError
+            ``phase`` is not an integer.
         """
+        if isinstance(phase, bool) or not isinstance(phase, numbers.Integral):  # ('a' % period: a raw TypeError)
+            raise InputError(f"{self.name}: phase must be an integer, got {phase!r:.40}")
         rows = list(self.schedule.rows(phase))
         return self.F, self.B, self.H[rows, :], self.K[phase % self.period][:, rows]
 
@@ -827,7 +837,14 @@ class GainTable:
         -------
         list of str
             The names, inputs first, then measurements.
+
+        Raises
+        ------
+        InputError
+            ``role`` is another value (a misspelt role listed no sensor).
         """
+        if role not in (None, "input", "measurement"):
+            raise InputError(f"{self.name}: role must be 'input' or 'measurement' (or None for all), got {role!r:.40}")
         return [s.name for s in self.sensors if role is None or s.role == role]
 
     # ------------------------------------------------------------------ python-control and plots

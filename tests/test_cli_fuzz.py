@@ -340,5 +340,37 @@ def test_the_loaders_name_a_value_that_is_no_path(loader, value):
     from cfdesign.errors import GainTableError
 
     error = SpecError if loader == "load_spec" else GainTableError
-    with pytest.raises(error, match=f"^{loader}: |^{loader} takes a path"):
+    with pytest.raises(error, match=rf"^{loader}: .*(not a path|names no file)"):
         getattr(cfdesign, loader)(value)
+
+
+@pytest.mark.parametrize("value", [None, 123, "", "  "])
+@pytest.mark.parametrize("writer", ["save", "write_gain_csv", "write_c"])
+def test_the_writers_name_a_value_that_is_no_path(tilt, tmp_path, monkeypatch, writer, value):
+    """``table.save(None)`` (and the CSV and C writers) raised a raw TypeError; ``write_c(table, "")``
+    wrote the three files into the current folder."""
+    from cfdesign.codegen import write_c
+    from cfdesign.errors import OutputError
+    from cfdesign.export import write_gain_csv
+
+    monkeypatch.chdir(tmp_path)
+    call = {"save": tilt.save, "write_gain_csv": lambda p: write_gain_csv(tilt, p),
+            "write_c": lambda p: write_c(tilt, p)}
+    with pytest.raises(OutputError, match=r"^cannot write: .*(not a path|names no file)"):
+        call[writer](value)
+    assert not list(tmp_path.iterdir())
+
+
+def test_table_lookups_name_what_names_nothing(tilt):
+    """``schedule.phases('x')`` raised 'tuple.index(x): x not in tuple', ``phase_model('a')`` a
+    TypeError of string formatting, and ``sensor_names('inputs')`` listed no sensor in silence."""
+    from cfdesign.errors import InputError
+
+    with pytest.raises(InputError, match="no measurement 'x' \\(measurements: accel\\)"):
+        tilt.schedule.phases("x")
+    with pytest.raises(InputError, match="phase must be an integer"):
+        tilt.phase_model("a")
+    with pytest.raises(InputError, match="role must be 'input' or 'measurement'"):
+        tilt.sensor_names("inputs")
+    assert tilt.sensor_names("input") == ["gyro"] and tilt.schedule.phases("accel") == (0,)
+    assert np.array_equal(tilt.phase_model(np.int64(3))[3], tilt.K[0])
