@@ -167,6 +167,8 @@ def cmd_design(args) -> int:
 
     if args.spec and args.example:
         raise CfdesignError("give a design file or --example, not both")
+    if args.hz and not args.bode:  # (ignored, as export's C options were: see cmd_export)
+        raise CfdesignError("cfdesign design: --hz is the frequency axis of the --bode plot; give --bode FILE.png too")
     path = args.spec or example_path(args.example or "robot-heading")
     check_distinct({"the design file": path, "-o": args.output, "--bode": args.bode})
     spec = load_spec(path)

@@ -374,3 +374,13 @@ def test_table_lookups_name_what_names_nothing(tilt):
         tilt.sensor_names("inputs")
     assert tilt.sensor_names("input") == ["gyro"] and tilt.schedule.phases("accel") == (0,)
     assert np.array_equal(tilt.phase_model(np.int64(3))[3], tilt.K[0])
+
+
+def test_design_hz_without_a_bode_plot_is_refused(tmp_path, cli):
+    """``design --hz`` without ``--bode`` was ignored in silence (export refuses its C-only options
+    for json and csv the same way); nothing is written."""
+    spec = tmp_path / "d.toml"
+    spec.write_text(HEADING_TOML)
+    code, out, err = cli("design", spec, "--hz", "-o", tmp_path / "g.json")
+    _one_line_error(code, err)
+    assert "--hz" in err and "--bode" in err and out == "" and not (tmp_path / "g.json").exists()
