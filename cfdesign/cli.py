@@ -222,7 +222,12 @@ def _summary(table) -> str:
                  "prior": "one-step prediction (prior)"}
         lines.append(f"  predicted steady-state std {of}, {names[table.output]}: {_std_text(table, table.output)}  "
                      "<- the default output")
-        lines.append(f"  predicted steady-state std {of}, {names[other]}: {_std_text(table, other)}")
+        from .linear import has_posterior
+
+        alone = other == "posterior" and not has_posterior(table.F, table.gain_form)  # (its P_filtered is P)
+        lines.append(f"  predicted steady-state std {of}, {names[other]}: " + (
+            "none (F is singular or ill-conditioned: predictor gains give no update gain)" if alone
+            else _std_text(table, other)))
     else:
         lines.append(f"  predicted steady-state std {of}: {table.predicted_std:.6g}")
     c = table.checks

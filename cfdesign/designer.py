@@ -824,7 +824,7 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
                             "(set discrete = true where the structure allows)")
         dt, schedule = None, Schedule.from_names(by_row, [by_row])
     model = structure.model(dt)
-    output = _output(spec, structure, model)
+    output = _output(spec, structure, model, dt)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete)
     Q = van_loan(model["Fc"], Qc, dt)[1] if structure.discrete else Qc
     if spec.crossover is not None:
@@ -836,7 +836,7 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     return _table(spec, structure, model, Q, R, dt, schedule, result, output)
 
 
-def _output(spec, structure, model) -> str:
+def _output(spec, structure, model, dt=None) -> str:
     """The estimate the table outputs: the spec's ``output``, by default the posterior (after
     each step's readings) for discrete tables; continuous tables have only the prior."""
     if not structure.discrete:
@@ -844,9 +844,13 @@ def _output(spec, structure, model) -> str:
             raise SpecError(f"output: {structure.name} is continuous; it has no posterior estimate")
         return "prior"
     if not linear.has_posterior(model["F"], spec.gain_form):
-        if spec.output == "posterior":
-            raise SpecError(f"output: {structure.name} has a singular F, so its predictor gains give no "
-                            "posterior estimate; use gain_form = 'filter' or output = 'prior'")
+        if spec.output != "prior":  # the default too: it fell to the prior in silence, and the design then
+            # failed its own covariance check ('too badly scaled'): a chain's F is invertible, but at a
+            # sample time of 1e6 s (dckf3) or 2000 s (position) beyond the condition number gain_pair takes
+            raise SpecError(f"output: {structure.name}'s F at T = {dt:g} s has condition number "
+                            f"{np.linalg.cond(np.asarray(model['F'], dtype=float)):.3g} (the limit is 1e12), so its "
+                            "predictor gains give no posterior estimate (the default output); use gain_form = "
+                            "'filter', or output = 'prior'")
         return "prior"
     return spec.output or "posterior"
 
@@ -1204,6 +1208,8 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
                 if isinstance(e, str):
                     gains[e] = float(result["K"][0][i, j])
     _check_covariances(spec, result)
+    if obs.discrete and not linear.has_posterior(model["F"], form):  # no update gain: no posterior (output
+        result = {**result, "P_filtered": list(result["P"])}  # = 'prior'), the P_filtered verify checks is P
     table = GainTable(
         name=spec.name, structure=spec.structure, domain=obs.domain, sample_time_s=dt, gain_form=form,
         sensors=tuple(SensorPort(s.name, s.role, s.index, s.order, spec.sensor(s.name).rate_hz)

@@ -384,3 +384,28 @@ def test_design_hz_without_a_bode_plot_is_refused(tmp_path, cli):
     code, out, err = cli("design", spec, "--hz", "-o", tmp_path / "g.json")
     _one_line_error(code, err)
     assert "--hz" in err and "--bode" in err and out == "" and not (tmp_path / "g.json").exists()
+
+
+# ---------------------------------------------------------------------- very slow rates in predictor form
+SLOW = HEADING_TOML.replace("rate_hz = 100.0", "rate_hz = 1e-6").replace("rate_hz = 10.0", "rate_hz = 1e-6").replace(
+    "rate_hz = 1.0", "rate_hz = 1e-6")
+
+
+@pytest.mark.parametrize("option", ["", 'output = "prior"', 'gain_form = "filter"'])
+def test_a_sample_time_that_leaves_no_posterior_is_named_not_a_failed_check(tmp_path, cli, option):
+    """At 1e-6 Hz (T = 1e6 s) F's condition number passes 1e12: the predictor gains have no update
+    gain.  The default output then fell to the prior in silence and the design failed its own
+    covariance check ('too badly scaled for double precision'); an explicit prior failed it too
+    (P_filtered was the Kalman posterior, which no gain of the table gives).  Now the default is
+    a SpecError saying what to write; the prior, or the filter form, designs and verifies."""
+    spec = tmp_path / "d.toml"
+    spec.write_text(SLOW.replace('structure = "dckf3"', f'structure = "dckf3"\n{option}'))
+    code, out, err = cli("design", spec, "-o", tmp_path / "g.json")
+    if not option:
+        _one_line_error(code, err)
+        assert "sensors" not in err and "output: dckf3's F at T = 1e+06 s" in err and "gain_form = 'filter'" in err
+        return
+    assert code == 0, err
+    assert ("(posterior): none" in out) == ("prior" in option), out
+    code, out, err = cli("verify", tmp_path / "g.json", "--spec", spec)
+    assert code == 0 and "5 of 5 checks hold" in out, out + err
