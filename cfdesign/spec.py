@@ -41,6 +41,7 @@ import keyword
 import math
 import numbers
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -501,6 +502,16 @@ def _integer(table, key):
     return None if value is None else int(value)
 
 
+def _quoted_number_hint(key, value) -> str:
+    """``'; write rate_hz = 100 (a TOML number: no quotes, no unit)'`` for ``"100 Hz"``, ``"100Hz"``
+    or ``"1e-3"``: a number written as text, perhaps with its unit."""
+    found = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", value) if isinstance(
+        value, str) else None
+    if found is None:
+        return ""
+    return f"; write {key} = {found[1]} (a TOML number: no quotes" + (", no unit)" if found[2] else ")")
+
+
 def _number(table, key, field, positive=False, required=False, signed=False, span=None):
     """A finite number (int or float, not bool); ``span=(low, high)`` bounds its magnitude (zero
     aside), naming the field and the limit."""
@@ -510,7 +521,7 @@ def _number(table, key, field, positive=False, required=False, signed=False, spa
             raise SpecError(f"{field}: missing field")
         return None
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's and Fraction, from Python
-        raise SpecError(f"{field} must be a number, got {value!r}")
+        raise SpecError(f"{field} must be a number, got {value!r}{_quoted_number_hint(key, value)}")
     try:
         value = float(value)
     except OverflowError:  # an integer of 400 digits

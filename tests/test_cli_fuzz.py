@@ -22,7 +22,7 @@ from cfdesign.spec import parse_spec
 # checker, whose grammars took 3 s of CPU at the first gain table read here
 sys.modules.setdefault("rfc3987_syntax", None)
 
-FUZZ = settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+FUZZ = settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 #: a single-rate discrete filter: cheap to design, export and run
 CF2 = {"name": "tilt", "structure": "cf2", "order": 2, "discrete": True, "sensors": {
@@ -139,7 +139,7 @@ def _design_accepts(gain, sample_time) -> bool:
 NUMBERS = ["1e-300", "1e-101", "1e-100", "0.5", "1e100", "1e101", "1e300", "1e-320", "5e-400"]
 
 
-@FUZZ
+@settings(FUZZ, max_examples=3)  # (a plot drawn costs 0.3 s)
 @given(gain=st.sampled_from(NUMBERS), sample_time=st.sampled_from(["0.01", "1e-9", "1e-10", "1e9", "2e9", "1e-5000"]))
 def test_bode_takes_the_numbers_a_design_file_takes(tmp_path_factory, cli, gain, sample_time):
     """``bode --sample-time 1e-300`` (or 1e-5000, a number no double holds: it was 0 in the
@@ -409,3 +409,47 @@ def test_a_sample_time_that_leaves_no_posterior_is_named_not_a_failed_check(tmp_
     assert ("(posterior): none" in out) == ("prior" in option), out
     code, out, err = cli("verify", tmp_path / "g.json", "--spec", spec)
     assert code == 0 and "5 of 5 checks hold" in out, out + err
+
+
+# ---------------------------------------------------------------------- a number written as text
+@FUZZ
+@given(text=st.sampled_from(["100 Hz", "100", "100Hz", " 1e2 Hz ", "100.0 hz", "1.0e+2"]))
+def test_a_number_in_quotes_is_named_with_the_line_to_write(tmp_path_factory, cli, text):
+    """``rate_hz = "100 Hz"`` was 'must be a number, got '100 Hz''; the message now gives the line
+    to write, and that line designs the file (the reference: the same file written with 100.0)."""
+    import re
+
+    folder = tmp_path_factory.mktemp("quoted")
+    (folder / "d.toml").write_text(HEADING_TOML.replace("rate_hz = 100.0", f'rate_hz = "{text}"'))
+    code, _, err = cli("design", folder / "d.toml")
+    _one_line_error(code, err)
+    line = re.search(r"write (rate_hz = \S+) \(a TOML number", err)[1]
+    (folder / "fixed.toml").write_text(HEADING_TOML.replace("rate_hz = 100.0", line))
+    (folder / "plain.toml").write_text(HEADING_TOML)
+    fixed, plain = cli("design", folder / "fixed.toml"), cli("design", folder / "plain.toml")
+    assert fixed[0] == 0 and fixed[:2] == plain[:2], fixed
+
+
+# ---------------------------------------------------------------------- a periodic DARE beyond double precision
+def test_a_multirate_design_whose_innovation_covariance_rounds_to_singular_is_named(tmp_path, cli):
+    """Found by fuzzing design files: a compass and an odometry read every 5 days, the odometry's
+    noise a density (4e-12 rad^2 per reading) beside a predicted variance of 4e16 rad^2 (a gyro
+    bias random walk of 0.84 rad/s/sqrt(s)): ``C P C' + R`` of the two angle readings rounds to a
+    singular matrix, and numpy's 'Singular matrix' came out as an internal error (exit 3)."""
+    spec = tmp_path / "d.toml"
+    spec.write_text("""structure = "dckf3"
+[sensors.gyro]
+rate_hz = 2.2225065297265893e-06
+noise = { std = 0.00047 }
+bias = { model = "random_walk", density = 0.84 }
+[sensors.compass]
+rate_hz = 2.2225065297265893e-06
+noise = { std = 0.58 }
+[sensors.odometry]
+rate_hz = 7.408355099088631e-07
+noise = { density = 0.00245 }
+""")
+    code, _, err = cli("design", spec, "-o", tmp_path / "g.json")
+    _one_line_error(code, err)
+    assert "innovation covariance C P C' + R at phase 0 is singular in double precision" in err
+    assert not (tmp_path / "g.json").exists()
