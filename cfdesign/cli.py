@@ -38,6 +38,16 @@ def _named(text: str) -> str:
     return text
 
 
+#: what ``-`` names where a command reads a file: standard input (``cat d.toml | cfdesign design -``)
+STDIN = "/dev/stdin"
+
+
+def _input(text: str) -> str:
+    """argparse ``type`` of a file a command reads: :func:`_named`, and ``-`` is standard input,
+    as for ``cfdesign run``'s logs (it was a file named '-': 'No such file or directory')."""
+    return STDIN if _named(text) == "-" else text
+
+
 def _output(text: str) -> str:
     """argparse ``type`` of every file a command writes: :func:`_named`, and not ``-``.
 
@@ -111,6 +121,7 @@ def _numeric(args):
             raise GainError(f"--sample-time must be positive, got {args.sample_time}")
     elif obs.discrete:
         raise GainError(f"{obs.name} is discrete: give --sample-time T (seconds)")
+    _within_design_limits(values)
     extra = sorted(set(values) - {p.name for p in obs.parameters})
     if extra:
         raise GainError(f"{obs.name} has no gain(s) {', '.join(extra)} (gains: {', '.join(obs.gains)})")
@@ -118,6 +129,18 @@ def _numeric(args):
     if missing:
         raise GainError(f"{obs.name} needs a value for gain(s) {', '.join(missing)}")
     return obs.with_gains(values)
+
+
+def _within_design_limits(values):
+    """Refuse a gain or sample time a design file would refuse: beyond them the frequency grid
+    and the responses lose every digit (``--sample-time 1e-300`` drew a plot of nothing)."""
+    from .spec import GAIN_RANGE, RATE_RANGE
+
+    for name, value in values.items():
+        what, span = ("--sample-time", RATE_RANGE) if name == "T" else (f"gain {name}", GAIN_RANGE)
+        if value and not span[0] <= abs(float(value)) <= span[1]:  # as the file's number, a double
+            raise GainError(f"{what}: {float(value):g} is outside the limits {span[0]:g} to {span[1]:g} of a design "
+                            "file (check the units)")
 
 
 def cmd_prove(args) -> int:
@@ -144,6 +167,8 @@ def cmd_design(args) -> int:
 
     if args.spec and args.example:
         raise CfdesignError("give a design file or --example, not both")
+    if args.hz and not args.bode:  # (ignored, as export's C options were: see cmd_export)
+        raise CfdesignError("cfdesign design: --hz is the frequency axis of the --bode plot; give --bode FILE.png too")
     path = args.spec or example_path(args.example or "robot-heading")
     check_distinct({"the design file": path, "-o": args.output, "--bode": args.bode})
     spec = load_spec(path)
@@ -197,7 +222,12 @@ def _summary(table) -> str:
                  "prior": "one-step prediction (prior)"}
         lines.append(f"  predicted steady-state std {of}, {names[table.output]}: {_std_text(table, table.output)}  "
                      "<- the default output")
-        lines.append(f"  predicted steady-state std {of}, {names[other]}: {_std_text(table, other)}")
+        from .linear import has_posterior
+
+        alone = other == "posterior" and not has_posterior(table.F, table.gain_form)  # (its P_filtered is P)
+        lines.append(f"  predicted steady-state std {of}, {names[other]}: " + (
+            "none (F is singular or ill-conditioned: predictor gains give no update gain)" if alone
+            else _std_text(table, other)))
     else:
         lines.append(f"  predicted steady-state std {of}: {table.predicted_std:.6g}")
     c = table.checks
@@ -270,6 +300,8 @@ def cmd_verify(args) -> int:
     from .spec import load_spec
     from .verify import verify_table
 
+    if args.table == args.spec == STDIN:
+        raise CfdesignError("cfdesign verify: the gain table and --spec cannot both be standard input ('-')")
     table = load_gains(args.table)
     spec = load_spec(args.spec) if args.spec else None
     checks = verify_table(table, spec, args.rtol)
@@ -285,6 +317,8 @@ def cmd_run(args) -> int:
     from .logs import INTERNAL, run_log, run_logs
 
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
+    if args.table == STDIN and "-" in args.data:
+        raise CfdesignError("cfdesign run: the gain table and a log cannot both be standard input ('-')")
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
     options = {"time": args.time, "time_unit": args.time_unit, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
@@ -493,7 +527,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_bode)
 
     p = sub.add_parser("design", help="optimal gains from a TOML design file (default: built-in example)")
-    p.add_argument("spec", nargs="?", type=_named, help="design file (TOML); omitted: the built-in example")
+    p.add_argument("spec", nargs="?", type=_input,
+                   help="design file (TOML), - for standard input; omitted: the built-in example")
     p.add_argument("--example", type=_named,
                    help="built-in example instead of a file: robot-heading (the default), dckf3, cf3, "
                    "ckf3, position, tilt")
@@ -505,7 +540,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_design)
 
     p = sub.add_parser("export", help="write a gain table as JSON, CSV or a C99 filter")
-    p.add_argument("table", type=_named, help="gain table (JSON) from cfdesign design")
+    p.add_argument("table", type=_input, help="gain table (JSON) from cfdesign design (- for standard input)")
     p.add_argument("--format", choices=["json", "csv", "c"], required=True,
                    help="json: the gain table; csv: the gains per phase; c: a C99 filter (three files in a directory)")
     p.add_argument("-o", "--output", required=True, type=_output, help="file (json, csv) or directory (c)")
@@ -519,8 +554,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_export)
 
     p = sub.add_parser("verify", help="check a gain table: bands sum to 1, stable, (with --spec) gains as designed")
-    p.add_argument("table", type=_named, help="gain table (JSON)")
-    p.add_argument("--spec", type=_named, help="design file the table should come from")
+    p.add_argument("table", type=_input, help="gain table (JSON), - for standard input")
+    p.add_argument("--spec", type=_input, help="design file the table should come from (- for standard input)")
     p.add_argument("--rtol", type=float, default=1e-9,
                    help="relative tolerance of the comparison with --spec (default 1e-9)")
     p.set_defaults(run=cmd_verify)
@@ -529,7 +564,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                        description="Each row is placed on the table's base tick by its time (nearest tick); slow "
                                    "sensors' columns are empty between readings; the schedule locks to when they "
                                    "arrive.  Readings not used are reported on stderr.")
-    p.add_argument("table", type=_named, help="gain table (JSON)")
+    p.add_argument("table", type=_input, help="gain table (JSON), - for standard input")
     p.add_argument("data", nargs="+", type=_named,
                    help="log file(s), a directory or a glob; one column per sensor (named as in "
                                            "the table, or --map), a time column, any others (passed through)")
@@ -561,7 +596,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_run)
 
     p = sub.add_parser("noise", help="noise densities and bias random walk of a static log (Allan deviation)")
-    p.add_argument("log", type=_named, help="CSV (with a header row) or Parquet log, sensor at rest")
+    p.add_argument("log", type=_input, help="CSV (with a header row) or Parquet log, sensor at rest; - for "
+                                            "standard input")
     p.add_argument("--column", action="append", required=True,
                    help="column to analyse (repeat, or comma-separate, for several axes)")
     p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
@@ -577,7 +613,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_noise)
 
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
-    p.add_argument("table", type=_named, help="continuous gain table (JSON)")
+    p.add_argument("table", type=_input, help="continuous gain table (JSON), - for standard input")
     p.add_argument("--rate-hz", type=float, required=True, help="sample rate (Hz) of every sensor")
     p.add_argument("--gain-form", choices=["predictor", "filter"], default="predictor",
                    help="gain form of the discrete table (default predictor)")

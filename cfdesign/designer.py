@@ -407,6 +407,7 @@ def build_structure(spec: FilterSpec):
         if spec.sample_time_s is not None and not obs.discrete:
             raise SpecError("sample_time_s: the chain is continuous (set discrete = true)")
         _check_sensors(spec, obs)
+        _check_offsets(spec, obs)
         return obs
     if spec.structure not in STRUCTURES:
         raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of "
@@ -429,6 +430,7 @@ def build_structure(spec: FilterSpec):
     if spec.sample_time_s is not None and not obs.discrete:
         raise SpecError(f"sample_time_s: {obs.name} is continuous (set discrete = true where the structure allows)")
     _check_sensors(spec, obs)
+    _check_offsets(spec, obs)
     return obs
 
 
@@ -559,8 +561,19 @@ def _apply_ports(spec, obs):
         if x.port is not None and x.port not in known:
             raise SpecError(f"sensors.{x.name}.port: {obs.name} has no sensor {x.port!r} "
                             f"(it has {', '.join(sorted(known))})")
-    if len(ports) != sum(x.port is not None for x in spec.sensors):
-        raise SpecError("sensors: two sensors name the same port")
+    players = {}
+    for x in spec.sensors:
+        if x.port is not None and players.setdefault(x.port, x.name) != x.name:
+            raise SpecError(f"sensors.{x.name}.port: {players[x.port]} and {x.name} both play {obs.name}'s port "
+                            f"{x.port!r}; one sensor plays each port")
+    # a sensor that plays another port keeps its name only if the structure's port of that name is
+    # played too: the renamed structure had two sensors of one name (an unnamed StructureError)
+    final = [ports.get(s.name, s.name) for s in obs.sensors]
+    clash = next((n for n in final if final.count(n) > 1), None)
+    if clash is not None:
+        raise SpecError(f"sensors.{clash}.port: {clash} plays {obs.name}'s port {spec.sensor(clash).port!r}, and "
+                        f"no sensor plays its port {clash!r} (port = {clash!r}): two sensors would be called "
+                        f"{clash}; rename the sensor, or name the sensor that plays {clash!r}")
     return obs.renamed(ports)
 
 
@@ -579,6 +592,21 @@ def _check_sensors(spec, obs):
             if order != s.order:
                 raise SpecError(f"sensors.{s.name}.measures: {obs.name} uses {s.name} as a sensor of derivative "
                                 f"order {s.order}, not {given.measures!r}")
+
+
+def _check_offsets(spec, obs):
+    """Refuse an ``offset_s`` the design would drop in silence: the schedule places only the
+    measurements of a discrete design (a continuous one has no ticks; an input is read at
+    every base tick)."""
+    for s in obs.sensors:
+        if not spec.sensor(s.name).offset_s:
+            continue
+        if not obs.discrete:
+            raise SpecError(f"sensors.{s.name}.offset_s: {obs.name} is continuous, without ticks to delay a reading "
+                            "to; offsets apply to discrete designs (discrete = true where the structure allows)")
+        if s.role == "input":
+            raise SpecError(f"sensors.{s.name}.offset_s: {s.name} is an input, read at every base tick; offsets "
+                            "apply to measurement sensors")
 
 
 def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
@@ -796,7 +824,7 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
                             "(set discrete = true where the structure allows)")
         dt, schedule = None, Schedule.from_names(by_row, [by_row])
     model = structure.model(dt)
-    output = _output(spec, structure, model)
+    output = _output(spec, structure, model, dt)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete)
     Q = van_loan(model["Fc"], Qc, dt)[1] if structure.discrete else Qc
     if spec.crossover is not None:
@@ -808,7 +836,7 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     return _table(spec, structure, model, Q, R, dt, schedule, result, output)
 
 
-def _output(spec, structure, model) -> str:
+def _output(spec, structure, model, dt=None) -> str:
     """The estimate the table outputs: the spec's ``output``, by default the posterior (after
     each step's readings) for discrete tables; continuous tables have only the prior."""
     if not structure.discrete:
@@ -816,9 +844,13 @@ def _output(spec, structure, model) -> str:
             raise SpecError(f"output: {structure.name} is continuous; it has no posterior estimate")
         return "prior"
     if not linear.has_posterior(model["F"], spec.gain_form):
-        if spec.output == "posterior":
-            raise SpecError(f"output: {structure.name} has a singular F, so its predictor gains give no "
-                            "posterior estimate; use gain_form = 'filter' or output = 'prior'")
+        if spec.output != "prior":  # the default too: it fell to the prior in silence, and the design then
+            # failed its own covariance check ('too badly scaled'): a chain's F is invertible, but at a
+            # sample time of 1e6 s (dckf3) or 2000 s (position) beyond the condition number gain_pair takes
+            raise SpecError(f"output: {structure.name}'s F at T = {dt:g} s has condition number "
+                            f"{np.linalg.cond(np.asarray(model['F'], dtype=float)):.3g} (the limit is 1e12), so its "
+                            "predictor gains give no posterior estimate (the default output); use gain_form = "
+                            "'filter', or output = 'prior'")
         return "prior"
     return spec.output or "posterior"
 
@@ -1176,6 +1208,8 @@ def _table(spec, obs, model, Q, R, dt, schedule, result, output) -> GainTable:
                 if isinstance(e, str):
                     gains[e] = float(result["K"][0][i, j])
     _check_covariances(spec, result)
+    if obs.discrete and not linear.has_posterior(model["F"], form):  # no update gain: no posterior (output
+        result = {**result, "P_filtered": list(result["P"])}  # = 'prior'), the P_filtered verify checks is P
     table = GainTable(
         name=spec.name, structure=spec.structure, domain=obs.domain, sample_time_s=dt, gain_form=form,
         sensors=tuple(SensorPort(s.name, s.role, s.index, s.order, spec.sensor(s.name).rate_hz)

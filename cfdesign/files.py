@@ -24,7 +24,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device"]
+           "read_limited", "not_a_device", "utf8_text", "path_of"]
 
 
 def is_dir(path) -> bool:
@@ -77,6 +77,70 @@ def read_limited(path, limit: int) -> bytes:
     """
     with open(path, "rb") as fh:
         return fh.read(limit + 1)
+
+
+def path_of(value, error, what: str) -> Path:
+    """The path a loader was given, or ``error`` naming what it was given instead.
+
+    ``load_spec(None)`` (or a number, a list) raised Python's TypeError from deep in
+    :mod:`pathlib`, and ``load_gains("")`` read the current directory ('.: Is a directory').
+
+    Parameters
+    ----------
+    value : str, bytes or os.PathLike
+        What the caller passed as the file.
+    error : type
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise.
+    what : str
+        What the message starts with: the function (``'load_spec'``), or ``'cannot write'``.
+
+    Returns
+    -------
+    Path
+        The path (bytes decoded as the file system does).
+
+    Raises
+    ------
+    CfdesignError
+        ``error``: ``value`` is not a path, or an empty or blank one.
+    """
+    if isinstance(value, (bytes, os.PathLike)):
+        value = os.fsdecode(value)
+    if not isinstance(value, str):
+        raise error(f"{what}: {value!r:.60} is not a path (str or os.PathLike) but {type(value).__name__}")
+    if not value.strip():
+        raise error(f"{what}: {value!r} is empty or blank: it names no file")
+    return Path(value)
+
+
+def utf8_text(raw: bytes) -> str:
+    """The text of a file cfdesign reads (a design file, a gain table): UTF-8, a byte-order mark
+    dropped (some Windows editors write one; a gain table with one was refused).
+
+    Parameters
+    ----------
+    raw : bytes
+        The file's bytes.
+
+    Returns
+    -------
+    str
+        The text.
+
+    Raises
+    ------
+    ValueError
+        The bytes are not UTF-8 text: the message names the first bad byte and its offset, or
+        the NUL bytes of UTF-16 (what Notepad's "Unicode" writes) or of a binary file.
+    """
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in raw:
+        kind = "is UTF-16 text" if raw.startswith((b"\xff\xfe", b"\xfe\xff")) else "holds NUL bytes (UTF-16 or binary)"
+        raise ValueError(f"not UTF-8 text: it {kind}; save it as UTF-8")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"not UTF-8 text (byte {raw[exc.start:exc.start + 1].hex()} at byte {exc.start}, "
+                         "Latin-1 or another code page?); save it as UTF-8") from None
 
 
 def not_a_device(path) -> str | None:
@@ -152,9 +216,11 @@ def write_files(contents: dict) -> list:
     Raises
     ------
     OutputError
-        A target cannot be written (its directory is missing or read-only, it is a directory,
-        the disk is full) or two targets are one file; no target was changed.
+        A target is not a path, cannot be written (its directory is missing or read-only, it is
+        a directory, the disk is full) or two targets are one file; no target was changed.
     """
+    for path in contents:
+        path_of(path, OutputError, "cannot write")
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
     staged, streams = [], []
     try:
@@ -261,7 +327,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     >>> with open_atomic("estimates.csv", newline="") as fh:   # doctest: +SKIP
     ...     fh.write("time,heading\n")
     """
-    path = Path(path)
+    path = path_of(path, OutputError, "cannot write")
     if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
         try:
             with open(path, mode, **kwargs) as fh:
@@ -346,9 +412,12 @@ def write_into(directory, texts: dict) -> list:
     OutputError
         The directory cannot be created or a file cannot be written; no file was replaced.
     """
-    directory = Path(directory)
+    directory = path_of(directory, OutputError, "cannot write")
     try:
         directory.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:  # a file, a device, a dangling link: "File exists" named nothing
+        raise OutputError(f"cannot write to {directory}: it exists and is not a directory (this writes a "
+                          f"directory of {len(texts)} files: name a new or existing directory)") from None
     except OSError as exc:
         raise OutputError(f"cannot write to {directory}: {exc.strerror or exc}") from None
     return write_files({directory / name: text for name, text in texts.items()})

@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from . import linear
-from .errors import GainTableError
-from .files import read_limited
+from .errors import GainTableError, InputError
+from .files import path_of, read_limited, utf8_text
 from .linear import GAIN_FORMS
 from .spec import MAX_RATE_HZ, QUANTITY_ORDERS
 
@@ -145,7 +145,17 @@ def _check_schema(data, source):
         jsonschema.validate(_one_phase(data), schema())
     except jsonschema.ValidationError as exc:
         where = "/".join(map(str, exc.absolute_path)) or "(top level)"
-        raise GainTableError(f"{source}: schema violation at {where}: {exc.message}") from None
+        raise GainTableError(f"{source}: schema violation at {where}: {_schema_message(exc)}") from None
+
+
+def _schema_message(exc) -> str:
+    """jsonschema's message with the value it quotes cut short: a whole table quoted (a list at
+    the top level, ``sensors`` as an object) pushed what is wrong past the end of the line."""
+    text, quoted = exc.message, repr(exc.instance)
+    if len(quoted) > 80 and quoted in text:
+        kind = {dict: "an object", list: "an array", str: "a string"}.get(type(exc.instance), "a value")
+        text = text.replace(quoted, f"{quoted[:60]}... ({kind})", 1)
+    return text
 
 
 #: the per-phase fields of the JSON form and the type of their leaves: the schema gives each phase
@@ -438,9 +448,12 @@ class Schedule:
 
         Raises
         ------
-        ValueError
-            ``name`` is not a measurement of the schedule.
+        InputError
+            ``name`` is not a measurement of the schedule (a ValueError, as before).
         """
+        if name not in self.measurements:  # (tuple.index raised 'tuple.index(x): x not in tuple')
+            raise InputError(f"the schedule has no measurement {name!r} (measurements: "
+                             f"{', '.join(self.measurements) or 'none'})")
         i = self.measurements.index(name)
         return tuple(k for k in range(self.period) if i in self.active[k])
 
@@ -801,7 +814,14 @@ class GainTable:
         F, B, H_k, K_k : ndarray
             ``H_k`` keeps the rows of the sensors measured at that phase and ``K_k`` their gain
             columns (the per-phase view of a multirate table); ``F`` and ``B`` are the table's.
+
+        Raises
+        ------
+        InputError
+            ``phase`` is not an integer.
         """
+        if isinstance(phase, bool) or not isinstance(phase, numbers.Integral):  # ('a' % period: a raw TypeError)
+            raise InputError(f"{self.name}: phase must be an integer, got {phase!r:.40}")
         rows = list(self.schedule.rows(phase))
         return self.F, self.B, self.H[rows, :], self.K[phase % self.period][:, rows]
 
@@ -817,7 +837,14 @@ class GainTable:
         -------
         list of str
             The names, inputs first, then measurements.
+
+        Raises
+        ------
+        InputError
+            ``role`` is another value (a misspelt role listed no sensor).
         """
+        if role not in (None, "input", "measurement"):
+            raise InputError(f"{self.name}: role must be 'input' or 'measurement' (or None for all), got {role!r:.40}")
         return [s.name for s in self.sensors if role is None or s.role == role]
 
     # ------------------------------------------------------------------ python-control and plots
@@ -1120,7 +1147,15 @@ def _array(value, shape, what) -> np.ndarray:
 
 
 def _no_constant(token):
-    raise json.JSONDecodeError(f"{token} is not a JSON number (gain tables hold finite numbers only)", token, 0)
+    raise ValueError(f"{token} is not a JSON number (gain tables hold finite numbers only)")
+
+
+def _integer(token):
+    """A JSON integer; one of more digits than any double has (309) is refused here, as Python's
+    limit of 4300 digits refused it with advice to call sys.set_int_max_str_digits()."""
+    if len(token.lstrip("-")) > 309:
+        raise ValueError(f"an integer of {len(token.lstrip('-'))} digits is beyond the range of a double")
+    return int(token)
 
 
 def _no_duplicates(pairs) -> dict:
@@ -1130,7 +1165,7 @@ def _no_duplicates(pairs) -> dict:
     if len(out) != len(pairs):
         seen = set()
         dup = next(k for k, _ in pairs if k in seen or seen.add(k))
-        raise json.JSONDecodeError(f"key {dup!r} given twice in one object", repr(dup), 0)
+        raise ValueError(f"key {dup!r} given twice in one object")
     return out
 
 
@@ -1183,9 +1218,10 @@ def load_gains(path) -> GainTable:
     Raises
     ------
     GainTableError
-        The file cannot be read, is larger than a gain table can be, is not JSON (NaN and
-        Infinity tokens and keys given twice in one object included), fails the schema, or its
-        parts do not fit together; the message names the file and the field.
+        ``path`` is not a path (or is empty), the file cannot be read, is larger than a gain
+        table can be, is not UTF-8 JSON (NaN and Infinity tokens and keys given twice in one
+        object included), fails the schema, or its parts do not fit together; the message
+        names the file and the field.
 
     Examples
     --------
@@ -1195,7 +1231,7 @@ def load_gains(path) -> GainTable:
     >>> loaded.sensor_names(), bool((loaded.K[0] == table.K[0]).all())
     (['odometry_rate', 'gyro_heading', 'compass'], True)
     """
-    path = Path(path)
+    path = path_of(path, GainTableError, "load_gains")
     try:
         size = path.stat().st_size
         if size > MAX_TABLE_BYTES:
@@ -1203,14 +1239,18 @@ def load_gains(path) -> GainTable:
         raw = read_limited(path, MAX_TABLE_BYTES)
         if len(raw) > MAX_TABLE_BYTES:  # a device or a pipe: no size until it is read
             raise GainTableError(f"{path}: more than {MAX_TABLE_BYTES} bytes, more than a gain table holds")
-        data = json.loads(raw.decode("utf-8"), parse_constant=_no_constant,
-                          object_pairs_hook=_no_duplicates)
-    except RecursionError:
-        raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except OSError as exc:
         raise GainTableError(f"cannot read gain table {path}: {exc.strerror or exc}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
     except ValueError as exc:  # a NUL character in the path
         raise GainTableError(f"cannot read gain table {str(path)!r}: {exc}") from None
+    try:
+        text = utf8_text(raw)
+    except ValueError as exc:
+        raise GainTableError(f"{path}: {exc}") from None
+    try:
+        data = json.loads(text, parse_constant=_no_constant, parse_int=_integer, object_pairs_hook=_no_duplicates)
+    except RecursionError:
+        raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
+    except ValueError as exc:  # JSONDecodeError (with the place), and the hooks' refusals (a NaN, a key twice)
+        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
     return GainTable.from_dict(data, str(path))

@@ -28,6 +28,7 @@ A design file names a structure and describes each of its sensors::
     bias = { model = "random_walk", density = 1e-4 }   # u/sqrt(s); or constant, value
     # port = "compass"             # optional: the structure's sensor this one plays (default: its name)
     # offset_s = 0.37              # optional: the first reading arrives this long after the base tick 0
+    #                              # (a measurement of a discrete design)
 
 Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
 design file is only ever read as TOML data: nothing in it is evaluated.
@@ -38,13 +39,15 @@ from __future__ import annotations
 import hashlib
 import keyword
 import math
+import numbers
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SpecError
-from .files import read_limited
+from .files import path_of, read_limited, utf8_text
 from .noise import Bias, WhiteNoise
 
 if sys.version_info >= (3, 11):
@@ -293,8 +296,9 @@ def load_spec(path) -> FilterSpec:
     Raises
     ------
     SpecError
-        The file cannot be read, is larger than :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not TOML, or a
-        field is missing or invalid; the message names the file and the field.
+        ``path`` is not a path (or is empty), the file cannot be read, is larger than
+        :data:`~cfdesign.spec.MAX_SPEC_BYTES`, is not UTF-8 TOML, or a field is missing or
+        invalid; the message names the file and the field.
 
     Examples
     --------
@@ -303,7 +307,7 @@ def load_spec(path) -> FilterSpec:
     >>> spec.structure, [s.name for s in spec.sensors]
     ('dckf3', ['odometry_rate', 'gyro_heading', 'compass'])
     """
-    path = Path(path)
+    path = path_of(path, SpecError, "load_spec")
     try:
         size = path.stat().st_size
         if size > MAX_SPEC_BYTES:
@@ -316,8 +320,12 @@ def load_spec(path) -> FilterSpec:
     except ValueError as exc:  # a NUL character in the path
         raise SpecError(f"cannot read design file {str(path)!r}: {exc}") from None
     try:
-        data = tomllib.loads(text.decode("utf-8-sig"))  # a BOM (a Windows editor) is not TOML; dropped
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        source = utf8_text(text)  # a BOM (a Windows editor) is not TOML; dropped
+    except ValueError as exc:
+        raise SpecError(f"{path}: {exc}") from None
+    try:
+        data = tomllib.loads(source)
+    except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path}: malformed TOML: {exc}") from None
     except RecursionError:
         raise SpecError(f"{path}: malformed TOML: nested too deeply") from None
@@ -417,12 +425,15 @@ def _gains(table):
         return None
     if not isinstance(table, dict) or not table:
         raise SpecError("gains must be a table of name = number")
+    bad = next((name for name in table if not isinstance(name, str)), None)
+    if bad is not None:  # (a dict from Python: a TOML key is a string)
+        raise SpecError(f"gains: the name {bad!r} is not a string")
     return {name: _number(table, name, f"gains.{name}", signed=True, span=GAIN_RANGE) for name in table}
 
 
 def _sensor(name, body) -> SensorSpec:
     field = f"sensors.{name}"
-    if not (name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
+    if not (isinstance(name, str) and name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
         raise SpecError(f"{field}: sensor names must be ASCII identifiers (letters, digits, _; not starting "
                         "with a digit) and not Python keywords: they name log columns and C macros")
     if not isinstance(body, dict):
@@ -452,7 +463,7 @@ def _sensor(name, body) -> SensorSpec:
 
 
 def _no_unknown(table, allowed, prefix):
-    unknown = sorted(set(table) - allowed)
+    unknown = sorted(set(table) - allowed, key=str)  # (keys of a dict from Python may be of any type)
     if unknown:
         raise SpecError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
 
@@ -486,9 +497,19 @@ def _flag(table, key):
 
 def _integer(table, key):
     value = table.get(key)
-    if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+    if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Integral)):
         raise SpecError(f"{key} must be an integer, got {value!r}")
-    return value
+    return None if value is None else int(value)
+
+
+def _quoted_number_hint(key, value) -> str:
+    """``'; write rate_hz = 100 (a TOML number: no quotes, no unit)'`` for ``"100 Hz"``, ``"100Hz"``
+    or ``"1e-3"``: a number written as text, perhaps with its unit."""
+    found = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", value) if isinstance(
+        value, str) else None
+    if found is None:
+        return ""
+    return f"; write {key} = {found[1]} (a TOML number: no quotes" + (", no unit)" if found[2] else ")")
 
 
 def _number(table, key, field, positive=False, required=False, signed=False, span=None):
@@ -499,8 +520,8 @@ def _number(table, key, field, positive=False, required=False, signed=False, spa
         if required:
             raise SpecError(f"{field}: missing field")
         return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SpecError(f"{field} must be a number, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's and Fraction, from Python
+        raise SpecError(f"{field} must be a number, got {value!r}{_quoted_number_hint(key, value)}")
     try:
         value = float(value)
     except OverflowError:  # an integer of 400 digits

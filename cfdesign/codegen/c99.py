@@ -14,7 +14,7 @@ from .. import __version__, linear
 from ..errors import CfdesignError
 from ..files import write_into
 from ..gains import require_table
-from ..runtime.filter import READING_LIMIT, filter_sha256
+from ..runtime.filter import READING_LIMIT, filter_sha256, require_stable
 
 __all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS"]
 
@@ -82,8 +82,8 @@ def write_c(table, directory, *, prefix=None, precision="double", output=None) -
     GainTableError
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
-        The table cannot run (continuous), a name is not a C identifier, or a value is not
-        finite.
+        The table cannot run (continuous, or unstable: :class:`~cfdesign.runtime.Runtime` refuses it
+        too), a name is not a C identifier, or a value is not finite.
     OutputError
         The directory or the files cannot be written; no existing file is left half-written.
 
@@ -281,6 +281,7 @@ def _check_runnable(table):
 
         raise CfdesignError(f"{table.name} is a continuous-time table ({table.gain_form} gains); C code runs "
                             f"discrete tables in predictor or filter form ({DISCRETE_HINT})")
+    require_stable(table)  # the C would diverge as the runtime would, which refuses it
 
 
 def _default_prefix(table) -> str:

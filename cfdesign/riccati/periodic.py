@@ -160,7 +160,10 @@ def _propagate(As, Cs, Qs, Rs, P0):
         Pk = P[-1]
         if C.shape[0]:
             Sk = C @ Pk @ C.conj().T + R
-            K = np.linalg.solve(Sk, C @ Pk).conj().T
+            try:
+                K = np.linalg.solve(Sk, C @ Pk).conj().T
+            except np.linalg.LinAlgError:  # (numpy's 'Singular matrix' reached users as an internal error)
+                raise AccuracyError(_singular_innovation(len(Kf), Pk, C, R)) from None
             IKC = eye - K @ C
             Pk = IKC @ Pk @ IKC.conj().T + K @ R @ K.conj().T
             Pk = 0.5 * (Pk + Pk.conj().T)
@@ -173,6 +176,17 @@ def _propagate(As, Cs, Qs, Rs, P0):
         Pn = A @ Pk @ A.conj().T + Q
         P.append(0.5 * (Pn + Pn.conj().T))
     return P, Kf, Pf, Phi
+
+
+def _singular_innovation(k, P, C, R) -> str:
+    """Why ``C P C' + R`` of phase ``k`` is singular in doubles: two readings of one state whose
+    noise variances lie below the rounding of that state's predicted variance."""
+    prior = float(np.max(np.abs(np.diag(C @ P @ C.conj().T))))
+    noise = float(np.min(np.abs(np.diag(R))))
+    return (f"the innovation covariance C P C' + R at phase {k} is singular in double precision: a measurement "
+            f"noise variance of {noise:.3g} is below the rounding of a predicted variance of {prior:.3g} "
+            "(the noise figures and the sample time span more than a double resolves: a slower sensor's noise "
+            "in density units at a very low rate?)")
 
 
 @small_problem
@@ -226,7 +240,8 @@ def periodic_dare(A, C, Q, R, *, tol=1e-13):
         The doubling failed or the periodic closed loop is not stable.
     AccuracyError
         After the Newton polish one period still misses ``P[0]`` by more than
-        ``max(1e4 tol, 1e-9)`` (relative).
+        ``max(1e4 tol, 1e-9)`` (relative), or a phase's innovation covariance ``C P C' + R`` is
+        singular in double precision (noise variances below the rounding of the prediction's).
     """
     if isinstance(tol, bool) or not isinstance(tol, (int, float, np.floating)) or not 0 < tol < 1:  # NaN too
         raise RiccatiError(f"tol must be a relative tolerance between 0 and 1, got {tol!r}")

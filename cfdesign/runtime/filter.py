@@ -33,8 +33,8 @@ from .. import linear
 from ..errors import CfdesignError
 from ..linear import wrap, wrap_scalar
 
-__all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256", "READING_LIMIT", "STATE_LIMIT",
-           "UNSTABLE_RTOL"]
+__all__ = ["Runtime", "wrap", "usable", "held", "state_vector", "filter_sha256", "require_stable", "READING_LIMIT",
+           "STATE_LIMIT", "UNSTABLE_RTOL"]
 
 #: block length of the vectorised batch path (a multiple of the period is used)
 _BLOCK = 64
@@ -63,6 +63,28 @@ UNSTABLE_RTOL = 1e-9
 #: a state :meth:`Runtime.restore` accepts is at most this in magnitude (the limit of a table's
 #: entries, :data:`cfdesign.gains.MAX_ENTRY`): one step from it cannot overflow
 STATE_LIMIT = 1e150
+
+
+def require_stable(table) -> None:
+    """Refuse a discrete table whose filter diverges: what runs it (:class:`Runtime`, the
+    generated C) would give estimates that grow whatever the readings.
+
+    Parameters
+    ----------
+    table : GainTable
+        A discrete table (predictor or filter gains).
+
+    Raises
+    ------
+    CfdesignError
+        Its error dynamics grow by more than ``1 + UNSTABLE_RTOL`` a period (the spectral radius
+        of :func:`cfdesign.linear.loop_radius`); a radius of 1 (a state no sensor corrects) passes.
+    """
+    radius = linear.loop_radius(table.F, table.H, table.K, table.gain_form)
+    if not radius <= 1.0 + UNSTABLE_RTOL:
+        raise CfdesignError(f"{table.name}: the filter is unstable (its error dynamics grow by {radius:.6g} a "
+                            f"period, above 1): its estimates diverge whatever the readings (an edited gain or "
+                            f"model?); cfdesign verify names the check")
 
 
 def filter_sha256(table) -> str:
@@ -272,11 +294,7 @@ class Runtime:
                             for K in table.K]
         except ValueError as exc:
             raise CfdesignError(f"{table.name}: {exc}") from None
-        radius = linear.loop_radius(self.F, self.H, table.K, table.gain_form)
-        if not radius <= 1.0 + UNSTABLE_RTOL:
-            raise CfdesignError(f"{table.name}: the filter is unstable (its error dynamics grow by {radius:.6g} a "
-                                f"period, above 1): its estimates diverge whatever the readings (an edited gain or "
-                                f"model?); cfdesign verify names the check")
+        require_stable(table)
         pairs = [linear.gain_pair(self.F, K, table.gain_form) for K in table.K]
         self.Kp = [kp for kp, _ in pairs]
         self.L = [upd if upd is not None else np.zeros_like(kp) for kp, upd in pairs]

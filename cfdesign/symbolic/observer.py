@@ -459,7 +459,7 @@ def parse_number(text: str, name: str = "value"):
     """Parse ``'2'``, ``'0.5'``, ``'1e-3'`` or ``'1/3'`` exactly, without evaluating code."""
     try:
         fr = Fraction(text.strip())
-        finite = math.isfinite(float(fr))
+        finite = math.isfinite(float(fr)) and (float(fr) != 0 or fr == 0)  # 1e-400: no double, it rounds to 0
     except (ValueError, ZeroDivisionError):
         raise GainError(f"{name} must be a number, got {text!r}") from None
     except OverflowError:
