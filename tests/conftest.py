@@ -1,6 +1,7 @@
 """Shared fixtures and helpers for the cfdesign tests."""
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,9 +11,14 @@ SHARED = REPO.parent / "shared"
 
 
 def pytest_configure(config):
-    """One BLAS thread per xdist worker: ``-n auto`` already runs a worker per core, and each
+    """Every test process goes as the ``cfdesign`` command's (``cli.console``): jsonschema without
+    its optional IRI checker (rfc3987_syntax, whose grammars take 1-3 s of CPU at the first table
+    read; no schema of ours asks for a format), whichever test module reads a table first.
+
+    One BLAS thread per xdist worker: ``-n auto`` already runs a worker per core, and each
     worker's OpenBLAS threads on top of that (a 20-state verify: 0.4 s alone, 16 s beside another
     worker) made the suite wait on oversubscribed cores."""
+    sys.modules.setdefault("rfc3987_syntax", None)
     if os.environ.get("PYTEST_XDIST_WORKER"):
         try:
             from threadpoolctl import threadpool_limits

@@ -5,7 +5,6 @@ result, before; the outcome allowed is a named one-line error with exit status 2
 
 import dataclasses
 import json
-import sys
 from fractions import Fraction
 
 import numpy as np
@@ -17,10 +16,6 @@ import cfdesign
 from cfdesign.errors import CfdesignError, SpecError
 from cfdesign.runtime import Runtime
 from cfdesign.spec import parse_spec
-
-# as the ``cfdesign`` command's own process (cli.console): jsonschema without its optional IRI
-# checker, whose grammars took 3 s of CPU at the first gain table read here
-sys.modules.setdefault("rfc3987_syntax", None)
 
 FUZZ = settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
