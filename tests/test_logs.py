@@ -1,6 +1,7 @@
 """Real logs: timestamps placed on ticks, sensors locked to when they arrive, gapped columns at
 batch speed, bad logs refused on one line, nothing half-written, Parquet, blocks, many logs."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -999,12 +1000,14 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd, caplog,
         return close(self, *a, **kw)
 
     monkeypatch.setattr(LocalCluster, "close", slow_close)
+    environ = dict(os.environ)
     with socket.socket() as busy:  # Dask's default port taken (another cluster): it warned on stderr
         with contextlib.suppress(OSError):  # taken already
             busy.bind(("", 8787))
             busy.listen()
         code, _, err = cli("run", table, folder, "-o", tmp_path / "out", "--workers", "2", "--reference", "truth")
     assert code == 2 and "broken.csv: " in err and "missing column(s) compass, odometry" in err
+    assert dict(os.environ) == environ  # the workers' settings (one BLAS thread, ...) went to them only
     # one line naming the log once; no worker's "Compute Failed" and traceback, no warning on the terminal
     assert len(err.strip().splitlines()) == 1 and err.count("broken.csv") == 1, err
     assert "Compute Failed" not in capfd.readouterr().err

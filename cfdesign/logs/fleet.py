@@ -126,6 +126,27 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
     if same:
         raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
                         "or with another --format)")
+    environ = dict(os.environ)  # Dask's settings for its workers (one BLAS thread, ...) are left in it: put back
+    try:
+        rows = _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options)
+    finally:
+        _put_back(environ)
+    write_text(outdir / "summary.csv", _summary_csv(rows))
+    return rows
+
+
+def _put_back(environ: dict):
+    """``os.environ`` as ``environ``: Dask's nanny sets its workers' settings (``OMP_NUM_THREADS=1``, ...) in
+    the environment of the process that starts them, where a notebook's later subprocesses would inherit them."""
+    for k in set(os.environ) - set(environ):
+        del os.environ[k]
+    for k, v in environ.items():
+        if os.environ.get(k) != v:
+            os.environ[k] = v
+
+
+def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options) -> list:
+    """The logs' summary rows, each log run by :func:`_run_one` on the scheduler's workers, or on a local cluster's."""
     from ..runtime.filter import Runtime
 
     method = {} if scheduler else _start_forkserver(dask)  # its imports overlap the check and the scheduler's start
@@ -165,7 +186,6 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
                 cluster.close()
         finally:
             dask_log.setLevel(level)
-    write_text(outdir / "summary.csv", _summary_csv(rows))
     return rows
 
 
