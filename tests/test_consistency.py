@@ -1,8 +1,10 @@
-"""Consistency at a seam a fuzzing pass found open.
+"""Consistency at two seams a fuzzing pass found open.
 
 1. ``design(spec)`` on a spec built or edited in Python (``dataclasses.replace``) applies the
    rules of a design file, with parse_spec's own message naming the field, instead of a raw
    TypeError or AttributeError from deep inside.
+2. ``verify`` without ``--spec`` fails a table whose sensors' ``rate_hz`` disagree with its
+   schedule (the reads per period, the sample time, the spacing of the reads).
 
 The designs use the stored position structure (no sympy), so the file stays well under 2 s of CPU.
 """
@@ -13,9 +15,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cfdesign.designer import Structure, design, design_from_structure
+from cfdesign.designer import Structure, design, design_from_structure, gains_for_schedule
 from cfdesign.errors import SpecError
+from cfdesign.gains import Schedule
 from cfdesign.spec import parse_spec
+from cfdesign.verify import rate_check, verify_table
 
 #: 100 Hz accelerometer driving the model, 3 Hz GPS: 100/3 base steps, a period of 100 with reads at 0, 33, 67
 POSITION = {"name": "position", "structure": "position", "gain_form": "predictor", "sensors": {
@@ -110,3 +114,74 @@ def test_python_values_a_file_cannot_spell_still_design(spec, structure, table):
     again = design_from_structure(structure, edited)
     assert again.sample_time_s == table.sample_time_s and again.schedule == table.schedule
     assert all(np.array_equal(a, b) for a, b in zip(again.K, table.K, strict=True))
+
+
+# ------------------------------------------------------------------ 2. verify: rate_hz against the schedule
+def _failed(table):
+    return [c.line() for c in verify_table(table) if not c.ok]
+
+
+def _with_rate(table, name, rate):
+    return dataclasses.replace(table, sensors=tuple(dataclasses.replace(s, rate_hz=rate) if s.name == name else s
+                                                    for s in table.sensors))
+
+
+def test_designed_tables_read_each_sensor_at_its_rate(structure, spec, table):
+    """A fractional ratio (3 Hz beside 100 Hz: gaps of 33 and 34), an integer one (10 Hz: every 10
+    ticks), an offset, the filter form, a rate within the designer's 1e-9 of a fraction, and the
+    gains a log's arrivals reschedule (the GPS 10 ticks late) all pass."""
+    assert table.schedule.phases("gps") == (0, 33, 67)
+    tables = [table, gains_for_schedule(table, table.schedule.shifted({"gps": 10}))]
+    for edit in ({"rate_hz": 10.0}, {"offset_s": 0.2}, {"rate_hz": 3.0 * (1 + 5e-10)}):
+        tables.append(design_from_structure(structure, _sensor(spec, "gps", **edit)))
+    tables.append(design_from_structure(structure, dataclasses.replace(spec, gain_form="filter")))
+    for t in tables:
+        reads = len(t.schedule.phases("gps"))
+        # the reference: the GPS's reads in one period over the period's duration
+        rate = next(s.rate_hz for s in t.sensors if s.name == "gps")
+        assert reads / (t.period * t.sample_time_s) == pytest.approx(rate, rel=1e-9)
+        assert _failed(t) == []
+        assert rate_check(t).ok and f"gps {rate:g} Hz" in rate_check(t).detail
+
+
+@pytest.mark.parametrize("rate", [6.0, 1.0, 3.3, 3.0 * (1 + 1e-6)])
+def test_a_declared_rate_the_schedule_does_not_read_is_the_only_failure(table, rate):
+    lines = _failed(_with_rate(table, "gps", rate))
+    assert lines == [f"FAIL sensor rates match the schedule: gps declares {rate:.10g} Hz, the schedule reads it at "
+                     "3 of 100 phases of 0.01 s: 3 Hz (tolerance 1e-08): the table runs a sensor at another rate than "
+                     "its noise figures were converted at"]
+
+
+def test_an_input_at_another_rate_than_the_tick_fails(table):
+    (line,) = _failed(_with_rate(table, "accelerometer", 50.0))
+    assert "accelerometer declares 50 Hz, an input, read at every tick of 0.01 s: 100 Hz" in line
+
+
+def test_a_sample_time_the_rates_do_not_fit_fails_naming_every_sensor(table):
+    lines = _failed(dataclasses.replace(table, sample_time_s=0.02))
+    (line,) = [x for x in lines if x.startswith("FAIL sensor rates")]
+    assert "accelerometer declares 100 Hz" in line and "gps declares 3 Hz" in line and ": 1.5 Hz" in line
+
+
+def test_reads_bunched_in_the_period_fail_though_their_count_is_right(table):
+    """Three reads in a period of 100 phases are 3 Hz only if spread 33 or 34 phases apart."""
+    moved = {0: 0, 33: 1, 67: 2}
+    phases = [[] for _ in range(table.period)]
+    for k in table.schedule.phases("gps"):
+        phases[moved[k]] = ["gps"]
+    K = [table.K[1]] * table.period  # phase 1: no reading
+    for old, new in moved.items():
+        K[new] = table.K[old]
+    bunched = dataclasses.replace(table, schedule=Schedule.from_names(["gps"], phases), K=K)
+    check = rate_check(bunched)
+    assert not check.ok and "gps declares 3 Hz, a read every 33.3333 phases" in check.detail
+    assert "gaps of 1, 98 phases" in check.detail
+
+
+def test_cli_verify_prints_the_failure_and_exits_1(table, tmp_path, cli):
+    path = _with_rate(table, "gps", 1.0).save(tmp_path / "gains.json")
+    code, out, _ = cli("verify", path)
+    assert code == 1
+    assert "FAIL sensor rates match the schedule: gps declares 1 Hz, the schedule reads it at 3 of 100 phases" in out
+    code, out, _ = cli("verify", table.save(tmp_path / "good.json"))
+    assert code == 0 and "PASS sensor rates match the schedule" in out
