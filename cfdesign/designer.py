@@ -41,7 +41,7 @@ from .errors import CfdesignError, SpecError
 from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
-from .spec import QUANTITY_ORDERS, FilterSpec, require_spec
+from .spec import QUANTITY_ORDERS, FilterSpec, checked_spec
 from .timing import nearest_tick
 
 #: structures stored for use without the symbolic engine (:meth:`Structure.load`)
@@ -715,7 +715,9 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     Raises
     ------
     SpecError
-        ``spec`` is not a FilterSpec (a path: read it with :func:`~cfdesign.spec.load_spec`), or
+        ``spec`` is not a FilterSpec (a path: read it with :func:`~cfdesign.spec.load_spec`), a
+        field of a spec built or edited in Python breaks the rules of a design file
+        (:func:`~cfdesign.spec.checked_spec`: a rate given as text, ``noise=None``), or the spec
         does not fit the structure (a missing or extra sensor, a rate, a bias the structure
         cannot estimate); the message names the field.
     RiccatiError
@@ -735,7 +737,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     [[0.6342 0.0198]
      [0.8039 0.    ]]
     """
-    require_spec(spec, "design")
+    spec = checked_spec(spec, "design")  # a spec edited in Python: parse_spec's rules, not a TypeError deep inside
     if observer is None:
         structure = numeric_structure(spec)
     else:
@@ -797,11 +799,13 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     Raises
     ------
     SpecError
-        The spec does not fit the structure (sensors, gain form or sample time of a
+        A field of the spec breaks the rules of a design file (:func:`~cfdesign.spec.checked_spec`),
+        or the spec does not fit the structure (sensors, gain form or sample time of a
         continuous structure, a bias without a state); the message names the field.
     RiccatiError
         No stabilising optimal gain exists.
     """
+    spec = checked_spec(spec, "design_from_structure")
     with single_thread(len(structure.Fc)):  # small dense solves: one BLAS thread (cfdesign.blas)
         return _design_from_structure(structure, spec)
 

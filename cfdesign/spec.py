@@ -278,6 +278,92 @@ def require_spec(value, what: str) -> None:
     raise SpecError(f"{what} takes a FilterSpec, got {type(value).__name__}{hint}")
 
 
+def checked_spec(spec, what: str = "design") -> FilterSpec:
+    """A FilterSpec built or edited in Python, read again by the rules of :func:`parse_spec`.
+
+    ``dataclasses.replace(spec, ...)`` and ``FilterSpec(...)`` skip :func:`parse_spec`: a rate
+    given as text, ``noise=None`` or ``gains=[1]`` failed deep inside :func:`cfdesign.design`
+    with a raw ``TypeError`` or ``AttributeError``.  Here every field is turned back into its
+    design-file table and parsed, so the same rules apply with the same messages, naming the
+    field (``sensors.gyro.rate_hz must be positive, got -5``).  A field left ``None`` counts as
+    left out of the file (its default); a sensor given as a table, or a noise or bias given as
+    one, is read as :func:`parse_spec` reads it.
+
+    Parameters
+    ----------
+    spec : FilterSpec
+        The design to check.
+    what : str
+        The function, as a message naming a wrong type names it (``'design'``).
+
+    Returns
+    -------
+    FilterSpec
+        The spec as :func:`parse_spec` gives it (numbers as floats, gains ``{}`` as none).
+
+    Raises
+    ------
+    SpecError
+        ``spec`` is not a FilterSpec, its sensors are not SensorSpecs (or tables), two sensors
+        share a name, or a field is invalid by the rules of a design file; the message names it.
+
+    Examples
+    --------
+    >>> import dataclasses, cfdesign
+    >>> from cfdesign.spec import checked_spec
+    >>> spec = cfdesign.load_spec(cfdesign.example_path("tilt"))
+    >>> checked_spec(dataclasses.replace(spec, sample_time_s=-0.01))
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.SpecError: sample_time_s must be positive, got -0.01
+    """
+    require_spec(spec, what)
+    return parse_spec(_spec_table(spec), sha256=spec.sha256)
+
+
+def _spec_table(spec: FilterSpec) -> dict:
+    """The design-file table of a FilterSpec, :func:`parse_spec`'s inverse; fields left None left out."""
+    crossover, gains = spec.crossover, spec.gains
+    if isinstance(crossover, dict) and isinstance(crossover.get("hz"), tuple):  # parse_spec's own form
+        crossover = {**crossover, "hz": list(crossover["hz"])}
+    if isinstance(gains, dict) and not gains:  # no fixed gains (an empty [gains] table is refused in a file)
+        gains = None
+    table = {"name": spec.name, "structure": spec.structure, "sensors": _sensor_tables(spec.sensors),
+             "gain_form": spec.gain_form, "sample_time_s": spec.sample_time_s, "discrete": spec.discrete,
+             "order": spec.order, "bands": spec.bands, "description": spec.description, "gains": gains,
+             "wrap_angle": spec.wrap_angle, "output": spec.output, "crossover": crossover, "full": spec.full}
+    return {key: value for key, value in table.items() if value is not None}
+
+
+def _sensor_tables(sensors) -> dict:
+    """``{name: table}`` of a FilterSpec's sensors (a dict of tables passes as it is)."""
+    if isinstance(sensors, dict):
+        return sensors
+    if not isinstance(sensors, (tuple, list)):
+        raise SpecError(f"sensors must be a tuple of SensorSpec, got {type(sensors).__name__}")
+    tables = {}
+    for i, x in enumerate(sensors):
+        if not isinstance(x, SensorSpec):
+            raise SpecError(f"sensors[{i}] must be a SensorSpec, got {type(x).__name__} (cfdesign.parse_spec "
+                            "reads a [sensors.NAME] table into one)")
+        field = _sensor_name(x.name)
+        if x.name in tables:
+            raise SpecError(f"{field}: two sensors of that name; each sensor needs its own")
+        body = {"rate_hz": x.rate_hz, "noise": _figures(x.noise, WhiteNoise, ("density", "std")),
+                "bias": _figures(x.bias, Bias, ("model", "density", "value")), "measures": x.measures,
+                "port": x.port, "offset_s": x.offset_s, "role": x.role}
+        tables[x.name] = {key: value for key, value in body.items() if value is not None}
+    return tables
+
+
+def _figures(value, kind, keys):
+    """The table of a :class:`~cfdesign.noise.WhiteNoise` or :class:`~cfdesign.noise.Bias`;
+    anything else as it is, for :func:`parse_spec` to read or name."""
+    if not isinstance(value, kind):
+        return value
+    return {key: getattr(value, key) for key in keys if getattr(value, key) is not None}
+
+
 def load_spec(path) -> FilterSpec:
     """Read and validate a TOML design file.
 
@@ -431,11 +517,17 @@ def _gains(table):
     return {name: _number(table, name, f"gains.{name}", signed=True, span=GAIN_RANGE) for name in table}
 
 
-def _sensor(name, body) -> SensorSpec:
+def _sensor_name(name) -> str:
+    """``sensors.NAME``, the field of a sensor whose name is an ASCII identifier and not a keyword."""
     field = f"sensors.{name}"
     if not (isinstance(name, str) and name.isascii() and name.isidentifier()) or keyword.iskeyword(name):
         raise SpecError(f"{field}: sensor names must be ASCII identifiers (letters, digits, _; not starting "
                         "with a digit) and not Python keywords: they name log columns and C macros")
+    return field
+
+
+def _sensor(name, body) -> SensorSpec:
+    field = _sensor_name(name)
     if not isinstance(body, dict):
         raise SpecError(f"{field} must be a table")
     _no_unknown(body, _SENSOR_KEYS, field + ".")

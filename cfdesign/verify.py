@@ -16,7 +16,9 @@ and sensor relations it rebuilds every band numerically and checks
     unit circle) by design, so the monodromy is what must be stable;
 (c) covariances: ``P`` and ``P_filtered``, behind every predicted standard deviation, satisfy
     the Lyapunov recursion of the table's own gains (:func:`covariance_check`);
-(d) with the spec: re-designing from it gives the same gains (``rtol``).
+(d) rates (discrete tables): each sensor's ``rate_hz`` is the rate at which the schedule reads it,
+    evenly spaced (:func:`rate_check`);
+(e) with the spec: re-designing from it gives the same gains (``rtol``).
 
 Band of sensor ``j``: ``T_j = (C_o adj(vI - A) G_j + D_j den) / den * rel_j``
 (docs/derivations.md, "One observer"), with ``rel_j = v**order`` (continuous) or the ZOH
@@ -26,6 +28,7 @@ chain relation ``N_order / N_0`` (discrete), all from :mod:`cfdesign.linear`.  n
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import lru_cache
 
 import numpy as np
@@ -33,8 +36,8 @@ import numpy as np
 from . import linear
 from .errors import InputError
 
-__all__ = ["Check", "verify_table", "numeric_checks", "covariance_check", "band_polynomials", "phase_realisation",
-           "frequency_grid", "polynomial_error"]
+__all__ = ["Check", "verify_table", "numeric_checks", "covariance_check", "rate_check", "band_polynomials",
+           "phase_realisation", "frequency_grid", "polynomial_error"]
 
 IDENTITY_RTOL = 1e-12
 GRID_RTOL = 1e-9
@@ -341,6 +344,68 @@ def covariance_check(table) -> Check:
     return Check("covariances of these gains", ok, detail)
 
 
+#: relative difference allowed between a sensor's ``rate_hz`` and the rate its schedule reads it at:
+#: the designer takes a rate within 1e-9 of a fraction of the base rate; the rest is rounding of ``T``
+RATE_RTOL = 1e-8
+
+
+def rate_check(table) -> Check:
+    """Do the sensors' declared rates (``rate_hz``) match the schedule that reads them?
+
+    The runtime reads a measurement at the phases of the table's schedule, and its noise
+    figures (``Q``, ``R``) were converted at its ``rate_hz``; a table whose ``rate_hz`` says
+    one rate and whose schedule another runs a filter designed for neither.  A measurement
+    read ``n`` times in a period of ``N`` phases of ``T`` seconds runs at ``n / (N T)`` Hz,
+    evenly: the gaps between its reads (around the period) are ``N/n`` phases, or the two
+    whole numbers either side of it when ``N/n`` is a fraction (a 3 Hz GPS beside a 100 Hz
+    IMU: 33 and 34); an input is read at every tick, ``1 / T`` Hz.  Gain tables record no
+    sensor offsets, so the phase of the first read is free.
+
+    Parameters
+    ----------
+    table : GainTable
+        The table to check.
+
+    Returns
+    -------
+    Check
+        ``sensor rates match the schedule``: each sensor's declared rate, or what differs
+        (the sensor, its declared rate and the schedule's rate or gaps), within
+        ``RATE_RTOL`` (1e-8) relative.  A continuous table has no schedule: it passes.
+    """
+    name = "sensor rates match the schedule"
+    if table.domain == "s":
+        return Check(name, True, "a continuous table reads its sensors continuously; rate_hz only scales the "
+                     "noise figures")
+    wrong = [w for w in (_rate_mismatch(table, s) for s in table.sensors) if w]
+    if wrong:
+        return Check(name, False, "; ".join(wrong) + f" (tolerance {RATE_RTOL:g}): the table runs a sensor at "
+                     "another rate than its noise figures were converted at")
+    rates = ", ".join(f"{s.name} {s.rate_hz:g} Hz" for s in table.sensors)
+    return Check(name, True, f"each sensor is read at its rate_hz ({rates}), tolerance {RATE_RTOL:g}")
+
+
+def _rate_mismatch(table, sensor) -> str:
+    """What differs between one sensor's ``rate_hz`` and its reads in the schedule; ``''`` if nothing."""
+    T, N = table.sample_time_s, table.period
+    if sensor.role == "input":
+        reads, phases = N, tuple(range(N))
+    else:
+        phases = table.schedule.phases(sensor.name)
+        reads = len(phases)
+    actual = reads / (N * T)
+    if not abs(sensor.rate_hz - actual) <= RATE_RTOL * max(sensor.rate_hz, actual):
+        how = "an input, read at every tick" if sensor.role == "input" else \
+            f"the schedule reads it at {reads} of {N} phases"
+        return f"{sensor.name} declares {sensor.rate_hz:.10g} Hz, {how} of {T:g} s: {actual:.10g} Hz"
+    step = Fraction(N, reads)
+    gaps = sorted({(phases[(i + 1) % reads] - phases[i]) % N or N for i in range(reads)})
+    if not set(gaps) <= {step.numerator // step.denominator, -(-step.numerator // step.denominator)}:
+        return (f"{sensor.name} declares {sensor.rate_hz:.10g} Hz, a read every {float(step):g} phases; the schedule "
+                f"reads it at {reads} of {N} phases, but with gaps of {', '.join(map(str, gaps))} phases")
+    return ""
+
+
 def _eigvals(M) -> np.ndarray:
     """Eigenvalues of ``M``; ``[inf]`` when it overflowed (a product of phases that grows without bound)."""
     return np.linalg.eigvals(M) if np.all(np.isfinite(M)) else np.array([np.inf])
@@ -472,14 +537,16 @@ def numeric_checks(table) -> list:
 
 
 def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
-    """Every check of ``cfdesign verify``: complementarity, stability and (with a spec) the gains.
+    """Every check of ``cfdesign verify``: complementarity, stability, covariances, rates and (with a spec) the gains.
 
     From the table's own ``F, B, H, K`` and sensor relations every band is rebuilt
     numerically: the bands must sum to one as a polynomial identity (coefficients within
     ``1e-12`` relative, every phase) and over a frequency grid (single-rate tables); the closed
     loop must be strictly stable (poles, or the monodromy multipliers of a multirate table);
-    with ``spec`` the table is re-designed and everything that changes what it runs (sensors,
-    order, gain form, output, wrap, sample time, schedule, structure, gains) compared.
+    ``P`` must be the covariances of the gains (:func:`covariance_check`); a discrete table's
+    sensors must be read at their ``rate_hz`` (:func:`rate_check`); with ``spec`` the table is
+    re-designed and everything that changes what it runs (sensors, order, gain form, output,
+    wrap, sample time, schedule, structure, gains) compared.
 
     Parameters
     ----------
@@ -531,6 +598,8 @@ def verify_table(table, spec=None, rtol: float = 1e-9) -> list:
     if spec is not None:
         require_spec(spec, "verify_table")
     checks = numeric_checks(table)
+    if table.domain == "z":
+        checks.append(rate_check(table))
     if spec is not None:
         checks += _same_design(table, spec, rtol)
     return checks

@@ -412,7 +412,7 @@ def test_a_sample_time_that_leaves_no_posterior_is_named_not_a_failed_check(tmp_
     assert code == 0, err
     assert ("(posterior): none" in out) == ("prior" in option), out
     code, out, err = cli("verify", tmp_path / "g.json", "--spec", spec)
-    assert code == 0 and "5 of 5 checks hold" in out, out + err
+    assert code == 0 and "6 of 6 checks hold" in out, out + err
 
 
 # ---------------------------------------------------------------------- a number written as text
