@@ -107,6 +107,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     >>> "void imu_att_init(imu_att_state *s);" in files["imu_att.h"]
     True
     """
+    from ..nav import attitude_filter as af
     from ..nav.attitude_filter import HEADING_VAR0, STATE_FIELDS, TILT_SETTLE, AttitudeFilter, _coefficients
 
     if not isinstance(attitude_filter, AttitudeFilter):
@@ -115,7 +116,8 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     design = attitude_filter.design
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
      new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels,
-     use_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = _coefficients(design)
+     use_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio, var_g, var_a,
+     floor_up, d_scale) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -135,7 +137,9 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "mag_first_time": _hex(first_s),
         "mag_provisional": _hex(prov_s), "mag_follow": _hex(follow_f), "hold_var": _hex(hold_var),
-        "rest_lp_var": _hex(lp_var),
+        "rest_lp_var": _hex(lp_var), "rest_gyro_var": _hex(var_g), "rest_accel_var": _hex(var_a),
+        "rest_floor_up": _hex(floor_up), "rest_diff_scale": _hex(d_scale), "rest_floor_k": _hex(af.REST_FLOOR_K),
+        "rest_floor_cap": _hex(af.REST_FLOOR_CAP),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
         "heading_var0": _hex(HEADING_VAR0),
         "n_velocity": len(velocity),

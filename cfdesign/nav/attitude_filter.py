@@ -72,8 +72,18 @@ Every threshold is in physical units, derived from the noise figures where it ca
 
 * rest: for ``rest_time_s`` the gyro and the specific force stay within
   ``rest_sigma * sqrt(3)`` times their per-sample noise (std per axis, from the densities) of
-  their ``rest_filter_s`` low-pass, and the low-passed rate within ``3 gyro_bias_std0`` of
-  the bias estimate;
+  their ``rest_filter_s`` low-pass, or within twice the noise measured where that is larger, and the
+  low-passed rate within ``3 gyro_bias_std0`` of the bias estimate.  The noise measured is each
+  sensor's floor: its white noise from the differences of successive samples (low-passed over
+  ``rest_filter_s``; a motion smooth at the sample rate hardly adds to it, unlike to the deviation from
+  the low-pass), followed down at once, risen by at most a factor 2 per second while the deviation
+  could be rest and kept within 1/16 to 16 times the densities' variance (``REST_FLOOR_*``).  A sensor
+  as noisy as its density, or quieter, keeps the designed thresholds (its floor stays below their
+  9/4); a gyro 4 times noisier than its density, which never rested, rests within seconds and learns
+  its bias (and of a slow motion its noise hides, reads no more as rest than a filter built with its
+  true density).  A sensor more than twice as noisy as its density at rest is warned of once
+  (``UserWarning``): the channels' gains still take the density, so set it (``cfdesign noise`` on a
+  still log);
 * magnetic disturbance: the field's norm and dip angle (low-passed over ``mag_filter_s``)
   against a reference learned online (running mean, then a ``mag_reference_s`` low-pass
   while undisturbed; until the ``mag_filter_s`` low-pass has settled it is a running mean of
@@ -151,6 +161,16 @@ TILT_SETTLE = 1.0 + 4.0 * math.sqrt(2.0)
 #: without a given initial attitude, and after a gap in the gyro
 HEADING_VAR0 = math.pi * math.pi / 3.0
 
+#: rest detection's noise floors (``gyro_floor``, ``accel_floor``), in units of the low-passed squared
+#: deviation's designed mean at rest (white noise of the densities): the quietest the sensor's white noise
+#: (``gyro_noise``, ``accel_noise``: from successive samples) has been, followed down at once, risen by at most
+#: a factor 2 per ``REST_FLOOR_DOUBLING_S`` seconds while the deviation is below ``REST_FLOOR_K * REST_FLOOR_CAP``
+#: (could be rest), bounded to ``[1 / REST_FLOOR_CAP, REST_FLOOR_CAP]`` (16: a sensor 4 times noisier than its
+#: density); rest is a deviation within ``REST_FLOOR_K`` times the floor or the designed threshold, whichever is
+#: larger; a deviation at rest (``gyro_rest_dev``, ``accel_rest_dev``) above ``REST_FLOOR_WARN`` (twice the density
+#: in std) is warned of, once
+REST_FLOOR_K, REST_FLOOR_CAP, REST_FLOOR_DOUBLING_S, REST_FLOOR_WARN = 4.0, 16.0, 1.0, 4.0
+
 #: the filter state, in the order of :meth:`AttitudeFilter.state` and the C struct
 STATE_FIELDS = (
     "qw", "qx", "qy", "qz",              # attitude, body -> ENU
@@ -161,6 +181,10 @@ STATE_FIELDS = (
     "gx", "gy", "gz",                    # rest detection: low-passed rate (body, rad/s)
     "fx", "fy", "fz",                    # rest detection: low-passed specific force (body, m/s²)
     "gyro_dev", "accel_dev",             # rest detection: low-passed squared deviations from those
+    "gyro_noise", "accel_noise",         # rest detection: white noise from successive samples, low-passed
+    "gyro_floor", "accel_floor",         # rest detection: noise floors (the noise's quietest)
+    "lax", "lay", "laz",                 # rest detection: last good specific force (m/s²)
+    "gyro_rest_dev", "accel_rest_dev",   # those deviations low-passed over the rests (0: no rest yet)
     "rest_time",                         # time still (s)
     "r00", "r01", "r11",                 # zero-rotation channel: covariance of its Kalman recursion
     "t00", "t01", "t11",                 # tilt channel: covariance of its Kalman recursion
@@ -569,6 +593,15 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
         "rest_gyro_th2": (rest_std * gyro_std) ** 2,
         "rest_accel_th2": (rest_std * accel_std) ** 2,
         "rest_bias_th2": max(3.0 * p.gyro_bias_std0, rest_std * gyro_std) ** 2,
+        # the mean of the detector's squared deviation (three axes of white noise from its first-order
+        # low-pass, after the update) at rest: the unit of the noise floors
+        "rest_gyro_var": 6.0 * gyro_std ** 2 * (1.0 - rest_alpha) ** 2 / (2.0 - rest_alpha),
+        "rest_accel_var": 6.0 * accel_std ** 2 * (1.0 - rest_alpha) ** 2 / (2.0 - rest_alpha),
+        # the noise floors' largest rise per step (a factor 2 per REST_FLOOR_DOUBLING_S)
+        "rest_floor_up": 2.0 ** (T / REST_FLOOR_DOUBLING_S),
+        # white noise from the difference of successive samples (twice the variance per axis) in the units of
+        # those means: a motion smooth at the sample rate hardly adds to it, unlike to the deviation
+        "rest_diff_scale": (1.0 - rest_alpha) ** 2 / (2.0 - rest_alpha),
         "mag_alpha": -math.expm1(-T / p.mag_filter_s),
         "mag_ref_alpha": -math.expm1(-T / p.mag_reference_s),
         "north": math.atan2(math.cos(p.declination_rad), math.sin(p.declination_rad)),
@@ -706,12 +739,16 @@ class AttitudeFilter:
         for name in ("rest", "tilt", "heading"):
             i = _INDEX[name[0] + "00"]
             s[i:i + 3] = self.design.priors[name]
+        c = self.design.constants
+        s[_INDEX["gyro_floor"]], s[_INDEX["accel_floor"]] = c["rest_gyro_var"], c["rest_accel_var"]
+        s[_INDEX["gyro_noise"]], s[_INDEX["accel_noise"]] = c["rest_gyro_var"], c["rest_accel_var"]
         if self._initial is not None:
             # a given heading is known as well as a running filter knows it (the heading table's DARE variance)
             s[_INDEX["h00"]] = float(self.design.tables["heading"].P[0][0][0])
         self._s = s
-        c = self.design.constants
         self._units = _GyroUnits(self.rate_hz, c["gyro_range2"], c["accel_range2"])
+        #: the rest deviations beyond which the sensors are warned of as noisier than their densities (None: warned)
+        self._noisy = (REST_FLOOR_WARN * c["rest_gyro_var"], REST_FLOOR_WARN * c["rest_accel_var"])
 
     def state(self) -> dict:
         """A copy of the filter's state, to save it or to continue it later with :meth:`restore`.
@@ -731,7 +768,7 @@ class AttitudeFilter:
         >>> from cfdesign.nav import AttitudeFilter
         >>> state = AttitudeFilter(100.0).state()
         >>> len(state), state["qw"], state["started"]
-        (57, 1.0, 0.0)
+        (66, 1.0, 0.0)
         """
         return dict(zip(STATE_FIELDS, self._s, strict=True))
 
@@ -754,7 +791,8 @@ class AttitudeFilter:
             a finite number, or is a state no run of this filter reaches: its ``qw, qx, qy, qz``
             not near a unit quaternion (norm outside (0.5, 2)), a low-passed or held rate beyond
             ``gyro_range_rps``, a specific force beyond ``accel_range_mps2``, a covariance that is
-            not positive semi-definite, a negative time, a field norm that is negative or whose
+            not positive semi-definite, a noise floor outside 1/16 to 16 times the densities' variance (in
+            the rest detector's units), a negative time, a field norm that is negative or whose
             square overflows, a dip outside [-pi/2, pi/2], a
             counter that is not a whole number, a flag or level out of its values, an
             ``accel_time`` beyond ``max_accel_time_s`` or any field beyond
@@ -814,13 +852,19 @@ class AttitudeFilter:
                 return f"{name} = {v[name]!r} is not the norm of a field reading (from 0 to {_MAX_NORM:.4g})"
         for prefix, what, limit in (("g", "the low-passed rate", p.gyro_range_rps),
                                     ("lg", "the last good rate", p.gyro_range_rps),
+                                    ("la", "the last good specific force", p.accel_range_mps2),
                                     ("f", "the low-passed specific force", p.accel_range_mps2)):
             if norm(prefix) > limit * tol:
                 return (f"{prefix}x, {prefix}y, {prefix}z ({what}) has norm {norm(prefix):.6g}, beyond the sensor's "
                         f"range {limit:g}")
-        for name, limit in (("gyro_dev", p.gyro_range_rps), ("accel_dev", p.accel_range_mps2)):
+        for name, limit in (("gyro_dev", p.gyro_range_rps), ("accel_dev", p.accel_range_mps2),
+                            ("gyro_rest_dev", p.gyro_range_rps), ("accel_rest_dev", p.accel_range_mps2),
+                            ("gyro_noise", p.gyro_range_rps), ("accel_noise", p.accel_range_mps2)):
             if not 0.0 <= v[name] <= 4.0 * limit * limit * tol:
                 return f"{name} = {v[name]!r} must be from 0 to {4.0 * limit * limit:g} (twice the range, squared)"
+        problem = self._impossible_floor(v)
+        if problem:
+            return problem
         for c in "rth":
             p00, p01, p11 = v[c + "00"], v[c + "01"], v[c + "11"]
             if not (p00 >= 0.0 and p11 >= 0.0 and p01 * p01 <= p00 * p11):
@@ -843,6 +887,16 @@ class AttitudeFilter:
                 return f"{name} = {v[name]!r} must be one of {', '.join(f'{a:g}' for a in allowed)}"
         if abs(v["accel_time"]) > p.max_accel_time_s:
             return f"accel_time = {v['accel_time']!r} is beyond max_accel_time_s {p.max_accel_time_s:g}"
+        return None
+
+    def _impossible_floor(self, v) -> str | None:
+        """What makes the noise floors of the state ``v`` ones no run of this filter reaches, or None: a floor
+        outside ``[1 / REST_FLOOR_CAP, REST_FLOOR_CAP]`` times its unit (the deviation's designed mean at rest)."""
+        c, tol = self.design.constants, 1.0 + 1e-9
+        for sensor, unit in (("gyro", c["rest_gyro_var"]), ("accel", c["rest_accel_var"])):
+            low, high, name = unit / REST_FLOOR_CAP, unit * REST_FLOOR_CAP, f"{sensor}_floor"
+            if not low / tol <= v[name] <= high * tol:
+                return f"{name} = {v[name]!r} must be from {low:.6g} to {high:.6g} (the floor's bounds)"
         return None
 
     # ------------------------------------------------------------------ readings of the state
@@ -912,7 +966,8 @@ class AttitudeFilter:
             30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
             arrays instead.  Once: the gyro turns gravity more than 5 times faster than the
             accelerometer shows it turning (``gyr`` in deg/s?; checked in blocks of about 4096
-            samples, ``_GyroUnits``).
+            samples, ``_GyroUnits``).  Once: at rest the gyro or the accelerometer is more than twice as noisy
+            (in std) as its density (``gyro_noise_density``, ``accel_noise_density``).
 
         Examples
         --------
@@ -933,7 +988,10 @@ class AttitudeFilter:
             f = math.sqrt(ax * ax + ay * ay + az * az)
             if 0.0 < f < 3.0 or 30.0 < f <= self.params.accel_range_mps2:
                 _warn_accel_unit("the first specific force", f, stacklevel=3)
-        _step(self._s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
+        s = self._s
+        _step(s, self._coef, gx, gy, gz, ax, ay, az, mx, my, mz, self.magnetometer)
+        if self._noisy and (s[_I_GREST] > self._noisy[0] or s[_I_FREST] > self._noisy[1]):
+            self._warn_noise(stacklevel=3)
         units = self._units
         buffer = units.buffer
         if buffer is not None:
@@ -971,7 +1029,9 @@ class AttitudeFilter:
             The arrays look like other units: a median specific force outside 3 to 30 (``acc``
             in g?); a median rate above 20 or a gyro that turns gravity more than 5 times faster
             than the accelerometer shows it turning (``gyr`` in deg/s?, once per filter, as
-            :meth:`step` checks it: ``_GyroUnits``).  The filter runs anyway.
+            :meth:`step` checks it: ``_GyroUnits``); once per filter, at rest the gyro or the accelerometer more
+            than twice as noisy (in std) as its density (``gyro_noise_density``, ``accel_noise_density``;
+            rest is then detected against the noise measured).  The filter runs anyway.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
         self._units.check_median(gyr, stacklevel=3)
@@ -987,6 +1047,7 @@ class AttitudeFilter:
                 m = M[k] if nine else nan3
                 _step(s, coef, *G[k], *A[k], *m, nine)
                 out[k] = s[0:4]
+            self._warn_noise(stacklevel=3)
             return _unit(out)
         bias, flags = [None] * n, [None] * n
         i_rest, i_dist, i_level = _INDEX["rest_time"], _INDEX["disturbed"], _INDEX["level"]
@@ -1000,12 +1061,37 @@ class AttitudeFilter:
             out[k], bias[k] = s[0:4], s[4:7]
             flags[k] = (s[i_rest] >= rest_time, s[i_dist], s[i_level],
                         weights[weight] / k_motion if s[started] and weight >= 0 else 0.0, math.hypot(s[i_vx], s[i_vy]))
+        self._warn_noise(stacklevel=3)
         flags = np.array(flags, dtype=float).reshape(n, 5)
         return AttitudeRun(_unit(out), np.array(bias, dtype=float).reshape(n, 3), flags[:, 0] > 0, flags[:, 1] > 0,
                            flags[:, 2].astype(int), flags[:, 3], flags[:, 4], self.missing)
 
 
+    def _warn_noise(self, stacklevel):
+        """Warn, once per filter, of a sensor whose deviation at rest (``gyro_rest_dev``, ``accel_rest_dev``) is
+        beyond ``REST_FLOOR_WARN`` times the densities' (``stacklevel``: as :func:`warnings.warn` would take it
+        here)."""
+        import warnings
+
+        if not self._noisy:
+            return
+        c, p = self.design.constants, self.params
+        noisy = [f"{arg}: at rest the {what} is about {math.sqrt(self._s[i] / unit):.2g} times as noisy as the "
+                 f"{name} the filter was designed with ({density:g})"
+                 for what, arg, i, unit, name, density in (
+                     ("gyro", "gyr", _I_GREST, c["rest_gyro_var"], "gyro_noise_density", p.gyro_noise_density),
+                     ("accelerometer", "acc", _I_FREST, c["rest_accel_var"], "accel_noise_density",
+                      p.accel_noise_density))
+                 if unit > 0.0 and self._s[i] > REST_FLOOR_WARN * unit]
+        if noisy:
+            self._noisy = None
+            warnings.warn(f"{'; '.join(noisy)}: rest is detected against the noise measured, the channels' gains "
+                          "still take the density; measure the sensor's from a still log (`cfdesign noise`) and set "
+                          "it", UserWarning, stacklevel=stacklevel)
+
+
 _NAN3 = (math.nan, math.nan, math.nan)
+_I_GREST, _I_FREST = _INDEX["gyro_rest_dev"], _INDEX["accel_rest_dev"]
 _NO_SAMPLES = np.empty((0, 3))
 
 
@@ -1214,7 +1300,8 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             p.mag_provisional_s, p.mag_follow_factor, design.priors["rest"][0],
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
-            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design))
+            c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design), c["rest_gyro_var"],
+            c["rest_accel_var"], c["rest_floor_up"], c["rest_diff_scale"])
 
 
 def _settle_ratio(design: AttitudeDesign) -> float:
@@ -1252,6 +1339,25 @@ def _tilt_error(flx, fly, flz, fdev, tilt_f, r0, r1, r2, r3, r4, r5) -> bool:
     return 8.0 * fdev < h2 and 2.0 * abs(flx * flx + fly * fly + flz * flz - tilt_f * tilt_f) < h2
 
 
+def _noise_floor(noise, floor, dev, var, up) -> float:
+    """The noise floor after one step from ``floor``, given the sensor's low-passed white noise ``noise`` and the
+    rest detector's low-passed squared deviation ``dev`` (all in the sensor's units squared; ``var``: the
+    deviation's designed mean at rest; ``up``: the largest rise per step): followed down at once, risen by at most
+    ``up`` times and not beyond ``noise`` while the deviation could be rest (below ``REST_FLOOR_K *
+    REST_FLOOR_CAP`` times ``var``: a fast motion, which adds to the noise too, does not raise it), within
+    ``[var / REST_FLOOR_CAP, var * REST_FLOOR_CAP]``."""
+    if noise < floor:
+        low = var / REST_FLOOR_CAP
+        return noise if noise > low else low
+    if dev >= REST_FLOOR_K * REST_FLOOR_CAP * var:
+        return floor
+    floor *= up
+    if floor > noise:
+        floor = noise
+    high = REST_FLOOR_CAP * var
+    return floor if floor < high else high
+
+
 def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """One sample on the state list ``s`` (:data:`STATE_FIELDS`); returns the velocity design used (-1: none).
 
@@ -1259,16 +1365,19 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     """
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check,
-     use_levels, use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio) = coef
+     use_levels, use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio, var_g, var_a,
+     floor_up, d_scale) = coef
     heading_var0 = HEADING_VAR0
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
-     gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
+     gdev, fdev, gnoise, fnoise, gfloor, ffloor, lax, lay, laz, grest, frest, rest_time, r00, r01, r11,
+     t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
      ref_n, norm_new, dip_new, new_n, new_time, new_turn, dist_time, disturbed, level, acc_time, tilt_n, tilt_f,
      lgx, lgy, lgz, started, miss_g, miss_a, miss_m, gap_n) = s
 
     # readings: an impossible or non-finite one is missing (NaN fails every comparison)
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
-    if gx * gx + gy * gy + gz * gz <= g_range2:
+    g_ok = gx * gx + gy * gy + gz * gz <= g_range2
+    if g_ok:
         lgx, lgy, lgz = gx, gy, gz
         if gap_n * tilt_alpha >= 1.0:
             # the gyro was missing for longer than the tilt's start-up: the held rate has lost the attitude
@@ -1331,17 +1440,35 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     gly += r_alpha * (gy - gly)
     glz += r_alpha * (gz - glz)
     gdev += r_alpha * ((gx - glx) * (gx - glx) + (gy - gly) * (gy - gly) + (gz - glz) * (gz - glz) - gdev)
+    if g_ok and not first:
+        # the gyro's white noise from successive samples (a motion smooth at the sample rate hardly adds to it)
+        # and its floor: a sensor noisier than its density rests within its own noise
+        gnoise += r_alpha * (d_scale * ((gx - ox) * (gx - ox) + (gy - oy) * (gy - oy) + (gz - oz) * (gz - oz))
+                             - gnoise)
+        gfloor = _noise_floor(gnoise, gfloor, gdev, var_g, floor_up)
     still = False
     if acc_ok:
         flx += r_alpha * (ax - flx)
         fly += r_alpha * (ay - fly)
         flz += r_alpha * (az - flz)
         fdev += r_alpha * ((ax - flx) * (ax - flx) + (ay - fly) * (ay - fly) + (az - flz) * (az - flz) - fdev)
+        if not first:
+            fnoise += r_alpha * (d_scale * ((ax - lax) * (ax - lax) + (ay - lay) * (ay - lay) + (az - laz) * (az - laz))
+                                 - fnoise)
+            ffloor = _noise_floor(fnoise, ffloor, fdev, var_a, floor_up)
+        lax, lay, laz = ax, ay, az
         db = (glx - bx) * (glx - bx) + (gly - by) * (gly - by) + (glz - bz) * (glz - bz)
-        still = use_rest and gdev < th_g2 and fdev < th_a2 and db < th_b2
+        # each sensor within the designed threshold or REST_FLOOR_K times its noise floor, whichever is larger
+        kg, ka = REST_FLOOR_K * gfloor, REST_FLOOR_K * ffloor
+        still = (use_rest and gdev < (kg if kg > th_g2 else th_g2) and fdev < (ka if ka > th_a2 else th_a2)
+                 and db < th_b2)
     was_rest = rest_time >= rest_min
     rest_time = rest_time + T if still else 0.0
     rest = rest_time >= rest_min
+    if rest:
+        # the deviations at rest, low-passed over the rests: how noisy the sensors are (the class warns of it)
+        grest = gdev if grest == 0.0 else grest + r_alpha * (gdev - grest)
+        frest = fdev if frest == 0.0 else frest + r_alpha * (fdev - frest)
 
     # the gyro: q <- q (x) exp(u / 2), u = (w - b) T plus the two-sample coning term (u_prev x u) / 12
     if not first:
@@ -1598,7 +1725,8 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         r11 += q11
     n = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     s[:] = (qw / n, qx / n, qy / n, qz / n, bx, by, bz, vx, vy, ex, ey, ez, px, py, pz, glx, gly, glz, flx, fly, flz,
-            gdev, fdev, rest_time, r00, r01, r11, t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
+            gdev, fdev, gnoise, fnoise, gfloor, ffloor, lax, lay, laz, grest, frest, rest_time, r00, r01, r11,
+            t00, t01, t11, h00, h01, h11, norm_lp, dip_lp, norm_ref, dip_ref,
             ref_n, norm_new, dip_new, new_n, new_time, new_turn, dist_time, disturbed, level, acc_time, tilt_n, tilt_f,
             lgx, lgy, lgz, started, miss_g, miss_a, miss_m, gap_n)
     return jv
