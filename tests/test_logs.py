@@ -2007,3 +2007,20 @@ def test_the_error_of_fixed_gains_over_missed_readings_is_the_joseph_recursion(g
         P = F @ post @ F.T + Q
     assert not np.allclose(got, base)
     np.testing.assert_allclose(got, want, rtol=1e-7)
+
+
+def test_missed_readings_default_to_the_tables_output(gps3):
+    """``MissedReadings(table)`` follows the table's output, as its docstring says (it followed the
+    prior, ``output == 'posterior'`` being False for None): the stds over a missed fix are those of
+    ``output=table.output``, and differ from the prior's."""
+    from cfdesign.runtime.arrivals import MissedReadings
+
+    assert gps3.output == "posterior"
+    phases = np.arange(400) % gps3.period
+    present = np.ones((400, len(gps3.measurements)), dtype=bool)
+    present[100:300] = False
+    base = np.sqrt(np.array([np.diag(P) for P in gps3.P_filtered]))[phases]
+    default, posterior, prior = (MissedReadings(gps3, *o).stds(phases, present, base)
+                                 for o in ((), ("posterior",), ("prior",)))
+    np.testing.assert_array_equal(default, posterior)
+    assert not np.allclose(default, prior)

@@ -285,7 +285,7 @@ class MissedReadings:
 
     def __init__(self, table, output=None):
         self.table = table
-        self.posterior = output == "posterior"
+        self.posterior = (table.output if output is None else output) == "posterior"  # None: the table's
         self.mask = table.schedule.mask()
         self.F, self.H = np.asarray(table.F, dtype=float), np.asarray(table.H, dtype=float)
         self.Q, self.R = np.asarray(table.Q, dtype=float), np.asarray(table.R, dtype=float)
