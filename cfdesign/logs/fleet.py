@@ -34,13 +34,6 @@ _CLUSTER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_":
                    "distributed.worker.memory.monitor-interval": "1s",
                    "distributed.admin.system-monitor.interval": "5s"}
 
-#: what a local worker's first log imports (Dask's worker, pandas, pyarrow, scipy.signal, the filter: 1.8 s of
-#: CPU in each spawned worker, 0.5 before its first log and 1.3 in it), imported once by the forkserver the
-#: workers are forked from (:func:`_start_forkserver`)
-_WORKER_MODULES = ("distributed", "cfdesign.logs.fleet", "cfdesign.runtime.filter", "cfdesign.runtime.arrivals",
-                   "cfdesign.designer", "cfdesign.timing", "pandas", "pyarrow", "pyarrow.pandas_compat",
-                   "scipy.signal", "threadpoolctl")
-
 
 #: the endings of a compressed file's name, left off the names of the estimate files of a fleet
 _PACKED_SUFFIXES = (".gz", ".bz2", ".xz", ".zip")
@@ -149,7 +142,6 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
     """The logs' summary rows, each log run by :func:`_run_one` on the scheduler's workers, or on a local cluster's."""
     from ..runtime.filter import Runtime
 
-    method = {} if scheduler else _start_forkserver(dask)  # its imports overlap the check and the scheduler's start
     # a table no log can run (continuous, unstable, no posterior) is named once, before the workers start
     Runtime(table, output="prior" if options.get("prediction") else None)
     if scheduler:
@@ -160,7 +152,7 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
     else:
         # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
         # warned on stderr when another cluster (another fleet run at the same time) had that port
-        with dask.config.set({**_CLUSTER_CONFIG, **method}):
+        with dask.config.set(_CLUSTER_CONFIG):
             cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                    dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                    silence_logs=logging.ERROR)  # no shutdown warnings
@@ -187,44 +179,6 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
         finally:
             dask_log.setLevel(level)
     return rows
-
-
-def _start_forkserver(dask) -> dict:
-    """Start the forkserver the local workers are forked from, its imports (:data:`_WORKER_MODULES`) under way
-    while the parent checks the table and starts the scheduler.
-
-    Dask spawns each worker by default: a fresh interpreter that imports Dask's worker (0.5 s of CPU) and, in
-    its first log, the rest (that log took 2.1-2.3 s of CPU against 0.8 for the next ones), every worker
-    at once; and a spawned worker ends through the interpreter's whole shutdown, which the cluster's close
-    awaited (0.4-0.9 s with 1 worker, 1.2-2.1 s with 2).  Forked, a worker has its imports from the
-    forkserver (1.4-1.7 s of CPU once; its first log 1.0-1.1 s) and ends at once (close 0.03-0.1 s).  On 2
-    cores shared with other jobs (load 4), 8 logs of 1,000 rows (the fixed cost alone) took 2.1-4.5 s on
-    1 worker and 4.2-7.2 s on 2, and take 2.1-3.6 and 1.6-3.8 s.  A Dask setting of the start method is
-    overridden where the platform has a forkserver (Linux, macOS).
-
-    Parameters
-    ----------
-    dask : module
-        Dask, imported.
-
-    Returns
-    -------
-    dict
-        The Dask setting that has the local workers forked from it; empty where the platform has no
-        forkserver (Windows: workers are spawned).
-    """
-    import multiprocessing
-    from multiprocessing import forkserver
-
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return {}
-    with dask.config.set(_CLUSTER_CONFIG):  # as Dask's nanny sets them before it starts a worker: the forkserver
-        spawn_env = {k: os.environ.get(k, str(v))  # passes its environment on to the workers
-                     for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items() if v is not None}
-    os.environ.update(spawn_env)
-    forkserver.set_forkserver_preload(list(_WORKER_MODULES))  # a module that fails to import is left out
-    forkserver.ensure_running()  # one per process: a second run_logs forks from the first's
-    return {"distributed.worker.multiprocessing-method": "forkserver"}
 
 
 def _failure(future) -> str:
