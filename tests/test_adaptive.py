@@ -14,7 +14,7 @@ from cfdesign.sim.ground import ground_robot_scenario
 OUTAGE = (120.0, 180.0)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # once per worker: xdist deals other modules between its tests
 def run():
     s = ground_robot_scenario(0, duration_s=300.0, outages=(OUTAGE,))
     cf = AdaptiveCF(50.0)

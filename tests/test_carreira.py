@@ -35,7 +35,7 @@ from cfdesign.symbolic.observer import z
 SENSORS = set(rh.SENSORS)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # once per worker: xdist deals other modules between its tests
 def result():
     return reproduce(20)
 

@@ -8,7 +8,7 @@ import pytest
 from cfdesign.reproduce.compare import compare, verdict
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # once per worker: xdist deals other modules between its tests
 def ground():
     return {r.filter: r for r in compare("ground", seed=1, duration_s=120.0)}
 
@@ -25,7 +25,7 @@ def test_ground_scenario_all_filters_bounded(ground):
 
 
 def test_cli_json(cli):
-    code, out, err = cli("reproduce", "compare", "--scenario", "ground", "--duration", "60", "--json")
+    code, out, err = cli("reproduce", "compare", "--scenario", "ground", "--duration", "15", "--json")
     assert code == 0, err
     data = json.loads(out, parse_constant=lambda c: pytest.fail(f"invalid JSON constant {c}"))
     assert {r["filter"] for r in data["ground"]} == {"cf", "adaptive", "ekf003", "ekf002"}

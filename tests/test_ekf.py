@@ -139,11 +139,11 @@ def test_strapdown_ekf_helicopter_errors_and_gyro_bias():
 
 
 def test_strapdown_ekf_long_run_covariance_spd_with_outage():
-    m = Manoeuvre(helix_s=580.0, rate_hz=20.0)              # 10 minutes at 20 Hz
+    m = Manoeuvre(helix_s=340.0, rate_hz=20.0)              # 6 minutes at 20 Hz
     traj = helicopter_manoeuvre(m)
     r = simulate_readings(traj, 2)
     gps = r.gps_enu_m.copy()
-    outage = (traj.t_s > 300.0) & (traj.t_s < 330.0)        # 30 s without GPS
+    outage = (traj.t_s > 200.0) & (traj.t_s < 230.0)        # 30 s without GPS
     gps[outage] = np.nan
     vel = _gps_velocity(traj, gps, 2)
     est = _strapdown(20.0).run(r.gyro_rad_s, r.accel_m_s2, r.mag_g, gps, vel, initial_velocity=traj.velocity_m_s[0])
@@ -155,7 +155,7 @@ def test_strapdown_ekf_long_run_covariance_spd_with_outage():
     assert np.linalg.eigvalsh(P)[0] > 0
     pos_err = np.linalg.norm(est.position - traj.position_m, axis=1)
     assert pos_err[outage].max() < 15.0                     # coasting on the IMU, bias estimated
-    assert pos_err[traj.t_s > 360.0].mean() < 2.0           # recovered
+    assert pos_err[traj.t_s > 260.0].mean() < 2.0           # recovered
     assert _attitude_error_deg(traj.quaternion, est.quaternion).max() < 1.5
     assert np.abs(np.linalg.norm(est.states[:, :4], axis=1) - 1).max() < 1e-3   # eq. (9) keeps |q| ~ 1
 
