@@ -717,7 +717,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     SpecError
         ``spec`` is not a FilterSpec (a path: read it with :func:`~cfdesign.spec.load_spec`), a
         field of a spec built or edited in Python breaks the rules of a design file
-        (:func:`~cfdesign.spec.checked_spec`: a rate given as text, ``noise=None``), or the spec
+        (``cfdesign.spec.checked_spec``: a rate given as text, ``noise=None``), or the spec
         does not fit the structure (a missing or extra sensor, a rate, a bias the structure
         cannot estimate); the message names the field.
     RiccatiError
@@ -799,7 +799,7 @@ def design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     Raises
     ------
     SpecError
-        A field of the spec breaks the rules of a design file (:func:`~cfdesign.spec.checked_spec`),
+        A field of the spec breaks the rules of a design file (``cfdesign.spec.checked_spec``),
         or the spec does not fit the structure (sensors, gain form or sample time of a
         continuous structure, a bias without a state); the message names the field.
     RiccatiError

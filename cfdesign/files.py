@@ -83,7 +83,7 @@ def path_of(value, error, what: str) -> Path:
     """The path a loader was given, or ``error`` naming what it was given instead.
 
     ``load_spec(None)`` (or a number, a list) raised Python's TypeError from deep in
-    :mod:`pathlib`, and ``load_gains("")`` read the current directory ('.: Is a directory').
+    ``pathlib``, and ``load_gains("")`` read the current directory ('.: Is a directory').
 
     Parameters
     ----------
