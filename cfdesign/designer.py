@@ -48,7 +48,7 @@ from .timing import nearest_tick
 STRUCTURES_DIR = Path(__file__).resolve().parent / "structures"
 
 __all__ = ["design", "design_from_structure", "Structure", "numeric_structure", "multirate_schedule",
-           "build_structure", "noise_covariances",
+           "build_structure", "noise_covariances", "held_input_noise",
            "designed_observer"]
 
 _RATE_RTOL = 1e-9
@@ -609,7 +609,7 @@ def _check_offsets(spec, obs):
                             "apply to measurement sensors")
 
 
-def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
+def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool, inputs: bool = True):
     """The noise covariances of a design (before discretisation).
 
     An input sensor's white noise enters through its column ``b`` of ``Bc`` as
@@ -626,6 +626,9 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
         :meth:`Structure.model` (``Fc``, ``Bc``, ``H``).
     discrete : bool
         Give ``R`` as per-sample variances (discrete designs) instead of PSDs.
+    inputs : bool
+        Include the input sensors' white noise in ``Qc`` (False: only the bias random walks; a
+        discrete design adds the held readings' noise itself, :func:`held_input_noise`).
 
     Returns
     -------
@@ -648,7 +651,7 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
         x = spec.sensor(s.name)
         if s.role == "input":
             b = model["Bc"][:, s.index]
-            Qc += np.outer(b, b) * x.noise.psd(x.rate_hz)
+            Qc += np.outer(b, b) * (x.noise.psd(x.rate_hz) if inputs else 0.0)
             if s.bias_state is None and x.bias.model == "random_walk":
                 raise SpecError(f"sensors.{s.name}.bias: {obs.name} has no state for a bias of {s.name}; "
                                 "choose a structure that estimates it (e.g. cf2 order 2, dckf3, position)")
@@ -676,6 +679,40 @@ def noise_covariances(obs, spec: FilterSpec, model: dict, discrete: bool):
     if not (np.all(np.isfinite(Qc)) and np.all(np.isfinite(R))):
         raise SpecError("sensors: a noise or bias figure is too large to square in floating point")
     return Qc, R
+
+
+def held_input_noise(obs, spec: FilterSpec, model: dict) -> np.ndarray:
+    """The discrete process noise of the input sensors' white noise: ``sum_j B_j sigma_j^2 B_j^T``.
+
+    An input reading is held over the step (``x[k+1] = F x[k] + B u[k]``), so its noise ``n[k]``
+    (per-sample variance ``sigma^2``, or ``density^2 * rate`` for a density) enters the state as
+    ``B n[k]``: a rank-one covariance per input.  The Van Loan integral of the same noise taken as
+    continuous white noise (``b q b^T``) agrees for a rate driving an angle, but not beyond: for an
+    acceleration driving a position its position entry is ``T^3 q / 3`` against ``T^3 q / 4``
+    held, and a chain of order 3 at 10 Hz predicted a velocity error 12 % above the one a log of
+    held readings gives (``python benchmarks/bench_predicted.py --random 60 --seed 2``, case 12).
+
+    Parameters
+    ----------
+    obs : Structure or cfdesign.symbolic.Observer
+        The structure (its input sensors and their columns of ``B``).
+    spec : FilterSpec
+        The sensors' noise figures.
+    model : dict
+        :meth:`Structure.model` at the design's sample time (the discrete ``B``).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        The inputs' share of the discrete ``Q`` (state units squared).
+    """
+    Q = np.zeros((model["B"].shape[0],) * 2)
+    for s in obs.sensors:
+        if s.role == "input":
+            x = spec.sensor(s.name)
+            b = model["B"][:, s.index]
+            Q += np.outer(b, b) * x.noise.variance(x.rate_hz)
+    return Q
 
 
 def design(spec: FilterSpec, observer=None) -> GainTable:
@@ -829,8 +866,8 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
         dt, schedule = None, Schedule.from_names(by_row, [by_row])
     model = structure.model(dt)
     output = _output(spec, structure, model, dt)
-    Qc, R = noise_covariances(structure, spec, model, structure.discrete)
-    Q = van_loan(model["Fc"], Qc, dt)[1] if structure.discrete else Qc
+    Qc, R = noise_covariances(structure, spec, model, structure.discrete, inputs=not structure.discrete)
+    Q = van_loan(model["Fc"], Qc, dt)[1] + held_input_noise(structure, spec, model) if structure.discrete else Qc
     if spec.crossover is not None:
         result = _crossover_result(structure, model, Q, R, schedule, spec, output, dt)
     elif structure.discrete:
