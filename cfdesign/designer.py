@@ -5,10 +5,11 @@ the sensors' noise gives ``Q`` and ``R``; the Riccati equation (CARE, DARE, or t
 DARE when the sensors run at different rates) gives the optimal gains; the exact proof and a
 stability check are attached to the resulting :class:`~cfdesign.gains.GainTable`.
 
-Noise model (continuous time, then Van Loan for discrete designs; units in
-:mod:`cfdesign.noise`): the white noise of an input sensor enters through its column ``b``
-of ``Bc`` as ``Qc += b q b^T``; a random-walk bias enters the sensor's bias state as
-``Qc[i, i] += q_bias``.  A measurement sensor contributes ``R_ii``: its per-sample variance
+Noise model (units in :mod:`cfdesign.noise`): the white noise of an input sensor enters
+through its column ``b`` of ``Bc`` as ``Qc += b q b^T`` (continuous designs) or, held over the
+step, through the discrete ``B`` as ``Q += B sigma^2 B^T`` (discrete designs,
+:func:`held_input_noise`); a random-walk bias enters the sensor's bias state as
+``Qc[i, i] += q_bias``, discretised by Van Loan.  A measurement sensor contributes ``R_ii``: its per-sample variance
 (discrete) or its PSD (continuous).
 
 Gain patterns: a structure whose gain matrix is full (CKF³, DCKF³, the position filter) gets
@@ -719,7 +720,7 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     """Design a filter: the gains of ``spec`` and everything a :class:`~cfdesign.gains.GainTable` holds.
 
     The symbolic structure gives ``F, B, H`` and the gain pattern; the sensors' noise gives
-    ``Q`` (Van Loan) and ``R``; then, by what the spec asks for:
+    ``Q`` (held input readings, bias walks by Van Loan) and ``R``; then, by what the spec asks for:
 
     * a full gain pattern: the Kalman gain from the CARE, the DARE, or the periodic DARE when
       the sensors run at different rates (Carreira et al. eqs. (23), (28); Vasconcelos et

@@ -23,6 +23,11 @@ re-designed gain has the lower error (both predicted errors are reported).  Disc
 a continuous design you must keep (a hand-tuned or published continuous filter); re-design
 when you own the design file.
 
+The predicted error of the result integrates the table's one continuous ``Q`` (the inputs'
+noise and the bias walks together) by Van Loan: for an input driving more than one integrator
+(an acceleration driving a position) that exceeds the held reading's ``B_d sigma^2 B_d^T`` the
+re-design takes by a covariance, so the prediction errs on the safe side.
+
 numpy and scipy only.
 """
 
