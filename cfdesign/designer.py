@@ -38,7 +38,7 @@ from scipy import linalg
 
 from . import __version__, linear
 from .blas import single_thread
-from .errors import CfdesignError, SpecError
+from .errors import CfdesignError, NotDetectableError, SpecError
 from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
@@ -869,13 +869,41 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
     output = _output(spec, structure, model, dt)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete, inputs=not structure.discrete)
     Q = van_loan(model["Fc"], Qc, dt)[1] + held_input_noise(structure, spec, model) if structure.discrete else Qc
-    if spec.crossover is not None:
-        result = _crossover_result(structure, model, Q, R, schedule, spec, output, dt)
-    elif structure.discrete:
-        result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed, output)
-    else:
-        result = _continuous_gains(structure, model, Q, R, fixed)
+    try:
+        if spec.crossover is not None:
+            result = _crossover_result(structure, model, Q, R, schedule, spec, output, dt)
+        elif structure.discrete:
+            result = _discrete_gains(structure, model, Q, R, schedule, spec.gain_form, fixed, output)
+        else:
+            result = _continuous_gains(structure, model, Q, R, fixed)
+    except NotDetectableError as exc:
+        hidden = _unobservable(structure, spec, model)
+        if not hidden:
+            raise
+        raise NotDetectableError(f"{hidden} ({exc})") from None
     return _table(spec, structure, model, Q, R, dt, schedule, result, output)
+
+
+def _unobservable(structure, spec, model) -> str:
+    """What a failed detectability test means for the design file: the states no measurement
+    sees (the null space of the observability matrix ``[H; H F; ...; H F^(n-1)]`` of all the
+    measurement rows), e.g. a position with only a velocity measured, and the sensors that are
+    measured; ``''`` when every state is seen together and only the schedule leaves a mode unseen."""
+    F, H = np.asarray(model["F"], dtype=float), np.asarray(model["H"], dtype=float)
+    n = F.shape[0]
+    obs = np.vstack([H @ np.linalg.matrix_power(F, k) for k in range(n)]) if H.size else np.zeros((1, n))
+    s, vt = np.linalg.svd(obs)[1:]
+    rank = int(np.sum(s > 1e-9 * max(s[0], 1e-300)))
+    if rank == n:
+        return ""
+    weight = np.linalg.norm(vt[rank:], axis=0)
+    names = state_names(structure, spec)
+    hidden = [names[i] for i in range(n) if weight[i] > 1e-6]
+    seen = ", ".join(f"{s.name}: {spec.sensor(s.name).measures or 'measurement'}"
+                     for s in structure.sensors if s.role == "measurement") or "none"
+    return (f"{', '.join(hidden)} {'is' if len(hidden) == 1 else 'are'} not observable from the measurements "
+            f"({seen}), so no filter corrects {'its' if len(hidden) == 1 else 'their'} drift: add a sensor that "
+            "measures it, or choose a structure without it")
 
 
 def _output(spec, structure, model, dt=None) -> str:
