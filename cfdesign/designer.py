@@ -865,7 +865,7 @@ def _design_from_structure(structure: Structure, spec: FilterSpec) -> GainTable:
             raise SpecError(f"sample_time_s: {structure.name} is continuous "
                             "(set discrete = true where the structure allows)")
         dt, schedule = None, Schedule.from_names(by_row, [by_row])
-    model = structure.model(dt)
+    model = {**structure.model(dt), "states": state_names(structure, spec)}
     output = _output(spec, structure, model, dt)
     Qc, R = noise_covariances(structure, spec, model, structure.discrete, inputs=not structure.discrete)
     Q = van_loan(model["Fc"], Qc, dt)[1] + held_input_noise(structure, spec, model) if structure.discrete else Qc
@@ -1009,7 +1009,7 @@ def _continuous_gains(obs, model, Q, R, fixed=None):
     if obs.full_pattern:
         sol = kalman_continuous(F, H, Q, R)
         return {"K": [sol.K], "P": [sol.P], "P_filtered": [sol.P], "solver": _solver_info(sol.solution)}
-    return _sparse_gains(obs, F, H, Q, R, "continuous", "prior")
+    return _sparse_gains(obs, F, H, Q, R, "continuous", "prior", model.get("states"))
 
 
 def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="posterior"):
@@ -1026,7 +1026,7 @@ def _discrete_gains(obs, model, Q, R, schedule, form, fixed=None, output="poster
             sol = kalman_discrete(F, H, Q, R)
             return {"K": [getattr(sol, key)], "P": [sol.P], "P_filtered": [sol.P_filtered],
                     "solver": _solver_info(sol.solution)}
-        return _sparse_gains(obs, F, H, Q, R, form, output)
+        return _sparse_gains(obs, F, H, Q, R, form, output, model.get("states"))
     if not obs.full_pattern:
         raise SpecError(f"structure {obs.name}: sparse gain patterns are designed for single-rate sensors only; for "
                         f"multirate sensors write {multirate_redesign(obs.name)} (the CKF3's full gain)")
@@ -1192,9 +1192,9 @@ def _crossover_result(obs, model, Q, R, schedule, spec, output, dt):
     return _gain_result(K, F, H, Q, R, form, solver, optimum, output)
 
 
-def _sparse_gains(obs, F, H, Q, R, form, output):
+def _sparse_gains(obs, F, H, Q, R, form, output, names=None):
     """Minimise the error variance of the estimate the table outputs over the free entries of
-    the pattern."""
+    the pattern (``names``: the states', for messages)."""
     pattern = obs.pattern
     free = _free_names(pattern)
 
@@ -1218,6 +1218,12 @@ def _sparse_gains(obs, F, H, Q, R, form, output):
     best = optimize.minimize(cost, start, method="Nelder-Mead",
                              options={"xatol": 1e-10, "fatol": 1e-16, "maxiter": 20000, "maxfev": 40000})
     scale = 1e3 * max(1.0, np.abs(K_opt).max())
+    edge = _on_the_edge(pattern, free, best.x, F, H, Q, R, form, optimum[1], names)
+    if edge:
+        raise SpecError(f"structure {obs.name}: its sparse gain pattern has no optimum inside the stable region for "
+                        f"these noise figures: the error variance of the estimate keeps falling toward the "
+                        f"stability boundary, {edge}; use the full-gain structure ({_full_gain_hint(obs.name)}) "
+                        "or give gains in [gains]")
     if not best.success and np.abs(best.x).max() <= scale:
         raise SpecError(f"structure {obs.name}: the search for its best sparse gain did not converge "
                         f"({best.message}); give hand-tuned gains in [gains] or use the full-gain structure")
@@ -1229,6 +1235,51 @@ def _sparse_gains(obs, F, H, Q, R, form, output):
     return _gain_result(_pattern_gain(pattern, free, best.x), F, H, Q, R, form,
                         {"method": "sparse gain: Nelder-Mead on the Lyapunov error variance of the estimate",
                          "iterations": int(best.nit)}, optimum, output)
+
+
+#: a sparse search ended on the stability boundary when a relative change of this size in one
+#: gain, or in all of them together, makes the loop unstable ...
+EDGE_STEP = 1e-3
+#: ... and a state's error std there exceeds the Kalman gain's this many times (the searches that
+#: crept to the boundary gave 1.5e3-3e5, the sparse optima inside it at most 43: bench_predicted --random)
+EDGE_STD_RATIO = 100.0
+
+
+def _on_the_edge(pattern, free, x, F, H, Q, R, form, P_kalman, names=None) -> str:
+    """Where a sparse search ended on the stability boundary, what shows it (the closed loop's
+    slowest pole and the state whose error it inflates); ``''`` inside the stable region.
+
+    The output's error variance can fall all the way to the boundary while the other states'
+    errors grow without bound (a pole at ``|z| -> 1`` that the output hardly sees): a table
+    built there would give an output near its optimum and the other states' estimates (written
+    by ``cfdesign run``) useless, and any model error would be integrated."""
+    x = np.asarray(x, dtype=float)
+    steps = [*(EDGE_STEP * abs(x[i]) * np.eye(x.size)[i] for i in range(x.size)), EDGE_STEP * x]
+    near = any(not _stable(np.linalg.eigvals(linear.closed_loop(F, H, _pattern_gain(pattern, free, x + sign * d),
+                                                                form)), form)
+               for d in steps for sign in (-1.0, 1.0))
+    if not near:
+        return ""
+    K = _pattern_gain(pattern, free, x)
+    try:
+        P = _error_covariance(F, H, K, Q, R, form)
+    except (linalg.LinAlgError, np.linalg.LinAlgError, ValueError):
+        P = np.full_like(F, np.inf)
+    ratio = np.sqrt(np.abs(np.diag(P)) / np.maximum(np.diag(P_kalman), np.finfo(float).tiny))
+    worst = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, np.inf)))
+    if np.isfinite(ratio[worst]) and ratio[worst] <= EDGE_STD_RATIO:
+        return ""
+    eig = np.linalg.eigvals(linear.closed_loop(F, H, K, form))
+    rho = np.abs(eig).max()
+    pole = f"Re s = {eig.real.max():.3g}" if form == "continuous" else f"|z| = {rho:.6f} (1 - {1.0 - rho:.2g})"
+    state = names[worst] if names else f"state {worst}"
+    return (f"where the slowest closed-loop pole is at {pole} and the error std of {state} is "
+            f"{ratio[worst]:.3g} times the Kalman gain's")
+
+
+def _full_gain_hint(name: str) -> str:
+    """How to ask for the full gain of a sparse structure in a design file."""
+    return {"cf3": 'structure = "ckf3"'}.get(name.split("(")[0], "full = true")
 
 
 def _sparse_start(obs, pattern, free, K_opt, cost):
