@@ -185,7 +185,7 @@ STATE_FIELDS = (
     "vx", "vy",                          # velocity channel: horizontal velocity (ENU, m/s)
     "ex", "ey", "ez",                    # tilt channel: its attitude minus the filter's (body frame, rad)
     "ra0", "ra1", "ra2", "ra3", "ra4", "ra5",  # tilt channel: the attitude's first two rows through the velocity
-    "rv0", "rv1", "rv2", "rv3", "rv4", "rv5",  # channel (its tilt and velocity per unit bias: s, m/s / g * s)
+    "rv0", "rv1", "rv2", "rv3", "rv4", "rv5",  # channel's step: its tilt (s) and velocity over g (s²) per unit bias
     "px", "py", "pz",                    # zero-rotation channel: rotation since rest began (body, rad)
     "gx", "gy", "gz",                    # rest detection: low-passed rate (body, rad/s)
     "fx", "fy", "fz",                    # rest detection: low-passed specific force (body, m/s²)
