@@ -1354,11 +1354,15 @@ def _lagged(a, v, x, T, k1, k2, carry) -> tuple:
     integrates (``carry`` 0: from zero), ``k2 v`` corrects the tilt and ``k1 v`` the velocity.
 
     Returns the new ``a`` and ``v`` and the correction per unit time, ``k2 v / T``: ``x`` through the
-    channel's second-order low-pass (``docs/derivations.md``), so ``x`` itself for a steady attitude."""
+    channel's second-order low-pass (``docs/derivations.md``), so ``x`` itself for a steady attitude, within
+    ``[-1, 1]`` as ``x`` is (a run stays within; a restored state far off is cut, as ``a`` and ``v`` are at
+    :data:`STATE_LIMIT`, so no state the step leaves is one :meth:`AttitudeFilter.restore` refuses)."""
     a += T * x
     v = carry * v + T * a
     c = k2 * v
-    return a - c, v - k1 * v, c / T
+    a, v, m = a - c, v - k1 * v, c / T
+    return (min(STATE_LIMIT, max(-STATE_LIMIT, a)), min(STATE_LIMIT, max(-STATE_LIMIT, v)),
+            min(1.0, max(-1.0, m)))
 
 
 def _noise_floor(noise, floor, dev, var, up) -> float:
