@@ -295,18 +295,19 @@ def test_fast_hand_strokes_do_not_weight_the_tilt_down():
 
 
 def test_a_tilt_error_does_not_lock_the_acceleration_levels():
-    """A 6 deg/s gyro bias from a moving start tilts the estimate, the integrated speed passes
+    """A 6.6 deg/s gyro bias from a moving start tilts the estimate, the integrated speed passes
     max_speed_mps and the levels weight the tilt corrections down; the speed then grew without end
     (310 m/s, level 5 to the last sample, inclination 104 deg RMS, with 5 deg/s). After
     max_accel_time_s the velocity channel restarts on its motion design and corrects the tilt.
-    (5 deg/s, once enough to engage the levels, is now learnt before they engage.)"""
+    (5 deg/s, once enough to engage the levels, is now learnt before they engage, and so is 6 since the
+    tilt channel reads the corrections through the lagged attitude; 7.2 deg/s still ends on the levels.)"""
     q = motion(9000, still_s=0.0)
-    gyr, acc, _ = imu(q, bias=np.radians([6.0, -5.0, 6.0]))
+    gyr, acc, _ = imu(q, bias=np.radians([6.6, -5.5, 6.6]))
     out = AttitudeFilter(RATE, magnetometer=False).run(gyr, acc, None, details=True)
     assert out.accel_level.max() >= 1                                     # the levels did engage
     assert out.speed[-3000:].max() < 8.0 and not out.accel_level[-3000:].any()   # measured 3.6 m/s
     _, incl = errors(out.quaternion, q)
-    assert np.sqrt(np.mean(incl[-3000:] ** 2)) < 25.0                     # measured 11 deg
+    assert np.sqrt(np.mean(incl[-3000:] ** 2)) < 25.0                     # measured 5.3 deg
 
 
 def test_the_velocity_channel_rides_out_translation():

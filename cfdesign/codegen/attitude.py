@@ -108,7 +108,14 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     True
     """
     from ..nav import attitude_filter as af
-    from ..nav.attitude_filter import HEADING_VAR0, STATE_FIELDS, TILT_SETTLE, AttitudeFilter, _coefficients
+    from ..nav.attitude_filter import (
+        HEADING_VAR0,
+        STATE_FIELDS,
+        STATE_LIMIT,
+        TILT_SETTLE,
+        AttitudeFilter,
+        _coefficients,
+    )
 
     if not isinstance(attitude_filter, AttitudeFilter):
         raise CfdesignError(f"an AttitudeFilter is needed, got {type(attitude_filter).__name__}")
@@ -133,6 +140,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "rest_bias_th2": _hex(th_b2), "rest_time": _hex(rest_min), "mag_alpha": _hex(m_alpha),
         "mag_ref_alpha": _hex(ref_alpha), "north": _hex(north), "speed2": _hex(speed2),
         "max_accel_time": _hex(max_acc_s), "accel_hold": _hex(hold_s), "tilt_alpha": _hex(tilt_alpha),
+        "state_limit": _hex(STATE_LIMIT),
         "tilt_settle": _hex(TILT_SETTLE), "settle_ratio": _hex(settle_ratio),
         "gyro_range2": _hex(g_range2), "accel_range2": _hex(a_range2), "mag_tol": _hex(tol),
         "mag_new_time": _hex(new_s), "mag_new_turn": _hex(new_rot), "mag_first_time": _hex(first_s),
