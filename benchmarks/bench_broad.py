@@ -495,6 +495,9 @@ PROXIES = {
     "field dip 82 deg": lambda d: dip_trial(d, -15.0),
     f"recording started 30 s in ({CONVERGE_S:g} s unscored)": lambda d: trimmed_trial(d, 30.0, from_motion=False),
     f"recording started 60 s in ({CONVERGE_S:g} s unscored)": lambda d: trimmed_trial(d, 60.0, from_motion=False),
+    f"no rest: from 1 s before the motion ({CONVERGE_S:g} s unscored)": lambda d: trimmed_trial(d, -1.0),
+    f"no rest, gyro bias (1, -1.5, 0.5) deg/s ({CONVERGE_S:g} s unscored)": lambda d: modified_trial(
+        trimmed_trial(d, -1.0), gyr_bias=np.radians([1.0, -1.5, 0.5])),
 }
 
 
