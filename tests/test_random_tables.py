@@ -6,7 +6,6 @@ built-in examples (``tests/test_codegen.py``, ``tests/test_verify.py``)."""
 from __future__ import annotations
 
 import importlib.util
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,11 @@ import cfdesign
 from cfdesign.errors import CfdesignError
 from cfdesign.runtime import Runtime
 from cfdesign.spec import parse_spec
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
 
 _spec = importlib.util.spec_from_file_location(
     "bench_predicted", Path(__file__).resolve().parents[1] / "benchmarks" / "bench_predicted.py")
