@@ -1249,7 +1249,8 @@ SPARSE_FIRST_EVALUATIONS = 4000
 #: gain, or in all of them together, makes the loop unstable ...
 EDGE_STEP = 1e-3
 #: ... and a state's error std there exceeds the Kalman gain's this many times (the searches that
-#: crept to the boundary gave 1.5e3-3e5, the sparse optima inside it at most 43: bench_predicted --random)
+#: crept to the boundary gave 1e5-6e5; inside it, bench_predicted --random's sparse optima gave up to
+#: 43, and two up to 2.4e3, taken: no gain of theirs is near the boundary, and their P says it)
 EDGE_STD_RATIO = 100.0
 
 
