@@ -901,9 +901,10 @@ def _unobservable(structure, spec, model) -> str:
     hidden = [names[i] for i in range(n) if weight[i] > 1e-6]
     seen = ", ".join(f"{s.name}: {spec.sensor(s.name).measures or 'measurement'}"
                      for s in structure.sensors if s.role == "measurement") or "none"
-    return (f"{', '.join(hidden)} {'is' if len(hidden) == 1 else 'are'} not observable from the measurements "
-            f"({seen}), so no filter corrects {'its' if len(hidden) == 1 else 'their'} drift: add a sensor that "
-            "measures it, or choose a structure without it")
+    one = len(hidden) == 1
+    return (f"{', '.join(hidden)} {'is' if one else 'are'} not observable from the measurements ({seen}), so no "
+            f"filter corrects {'its' if one else 'their'} drift: add a sensor that measures "
+            f"{'it' if one else 'one of them'}, or choose a structure without {'it' if one else 'them'}")
 
 
 def _output(spec, structure, model, dt=None) -> str:
