@@ -375,8 +375,8 @@ def test_c_agrees_with_python_through_a_disturbed_start(tmp_path):
     assert max(abs(state_c[k] - state_py[k]) / max(1.0, abs(state_py[k])) for k in STATE_FIELDS) <= 1e-9
 
 
-@pytest.mark.parametrize(("magnet", "bound"), [((10.0, -15.0, 5.0), 30.0), ((20.0, 0.0, 0.0), 22.0),
-                                               ((0.0, 25.0, -10.0), 39.0)])
+@pytest.mark.parametrize(("magnet", "bound"), [((10.0, -15.0, 5.0), 18.0), ((20.0, 0.0, 0.0), 24.0),
+                                               ((0.0, 25.0, -10.0), 55.0)])
 def test_a_start_beside_an_attached_magnet_follows_the_field_it_cannot_reject(magnet, bound):
     """Started turning with a magnet fixed to the sensor (a hard-iron offset in the body frame, 19 to 27 uT
     against the Earth's 45) for 20 s, then removed (BROAD's trial 32 started mid-motion).  The first
@@ -384,9 +384,10 @@ def test_a_start_beside_an_attached_magnet_follows_the_field_it_cannot_reject(ma
     was flagged disturbed against it and the heading that one moment gave was held for the whole 20 s
     (RMS 38.7, 25.4, 41.7 deg from 5 to 20 s).  A provisional reference the field has left for longer than it
     had held is no better than the field: the heading follows it (slower, learning no bias), and the
-    magnet's error, which turns with the sensor, partly averages out (20.5, 20.1, 35.3 deg); the same
-    filter that never follows (its reading variance widened 1e15 times) is worse on each (37.9, 23.9, 41.0),
-    and once the magnet is gone the clean field is taken as before."""
+    magnet's error, which turns with the sensor, partly averages out (10.8, 22.2, 52.7 deg; the heading reopened
+    at the end of the tilt's start-up, which reads the magnet's field through the settled tilt: 20.5, 20.1, 35.3
+    before); the same filter that never follows (its reading variance widened 1e15 times) is worse on each
+    (25.4, 26.0, 58.6), and once the magnet is gone the clean field is taken as before."""
     q = motion(int(40 * RATE), still_s=-10.0, amplitude=(2.5, 1.2, 1.0))
     gyr, acc, mag = imu(q)
     mag[:int(20 * RATE)] += magnet
