@@ -197,3 +197,32 @@ def test_a_row_without_its_trailing_empty_cells_reads_them_as_empty(heading, ref
     result = run_log(heading, tmp_path / "alone.csv")
     assert np.allclose(result.estimates["heading"], run_log(heading, held).estimates["heading"], rtol=0, atol=1e-12)
     assert any(n.startswith("gyro (an input) has no reading at 1 of 400 ticks") for n in result.notes), result.notes
+
+
+def _written(log, tmp_path, name, sep=",", decimal=".", header=None, extra=None):
+    """``log`` written as a spreadsheet or logger writes it: separated by ``sep``, with ``decimal``
+    points or commas, ``header`` instead of its names, one ``extra`` column of text after its own."""
+    log = log.assign(**{extra: "a, b; c"}) if extra else log
+    text = log.to_csv(index=False, sep=sep, decimal=decimal, header=header or True)
+    (tmp_path / name).write_text(text)
+    return tmp_path / name
+
+
+@pytest.mark.parametrize("sep, decimal, name", [
+    (";", ",", "temp, C"),   # a European spreadsheet: a name with a comma split the header at it
+    ("\t", ".", "temp, C"),
+    ("\t", ",", "note; x"),  # tab-separated, a semicolon in a name
+    (",", ".", "note; x"),   # already read: the comma comes first
+    (";", ",", None),        # already read: decimal commas, no separator in a name
+])
+def test_a_separator_written_in_a_name_does_not_split_the_header(heading, reference, tmp_path, sep, decimal, name):
+    """The separator is the one that splits the header and the first row into as many cells: a
+    semicolon or tab log with a comma in a name ('temp, C') was split at that comma and refused as
+    'missing column(s) gyro, ...' beside the very names, or '3 cells under a header of 2 columns'."""
+    log, expected = reference
+    header = [*log.columns, name] if name else None
+    path = _written(log, tmp_path, "log.csv", sep, decimal, header, "x" if name else None)
+    got = run_log(heading, path).estimates
+    assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    assert (name in got.columns) if name else True
+

@@ -67,8 +67,8 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                             f"{', '.join(['time', *sensors.values()])})")
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
                         + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
-                           "the header is one column: cells are separated by commas, by the semicolons or tabs "
-                           "of a header without a comma, or by spaces where the first row has as many cells"
+                           "the header is one column: cells are separated by commas, semicolons or tabs, or by "
+                           "spaces where the first row has as many cells"
                            if len(header) == 1 else
                            "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
     if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
@@ -166,8 +166,8 @@ def read_log(path, columns=None, *, chunksize=None):
 
     What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
     compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
-    separator is a comma, or the semicolon or tab of its header line when that has no
-    comma, or spaces when the header and the first row split into as many cells at spaces
+    separator is the comma, semicolon or tab of its header line that splits it and the
+    first row alike (:func:`_separator`), or spaces when the header and the first row split into as many cells at spaces
     (``numpy.savetxt``; a semicolon-, tab- or space-separated file may write decimal commas:
     ``0,01``); column names are stripped of spaces, and a row with more cells than the header is
     an error naming its line (it was read without its extra cells), but empty cells after the first
@@ -369,9 +369,8 @@ COMMENT_LINES = 1000
 
 
 def _csv_format(path, kind="csv") -> dict:
-    """``read_csv`` options of a CSV: its separator, from its header line: a comma unless the line
-    has none and has semicolons or tabs, else spaces where the header and the first row split into
-    as many cells (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
+    """``read_csv`` options of a CSV: its separator, from its header line and first row
+    (:func:`_separator`); a semicolon, tab or space file writes decimal commas when a
     cell of its first 64 kB of rows is a number with one (``0,01``: the first row may be all integers).
     A first row with more cells than the header is :func:`_wider_rows`'.
     A first line ``sep=;`` (written for spreadsheets) names the separator and is skipped.
@@ -427,13 +426,18 @@ WHITESPACE = r"\s+"
 
 
 def _separator(header, rows):
-    """The separator of a CSV from its header line: a comma, else a semicolon or a tab; else
-    spaces (:data:`WHITESPACE`) when the header and the first row of ``rows`` split into as many
-    cells, at least two; else None (one column)."""
-    for sep in (",", ";", "\t"):
-        if sep.encode() in header:
-            return sep
+    """The separator of a CSV from its header line: of the comma, semicolon and tab it holds, the
+    one that splits it and the first row of ``rows`` into as many cells, the most (at least two;
+    the first on a tie), else the first it holds (a name with a comma in a file separated by
+    semicolons or tabs, ``temp, C``, had split the header at that comma: 'missing column(s)'
+    beside the very names); else spaces
+    (:data:`WHITESPACE`) when the header and the first row split into as many cells, at least two;
+    else None (one column)."""
     first = next((r for r in rows.split(b"\n")[:-1] if r.strip()), b"")
+    held = [sep for sep in (",", ";", "\t") if sep.encode() in header]
+    if held:
+        split = {sep: len(_cells(header, sep)) for sep in held if len(_cells(header, sep)) == len(_cells(first, sep))}
+        return max(split, key=split.get) if max(split.values(), default=0) > 1 else held[0]
     names = _cells(header.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), WHITESPACE)
     return WHITESPACE if len(names) > 1 and len(_cells(first, WHITESPACE)) == len(names) else None
 
