@@ -1259,6 +1259,7 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
         pandas is not installed (``pip install "cfdesign[logs]"``).
     """
     from .logs import read_columns
+    from .logs.read import _lines, _pipe, _spooled
 
     path = Path(path)
     try:
@@ -1268,19 +1269,47 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
             raise DataError(f"cannot read {path}: {not_a_device(path)}")
     except OSError as exc:
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if _pipe(path):  # read once into a file: its lines are counted for the messages too
+        with _spooled(path, str(path)) as copy:
+            return read_log_columns(copy, columns, time_column, time_unit)
     data = read_columns(path, columns, time_column, time_unit)
+    where = _lines(path).at  # the file's line of a row (comments, units and blank lines counted), a Parquet row
     for c, v in data.items():
         gap = np.flatnonzero(~np.isfinite(v))
         if gap.size:
-            raise DataError(f"{path} line {int(gap[0]) + 2}: column {_comment(c)!r} is empty or not finite; the "
+            raise DataError(f"{path} {where(gap[0])}: column {_comment(c)!r} is empty or not finite; the "
                             "Allan deviation needs a complete recording (cut the log at the gap)")
     rate = None
     if time_column:
-        rate = _rate_from_time(path, time_column, data[time_column])
+        rate = _rate_from_time(path, time_column, data[time_column], where)
+        _check_time_unit(path, time_column, rate, time_unit)
     return rate, {c: data[c] for c in columns}
 
 
-def _rate_from_time(path, name, t) -> float:
+#: rates (Hz) of a time column in seconds that are taken without a unit given: outside them, times in
+#: milliseconds (0.1 Hz for 100 Hz) or a spreadsheet's date numbers in days (8.64 MHz) read as seconds
+PLAIN_RATES = (1.0, 1e6)
+
+
+def _check_time_unit(path, name, rate, time_unit):
+    """A DataError when the numbers of the time column ``name``, read as seconds because neither
+    ``time_unit`` nor the column's name or units row gives their unit, give a rate outside
+    :data:`PLAIN_RATES` (``cfdesign noise`` had run, exit 0, on times in milliseconds at 0.1 Hz)."""
+    from .logs.columns import _named_unit
+    from .logs.read import _row_units, read_log
+
+    if PLAIN_RATES[0] <= rate <= PLAIN_RATES[1] or time_unit is not None or _named_unit(name, _row_units(path)):
+        return
+    if read_log(path, [name])[name].dtype.kind not in "fiu":  # dates: seconds by their nature
+        return
+    seen = f"the times in {_comment(name)!r} step by {1 / rate:.6g} s ({rate:.6g} Hz), read as seconds"
+    raise DataError(f"{path}: {seen}: times in milliseconds, microseconds or nanoseconds? give --time-unit ms|us|ns "
+                    "(--time-unit s if they are seconds)" if rate < PLAIN_RATES[0] else
+                    f"{path}: {seen}: a spreadsheet's date numbers (days)? write seconds or ISO 8601 dates "
+                    "(--time-unit s if they are seconds)")
+
+
+def _rate_from_time(path, name, t, where) -> float:
     if len(t) < 2:
         raise DataError(f"{path}: column {_comment(name)!r} has fewer than two times")
     dt = np.diff(t)
@@ -1291,7 +1320,7 @@ def _rate_from_time(path, name, t) -> float:
     unit = _grid_step(t)
     if bad.size and not _on_grid(t, unit):
         i = _grid_break(t, unit) - 1  # the step into the first row the grid breaks at
-        raise DataError(f"{path} line {i + 3}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
+        raise DataError(f"{path} {where(i + 1)}: column {_comment(name)!r} jumps by {dt[i]:.6g} s where the median "
                         f"step is {step:.6g} s; the Allan deviation needs evenly sampled data (cut the log at the gap)")
     return nominal_rate(1.0 / unit)
 

@@ -451,9 +451,6 @@ def cmd_noise(args) -> int:
                             f"comma-separated; got {args.unit!r}")
     units = units * len(columns) if len(units) == 1 else units
     rate, data = read_log_columns(args.log, columns, args.time, args.time_unit)
-    if rate is not None and rate < 1.0 and args.time_unit is None:  # a log of milliseconds read as seconds
-        print(f"cfdesign noise: note: the times in {args.time!r} give {rate:g} Hz; if they are not seconds, "
-              "give --time-unit ms|us|ns", file=sys.stderr)
     rate = args.rate_hz if rate is None else rate
     fits = [identify_noise(data[c], rate, name=c) for c in columns]
     for fit, unit in zip(fits, units, strict=True):

@@ -226,3 +226,60 @@ def test_a_separator_written_in_a_name_does_not_split_the_header(heading, refere
     assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
     assert (name in got.columns) if name else True
 
+
+@pytest.mark.parametrize("before, gap, where", [
+    (["# logger 1.2", "# 2024-05-01"], "gyro", "line 63"),  # two comment lines, the header, 59 rows
+    (["sep=,"], "time", "line 62"),
+    ([], "units", "line 62"),                              # the row of units under the header
+    ([], "blank", "line 62"),                              # a blank line among the rows
+    ([], "parquet", "row 60"),
+])
+def test_noise_names_the_line_of_the_file(tmp_path, before, gap, where):
+    """``cfdesign noise`` named the row of an empty cell or a time jump as 'line row + 2', whatever
+    came before the rows: comment lines, a ``sep=`` line, a row of units, blank lines, and a Parquet
+    log's rows as lines.  It names them as ``cfdesign run`` does."""
+    from cfdesign.allan import read_log_columns
+
+    log = pd.DataFrame({"time": np.arange(100) * 0.01, "gyro": np.linspace(0.0, 1.0, 100)})
+    bad = log.copy()
+    if gap == "time":
+        bad.loc[59:, "time"] += 5.0
+    else:
+        bad.loc[59, "gyro"] = np.nan
+    if gap == "parquet":
+        bad.to_parquet(tmp_path / "log.parquet", index=False)
+        path = tmp_path / "log.parquet"
+    else:
+        lines = bad.to_csv(index=False).splitlines()
+        lines = ([lines[0], "s,rad/s", *lines[1:]] if gap == "units" else
+                 [*lines[:30], "", *lines[30:]] if gap == "blank" else lines)
+        path = tmp_path / "log.csv"
+        path.write_text("\n".join([*before, *lines]) + "\n")
+    with pytest.raises(DataError, match=rf"log\.\w+ {where}: column '(gyro|time)' (is empty|jumps by)"):
+        read_log_columns(path, ["gyro"], "time")
+
+
+@pytest.mark.parametrize("header, times, unit, error", [
+    ("time", np.arange(300) * 10, None, r"the times in 'time' step by 10 s \(0\.1 Hz\), read as seconds: times in "
+                                        r"milliseconds.*give --time-unit ms\|us\|ns \(--time-unit s if they are"),
+    ("time", 45413.5 + np.arange(300) * 0.01 / 86400, None, r"\(8\.64e\+06 Hz\), read as seconds: a spreadsheet's "
+                                                            "date numbers"),
+    ("time", np.arange(300) * 10, "ms", None),
+    ("time", np.arange(300) * 10.0, "s", None),          # seconds said to be seconds: 0.1 Hz
+    ("time [ms]", np.arange(300) * 10, None, None),
+    ("time", pd.Timestamp("2024-05-01") + pd.to_timedelta(np.arange(300) * 2, unit="s"), None, None),  # dates
+])
+def test_noise_refuses_times_whose_unit_is_a_guess(tmp_path, header, times, unit, error):
+    """``cfdesign noise`` on times in milliseconds read as seconds ran at 0.1 Hz, exit 0, with a note
+    and every density off by sqrt(1000) (``cfdesign run`` refuses them against the table's rate); a
+    spreadsheet's date numbers in days ran at 8.64 MHz without a word.  Numbers whose unit neither
+    --time-unit, the name nor a row of units gives are refused outside 1 Hz .. 1 MHz."""
+    from cfdesign.allan import read_log_columns
+
+    pd.DataFrame({header: times, "gyro": np.sin(np.arange(300.0))}).to_csv(tmp_path / "log.csv", index=False)
+    if error:
+        with pytest.raises(DataError, match=error):
+            read_log_columns(tmp_path / "log.csv", ["gyro"], header, unit)
+    else:
+        rate = read_log_columns(tmp_path / "log.csv", ["gyro"], header, unit)[0]
+        assert rate == pytest.approx(100.0 if header.endswith("[ms]") or unit == "ms" else 0.1 if unit else 0.5)

@@ -104,11 +104,19 @@ def _time_unit(source, time, time_unit, units=None) -> str:
     seconds; a given unit that contradicts the name or the row is refused."""
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
-    written = (units or {}).get(time, "").strip(" []()").lower()
-    named = (_unit(time)[1] or _UNIT_NAMES.get(written)) if time is not None else None  # in its name or units row
-    if named in TIME_UNITS and time_unit not in (None, named):
+    named = _named_unit(time, units)
+    if named is not None and time_unit not in (None, named):
         raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
-    return time_unit or (named if named in TIME_UNITS else "s")
+    return time_unit or named or "s"
+
+
+def _named_unit(time, units=None):
+    """The unit of time (of :data:`TIME_UNITS`) that the name of the column ``time`` gives
+    (``time [ms]``), else the row of ``units`` under a CSV's header (``{column: unit}``), else None."""
+    if time is None:
+        return None
+    named = _unit(time)[1] or _UNIT_NAMES.get((units or {}).get(time, "").strip(" []()").lower())
+    return named if named in TIME_UNITS else None
 
 
 def _listed(header, limit=300) -> str:
