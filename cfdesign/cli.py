@@ -573,7 +573,7 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                                     "'t' or 'timestamp' in any case, or with a unit: 'time [ms]', "
                                                     "'time_ms'; without one, each row is one base tick)")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
-                   help="unit of a numeric time column (default: the one its name gives, 'time [ms]', else s; ns for "
+                   help="unit of a numeric time column, over the one its name gives (default: that one, 'time [ms]', else s; ns for "
                         "the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
@@ -601,7 +601,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--time", metavar="COLUMN", help="time column (seconds or ISO 8601 dates) to take the rate from, "
                    "instead of --rate-hz")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
-                   help="unit of a numeric --time column (default: the one its name gives, 'time [ms]', else s)")
+                   help="unit of a numeric --time column, over the one its name gives (default: that one, 'time [ms]', "
+                        "else s)")
     p.add_argument("-o", "--output", type=_output, help="write the design-file entries (TOML) here")
     p.add_argument("--plot", metavar="FILE.png", type=_output,
                    help="write the Allan deviation with the fitted asymptotes")

@@ -441,8 +441,11 @@ def test_columns_named_with_their_units(heading, tmp_path, cli):
     assert np.allclose(run_log(heading, ms).estimates["heading"], expected, rtol=0, atol=1e-12)
     assert np.allclose(run_log(heading, log.rename(columns={"time": "t [sec]"})).estimates["heading"], expected,
                        rtol=0, atol=1e-12)
-    with pytest.raises(DataError, match=r"the time column 'Time \(ms\)' is in ms, but the time unit given is s"):
-        run_log(heading, ms, time_unit="s")
+    # --time-unit overrides the name: 'time (s)' over milliseconds (a logger's wrong label) is read in ms
+    mislabelled = ms.rename(columns={"Time (ms)": "time (s)"})
+    assert np.allclose(run_log(heading, mislabelled, time_unit="ms").estimates["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match=r"base rate is 0.1\d* Hz .* --time-unit ms is given"):
+        run_log(heading, mislabelled)
     log.rename(columns={"gyro": "gyro [rad/s]"}).to_csv(tmp_path / "units.csv", index=False)
     table = heading.save(tmp_path / "g.json")
     code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv")

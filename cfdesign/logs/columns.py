@@ -99,15 +99,13 @@ def _time_name(name) -> bool:
 
 
 def _time_unit(source, time, time_unit, units=None) -> str:
-    """The unit of a numeric time column: ``time_unit`` if given, else the one its name gives
-    (``time [ms]``) or the row of ``units`` under a CSV's header (``{column: unit}``), else
-    seconds; a given unit that contradicts the name or the row is refused."""
+    """The unit of a numeric time column: ``time_unit`` if given (it overrides the name: a logger
+    that writes ``time (s)`` over milliseconds is corrected by the option, not by renaming the
+    column of a large file), else the one its name gives (``time [ms]``) or the row of ``units``
+    under a CSV's header (``{column: unit}``), else seconds."""
     if time_unit is not None and time_unit not in TIME_UNITS:
         raise CfdesignError(f"time unit {time_unit!r} is none of {', '.join(TIME_UNITS)}")
-    named = _named_unit(time, units)
-    if named is not None and time_unit not in (None, named):
-        raise DataError(f"{source}: the time column {time!r} is in {named}, but the time unit given is {time_unit}")
-    return time_unit or named or "s"
+    return time_unit or _named_unit(time, units) or "s"
 
 
 def _named_unit(time, units=None):
