@@ -573,8 +573,8 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                                     "'t' or 'timestamp' in any case, or with a unit: 'time [ms]', "
                                                     "'time_ms'; without one, each row is one base tick)")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
-                   help="unit of a numeric time column, over the one its name gives (default: that one, 'time [ms]', else s; ns for "
-                        "the %%time of a ROS rostopic echo -p export)")
+                   help="unit of a numeric time column, over the one its name gives (default: that one, "
+                        "'time [ms]', else s; ns for the %%time of a ROS rostopic echo -p export)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error over all rows and after the filter's "
