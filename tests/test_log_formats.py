@@ -227,6 +227,25 @@ def test_a_separator_written_in_a_name_does_not_split_the_header(heading, refere
     assert (name in got.columns) if name else True
 
 
+@pytest.mark.parametrize("sep, decimal", [(",", "."), (";", ",")])
+def test_a_windows_spreadsheet_csv_is_read_with_its_names(heading, reference, tmp_path, sep, decimal):
+    """A spreadsheet's "CSV (comma delimited)" on Windows is Windows-1252, not UTF-8: a unit in a
+    name ('Temp [\u00b0C]', 't [\u00b5s]') or an accent in a text cell was refused as 'not UTF-8
+    text'.  The log is read (the estimates as the UTF-8 file's), its names as written; a byte that is
+    not UTF-8 after the first 64 kB of a UTF-8 log is still refused, naming it."""
+    log, expected = reference
+    log = log.assign(**{"Temp [\u00b0C]": 21.5, "note": ["caf\u00e9 \u20ac"] + [""] * (len(log) - 1)})
+    path = tmp_path / "win.csv"
+    path.write_bytes(log.to_csv(index=False, sep=sep, decimal=decimal).encode("cp1252"))
+    got = run_log(heading, path).estimates
+    assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
+    assert got["note"].iloc[0] == "caf\u00e9 \u20ac" and (got["Temp [\u00b0C]"] == 21.5).all()
+    late = tmp_path / "late.csv"
+    late.write_bytes(log.assign(note="x" * 200).to_csv(index=False).encode() + b"9,1,,,21.5,caf\xe9\n")
+    with pytest.raises(DataError, match=r"not UTF-8 text \(byte e9 at byte \d+\)"):
+        run_log(heading, late)
+
+
 @pytest.mark.parametrize("before, gap, where", [
     (["# logger 1.2", "# 2024-05-01"], "gyro", "line 63"),  # two comment lines, the header, 59 rows
     (["sep=,"], "time", "line 62"),

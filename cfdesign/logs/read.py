@@ -4,6 +4,7 @@ header feed a table's sensors (``_columns``)."""
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import csv
 import io
@@ -162,7 +163,8 @@ def _open_csv(path, kind):
 
 
 def read_log(path, columns=None, *, chunksize=None):
-    """Read a CSV (UTF-8, a BOM and CRLF line ends are fine) or Parquet log with pandas.
+    """Read a CSV (UTF-8, a BOM and CRLF line ends are fine; Windows-1252 where its first 64 kB
+    are not UTF-8: ``_encoding``) or Parquet log with pandas.
 
     What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
     compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
@@ -194,7 +196,7 @@ def read_log(path, columns=None, *, chunksize=None):
     Raises
     ------
     DataError
-        The file cannot be read, is empty, is not text (UTF-8) or not a table (also while blocks
+        The file cannot be read, is empty, is not text (UTF-16, binary) or not a table (also while blocks
         are read).
     """
     path = Path(path)
@@ -213,8 +215,9 @@ def read_log(path, columns=None, *, chunksize=None):
         if fmt.get("sep") == WHITESPACE:  # every row's cells counted (the decompressed bytes, then)
             raw = _Upto(path, end) if end is not None else _open_csv(path, kind)
             source, kind = io.BufferedReader(_RowCells(raw, path, len(_header(path)), first), 1 << 20), "csv"
-        reader = pd.read_csv(source, chunksize=chunksize, encoding="utf-8-sig", skipinitialspace=True,
-                             low_memory=False, index_col=False, compression=None if kind == "csv" else kind, **fmt)
+        encoding = fmt.pop("encoding", "utf-8-sig")
+        reader = pd.read_csv(source, chunksize=chunksize, encoding=encoding, skipinitialspace=True, low_memory=False,
+                             index_col=False, compression=None if kind == "csv" else kind, **fmt)
         opened = None if source is path else source
         if chunksize:
             return _csv_blocks(path, reader, columns, hashed, closing=opened)
@@ -401,7 +404,11 @@ def _csv_format(path, kind="csv") -> dict:
         what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
         raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
                         + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
+    encoding = _encoding(line + rows)
     out = {"skiprows": skipped} if skipped else {}
+    if encoding is not None:  # analysed as UTF-8 from here on: the names and units read as written
+        line, rows, comment = (b.decode(encoding).encode() if b is not None else None for b in (line, rows, comment))
+        out["encoding"] = encoding
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
         rows, line = line + rows, comment
@@ -423,6 +430,23 @@ def _csv_format(path, kind="csv") -> dict:
 
 #: the separator of a log whose columns are separated by spaces (``numpy.savetxt``'s default)
 WHITESPACE = r"\s+"
+
+
+def _encoding(head):
+    """None where the first bytes of a CSV, ``head``, are UTF-8 (a character cut at their end
+    included), else the 8-bit encoding they are read in: Windows-1252, what a spreadsheet saves as
+    "CSV (comma delimited)" on Windows (``Temp [\u00b0C]``, ``t [\u00b5s]``), else Latin-1, which
+    reads any byte.  Only names and text cells can hold such bytes: the numbers are ASCII alike."""
+    try:
+        codecs.getincrementaldecoder("utf-8")().decode(head, final=False)
+        return None
+    except UnicodeDecodeError:
+        pass
+    try:
+        head.decode("cp1252")
+        return "cp1252"
+    except UnicodeDecodeError:
+        return "latin-1"
 
 
 def _separator(header, rows):
@@ -785,7 +809,7 @@ def _header(path) -> list:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
     fmt = _csv_format(path, kind)
     try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
-        with io.TextIOWrapper(_open_csv(path, kind), encoding="utf-8-sig", newline="") as fh:
+        with io.TextIOWrapper(_open_csv(path, kind), encoding=fmt.get("encoding", "utf-8-sig"), newline="") as fh:
             for _ in range(fmt.get("skiprows", 0)):
                 fh.readline()
             sep = fmt.get("sep", ",")
