@@ -411,11 +411,11 @@ def test_readings_that_are_not_real_numbers_are_named_and_change_nothing(form, w
 
 
 def test_readings_of_any_real_type_step_as_their_floats():
-    """ints, bools, numpy floats of any width, Fractions and object arrays of numbers are their values."""
+    """ints, numpy ints and floats of any width, Fractions and object arrays of numbers are their values."""
     from fractions import Fraction
 
     rows = [([0, 0, 1], [0, 0, 10], [20, 0, -40]), (np.array([0.0, 0.0, 1.0], dtype=np.float32), np.int64([0, 0, 10]),
-                                                   [Fraction(20), False, -40.0])]
+                                                   [Fraction(20), np.int8(0), -40.0])]
     results = []
     for gyr, acc, mag in rows:
         f = AttitudeFilter(RATE)

@@ -393,7 +393,8 @@ class AttitudeParams:
         Raises
         ------
         AttitudeInputError
-            The first field, in declaration order, that is not a number (a switch: not a bool), is
+            The first field, in declaration order, that is not a number (a bool or text is not one; a
+            switch: not a bool), is
             not finite or is out of its range, then a ``mag_tolerance_rad`` not below pi/2; the
             message names the field.
 
@@ -407,6 +408,8 @@ class AttitudeParams:
         ...
         cfdesign.errors.AttitudeInputError: mag_tolerance_rad must be below pi/2, got 2.0
         """
+        from .attitude_inputs import number
+
         values = {}
         for f in fields(self):
             value = getattr(self, f.name)
@@ -415,10 +418,7 @@ class AttitudeParams:
                     raise AttitudeInputError(f"{f.name} must be True or False, got {value!r}")
                 values[f.name] = bool(value)
                 continue
-            try:
-                value = float(value)
-            except (TypeError, ValueError, OverflowError):
-                raise AttitudeInputError(f"{f.name} must be a number, got {value!r}") from None
+            value = number(f.name, value)  # not a bool (True was 1 rad of declination), not text
             if not math.isfinite(value):
                 raise AttitudeInputError(f"{f.name} must be finite, got {value!r}")
             if f.name == "declination_rad":

@@ -7,6 +7,7 @@ Frames as :mod:`cfdesign.rotations` (ENU, quaternions ``[w, x, y, z]`` body -> E
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
@@ -14,7 +15,7 @@ from .. import rotations as rot
 from ..errors import AttitudeInputError
 from .mps import mps_quaternion
 
-__all__ = ["positive", "rate", "rows", "vectors", "finite_vector", "held_rows", "imu_inputs", "usable_rows",
+__all__ = ["number", "positive", "rate", "rows", "vectors", "finite_vector", "held_rows", "imu_inputs", "usable_rows",
            "initial_quaternion"]
 
 #: fastest and slowest sample rates the navigation filters accept (Hz): their tables and process
@@ -23,17 +24,66 @@ MAX_RATE_HZ = 1e6
 MIN_RATE_HZ = 1e-3
 
 
-def positive(name, value, allow_zero=False) -> float:
+#: the column names' last letters that give the axis order of a DataFrame of vectors or quaternions
+AXES = {3: "xyz", 4: "wxyz"}
+
+
+def number(name, value, error=AttitudeInputError) -> float:
+    """A real number as a float: a Python or numpy real, or a 0-d array of one; not a bool, not text.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, as the error message shows it.
+    value : float
+        The value (its unit is the caller's).
+    error : type
+        The :class:`~cfdesign.errors.InputError` subclass to raise.
+
+    Returns
+    -------
+    float
+        ``float(value)`` (NaN and infinities are returned: the caller bounds the value).
+
+    Raises
+    ------
+    InputError
+        ``value`` is a bool (``True`` read as 1), text (``"100"``: the design files refuse quoted
+        numbers too), None, complex, an array of one value or more, or an integer beyond a double.
+
+    Examples
+    --------
+    >>> from cfdesign.nav.attitude_inputs import number
+    >>> number("rate_hz", np.float32(100))
+    100.0
+    >>> number("rate_hz", True)
+    Traceback (most recent call last):
+    ...
+    cfdesign.errors.AttitudeInputError: rate_hz must be a number, got True
+    """
+    v = value.item() if isinstance(value, np.ndarray) and value.shape == () else value
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+        raise error(f"{name} must be a number, got {value!r}")
+    try:
+        return float(v)
+    except OverflowError:
+        raise error(f"{name} must be a number of a double's range, got {str(value)[:20]}...") from None
+
+
+def positive(name, value, allow_zero=False, error=AttitudeInputError) -> float:
     """Check that a scalar is a finite positive (or non-negative) number and return it as a float.
 
     Parameters
     ----------
     name : str
         The argument's name, as the error message shows it (``rate_hz``, ``gyro_noise_std``).
-    value : float or str or any object :class:`float` accepts
-        The value to check; its unit is the caller's (Hz, rad/s per sample, ...).
+    value : float
+        The value to check (a real number: :func:`number`); its unit is the caller's (Hz, rad/s
+        per sample, ...).
     allow_zero : bool
         Accept zero as well (non-negative instead of positive).
+    error : type
+        The :class:`~cfdesign.errors.InputError` subclass to raise.
 
     Returns
     -------
@@ -42,14 +92,14 @@ def positive(name, value, allow_zero=False) -> float:
 
     Raises
     ------
-    AttitudeInputError
-        ``value`` is not a number, is NaN or infinite, is negative, or is zero while
-        ``allow_zero`` is False; the message names ``name``.
+    InputError
+        ``value`` is not a number (:func:`number`: a bool or text is not one), is NaN or infinite,
+        is negative, or is zero while ``allow_zero`` is False; the message names ``name``.
 
     Examples
     --------
     >>> from cfdesign.nav.attitude_inputs import positive
-    >>> positive("rate_hz", "100")
+    >>> positive("rate_hz", 100)
     100.0
     >>> positive("rate_hz", 0)
     Traceback (most recent call last):
@@ -58,12 +108,9 @@ def positive(name, value, allow_zero=False) -> float:
     >>> positive("declination", 0, allow_zero=True)
     0.0
     """
-    try:
-        value = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise AttitudeInputError(f"{name} must be a number, got {value!r}") from None
+    value = number(name, value, error)
     if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        raise AttitudeInputError(f"{name} must be a finite {'non-negative' if allow_zero else 'positive'} "
+        raise error(f"{name} must be a finite {'non-negative' if allow_zero else 'positive'} "
                                  f"number, got {value!r}")
     return value
 
@@ -88,8 +135,8 @@ def rate(value, name="rate_hz", error=AttitudeInputError) -> float:
     Raises
     ------
     InputError
-        ``value`` is not a number (a bool is not one) or is outside ``[MIN_RATE_HZ, MAX_RATE_HZ]``
-        (1e-3 to 1e6 Hz; NaN too); the message names ``name``.
+        ``value`` is not a number (:func:`number`: a bool or text is not one) or is outside
+        ``[MIN_RATE_HZ, MAX_RATE_HZ]`` (1e-3 to 1e6 Hz; NaN too); the message names ``name``.
 
     Examples
     --------
@@ -101,12 +148,7 @@ def rate(value, name="rate_hz", error=AttitudeInputError) -> float:
     ...
     cfdesign.errors.AttitudeInputError: rate_hz must be a number in [0.001, 1e+06] Hz, got 0.0
     """
-    try:
-        if isinstance(value, (bool, np.bool_)):
-            raise TypeError
-        out = float(value)
-    except (TypeError, ValueError, OverflowError):
-        raise error(f"{name} must be a number, got {value!r}") from None
+    out = number(name, value, error)
     if not MIN_RATE_HZ <= out <= MAX_RATE_HZ:  # NaN too
         raise error(f"{name} must be a number in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz, got {value!r}")
     return out
@@ -120,7 +162,8 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     name : str
         The argument's name, as the error message shows it.
     value : array_like (N,) or (N, width)
-        The readings.
+        The readings.  A DataFrame whose column names end in the axis letters (``x, y, z``; ``w, x,
+        y, z`` for quaternions; any case: ``gyro_X``) is read by name, in that order.
     width : int, optional
         Columns per row; None: one number per sample, shape (N,).
     n : int, optional
@@ -139,7 +182,8 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     InputError
         ``value`` is not an array of real numbers (text, None and complex values are refused as
         ``cfdesign.runtime.filter.real_array`` refuses them), has another shape, or a number of
-        rows other than ``n``; the message names ``name``.
+        rows other than ``n``, or is a DataFrame whose rows are named by the axis letters and
+        columns are not (one axis per row: transposed); the message names ``name``.
 
     Examples
     --------
@@ -155,6 +199,7 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     from ..runtime.filter import real_array
 
     shape = "(N,)" if width is None else f"(N, {width})"
+    value = _by_axis(name, value, width, error)
     try:
         arr = real_array(value, name)
     except CfdesignError as exc:
@@ -164,6 +209,31 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     if n is not None and len(arr) != n:
         raise error(f"{name} has {len(arr)} rows but {n} are needed")
     return arr
+
+
+def _axis_letters(labels, width) -> list | None:
+    """The axis order ``labels`` give (indices into them, in ``AXES[width]`` order), or None when
+    their last letters are not the axis letters."""
+    letters = [str(label).strip().lower()[-1:] for label in labels]
+    if width not in AXES or len(letters) != width or sorted(letters) != sorted(AXES[width]):
+        return None
+    return [letters.index(a) for a in AXES[width]]
+
+
+def _by_axis(name, value, width, error):
+    """A DataFrame's columns in axis order by their names (``z, y, x`` was read as ``x, y, z``);
+    a DataFrame of one axis per row (transposed: its index names the axes) refused; anything else
+    as it is."""
+    columns, index = getattr(value, "columns", None), getattr(value, "index", None)
+    if columns is None or index is None or width is None:
+        return value
+    order = _axis_letters(columns, width)
+    if order is not None:
+        return value.iloc[:, order]
+    if _axis_letters(index, width) is not None:
+        raise error(f"{name}: the DataFrame's rows are named {list(index)}: one axis per row; samples must "
+                    f"be rows, axes columns (shape (N, {width})): pass {name}.T")
+    return value
 
 
 def finite_vector(name, value, size=3, error=AttitudeInputError) -> np.ndarray:

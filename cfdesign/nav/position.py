@@ -48,11 +48,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import rotations as rot
-from ..errors import InputError, TableMismatchError
+from ..errors import InputError, SpecError, TableMismatchError
 from ..rotations import GRAVITY_ENU
 from ..runtime.filter import usable
 from ..spec import parse_spec
-from .attitude_inputs import finite_vector, held_rows, rows
+from .attitude_inputs import finite_vector, held_rows, number, rate, rows
 from .stored_design import as_table, check_fits, design_stored
 
 __all__ = ["PositionEstimate", "PositionFilter", "position_spec", "design_position", "earth_acceleration"]
@@ -107,15 +107,19 @@ def position_spec(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: fl
     Raises
     ------
     SpecError
-        A figure that is not a positive finite number, or rates that do not fit.
+        A figure or rate that is not a number (a bool or text is not one: the message names the
+        argument), is not positive and finite, or rates that do not fit.
     """
+    args = {"imu_rate_hz": imu_rate_hz, "gps_rate_hz": gps_rate_hz, "accel_noise_std": accel_noise_std,
+            "accel_bias_density": accel_bias_density, "gps_noise_std": gps_noise_std}
+    v = {name: number(name, value, SpecError) for name, value in args.items()}  # True was 1 m/s^2
     return parse_spec({
         "name": "position axis", "structure": "position", "gain_form": "filter",
-        "sensors": {"accelerometer": {"measures": "acceleration", "rate_hz": float(imu_rate_hz),
-                                      "noise": {"std": float(accel_noise_std)},
-                                      "bias": {"model": "random_walk", "density": float(accel_bias_density)}},
-                    "gps": {"measures": "position", "rate_hz": float(gps_rate_hz),
-                            "noise": {"std": float(gps_noise_std)}}}})
+        "sensors": {"accelerometer": {"measures": "acceleration", "rate_hz": v["imu_rate_hz"],
+                                      "noise": {"std": v["accel_noise_std"]},
+                                      "bias": {"model": "random_walk", "density": v["accel_bias_density"]}},
+                    "gps": {"measures": "position", "rate_hz": v["gps_rate_hz"],
+                            "noise": {"std": v["gps_noise_std"]}}}})
 
 
 def design_position(imu_rate_hz: float, gps_rate_hz: float, *, accel_noise_std: float, accel_bias_density: float,
@@ -346,16 +350,8 @@ _MODEL = ("the position chain: states [p, v, accelerometer bias], an acceleratio
 
 def _rates(imu_rate_hz, gps_rate_hz) -> tuple:
     """``(imu, gps, period)``: positive finite rates whose ratio (the period in IMU steps) is an integer."""
-    rates = []
-    for name, value in (("imu_rate_hz", imu_rate_hz), ("gps_rate_hz", gps_rate_hz)):
-        try:
-            value = float(value)
-        except (TypeError, ValueError, OverflowError):
-            raise InputError(f"{name} must be a number, got {value!r}") from None
-        if not (math.isfinite(value) and value > 0):
-            raise InputError(f"{name} must be a positive finite number, got {value!r}")
-        rates.append(value)
-    imu, gps = rates
+    imu, gps = (rate(value, name, InputError) for name, value in (("imu_rate_hz", imu_rate_hz),
+                                                                  ("gps_rate_hz", gps_rate_hz)))
     ratio = imu / gps
     if round(ratio) < 1 or not math.isclose(ratio, round(ratio), rel_tol=1e-9):
         raise InputError(f"gps_rate_hz: {gps:g} Hz must divide imu_rate_hz {imu:g} Hz")

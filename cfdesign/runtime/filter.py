@@ -129,22 +129,24 @@ def filter_sha256(table) -> str:
 def real_array(value, name) -> np.ndarray:
     """``value`` as a float array, or :class:`~cfdesign.errors.CfdesignError` naming ``name``.
 
-    Real numbers only (bool, integer and float arrays, and lists of Python numbers): text, None,
+    Real numbers only (integer and float arrays, and lists of Python numbers): text, None,
     complex values (``astype(float)`` dropped the imaginary part with a warning), ragged lists
-    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.  The
+    and integers beyond a double are named, not a ValueError, TypeError or OverflowError.  Bools
+    are refused too: a mask passed where readings belong ran as readings of 0 and 1.  The
     masked entries of a ``numpy.ma`` array are missing (NaN): ``asarray`` kept the values under
     the mask, so a glitch masked by the caller was run.
     """
     try:
-        if isinstance(value, np.ma.MaskedArray) and value.dtype.kind in "biuf":
+        if isinstance(value, np.ma.MaskedArray) and value.dtype.kind in "iuf":
             value = value.astype(float).filled(np.nan)
         a = np.asarray(value)
         if a.dtype.kind == "O":  # Python objects: real numbers of mixed types, or anything (None: refused,
             # as step refuses it, not NaN as astype makes it)
-            a = a.astype(float) if all(isinstance(v, numbers.Real) for v in a.flat) else None
+            real = all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in a.flat)
+            a = a.astype(float) if real else None
     except (TypeError, ValueError, OverflowError):
         a = None
-    if a is None or a.dtype.kind not in "biuf":
+    if a is None or a.dtype.kind not in "iuf":
         shown = " ".join(repr(value).split())  # one line (numpy's repr breaks long arrays over lines)
         raise CfdesignError(f"{name}: real numbers are needed, got {shown[:80]}{'...' if len(shown) > 80 else ''}")
     return a.astype(float, copy=False)
@@ -154,7 +156,7 @@ def state_vector(value, name, size) -> np.ndarray:
     """``value`` as ``size`` floats fit to be a runtime's state, or
     :class:`~cfdesign.errors.CfdesignError` naming ``name``.
 
-    Real numbers only (bool, integer and float arrays, lists of Python numbers), exactly ``size``
+    Real numbers only (integer and float arrays, lists of Python numbers), exactly ``size``
     of them, each finite and at most :data:`~cfdesign.runtime.filter.STATE_LIMIT` in magnitude
     (one step from such a state cannot overflow).  Used by ``Runtime(x0=...)``,
     :meth:`cfdesign.runtime.Runtime.restore`, the ``x`` and ``u_last`` setters and
@@ -652,7 +654,8 @@ class Runtime:
                                 f"{type(readings).__name__}")
         missing = [n for n in names if n not in readings]
         if missing:
-            raise CfdesignError(f"no readings for {', '.join(missing)} (use NaN for missing samples)")
+            raise CfdesignError(f"no readings for {', '.join(missing)} (use NaN for missing samples)"
+                                f"{_case_hint(missing, readings)}")
         cols = [real_array(readings[n], n) for n in names]
         flat = [n for n, c in zip(names, cols, strict=True) if sum(d > 1 for d in c.shape) > 1]
         if flat:  # a (3, 3) array was read as nine samples
@@ -769,6 +772,17 @@ class Runtime:
             if seen.size:
                 y[seen, i] = _unwrap(y[seen, i], float(self.H[i] @ self.x))
         return y
+
+
+def _case_hint(missing, readings) -> str:
+    """The keys of ``readings`` that name a ``missing`` sensor in another case (a DataFrame's
+    ``Compass`` for ``compass``), as a hint for the error; empty when there are none."""
+    try:
+        keys = {str(k).strip().lower(): k for k in readings.keys()}
+    except (AttributeError, TypeError):
+        return ""
+    near = [f"{keys[n.lower()]!r}" for n in missing if n.lower() in keys]
+    return f"; readings has {', '.join(near)}: sensor names are case-sensitive" if near else ""
 
 
 def _offset_dominates(rt, cols) -> bool:

@@ -36,7 +36,7 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 #: the real scalar types other than float that readings have come as (int, bool, numpy's floats
 #: and ints, Fraction, ...): a reading of one of these is converted by ``float()`` without the
 #: full check (``_as_float``)
-_REALS = {int, bool}
+_REALS = {int}
 
 __all__ = ["compile_step"]
 
@@ -45,7 +45,7 @@ def _as_float(v):
     """A reading that is not a Python float as one (the step's slow path), or None if it is not a
     real number.
 
-    Python and numpy reals (``int``, ``bool``, ``Fraction``, ``numpy.float32``, ``numpy.int64``,
+    Python and numpy reals (``int``, ``Fraction``, ``numpy.float32``, ``numpy.int64``,
     ``numpy.float64``, a 0-d array) become the float of their value, so that the state stays in
     Python floats: a numpy scalar kept in it would make every later step compute in numpy
     scalars (2.5x slower) and a ``float32`` one in single precision.  An int too large for a
@@ -58,7 +58,7 @@ def _as_float(v):
         if bool(getattr(v, "mask", False)):  # numpy.ma: a masked value
             return math.nan
         v = v.item()
-    if isinstance(v, bool) or (isinstance(v, numbers.Real) and not isinstance(v, Decimal)):
+    if isinstance(v, numbers.Real) and not isinstance(v, (bool, Decimal)):
         try:
             return float(v)
         except OverflowError:
@@ -69,7 +69,7 @@ def _as_float(v):
 def real_float(v):
     """A reading as a Python float, or None if it is not a real number (see ``_as_float``).
 
-    Fast for a float and for the real types seen before (``_REALS``: int, bool, a numpy float
+    Fast for a float and for the real types seen before (``_REALS``: int, a numpy float
     once one has come); an int too large for a float is +-inf.
 
     Parameters
@@ -80,7 +80,7 @@ def real_float(v):
     Returns
     -------
     float or None
-        Its value, or None for text, None, complex, a ``Decimal`` or an array of one value or more.
+        Its value, or None for text, None, a bool, complex, a ``Decimal`` or an array of one value or more.
     """
     if type(v) is float:
         return v
