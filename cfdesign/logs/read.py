@@ -169,7 +169,7 @@ def read_log(path, columns=None, *, chunksize=None):
     What a file is comes from its first bytes, not its name: Parquet, or a CSV, plain or
     compressed with gzip, bz2, xz or zip (one file in the archive; ``log.csv.gz``).  A CSV's
     separator is the comma, semicolon or tab of its header line that splits it and the
-    first row alike (:func:`_separator`), or spaces when the header and the first row split into as many cells at spaces
+    first row alike (``_separator``), or spaces when the header and the first row split into as many cells at spaces
     (``numpy.savetxt``; a semicolon-, tab- or space-separated file may write decimal commas:
     ``0,01``); column names are stripped of spaces, and a row with more cells than the header is
     an error naming its line (it was read without its extra cells), but empty cells after the first
