@@ -1220,7 +1220,8 @@ RATE_RTOL = 1e-4
 MAX_LOG_BYTES = 2_000_000_000
 
 
-def read_log_columns(path, columns, time_column: str | None = None, time_unit: str | None = None) -> tuple:
+def read_log_columns(path, columns, time_column: str | None = None, time_unit: str | None = None, *,
+                     find_time: bool = False) -> tuple:
     """Read numeric columns from a log, as ``cfdesign run`` reads logs (:func:`cfdesign.logs.read_columns`).
 
     The reader ``cfdesign noise`` uses: every named column must exist and hold a number on
@@ -1243,6 +1244,10 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
     time_unit : {'s', 'ms', 'us', 'ns'}, optional
         Unit of a numeric time column (:data:`cfdesign.logs.TIME_UNITS`); by default the one
         its name gives (``time [ms]``), else seconds.
+    find_time : bool
+        Without ``time_column``, take the log's time column as ``cfdesign run`` finds it
+        (:func:`cfdesign.logs.read.time_column`: ``time``, ``t``, ``timestamp``, in any case or
+        with a unit), if it has one.
 
     Returns
     -------
@@ -1259,7 +1264,8 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
         pandas is not installed (``pip install "cfdesign[logs]"``).
     """
     from .logs import read_columns
-    from .logs.read import _lines, _pipe, _spooled
+    from .logs.read import _header, _lines, _pipe, _spooled
+    from .logs.read import time_column as time_column_of
 
     path = Path(path)
     try:
@@ -1271,7 +1277,9 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
         raise DataError(f"cannot read {path}: {exc.strerror or exc}") from None
     if _pipe(path):  # read once into a file: its lines are counted for the messages too
         with _spooled(path, str(path)) as copy:
-            return read_log_columns(copy, columns, time_column, time_unit)
+            return read_log_columns(copy, columns, time_column, time_unit, find_time=find_time)
+    if time_column is None and find_time:
+        time_column = time_column_of(_header(path))
     data = read_columns(path, columns, time_column, time_unit)
     where = _lines(path).at  # the file's line of a row (comments, units and blank lines counted), a Parquet row
     for c, v in data.items():

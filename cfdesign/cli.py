@@ -429,8 +429,8 @@ def _pairs(items, option, form) -> dict:
 def cmd_noise(args) -> int:
     from .allan import adev_plot, identify_noise, noise_toml, read_log_columns
 
-    if (args.rate_hz is None) == (args.time is None):
-        raise CfdesignError("cfdesign noise: give the sample rate: --rate-hz R or --time COLUMN (one of them)")
+    if args.rate_hz is not None and args.time is not None:
+        raise CfdesignError("cfdesign noise: give the sample rate by --rate-hz R or by --time COLUMN, not both")
     from .spec import RATE_RANGE
 
     if args.rate_hz is not None and not RATE_RANGE[0] <= args.rate_hz <= RATE_RANGE[1]:
@@ -443,14 +443,17 @@ def cmd_noise(args) -> int:
     twice = next((c for i, c in enumerate(columns) if c in columns[:i]), None)
     if twice is not None:
         raise CfdesignError(f"cfdesign noise: --column names {twice!r} twice")
-    if args.time_unit is not None and args.time is None:
-        raise CfdesignError("cfdesign noise: --time-unit is the unit of the --time column; give --time COLUMN too")
+    if args.time_unit is not None and args.rate_hz is not None:
+        raise CfdesignError("cfdesign noise: --time-unit is the unit of the time column; --rate-hz reads none")
     units = [u.strip() for u in args.unit.split(",")]
     if len(units) not in (1, len(columns)) or not all(units):
         raise CfdesignError(f"cfdesign noise: --unit takes one unit, or one per --column ({len(columns)}), "
                             f"comma-separated; got {args.unit!r}")
     units = units * len(columns) if len(units) == 1 else units
-    rate, data = read_log_columns(args.log, columns, args.time, args.time_unit)
+    rate, data = read_log_columns(args.log, columns, args.time, args.time_unit, find_time=args.rate_hz is None)
+    if rate is None and args.rate_hz is None:
+        raise CfdesignError(f"cfdesign noise: {args.log} has no time column ('time', 't' or 'timestamp', in any case "
+                            "or with a unit): give the sample rate, --rate-hz R, or the column, --time COLUMN")
     rate = args.rate_hz if rate is None else rate
     fits = [identify_noise(data[c], rate, name=c) for c in columns]
     for fit, unit in zip(fits, units, strict=True):
@@ -597,9 +600,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
                                             "standard input")
     p.add_argument("--column", action="append", required=True,
                    help="column to analyse (repeat, or comma-separate, for several axes)")
-    p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz)")
-    p.add_argument("--time", metavar="COLUMN", help="time column (seconds or ISO 8601 dates) to take the rate from, "
-                   "instead of --rate-hz")
+    p.add_argument("--rate-hz", type=float, help="sample rate of the log (Hz; default: from its time column)")
+    p.add_argument("--time", metavar="COLUMN", help="time column (seconds or ISO 8601 dates) to take the rate from "
+                   "(default: 'time', 't' or 'timestamp' in any case, or with a unit, as cfdesign run finds it)")
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
                    help="unit of a numeric --time column, over the one its name gives (default: that one, 'time [ms]', "
                         "else s)")

@@ -198,14 +198,15 @@ def test_noise_entries_design_a_filter(cli, tmp_path):
     assert table.checks["complementary"] and table.checks["stable"]
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--column", "nope", "--rate-hz", "100"], "no column 'nope'"),
-    (["--column", "gyro"], "--rate-hz R or --time"),
-    (["--column", "gyro", "--rate-hz", "100", "--time", "time"], "one of them"),
-    (["--column", "gyro", "--rate-hz", "-1"], "positive"),
+@pytest.mark.parametrize("args, message, time", [
+    (["--column", "nope", "--rate-hz", "100"], "no column 'nope'", True),
+    (["--column", "gyro"], "has no time column ('time', 't' or 'timestamp'", False),
+    (["--column", "gyro", "--rate-hz", "100", "--time", "time"], "not both", True),
+    (["--column", "gyro", "--rate-hz", "100", "--time-unit", "ms"], "--rate-hz reads none", True),
+    (["--column", "gyro", "--rate-hz", "-1"], "positive", True),
 ])
-def test_cli_errors_are_one_line(cli, tmp_path, args, message):
-    log = _log(tmp_path / "g.csv", {"gyro": gyro(10)})
+def test_cli_errors_are_one_line(cli, tmp_path, args, message, time):
+    log = _log(tmp_path / "g.csv", {"gyro": gyro(10)}, time=time)
     code, _out, err = cli("noise", log, *args)
     assert code == 2 and message in err and err.count("\n") == 1
 
@@ -457,6 +458,10 @@ def test_cli_time_in_milliseconds_gives_the_rate_in_hertz(cli, tmp_path):
     given = cli("noise", tmp_path / "plain.csv", "--column", "gyro", "--time", "time", "--time-unit", "ms")
     assert seconds[0] == named[0] == given[0] == 0 and "at 100 Hz" in seconds[1]
     assert named[1] == given[1] == seconds[1]
+    # without --time, the time column as `cfdesign run` finds it ('time', or one named with its unit)
+    assert cli("noise", tmp_path / "s.csv", "--column", "gyro")[:2] == (0, seconds[1])
+    assert cli("noise", tmp_path / "named.csv", "--column", "gyro")[:2] == (0, seconds[1])
+    assert cli("noise", tmp_path / "plain.csv", "--column", "gyro", "--time-unit", "ms")[:2] == (0, seconds[1])
     code, _, err = cli("noise", tmp_path / "plain.csv", "--column", "gyro", "--time", "time")
     assert code == 2 and "(0.1 Hz), read as seconds" in err and "--time-unit ms" in err and err.count("\n") == 1
     code, out, _ = cli("noise", tmp_path / "plain.csv", "--column", "gyro", "--time", "time", "--time-unit", "s")

@@ -38,6 +38,32 @@ def _numbers_only(header) -> bool:
                                for h in named)
 
 
+def time_column(header):
+    """The time column of a log whose options name none: ``time``, ``t`` or ``timestamp``, else
+    one of them in another case (``Time``), else with a unit (``time [ms]``, ``t_us``); None when
+    the header has none of them.
+
+    Parameters
+    ----------
+    header : list of str
+        The log's column names.
+
+    Returns
+    -------
+    str or None
+        The name as the header writes it.
+
+    Examples
+    --------
+    >>> from cfdesign.logs.read import time_column
+    >>> time_column(["gyro", "Time (ms)"]), time_column(["gyro"])
+    ('Time (ms)', None)
+    """
+    return next((c for c in TIME_COLUMNS if c in header), None) or next(
+        (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
+        (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
+
+
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
              lines=None, units=None) -> _Columns:
     header = [str(h).strip() for h in header]
@@ -72,10 +98,8 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                            "spaces where the first row has as many cells"
                            if len(header) == 1 else
                            "name them as the table's sensors or map them with --map SENSOR=COLUMN"))
-    if time is None:  # 'time', 't', 'timestamp', else in another case ('Time'), else with a unit ('time [ms]', 't_us')
-        time = next((c for c in TIME_COLUMNS if c in header), None) or next(
-            (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
-            (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
+    if time is None:
+        time = time_column(header)
     elif time not in header:
         raise DataError(f"{source}: no time column {time!r} (columns: {_listed(header)})")
     time_unit = _time_unit(source, time, time_unit, units)
