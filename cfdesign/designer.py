@@ -42,7 +42,7 @@ from .errors import CfdesignError, NotDetectableError, SpecError
 from .gains import DERIVATIVE_NAMES, MAX_PERIOD, GainTable, Schedule, SensorPort, column_order
 from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
-from .spec import QUANTITY_ORDERS, FilterSpec, checked_spec
+from .spec import QUANTITY_ORDERS, FilterSpec, checked_spec, did_you_mean
 from .timing import nearest_tick
 
 #: structures stored for use without the symbolic engine (:meth:`Structure.load`)
@@ -107,11 +107,12 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
     offsets_s = offsets_s or {}
     ratios = {}
+    origin = f" (1 / sample_time_s = {sample_time_s:g} s)" if sample_time_s else ""
     for name, rate in rates_hz.items():
-        ratio = _ratio(name, base / rate, base, rate)
+        ratio = _ratio(name, base / rate, base, rate, origin)
         if name in inputs and ratio != 1:
-            raise SpecError(f"sensors.{name}.rate_hz: input sensor {name} must run at the base rate {base:g} Hz, "
-                            f"not {rate:g} Hz")
+            raise SpecError(f"sensors.{name}.rate_hz: input sensor {name} must run at the base rate {base:g} Hz"
+                            f"{origin}, not {rate:g} Hz")
         if name not in inputs:
             ratios[name] = ratio
     period = reduce(math.lcm, (r.numerator for r in ratios.values()), 1)
@@ -125,10 +126,11 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     return 1.0 / base, Schedule.from_ticks(list(ratios), ticks, period)
 
 
-def _ratio(name, ratio, base, rate) -> Fraction:
-    """``base/rate`` as the fraction ``p/q`` it is (to 1e-9), with a period ``p`` within the cap."""
+def _ratio(name, ratio, base, rate, origin="") -> Fraction:
+    """``base/rate`` as the fraction ``p/q`` it is (to 1e-9), with a period ``p`` within the cap
+    (``origin``: where the base rate comes from, for messages)."""
     if ratio < 1 - _RATE_RTOL:
-        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz")
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz{origin}")
     if ratio > MAX_PERIOD * (1 + _RATE_RTOL):
         raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is slower than the period of at most {MAX_PERIOD} "
                         f"base steps allows: at least {base / MAX_PERIOD:g} Hz beside the base rate {base:g} Hz")
@@ -412,7 +414,7 @@ def build_structure(spec: FilterSpec):
         return obs
     if spec.structure not in STRUCTURES:
         raise SpecError(f"structure: unknown structure {spec.structure!r}; choose one of "
-                        f"{', '.join([*STRUCTURES, 'chain'])}")
+                        f"{', '.join([*STRUCTURES, 'chain'])}{did_you_mean(spec.structure, [*STRUCTURES, 'chain'])}")
     if any(x.role is not None for x in spec.sensors):
         raise SpecError(f"sensors.{next(x.name for x in spec.sensors if x.role)}.role: applies to structure "
                         f"chain only ({spec.structure} fixes each sensor's role)")
@@ -510,7 +512,7 @@ def _chain_layout(spec: FilterSpec) -> tuple:
         order = QUANTITY_ORDERS.get(x.measures)
         if order is None:
             raise SpecError(f"{field}.measures: unknown sensor kind {x.measures!r} "
-                            f"(known: {', '.join(QUANTITY_ORDERS)})")
+                            f"(known: {', '.join(QUANTITY_ORDERS)}){did_you_mean(x.measures, QUANTITY_ORDERS)}")
         role = x.role or ("input" if order == spec.order else "measurement")
         if role == "input" and order != spec.order:
             raise SpecError(f"{field}.role: an input of a chain of order {spec.order} measures derivative order "
@@ -561,7 +563,7 @@ def _apply_ports(spec, obs):
     for x in spec.sensors:
         if x.port is not None and x.port not in known:
             raise SpecError(f"sensors.{x.name}.port: {obs.name} has no sensor {x.port!r} "
-                            f"(it has {', '.join(sorted(known))})")
+                            f"(it has {', '.join(sorted(known))}){did_you_mean(x.port, known)}")
     players = {}
     for x in spec.sensors:
         if x.port is not None and players.setdefault(x.port, x.name) != x.name:
@@ -582,14 +584,15 @@ def _check_sensors(spec, obs):
     names = {x.name for x in obs.sensors}
     for x in spec.sensors:
         if x.name not in names:
-            raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})")
+            raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})"
+                            f"{did_you_mean(x.name, names)}")
     for s in obs.sensors:
         given = spec.sensor(s.name)
         if given.measures is not None:
             order = QUANTITY_ORDERS.get(given.measures)
             if order is None:
                 raise SpecError(f"sensors.{s.name}.measures: unknown sensor kind {given.measures!r} "
-                                f"(known: {', '.join(QUANTITY_ORDERS)})")
+                                f"(known: {', '.join(QUANTITY_ORDERS)}){did_you_mean(given.measures, QUANTITY_ORDERS)}")
             if order != s.order:
                 raise SpecError(f"sensors.{s.name}.measures: {obs.name} uses {s.name} as a sensor of derivative "
                                 f"order {s.order}, not {given.measures!r}")
@@ -996,7 +999,7 @@ def _split_gains(structure, gains):
     unknown = sorted(set(gains) - names)
     if unknown:
         raise SpecError(f"gains: unknown {', '.join(unknown)} ({structure.name} has gains "
-                        f"{', '.join(sorted(names))})")
+                        f"{', '.join(sorted(names))}){did_you_mean(unknown[0], names)}")
     if set(gains) == names:
         return structure, gains
     return structure.fixed(gains), None

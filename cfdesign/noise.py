@@ -144,7 +144,7 @@ class Bias:
     ------
     SpecError
         An unknown model, a density or value that is not a finite number in range, a random
-        walk without a density.
+        walk without a density, a constant bias with one.
     """
 
     model: str = "constant"
@@ -162,6 +162,9 @@ class Bias:
         object.__setattr__(self, "value", float(self.value))
         if self.model == "random_walk" and self.density == 0:
             raise SpecError(f"{self.field}: a random-walk bias needs a positive density (u/sqrt(s))")
+        if self.model == "constant" and self.density:  # (it was dropped: a design without the bias's drift)
+            raise SpecError(f"{self.field}.density: a density is the figure of model = 'random_walk' (the model "
+                            "defaults to 'constant', which takes a value only); add model = \"random_walk\"")
 
     @property
     def psd(self) -> float:

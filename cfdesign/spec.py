@@ -36,6 +36,7 @@ design file is only ever read as TOML data: nothing in it is evaluated.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import keyword
 import math
@@ -80,6 +81,21 @@ EXAMPLES = {
 _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "order", "bands", "sensors",
              "description", "gains", "wrap_angle", "output", "crossover", "full"}
 _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s", "role"}
+#: other spellings of a key, for the hint of an unknown one (a name no closer than this to the key)
+_ALIASES = {"freq": "hz", "frequency": "hz", "f": "hz", "sigma": "std", "fs": "rate_hz", "hz": "rate_hz",
+            "dt": "sample_time_s", "type": "model", "kind": "measures"}
+#: ``measures`` of one family or the other, never both in a design (its states are one quantity);
+#: acceleration and jerk may be either (there is no separate angular acceleration)
+_FAMILIES = {"angle": "angular", "rate": "angular", "position": "linear", "velocity": "linear"}
+#: keys of a sensor or of [crossover] written at the top level: where they go
+_TOP_ELSEWHERE = {**{key: f"; {key} is a key of a sensor: write it under its [sensors.NAME] header"
+                     for key in _SENSOR_KEYS},
+                  "hz": "; write it under a [crossover] header", "damping": "; write it under a [crossover] header"}
+#: keys of a sensor's noise or bias written in the sensor's own table
+_SENSOR_ELSEWHERE = {"std": "; white noise is noise = { std = ... }", "model": "; write bias = { model = ... }",
+                     "density": "; write noise = { density = ... } (white noise) or bias = { model = \"random_walk\", "
+                                "density = ... }", "value": "; a constant bias is bias = { value = ... }",
+                     "name": "; a sensor's name is its table's: [sensors.NAME]"}
 
 
 @dataclass(frozen=True)
@@ -456,17 +472,22 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     """
     if not isinstance(data, dict):
         raise SpecError("a design must be a table")
-    _no_unknown(data, _TOP_KEYS, "")
+    _no_unknown(data, _TOP_KEYS, "", _TOP_ELSEWHERE)
     structure = _text(data, "structure", required=True)
     sensors = data.get("sensors")
-    if not isinstance(sensors, dict) or not sensors:
+    if sensors is not None and not isinstance(sensors, dict):
+        raise SpecError(f"sensors must be a table of sensors ([sensors.gyro], [sensors.compass], ...), got "
+                        f"{_kind(sensors)}")
+    if not sensors:
         raise SpecError("sensors: missing field (one [sensors.NAME] table per sensor)")
     if len(sensors) > MAX_SENSORS:
         raise SpecError(f"sensors: {len(sensors)} sensors is more than a design takes (limit {MAX_SENSORS})")
+    parsed = tuple(_sensor(name, body) for name, body in sensors.items())
+    _distinct_names(parsed)
     return FilterSpec(
         name=_text(data, "name") or structure,
         structure=structure,
-        sensors=tuple(_sensor(name, body) for name, body in sensors.items()),
+        sensors=parsed,
         gain_form=_choice(data, "gain_form", ("predictor", "filter"), "predictor"),
         sample_time_s=_number(data, "sample_time_s", "sample_time_s", positive=True, span=RATE_RANGE),
         discrete=_flag(data, "discrete"),
@@ -482,6 +503,29 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     )
 
 
+def _distinct_names(sensors) -> None:
+    """Sensor names unequal once case is folded (they name C macros, upper-cased, and log columns),
+    and ``measures`` of one family: angle and rate, or position and velocity."""
+    seen, families = {}, {}  # {family: its first sensor}
+    for x in sensors:
+        other = seen.setdefault(x.name.casefold(), x.name)
+        if other != x.name:
+            raise SpecError(f"sensors.{x.name}: {other} and {x.name} differ only in case; they would clash as C "
+                            "macros and log columns: rename one")
+        family = _FAMILIES.get(x.measures)
+        first = next((y for f, y in families.items() if family and f not in (None, family)), None)
+        families.setdefault(family, x)
+        if first is not None:
+            raise SpecError(f"sensors.{x.name}.measures: {x.measures!r} ({_FAMILIES[x.measures]}) beside "
+                            f"{first.name}'s {first.measures!r} ({_FAMILIES[first.measures]}); a design estimates "
+                            "one quantity: angle and rate, or position and velocity")
+
+
+def _kind(value) -> str:
+    """How a value that should be a table reads in a message: ``an array`` or ``0.04``."""
+    return "an array (a [[...]] header makes one; write [...])" if isinstance(value, list) else repr(value)
+
+
 def _crossover(data):
     """``[crossover]``: ``hz`` (a frequency or an ascending list, Hz) and an optional ``damping``."""
     table = data.get("crossover")
@@ -489,7 +533,7 @@ def _crossover(data):
         return None
     if not isinstance(table, dict):
         raise SpecError("crossover must be a table: [crossover] hz = 0.5")
-    _no_unknown(table, {"hz", "damping"}, "crossover.")
+    _no_unknown(table, {"hz", "damping"}, "crossover.", _above(_TOP_KEYS, "the top level", "crossover"))
     if data.get("gains") is not None:
         raise SpecError("crossover: give either [gains] or [crossover], not both")
     hz = table.get("hz")
@@ -514,6 +558,8 @@ def _gains(table):
     bad = next((name for name in table if not isinstance(name, str)), None)
     if bad is not None:  # (a dict from Python: a TOML key is a string)
         raise SpecError(f"gains: the name {bad!r} is not a string")
+    # (gain names are free: only a top-level key below the [gains] header is refused here)
+    _no_unknown(table, set(table) - _TOP_KEYS, "gains.", _above(_TOP_KEYS, "the top level", "gains"))
     return {name: _number(table, name, f"gains.{name}", signed=True, span=GAIN_RANGE) for name in table}
 
 
@@ -529,19 +575,23 @@ def _sensor_name(name) -> str:
 def _sensor(name, body) -> SensorSpec:
     field = _sensor_name(name)
     if not isinstance(body, dict):
-        raise SpecError(f"{field} must be a table")
-    _no_unknown(body, _SENSOR_KEYS, field + ".")
+        raise SpecError(f"{field} must be a table, got {_kind(body)}")
+    _no_unknown(body, _SENSOR_KEYS, field + ".", {**_above(_TOP_KEYS, "the top level", field), **_SENSOR_ELSEWHERE})
+    noise, bias = body.get("noise"), body.get("bias", {})
+    for key, value, figures in (("noise", noise, {"std", "density"}), ("bias", bias, {"model", "density", "value"})):
+        if isinstance(value, dict):  # first: a sensor key below a [sensors.NAME.noise] header is not 'missing'
+            _no_unknown(value, figures, f"{field}.{key}.", _above(_SENSOR_KEYS, field, f"{field}.{key}"))
     rate = _number(body, "rate_hz", f"{field}.rate_hz", positive=True, required=True, span=RATE_RANGE)
-    noise = body.get("noise")
-    if not isinstance(noise, dict):
+    if noise is None:
         raise SpecError(f"{field}.noise: missing field (a table with 'std' or 'density')")
-    _no_unknown(noise, {"std", "density"}, f"{field}.noise.")
+    if not isinstance(noise, dict):
+        raise SpecError(f"{field}.noise must be a table, got {_kind(noise)}: noise = {{ std = ... }} (u per sample) "
+                        "or { density = ... } (u/sqrt(Hz))")
     white = WhiteNoise(density=_number(noise, "density", f"{field}.noise.density"),
                        std=_number(noise, "std", f"{field}.noise.std"), field=f"{field}.noise")
-    bias = body.get("bias", {})
     if not isinstance(bias, dict):
-        raise SpecError(f"{field}.bias must be a table")
-    _no_unknown(bias, {"model", "density", "value"}, f"{field}.bias.")
+        raise SpecError(f"{field}.bias must be a table, got {_kind(bias)}: bias = {{ model = \"random_walk\", "
+                        "density = ... } or { model = \"constant\", value = ... }")
     bias_spec = Bias(model=_choice(bias, "model", ("constant", "random_walk"), "constant", f"{field}.bias.model"),
                      density=_number(bias, "density", f"{field}.bias.density") or 0.0,
                      value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
@@ -554,10 +604,48 @@ def _sensor(name, body) -> SensorSpec:
                       _choice(body, "role", ("input", "measurement", None), None, f"{field}.role"))
 
 
-def _no_unknown(table, allowed, prefix):
+def did_you_mean(word, choices) -> str:
+    """``"; did you mean 'std'?"`` naming the choice nearest ``word`` (another case, a typo, a
+    known other spelling such as ``freq`` for ``hz``), or ``""`` when none is near.
+
+    Parameters
+    ----------
+    word : object
+        What the file gave (anything but a string has no suggestion).
+    choices : iterable of str
+        The valid names.
+
+    Returns
+    -------
+    str
+        The hint, to append to a message.
+    """
+    choices = [c for c in choices if isinstance(c, str)]
+    if not isinstance(word, str) or not choices:
+        return ""
+    folded = {c.casefold(): c for c in choices}
+    key = word.casefold().strip()
+    near = folded.get(key) or folded.get(_ALIASES.get(key, ""))
+    if near is None:
+        close = difflib.get_close_matches(key, list(folded), n=1, cutoff=0.6)
+        near = folded[close[0]] if close else None
+    return f"; did you mean {near!r}?" if near is not None and near != word else ""
+
+
+def _no_unknown(table, allowed, prefix, elsewhere=None):
+    """Refuse a key not in ``allowed``: where it belongs (``elsewhere``: ``{key: hint}``), else the
+    nearest allowed key, else the allowed ones."""
     unknown = sorted(set(table) - allowed, key=str)  # (keys of a dict from Python may be of any type)
     if unknown:
-        raise SpecError(f"{prefix}{unknown[0]}: unknown field (allowed: {', '.join(sorted(allowed))})")
+        key = unknown[0]
+        hint = (elsewhere or {}).get(key) or did_you_mean(key, allowed) or f" (allowed: {', '.join(sorted(allowed))})"
+        raise SpecError(f"{prefix}{key}: unknown field{hint}")
+
+
+def _above(keys, where, header) -> dict:
+    """The hints of :func:`_no_unknown` for keys of the table ``where`` written below ``[header]``."""
+    return {key: f" here; {key} is a key of {where}: write it above the [{header}] header (a key belongs to the "
+                 "last table header above it)" for key in keys}
 
 
 def _text(table, key, required=False, field=None):
@@ -576,7 +664,7 @@ def _choice(table, key, allowed, default, field=None):
     if value not in allowed:
         # (None in allowed: the field may be left out; joining it was a TypeError, an internal error)
         raise SpecError(f"{field or key} must be one of {', '.join(a for a in allowed if a is not None)}, got "
-                        f"{value!r}")
+                        f"{value!r}{did_you_mean(value, allowed)}")
     return value
 
 
