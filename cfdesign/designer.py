@@ -130,15 +130,27 @@ def _ratio(name, ratio, base, rate, origin="") -> Fraction:
     """``base/rate`` as the fraction ``p/q`` it is (to 1e-9), with a period ``p`` within the cap
     (``origin``: where the base rate comes from, for messages)."""
     if ratio < 1 - _RATE_RTOL:
-        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz{origin}")
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is faster than the base rate {base:g} Hz{origin}"
+                        + _exact_sample_time(ratio, rate, origin))
     if ratio > MAX_PERIOD * (1 + _RATE_RTOL):
         raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is slower than the period of at most {MAX_PERIOD} "
-                        f"base steps allows: at least {base / MAX_PERIOD:g} Hz beside the base rate {base:g} Hz")
+                        f"base steps allows: at least {base / MAX_PERIOD:g} Hz beside the base rate {base:g} Hz"
+                        f"{origin}")
     frac = Fraction(ratio).limit_denominator(MAX_PERIOD)
     if abs(frac - ratio) > _RATE_RTOL * ratio or frac.numerator > MAX_PERIOD:
-        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not a fraction of the base rate {base:g} Hz "
-                        f"with a period of at most {MAX_PERIOD} steps (ratio {ratio:.9g})" + _nearest_rate(ratio, base))
+        raise SpecError(f"sensors.{name}.rate_hz: {rate:g} Hz is not a fraction of the base rate {base:g} Hz{origin} "
+                        f"with a period of at most {MAX_PERIOD} steps (ratio {ratio:.9g})"
+                        + (_exact_sample_time(ratio, rate, origin) or _nearest_rate(ratio, base)))
     return frac
+
+
+def _exact_sample_time(ratio, rate, origin) -> str:
+    """The advice on a ``sample_time_s`` rounded in the file (0.033333 beside a 30 Hz sensor): the
+    exact one, when the base rate comes from it (``origin``) and ``ratio`` is within 0.1 % of whole."""
+    whole = max(round(ratio), 1)
+    if not origin or abs(ratio - whole) > 1e-3 * ratio:
+        return ""
+    return f"; sample_time_s = {whole / rate!r} ({whole} / rate_hz) puts it on the ticks"
 
 
 def _nearest_rate(ratio, base) -> str:

@@ -103,6 +103,8 @@ CASES = {
     # a sample time that disagrees with the rates: the message says where the base rate comes from
     "sample time": (_edit(DCKF3, "structure", "sample_time_s = 0.1\nstructure"),
                     "base rate 10 Hz (1 / sample_time_s = 0.1 s), not 5 Hz"),
+    "sample time rounded": (_edit(DCKF3, "structure", "sample_time_s = 0.066667\nstructure").replace("5.0", "15.0"),
+                            "; sample_time_s = 0.06666666666666667 (1 / rate_hz) puts it on the ticks"),
 }
 #: the nearest valid name, where the message lists the valid ones
 NEAREST = {"structure": "did you mean 'dckf3'?", "measures": "did you mean 'angle'?",
