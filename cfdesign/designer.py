@@ -1393,12 +1393,14 @@ def _check_covariances(owner, result):
     Tiny fixed gains or near-marginal loops make the Lyapunov solution meaningless: a gain of
     1e-30 gave a negative variance beside entries of 1e12, and a relative test of the diagonal
     against those entries let it through."""
+    crossover = isinstance(owner, FilterSpec) and owner.crossover  # the gains came from [crossover]
     for key in ("P", "P_filtered"):
         for k, P in enumerate(result[key]):
             if not covariance_ok(P):
-                raise SpecError(f"gains: the predicted error covariance {key}[{k}] cannot be computed reliably "
-                                "(not finite, a negative variance or entries beyond their variances); the gains "
-                                "are too small or too close to the stability boundary for double precision")
+                raise SpecError(f"{'crossover.hz' if crossover else 'gains'}: the predicted error covariance "
+                                f"{key}[{k}] cannot be computed reliably (not finite, a negative variance or entries "
+                                f"beyond their variances); the gains{' of these crossovers' if crossover else ''} are "
+                                "too small, too large or too close to the stability boundary for double precision")
 
 
 def covariance_ok(P, rtol: float = 1e-6) -> bool:
