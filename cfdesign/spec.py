@@ -82,8 +82,9 @@ _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "ord
              "description", "gains", "wrap_angle", "output", "crossover", "full"}
 _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s", "role"}
 #: other spellings of a key, for the hint of an unknown one (a name no closer than this to the key)
-_ALIASES = {"freq": "hz", "frequency": "hz", "f": "hz", "sigma": "std", "fs": "rate_hz", "hz": "rate_hz",
-            "dt": "sample_time_s", "type": "model", "kind": "measures"}
+_ALIASES = {"freq": "hz", "frequency": "hz", "f": "hz", "sigma": "std", "stddev": "std", "std_dev": "std",
+            "fs": "rate_hz", "hz": "rate_hz", "dt": "sample_time_s", "type": "model", "kind": "measures",
+            "delay": "offset_s"}
 #: ``measures`` of one family or the other, never both in a design (its states are one quantity);
 #: acceleration and jerk may be either (there is no separate angular acceleration)
 _FAMILIES = {"angle": "angular", "rate": "angular", "position": "linear", "velocity": "linear"}
@@ -627,7 +628,7 @@ def did_you_mean(word, choices) -> str:
     key = word.casefold().strip()
     near = folded.get(key) or folded.get(_ALIASES.get(key, ""))
     if near is None:
-        close = difflib.get_close_matches(key, list(folded), n=1, cutoff=0.6)
+        close = difflib.get_close_matches(key, list(folded), n=1, cutoff=0.7)
         near = folded[close[0]] if close else None
     return f"; did you mean {near!r}?" if near is not None and near != word else ""
 

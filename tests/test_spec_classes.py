@@ -5,7 +5,7 @@ import pytest
 
 import cfdesign
 from cfdesign.errors import SpecError
-from cfdesign.spec import load_spec
+from cfdesign.spec import did_you_mean, load_spec
 
 DCKF3 = """structure = "dckf3"
 [sensors.gyro]
@@ -124,6 +124,15 @@ def test_a_class_of_mistake_is_named_on_one_line(case, tmp_path):
     message = str(err.value)
     assert expected in message and "\n" not in message, message
     assert NEAREST.get(case, "") in message
+
+
+@pytest.mark.parametrize("word, choices, nearest", [
+    ("stddev", ("std", "density"), "std"), ("Frequency", ("hz", "damping"), "hz"),
+    (" Rate_Hz", ("rate_hz",), "rate_hz"), ("units", ("noise", "bias", "port", "role"), None),
+    ("variance", ("std", "density"), None), (3, ("std",), None)])
+def test_the_nearest_name_is_near_or_not_given(word, choices, nearest):
+    """A far name gets no suggestion (a variance is not a std): the message lists the allowed keys."""
+    assert did_you_mean(word, choices) == (f"; did you mean {nearest!r}?" if nearest else "")
 
 
 def test_the_cli_prints_the_hint_on_one_line_and_exits_2(tmp_path, cli):
