@@ -576,7 +576,7 @@ def _sensor_name(name) -> str:
 def _sensor(name, body) -> SensorSpec:
     field = _sensor_name(name)
     if not isinstance(body, dict):
-        raise SpecError(f"{field} must be a table, got {_kind(body)}")
+        raise SpecError(f"{field} must be a table, got {_kind(body)}" + (_TOP_ELSEWHERE.get(name) or ""))
     _no_unknown(body, _SENSOR_KEYS, field + ".", {**_above(_TOP_KEYS, "the top level", field), **_SENSOR_ELSEWHERE})
     noise, bias = body.get("noise"), body.get("bias", {})
     for key, value, figures in (("noise", noise, {"std", "density"}), ("bias", bias, {"model", "density", "value"})):

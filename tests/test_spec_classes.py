@@ -78,6 +78,8 @@ CASES = {
     "sensor key below noise": (_edit(DCKF3, COMPASS, "[sensors.compass.noise]\nstd = 0.04\nrate_hz = 5.0"),
                                "sensors.compass.noise.rate_hz: unknown field here; rate_hz is a key of "
                                "sensors.compass"),
+    "sensor key below [sensors]": ('structure = "cf2"\n[sensors]\nrate_hz = 5.0\n',
+                                   "sensors.rate_hz must be a table, got 5.0; rate_hz is a key of a sensor"),
     "sensor key at the top": ("rate_hz = 5.0\n" + DCKF3, "rate_hz: unknown field; rate_hz is a key of a sensor"),
     "crossover key at the top": ("hz = 0.5\n" + DCKF3, "hz: unknown field; write it under a [crossover] header"),
     "noise key in the sensor": (_edit(DCKF3, COMPASS, "rate_hz = 5.0\nstd = 0.04"),
