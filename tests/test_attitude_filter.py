@@ -259,6 +259,48 @@ def test_taps_and_vibration_leave_the_tilt_alone():
     assert classic[1000:].max() > 1.0
 
 
+def still_run(magnetometer, shock=None, **params):
+    """A still sensor (30 s at 100 Hz, gyro bias and noise) with ``shock = (sample, m/s² on x, samples)`` added to
+    its specific force: the attitude estimates (N, 4)."""
+    q = rot.normalize(np.tile(rot.from_euler(np.array([[0.3, -0.2, 1.0]]))[0], (3000, 1)))
+    gyr, acc, mag = imu(q)
+    if shock is not None:
+        k, size, n = shock
+        acc[k:k + n, 0] += size
+    return AttitudeFilter(RATE, magnetometer=magnetometer, **params).run(gyr, acc, mag if magnetometer else None)
+
+
+def turned(a, b):
+    """The angle (deg) between the attitudes of ``a`` and ``b`` (N, 4), sample by sample."""
+    return np.degrees(2 * np.arccos(np.clip(np.abs((a * b).sum(axis=1)), 0.0, 1.0)))
+
+
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_a_shock_of_one_or_a_few_samples_barely_moves_the_attitude(magnetometer):
+    clean = still_run(magnetometer)
+    for shock, limit in (((1500, 200.0, 1), 0.5), ((1500, 100.0, 3), 1.0)):
+        assert turned(still_run(magnetometer, shock), clean)[1500:].max() < limit
+        # the same shock taken as a specific force (no clipping) turns the attitude by degrees
+        unclipped = still_run(magnetometer, shock, accel_shock_sigma=1e15)
+        assert turned(unclipped, clean)[1500:].max() > 2.0
+
+
+@pytest.mark.parametrize("seconds", [0.1, 0.5])
+def test_a_genuine_tilt_change_is_followed_as_without_the_shock_clipping(seconds):
+    """30 deg about x in ``seconds`` (gyro and accelerometer both see it), between two rests."""
+    t = np.arange(2000) / RATE
+    angle = np.radians(30.0) * np.clip((t - 10.0) / seconds, 0.0, 1.0)
+    q = rot.normalize(rot.from_euler(np.column_stack([angle, np.zeros_like(t), np.zeros_like(t)])))
+    gyr, acc, mag = imu(q)
+    for magnetometer in (True, False):
+        m = mag if magnetometer else None
+        est = AttitudeFilter(RATE, magnetometer=magnetometer).run(gyr, acc, m)
+        unclipped = AttitudeFilter(RATE, magnetometer=magnetometer, accel_shock_sigma=1e15).run(gyr, acc, m)
+        assert turned(est, unclipped).max() < 0.05
+        _, incl = errors(est, q)
+        assert incl[1000:].max() < 0.5
+
+
 def test_sustained_acceleration_weights_the_tilt_corrections_down():
     """Once the integrated speed passes max_speed_mps (4 m/s), the velocity channel runs its
     disturbance designs: a sustained acceleration above ~4 m/s² no longer pulls the tilt (below

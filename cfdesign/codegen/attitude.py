@@ -124,7 +124,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
     (T, rest_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2, tol,
      new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, rest, use_rest, use_mag, use_levels,
      use_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio, var_g, var_a,
-     floor_up, d_scale) = _coefficients(design)
+     floor_up, d_scale, shock_lim2) = _coefficients(design)
     initial = attitude_filter._initial
     fresh = attitude_filter.__class__.__new__(attitude_filter.__class__)   # the priors as reset() sets them
     fresh.__dict__.update(attitude_filter.__dict__)
@@ -147,7 +147,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "mag_provisional": _hex(prov_s), "mag_follow": _hex(follow_f), "hold_var": _hex(hold_var),
         "rest_lp_var": _hex(lp_var), "rest_gyro_var": _hex(var_g), "rest_accel_var": _hex(var_a),
         "rest_floor_up": _hex(floor_up), "rest_diff_scale": _hex(d_scale), "rest_floor_k": _hex(af.REST_FLOOR_K),
-        "rest_floor_cap": _hex(af.REST_FLOOR_CAP),
+        "rest_floor_cap": _hex(af.REST_FLOOR_CAP), "shock_lim2": _hex(shock_lim2),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
         "heading_var0": _hex(HEADING_VAR0),
         "n_velocity": len(velocity),

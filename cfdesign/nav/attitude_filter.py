@@ -118,6 +118,15 @@ Every threshold is in physical units, derived from the noise figures where it ca
   while it lasts the heading follows the field, its reading variance widened ``mag_follow_factor`` times
   (the heading's bandwidth about halved) and no gyro bias learnt from it, so an error that turns with the
   sensor averages out instead of the first moment's being held;
+* shocks: a specific force within the sensor's range but far off the recent ones (a tap, a knock, an
+  impact: one sample or a few) would enter the velocity channel with its full weight, a velocity step that
+  the tilt then follows for seconds (2.7 deg from one sample of 200 m/s² at 100 Hz).  Its deviation from the
+  rest detector's low-pass is clipped to ``accel_shock_sigma`` times the recent spread (the root of that
+  detector's low-passed squared deviation, or of its noise floor), Huber-like, before any channel or the
+  detector sees it; the clipped deviation still raises the spread, so a sustained change is followed within
+  a tenth of a second (``_shock_clipped``).  Only once the tilt's start-up is over (``1 / omega``, longer than
+  the low-pass's time constant): before, the spread of a sensor started in motion is not yet measured (and
+  with a given ``initial`` attitude, which runs no start-up, nothing is clipped);
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
@@ -236,7 +245,8 @@ class AttitudeParams:
     The defaults are those of a consumer MEMS IMU; five were tuned on BROAD's ten development
     trials, one value for all (``tilt_drift_density`` with ``velocity_noise_density``: the tilt
     bandwidth; ``heading_noise_density``, ``mag_tolerance_rad``, ``mag_new_field_s``);
-    ``benchmarks/bench_broad.py --loo`` checks them by leave-one-out.  A sixth,
+    ``benchmarks/bench_broad.py --loo`` checks them by leave-one-out.  ``accel_shock_sigma`` was
+    tuned on the same trials (its grid is not in ``--loo``).  Another,
     ``heading_bias_std0``, was chosen on those trials started without a rest (``--proxies``).
 
     Attributes
@@ -316,6 +326,18 @@ class AttitudeParams:
         middle of their motion, ``--proxies``: 4 / 8 / 16 give 6.50 / 6.55 / 6.78 deg mean total started
         10 s in, 3.43 / 3.45 / 3.50 started 30 s in, against 7.83 / 3.61 without; the trials as recorded
         start at rest, whose reference is no longer provisional, and do not depend on it).
+    accel_shock_sigma : float
+        A specific force whose deviation from the rest detector's low-pass is more than this many times
+        the recent spread (the root of the low-passed squared deviation, or of the noise floor where that is
+        larger) is a shock (a tap, a knock, an impact: far more than the body's own acceleration), and its
+        deviation is clipped to that many times the spread before any channel or detector sees it (Huber's
+        clipping).  Default 4: white noise on three axes goes beyond it about once in 5e9 samples; tuned on
+        BROAD's ten development trials among 4, 6, 8 and 12 (mean total 9D 1.776 / 1.779 / 1.780 / 1.782 deg,
+        1.784 without; the tapping trial 1.03 deg, 1.11 without).  A sustained change raises the spread, as the
+        clipped deviation enters it, by up to a factor ``1 + alpha (sigma² - 1)`` per step (``alpha`` the rest
+        low-pass's coefficient; 16 per tenth of a second at 100 Hz), so a motion's onset is followed; a shock
+        of 200 m/s² at rest moves the attitude by 0.01 deg (2.7 unclipped).  From the end of the tilt's
+        start-up on (not with a given ``initial`` attitude, which runs none).
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4); also the
@@ -366,6 +388,7 @@ class AttitudeParams:
     mag_first_field_s: float = 2.0
     mag_provisional_s: float = 10.0
     mag_follow_factor: float = 4.0
+    accel_shock_sigma: float = 4.0
     max_speed_mps: float = 4.0
     max_accel_time_s: float = 30.0
     max_reach_m: float = 1.0
@@ -617,6 +640,11 @@ def _design(rate_hz: float, p: AttitudeParams) -> AttitudeDesign:
         # white noise from the difference of successive samples (twice the variance per axis) in the units of
         # those means: a motion smooth at the sample rate hardly adds to it, unlike to the deviation
         "rest_diff_scale": (1.0 - rest_alpha) ** 2 / (2.0 - rest_alpha),
+        # a shock: the specific force's deviation from the rest low-pass (before its update) beyond
+        # accel_shock_sigma times the spread the low-passed squared deviation (after the update, so (1 - alpha)
+        # times that deviation, 1 - alpha = exp(-T / rest_filter_s)) has measured; at most 1e300 (a low-pass with no
+        # memory, alpha = 1, measures no spread: nothing is clipped)
+        "shock_lim2": math.exp(min(2.0 * (math.log(p.accel_shock_sigma) + T / p.rest_filter_s), 690.0)),
         "mag_alpha": -math.expm1(-T / p.mag_filter_s),
         "mag_ref_alpha": -math.expm1(-T / p.mag_reference_s),
         "north": math.atan2(math.cos(p.declination_rad), math.sin(p.declination_rad)),
@@ -1316,7 +1344,7 @@ def _coefficients(design: AttitudeDesign) -> tuple:
             tuple(design.velocity), design.channels["tilt"], design.channels["heading"], design.channels["rest"],
             p.rest_detection, p.mag_rejection, p.accel_rejection, p.motion_bias, p.inertial_tilt, p.max_accel_time_s,
             c["accel_hold_s"], c["tilt_alpha"], c["rest_lp_var"], _settle_ratio(design), c["rest_gyro_var"],
-            c["rest_accel_var"], c["rest_floor_up"], c["rest_diff_scale"])
+            c["rest_accel_var"], c["rest_floor_up"], c["rest_diff_scale"], c["shock_lim2"])
 
 
 def _settle_ratio(design: AttitudeDesign) -> float:
@@ -1371,6 +1399,21 @@ def _lagged(a, v, x, T, k1, k2, carry) -> tuple:
             min(1.0, max(-1.0, m)))
 
 
+def _shock_clipped(ax, ay, az, flx, fly, flz, spread2, lim2) -> tuple:
+    """The specific force ``a`` (body, m/s²) with its deviation from the rest detector's low-pass ``fl`` clipped to
+    ``sqrt(lim2 spread2)`` (Huber's clipping of an outlier): a shock, one sample or a few far beyond the recent
+    spread ``spread2`` (the low-passed squared deviation, or the noise floor where that is larger; m²/s⁴), enters
+    the channels and the detector as a sample of that bounded deviation in its direction, not with its full
+    weight; a sample within it is returned as it is."""
+    dx, dy, dz = ax - flx, ay - fly, az - flz
+    d2 = dx * dx + dy * dy + dz * dz
+    lim = lim2 * spread2
+    if d2 <= lim:
+        return ax, ay, az
+    w = math.sqrt(lim / d2)
+    return flx + w * dx, fly + w * dy, flz + w * dz
+
+
 def _noise_floor(noise, floor, dev, var, up) -> float:
     """The noise floor after one step from ``floor``, given the sensor's low-passed white noise ``noise`` and the
     rest detector's low-passed squared deviation ``dev`` (all in the sensor's units squared; ``var``: the
@@ -1398,7 +1441,7 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     (T, r_alpha, th_g2, th_a2, th_b2, rest_min, m_alpha, ref_alpha, north, speed2, g_range2, a_range2,
      tol, new_s, new_rot, first_s, prov_s, follow_f, hold_var, velocity, tilt, heading, restc, use_rest, use_mag_check,
      use_levels, use_motion_bias, inertial, max_acc_s, hold_s, tilt_alpha, lp_var, settle_ratio, var_g, var_a,
-     floor_up, d_scale) = coef
+     floor_up, d_scale, shock_lim2) = coef
     heading_var0 = HEADING_VAR0
     (qw, qx, qy, qz, bx, by, bz, vx, vy, ex, ey, ez, ra0, ra1, ra2, ra3, ra4, ra5, rv0, rv1, rv2, rv3, rv4, rv5,
      px, py, pz, glx, gly, glz, flx, fly, flz,
@@ -1481,6 +1524,9 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         gfloor = _noise_floor(gnoise, gfloor, gdev, var_g, floor_up)
     still = False
     if acc_ok:
+        if tilt_n * tilt_alpha >= 1.0:
+            # after the tilt's start-up (its time 1 / omega is past the low-pass's, so the spread is measured)
+            ax, ay, az = _shock_clipped(ax, ay, az, flx, fly, flz, fdev if fdev > ffloor else ffloor, shock_lim2)
         flx += r_alpha * (ax - flx)
         fly += r_alpha * (ay - fly)
         flz += r_alpha * (az - flz)
