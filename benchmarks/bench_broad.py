@@ -161,7 +161,7 @@ ABLATION = [
 #: constants tuned on the ten trials, the grids --loo searches (factors of the default)
 TUNED = {"velocity_noise_density": (0.5, 0.71, 1.0, 1.41, 2.0), "tilt_drift_density": (0.5, 0.71, 1.0, 1.41, 2.0),
          "heading_noise_density": (0.5, 0.71, 1.0, 1.41, 2.0), "mag_tolerance_rad": (0.71, 0.85, 1.0, 1.2, 1.41),
-         "mag_new_field_s": (0.5, 0.71, 1.0, 1.41, 2.0)}
+         "mag_new_field_s": (0.5, 0.71, 1.0, 1.41, 2.0), "accel_shock_sigma": (1.0, 1.5, 2.0, 3.0)}
 
 
 def available(names):

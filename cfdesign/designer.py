@@ -107,7 +107,7 @@ def multirate_schedule(rates_hz: dict, inputs=(), sample_time_s: float | None = 
     base = 1.0 / sample_time_s if sample_time_s else max(rates_hz.values())
     offsets_s = offsets_s or {}
     ratios = {}
-    origin = f" (1 / sample_time_s = {sample_time_s:g} s)" if sample_time_s else ""
+    origin = f" (1 / sample_time_s, sample_time_s = {sample_time_s:g} s)" if sample_time_s else ""
     for name, rate in rates_hz.items():
         ratio = _ratio(name, base / rate, base, rate, origin)
         if name in inputs and ratio != 1:
@@ -150,7 +150,8 @@ def _exact_sample_time(ratio, rate, origin) -> str:
     whole = max(round(ratio), 1)
     if not origin or abs(ratio - whole) > 1e-3 * ratio:
         return ""
-    return f"; sample_time_s = {whole / rate!r} ({whole} / rate_hz) puts it on the ticks"
+    return (f"; sample_time_s = {1.0 / (whole * rate)!r} (1 / ({whole} rate_hz)) puts it on the ticks" if whole > 1
+            else f"; sample_time_s = {1.0 / rate!r} (1 / rate_hz) puts it on the ticks")
 
 
 def _nearest_rate(ratio, base) -> str:

@@ -104,12 +104,15 @@ CASES = {
                            "sensors.compass.measures: 'position' (linear) beside gyro's 'rate' (angular)"),
     # a sample time that disagrees with the rates: the message says where the base rate comes from
     "sample time": (_edit(DCKF3, "structure", "sample_time_s = 0.1\nstructure"),
-                    "base rate 10 Hz (1 / sample_time_s = 0.1 s), not 5 Hz"),
+                    "base rate 10 Hz (1 / sample_time_s, sample_time_s = 0.1 s), not 5 Hz"),
     # a design that cannot be computed names what the file gave: the crossover, not 'gains'
     "crossover beyond doubles": (_edit(_edit(CF2, "discrete = true\n", ""), "hz = 0.5", "hz = 1e6"),
                                  "crossover.hz: the predicted error covariance"),
     "sample time rounded": (_edit(DCKF3, "structure", "sample_time_s = 0.066667\nstructure").replace("5.0", "15.0"),
                             "; sample_time_s = 0.06666666666666667 (1 / rate_hz) puts it on the ticks"),
+    # a slower sensor listed first: the base period is 1 / (3 x 5 Hz), not 3 / 5 Hz (0.6 s had been advised)
+    "sample time rounded, slower sensor": (_edit(DCKF3, "structure", "sample_time_s = 0.066667\nstructure"),
+                                           "; sample_time_s = 0.06666666666666667 (1 / (3 rate_hz)) puts it"),
 }
 #: the nearest valid name, where the message lists the valid ones
 NEAREST = {"structure": "did you mean 'dckf3'?", "measures": "did you mean 'angle'?",
