@@ -1300,17 +1300,20 @@ PLAIN_RATES = (1.0, 1e6)
 
 
 def _check_time_unit(path, name, rate, time_unit):
-    """A DataError when the numbers of the time column ``name``, read as seconds because neither
-    ``time_unit`` nor the column's name or units row gives their unit, give a rate outside
-    :data:`PLAIN_RATES` (``cfdesign noise`` had run, exit 0, on times in milliseconds at 0.1 Hz)."""
+    """A DataError when the numbers of the time column ``name``, read as seconds or in the unit its
+    name or units row gives (``time (s)`` over milliseconds: a logger's wrong label) but not in a
+    ``time_unit`` given, give a rate outside :data:`PLAIN_RATES` (``cfdesign noise`` had run, exit 0,
+    on times in milliseconds at 0.1 Hz)."""
     from .logs.columns import _named_unit
     from .logs.read import _row_units, read_log
 
-    if PLAIN_RATES[0] <= rate <= PLAIN_RATES[1] or time_unit is not None or _named_unit(name, _row_units(path)):
+    if PLAIN_RATES[0] <= rate <= PLAIN_RATES[1] or time_unit is not None:
         return
-    if read_log(path, [name])[name].dtype.kind not in "fiu":  # dates: seconds by their nature
+    named = _named_unit(name, _row_units(path))
+    if next(iter(read_log(path, [name], chunksize=64)))[name].dtype.kind not in "fiu":  # dates: seconds
         return
-    seen = f"the times in {_comment(name)!r} step by {1 / rate:.6g} s ({rate:.6g} Hz), read as seconds"
+    read = f"in {named} as its name says" if named else "as seconds"
+    seen = f"the times in {_comment(name)!r} step by {1 / rate:.6g} s ({rate:.6g} Hz), read {read}"
     raise DataError(f"{path}: {seen}: times in milliseconds, microseconds or nanoseconds? give --time-unit ms|us|ns "
                     "(--time-unit s if they are seconds)" if rate < PLAIN_RATES[0] else
                     f"{path}: {seen}: a spreadsheet's date numbers (days)? write seconds or ISO 8601 dates "

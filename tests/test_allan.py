@@ -470,6 +470,8 @@ def test_cli_time_in_milliseconds_gives_the_rate_in_hertz(cli, tmp_path):
     code, out, _ = cli("noise", tmp_path / "mislabelled.csv", "--column", "gyro", "--time", "time [s]",
                        "--time-unit", "ms")
     assert code == 0 and out == seconds[1]
+    code, _, err = cli("noise", tmp_path / "mislabelled.csv", "--column", "gyro")  # not at 0.1 Hz in silence
+    assert code == 2 and "(0.1 Hz), read in s as its name says" in err and "--time-unit ms" in err
     code, _, err = cli("noise", tmp_path / "s.csv", "--column", "gyro", "--rate-hz", "100", "--time-unit", "ms")
     assert code == 2 and "--time" in err
 
