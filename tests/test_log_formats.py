@@ -227,6 +227,18 @@ def test_a_separator_written_in_a_name_does_not_split_the_header(heading, refere
     assert (name in got.columns) if name else True
 
 
+def test_a_first_row_that_splits_at_commas_as_the_header_does_is_not_the_separator(tmp_path):
+    """``time;gyro, rad/s`` over ``0;0,01``: both split into two cells at commas as at semicolons
+    (a first row whose time is a whole number); the next row, ``0,01;0,02``, does not (it was read
+    as comma-separated and refused: '3 cells under a header of 2 columns')."""
+    from cfdesign.logs.read import read_log
+
+    path = tmp_path / "tie.csv"
+    path.write_text("time;gyro, rad/s\n0;0,01\n0,01;0,02\n0,02;0,03\n")
+    got = read_log(path)
+    assert list(got.columns) == ["time", "gyro, rad/s"] and got["gyro, rad/s"].tolist() == [0.01, 0.02, 0.03]
+
+
 @pytest.mark.parametrize("sep, decimal", [(",", "."), (";", ",")])
 def test_a_windows_spreadsheet_csv_is_read_with_its_names(heading, reference, tmp_path, sep, decimal):
     """A spreadsheet's "CSV (comma delimited)" on Windows is Windows-1252, not UTF-8: a unit in a
@@ -240,6 +252,10 @@ def test_a_windows_spreadsheet_csv_is_read_with_its_names(heading, reference, tm
     got = run_log(heading, path).estimates
     assert np.allclose(got["heading"], expected, rtol=0, atol=1e-12)
     assert got["note"].iloc[0] == "caf\u00e9 \u20ac" and (got["Temp [\u00b0C]"] == 21.5).all()
+    # the bytes that tell are in a comment line before an ASCII header; a byte Windows-1252 leaves unused later on
+    commented = tmp_path / "commented.csv"
+    commented.write_bytes(b"# logged at 25 \xb0C\n" + log.to_csv(index=False).encode("cp1252")[:-1] + b"\x81\n")
+    assert np.allclose(run_log(heading, commented).estimates["heading"], expected, rtol=0, atol=1e-12)
     late = tmp_path / "late.csv"
     late.write_bytes(log.assign(note="x" * 200).to_csv(index=False).encode() + b"9,1,,,21.5,caf\xe9\n")
     with pytest.raises(DataError, match=r"not UTF-8 text \(byte e9 at byte \d+\)"):

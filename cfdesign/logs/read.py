@@ -239,8 +239,9 @@ def read_log(path, columns=None, *, chunksize=None):
         if fmt.get("sep") == WHITESPACE:  # every row's cells counted (the decompressed bytes, then)
             raw = _Upto(path, end) if end is not None else _open_csv(path, kind)
             source, kind = io.BufferedReader(_RowCells(raw, path, len(_header(path)), first), 1 << 20), "csv"
-        encoding = fmt.pop("encoding", "utf-8-sig")
+        encoding = fmt.pop("encoding", "utf-8-sig")  # Windows-1252: its 5 unused bytes read as U+FFFD
         reader = pd.read_csv(source, chunksize=chunksize, encoding=encoding, skipinitialspace=True, low_memory=False,
+                             encoding_errors="strict" if encoding == "utf-8-sig" else "replace",
                              index_col=False, compression=None if kind == "csv" else kind, **fmt)
         opened = None if source is path else source
         if chunksize:
@@ -409,7 +410,7 @@ def _csv_format(path, kind="csv") -> dict:
     text (UTF-16, a spreadsheet, a binary log): a DataError says so."""
     try:
         with _open_csv(path, kind) as fh:
-            skipped, comment = 0, None
+            skipped, comment, before = 0, None, []
             line = fh.readline(1 << 16)
             forced = re.fullmatch(rb"(?:\xef\xbb\xbf)?sep=(.)\r?\n", line)  # a spreadsheet's 'sep=;' line
             if forced:
@@ -417,6 +418,7 @@ def _csv_format(path, kind="csv") -> dict:
             while skipped < COMMENT_LINES and (line.strip() in (b"", b"\xef\xbb\xbf")
                                                or line.lstrip(b"\xef\xbb\xbf \t").startswith(b"#")) and b"\n" in line:
                 comment = line if line.strip(b"\xef\xbb\xbf \t\r\n") else comment
+                before.append(line)
                 skipped += 1
                 line = fh.readline(1 << 16)
             rows = fh.read(1 << 16)
@@ -428,10 +430,11 @@ def _csv_format(path, kind="csv") -> dict:
         what = "UTF-16 text" if line.startswith((b"\xff\xfe", b"\xfe\xff")) else "not a text file"
         raise DataError(f"cannot read {path}: {what}; cfdesign reads {_READS}"
                         + (": save the log as UTF-8" if what == "UTF-16 text" else ""))
-    encoding = _encoding(line + rows)
+    encoding = _encoding(b"".join(before[-64:]) + line + rows)  # a comment's '25 \xb0C' too
     out = {"skiprows": skipped} if skipped else {}
     if encoding is not None:  # analysed as UTF-8 from here on: the names and units read as written
-        line, rows, comment = (b.decode(encoding).encode() if b is not None else None for b in (line, rows, comment))
+        line, rows, comment = (b.decode(encoding, "replace").encode() if b is not None else None
+                               for b in (line, rows, comment))
         out["encoding"] = encoding
     if comment is not None and _numbers(line, comment):  # '# time,gyro' over rows of numbers: the header
         out = {"skiprows": skipped - 1, "_hashed": True} if skipped > 1 else {"_hashed": True}
@@ -473,18 +476,25 @@ def _encoding(head):
         return "latin-1"
 
 
+#: the first rows :func:`_separator` splits alike with the header (a row of whole numbers, ``0;0,01``, splits
+#: as the header ``time;gyro, rad/s`` at commas too; the next, ``0,01;0,02``, does not)
+_SEPARATOR_ROWS = 20
+
+
 def _separator(header, rows):
     """The separator of a CSV from its header line: of the comma, semicolon and tab it holds, the
-    one that splits it and the first row of ``rows`` into as many cells, the most (at least two;
-    the first on a tie), else the first it holds (a name with a comma in a file separated by
-    semicolons or tabs, ``temp, C``, had split the header at that comma: 'missing column(s)'
-    beside the very names); else spaces
+    one that splits it and the first row of ``rows`` into as many cells, and none of the next rows
+    (:data:`_SEPARATOR_ROWS`) into more, the most (at least two; the first on a tie), else the first
+    it holds (a name with a comma in a file separated by semicolons or tabs, ``temp, C``, had split
+    the header at that comma: 'missing column(s)' beside the very names); else spaces
     (:data:`WHITESPACE`) when the header and the first row split into as many cells, at least two;
     else None (one column)."""
-    first = next((r for r in rows.split(b"\n")[:-1] if r.strip()), b"")
+    sample = [r for r in rows.split(b"\n")[:-1] if r.strip()][:_SEPARATOR_ROWS]
+    first = sample[0] if sample else b""
     held = [sep for sep in (",", ";", "\t") if sep.encode() in header]
     if held:
-        split = {sep: len(_cells(header, sep)) for sep in held if len(_cells(header, sep)) == len(_cells(first, sep))}
+        split = {sep: len(_cells(header, sep)) for sep in held if len(_cells(first, sep)) == len(_cells(header, sep))
+                 and all(len(_cells(r, sep)) <= len(_cells(header, sep)) for r in sample)}
         return max(split, key=split.get) if max(split.values(), default=0) > 1 else held[0]
     names = _cells(header.lstrip(b"\xef\xbb\xbf \t").lstrip(b"#"), WHITESPACE)
     return WHITESPACE if len(names) > 1 and len(_cells(first, WHITESPACE)) == len(names) else None
@@ -833,7 +843,8 @@ def _header(path) -> list:
             raise DataError(f"cannot read {path}: {_first_line(exc)}") from None
     fmt = _csv_format(path, kind)
     try:  # the header line as written (pandas renames a second 'gyro' to 'gyro.1')
-        with io.TextIOWrapper(_open_csv(path, kind), encoding=fmt.get("encoding", "utf-8-sig"), newline="") as fh:
+        with io.TextIOWrapper(_open_csv(path, kind), encoding=fmt.get("encoding", "utf-8-sig"), newline="",
+                              errors="replace" if "encoding" in fmt else "strict") as fh:
             for _ in range(fmt.get("skiprows", 0)):
                 fh.readline()
             sep = fmt.get("sep", ",")
