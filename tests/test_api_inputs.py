@@ -2,6 +2,8 @@
 a cfdesign error naming the argument, never a silent misreading (bools read as 0/1, a DataFrame's
 named axes read by position, a rate or noise figure of ``True`` or ``"100"``)."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -57,21 +59,29 @@ def test_attitude_refuses_bool_arrays(bad):
         PositionFilter(10.0, 1.0, **NOISE).run(bad(ACC), np.tile([1.0, 0, 0, 0], (N, 1)), np.full((N, 3), np.nan))
 
 
-@pytest.mark.parametrize("names", [["x", "y", "z"], ["Z", "Y", "X"], ["gyro_y", "gyro_x", "gyro_z"],
-                                   ["gz", "gx", "gy"]])
-def test_dataframe_axes_read_by_name(names):
-    order = ["xyz".index(n[-1].lower()) for n in names]
-    frame = pd.DataFrame(GYR[:, order], columns=names, index=pd.date_range("2024", periods=N, freq="10ms"))
+@pytest.mark.parametrize("names", [["x", "y", "z"], ["gyro_X", "gyro_Y", "gyro_Z"], ["a", "b", "c"]])
+def test_dataframe_axes_in_order_or_unnamed_are_read_by_position(names):
+    frame = pd.DataFrame(GYR, columns=names, index=pd.date_range("2024", periods=N, freq="10ms"))
     got = estimate_attitude(frame, pd.DataFrame(ACC, columns=list("XYZ")), MAG, 100.0)
     assert np.array_equal(got, estimate_attitude(GYR, ACC, MAG, 100.0))
 
 
-def test_dataframe_quaternion_xyzw_read_by_name():
+@pytest.mark.parametrize("names, fix", [(["Z", "Y", "X"], "gyr[['X', 'Y', 'Z']]"),
+                                        (["gy", "gx", "gz"], "gyr[['gx', 'gy', 'gz']]")])
+def test_dataframe_axes_named_out_of_order_are_refused(names, fix):
+    """Columns named z, y, x were read as x, y, z; re-sorting them by name would undo a remap that
+    kept the sensor's names (``concat([g.gy, -g.gx, g.gz])``): neither is taken, the fix is named."""
+    frame = pd.DataFrame(GYR, columns=names)
+    with pytest.raises(InputError, match=re.escape(fix) + r".*gyr\.to_numpy\(\)"):
+        estimate_attitude(frame, ACC, MAG, 100.0)
+
+
+def test_dataframe_quaternion_xyzw_refused():
     q = np.tile([np.cos(0.2), 0.0, 0.0, np.sin(0.2)], (N, 1))
     acc, gps = np.tile([0.0, 0.0, 9.80665], (N, 1)), np.full((N, 3), np.nan)
-    pf = PositionFilter(10.0, 1.0, **NOISE)
-    got = pf.run(acc, pd.DataFrame(q[:, [1, 2, 3, 0]], columns=["qx", "qy", "qz", "qw"]), gps).velocity
-    assert np.array_equal(got, pf.run(acc, q, gps).velocity)
+    with pytest.raises(InputError, match=r"not in the order w, x, y, z.*\['qw', 'qx', 'qy', 'qz'\]"):
+        PositionFilter(10.0, 1.0, **NOISE).run(acc, pd.DataFrame(q[:, [1, 2, 3, 0]], columns=["qx", "qy", "qz", "qw"]),
+                                               gps)
 
 
 def test_dataframe_transposed_refused():

@@ -162,8 +162,9 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     name : str
         The argument's name, as the error message shows it.
     value : array_like (N,) or (N, width)
-        The readings.  A DataFrame whose column names end in the axis letters (``x, y, z``; ``w, x,
-        y, z`` for quaternions; any case: ``gyro_X``) is read by name, in that order.
+        The readings.  A DataFrame is read by position; one whose column names end in the axis
+        letters (``x, y, z``; ``w, x, y, z`` for quaternions; any case: ``gyro_X``) in another order
+        is refused.
     width : int, optional
         Columns per row; None: one number per sample, shape (N,).
     n : int, optional
@@ -182,8 +183,9 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     InputError
         ``value`` is not an array of real numbers (text, None and complex values are refused as
         ``cfdesign.runtime.filter.real_array`` refuses them), has another shape, or a number of
-        rows other than ``n``, or is a DataFrame whose rows are named by the axis letters and
-        columns are not (one axis per row: transposed); the message names ``name``.
+        rows other than ``n``, or is a DataFrame whose columns are named by the axis letters in
+        another order, or whose rows are named by them and columns are not (one axis per row:
+        transposed); the message names ``name``.
 
     Examples
     --------
@@ -221,16 +223,21 @@ def _axis_letters(labels, width) -> list | None:
 
 
 def _by_axis(name, value, width, error):
-    """A DataFrame's columns in axis order by their names (``z, y, x`` was read as ``x, y, z``);
-    a DataFrame of one axis per row (transposed: its index names the axes) refused; anything else
-    as it is."""
+    """A DataFrame as it is, unless its column names end in the axis letters in another order
+    (``gz, gx, gy``; ``qx, qy, qz, qw``: the order of scipy's quaternions): refused, as neither the
+    names (read by position, they mislabel the axes) nor the position (a remap such as
+    ``concat([g.gy, -g.gx, g.gz])`` keeps the sensor's names) can be taken as meant; and a DataFrame
+    of one axis per row (transposed: its index names the axes) refused."""
     columns, index = getattr(value, "columns", None), getattr(value, "index", None)
     if columns is None or index is None or width is None:
         return value
     order = _axis_letters(columns, width)
-    if order is not None:
-        return value.iloc[:, order]
-    if _axis_letters(index, width) is not None:
+    if order is not None and order != list(range(width)):
+        axes = ", ".join(AXES[width])
+        raise error(f"{name}: the DataFrame's columns are named {list(columns)}, not in the order {axes}: select "
+                    f"them in that order ({name}[[{', '.join(repr(columns[i]) for i in order)}]]), or pass "
+                    f"{name}.to_numpy() to take them as they stand")
+    if order is None and _axis_letters(index, width) is not None:
         raise error(f"{name}: the DataFrame's rows are named {list(index)}: one axis per row; samples must "
                     f"be rows, axes columns (shape (N, {width})): pass {name}.T")
     return value
