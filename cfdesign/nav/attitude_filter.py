@@ -337,7 +337,8 @@ class AttitudeParams:
         clipped deviation enters it, by up to a factor ``1 + alpha (sigma² - 1)`` per step (``alpha`` the rest
         low-pass's coefficient; 16 per tenth of a second at 100 Hz), so a motion's onset is followed; a shock
         of 200 m/s² at rest moves the attitude by 0.01 deg (2.7 unclipped).  From the end of the tilt's
-        start-up on (not with a given ``initial`` attitude, which runs none).
+        start-up on (not with a given ``initial`` attitude, which runs none).  At least 1; 1e15 turns
+        the clipping off.
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4); also the
@@ -405,7 +406,7 @@ class AttitudeParams:
 
         Ranges: ``declination_rad`` within [-pi, pi]; ``gyro_bias_std0``, ``heading_bias_std0``
         and ``mag_new_field_rotation_rad`` from 0 to 1e15; every other number in [1e-15, 1e15], and
-        ``mag_tolerance_rad`` below pi/2 as well; the five switches True or False (a Python or
+        ``mag_tolerance_rad`` below pi/2 and ``accel_shock_sigma`` at least 1 as well; the five switches True or False (a Python or
         numpy bool, not a number).
 
         Returns
@@ -418,8 +419,8 @@ class AttitudeParams:
         AttitudeInputError
             The first field, in declaration order, that is not a number (a bool or text is not one; a
             switch: not a bool), is
-            not finite or is out of its range, then a ``mag_tolerance_rad`` not below pi/2; the
-            message names the field.
+            not finite or is out of its range, then an ``accel_shock_sigma`` below 1, then a
+            ``mag_tolerance_rad`` not below pi/2; the message names the field.
 
         Examples
         --------
@@ -453,6 +454,9 @@ class AttitudeParams:
             elif not 1e-15 <= value <= 1e15:
                 raise AttitudeInputError(f"{f.name} must be a positive number (1e-15 .. 1e15), got {value!r}")
             values[f.name] = value
+        if values["accel_shock_sigma"] < 1.0:  # below: every sample is a shock, the tilt stops following
+            raise AttitudeInputError(f"accel_shock_sigma must be at least 1 (1e15: no clipping), "
+                                     f"got {values['accel_shock_sigma']!r}")
         if values["mag_tolerance_rad"] >= math.pi / 2:
             raise AttitudeInputError(f"mag_tolerance_rad must be below pi/2, got {values['mag_tolerance_rad']!r}")
         return replace(self, **values)

@@ -38,7 +38,8 @@ def number(name, value, error=AttitudeInputError) -> float:
     value : float
         The value (its unit is the caller's).
     error : type
-        The :class:`~cfdesign.errors.InputError` subclass to raise.
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise (an
+        :class:`~cfdesign.errors.InputError` by default; a design file's ``SpecError``).
 
     Returns
     -------
@@ -83,7 +84,8 @@ def positive(name, value, allow_zero=False, error=AttitudeInputError) -> float:
     allow_zero : bool
         Accept zero as well (non-negative instead of positive).
     error : type
-        The :class:`~cfdesign.errors.InputError` subclass to raise.
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise (an
+        :class:`~cfdesign.errors.InputError` by default; a design file's ``SpecError``).
 
     Returns
     -------
@@ -125,7 +127,8 @@ def rate(value, name="rate_hz", error=AttitudeInputError) -> float:
     name : str
         The argument's name, as the error message shows it.
     error : type
-        The :class:`~cfdesign.errors.InputError` subclass to raise.
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise (an
+        :class:`~cfdesign.errors.InputError` by default; a design file's ``SpecError``).
 
     Returns
     -------
@@ -170,7 +173,8 @@ def rows(name, value, width=None, n=None, error=AttitudeInputError) -> np.ndarra
     n : int, optional
         The number of rows required; any number when None.
     error : type
-        The :class:`~cfdesign.errors.InputError` subclass to raise.
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise (an
+        :class:`~cfdesign.errors.InputError` by default; a design file's ``SpecError``).
 
     Returns
     -------
@@ -255,7 +259,8 @@ def finite_vector(name, value, size=3, error=AttitudeInputError) -> np.ndarray:
     size : int
         How many.
     error : type
-        The :class:`~cfdesign.errors.InputError` subclass to raise.
+        The :class:`~cfdesign.errors.CfdesignError` subclass to raise (an
+        :class:`~cfdesign.errors.InputError` by default; a design file's ``SpecError``).
 
     Returns
     -------
