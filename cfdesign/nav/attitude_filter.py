@@ -406,8 +406,8 @@ class AttitudeParams:
 
         Ranges: ``declination_rad`` within [-pi, pi]; ``gyro_bias_std0``, ``heading_bias_std0``
         and ``mag_new_field_rotation_rad`` from 0 to 1e15; every other number in [1e-15, 1e15], and
-        ``mag_tolerance_rad`` below pi/2 and ``accel_shock_sigma`` at least 1 as well; the five switches True or False (a Python or
-        numpy bool, not a number).
+        ``mag_tolerance_rad`` below pi/2 and ``accel_shock_sigma`` at least 1 as well; the five
+        switches True or False (a Python or numpy bool, not a number).
 
         Returns
         -------

@@ -34,8 +34,8 @@ _UNROLLED = 16
 _CACHED_SOURCE = 100_000
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 #: the real scalar types other than float that readings have come as (int, numpy's floats and
-#: ints, Fraction, ...; not bool, refused as a reading): a reading of one of these is converted by ``float()`` without the
-#: full check (``_as_float``)
+#: ints, Fraction, ...; not bool, refused as a reading): a reading of one of these is converted
+#: by ``float()`` without the full check (``_as_float``)
 _REALS = {int}
 
 __all__ = ["compile_step"]
