@@ -82,9 +82,9 @@ _TOP_KEYS = {"name", "structure", "gain_form", "sample_time_s", "discrete", "ord
              "description", "gains", "wrap_angle", "output", "crossover", "full"}
 _SENSOR_KEYS = {"measures", "rate_hz", "noise", "bias", "port", "offset_s", "role"}
 #: other spellings of a key, for the hint of an unknown one (a name no closer than this to the key)
-_ALIASES = {"freq": "hz", "frequency": "hz", "f": "hz", "sigma": "std", "stddev": "std", "std_dev": "std",
-            "fs": "rate_hz", "hz": "rate_hz", "dt": "sample_time_s", "type": "model", "kind": "measures",
-            "delay": "offset_s"}
+_ALIASES = {"freq": ("hz", "rate_hz"), "frequency": ("hz", "rate_hz"), "f": ("hz", "rate_hz"), "sigma": ("std",),
+            "stddev": ("std",), "std_dev": ("std",), "fs": ("rate_hz",), "hz": ("rate_hz",), "rate": ("rate_hz",),
+            "dt": ("sample_time_s",), "type": ("model",), "kind": ("measures",), "delay": ("offset_s",)}
 #: ``measures`` of one family or the other, never both in a design (its states are one quantity);
 #: acceleration and jerk may be either (there is no separate angular acceleration)
 _FAMILIES = {"angle": "angular", "rate": "angular", "position": "linear", "velocity": "linear"}
@@ -626,7 +626,7 @@ def did_you_mean(word, choices) -> str:
         return ""
     folded = {c.casefold(): c for c in choices}
     key = word.casefold().strip()
-    near = folded.get(key) or folded.get(_ALIASES.get(key, ""))
+    near = folded.get(key) or next((folded[a] for a in _ALIASES.get(key, ()) if a in folded), None)
     if near is None:
         close = difflib.get_close_matches(key, list(folded), n=1, cutoff=0.7)
         near = folded[close[0]] if close else None
@@ -639,7 +639,12 @@ def _no_unknown(table, allowed, prefix, elsewhere=None):
     unknown = sorted(set(table) - allowed, key=str)  # (keys of a dict from Python may be of any type)
     if unknown:
         key = unknown[0]
-        hint = (elsewhere or {}).get(key) or did_you_mean(key, allowed) or f" (allowed: {', '.join(sorted(allowed))})"
+        placed = {str(k).casefold(): v for k, v in (elsewhere or {}).items()}  # 'Rate_Hz' as 'rate_hz'
+        folded = str(key).casefold()  # an alias too: 'fs' at the top level is a sensor's rate_hz
+        alias = next((a for a in _ALIASES.get(folded, ()) if a in placed), None)
+        moved = f"; did you mean {alias!r}? {placed[alias].removeprefix('; ')}" if alias else None
+        hint = (placed.get(folded) or moved or did_you_mean(key, allowed)
+                or f" (allowed: {', '.join(sorted(allowed))})")
         raise SpecError(f"{prefix}{key}: unknown field{hint}")
 
 

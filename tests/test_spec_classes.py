@@ -59,6 +59,13 @@ CASES = {
     "noise key": (_edit(DCKF3, "std = 0.04", "sd = 0.04"),
                   "sensors.compass.noise.sd: unknown field; did you mean 'std'?"),
     "bias key": (_edit(DCKF3, "model =", "modle ="), "sensors.gyro.bias.modle: unknown field; did you mean 'model'?"),
+    # another spelling, in the table where it means something else than elsewhere ('freq': a sensor's rate)
+    "sensor freq": (_edit(DCKF3, COMPASS, "freq = 5.0\nnoise = { std = 0.04 }"),
+                    "sensors.compass.freq: unknown field; did you mean 'rate_hz'?"),
+    "top-level fs": (_edit(DCKF3, "structure", "fs = 5.0\nstructure"),
+                     "fs: unknown field; did you mean 'rate_hz'? rate_hz is a key of a sensor"),
+    "top-level key in another case": (_edit(DCKF3, "structure", "Rate_Hz = 5.0\nstructure"),
+                                      "Rate_Hz: unknown field; rate_hz is a key of a sensor"),
     "crossover key": (_edit(CF2, "hz = 0.5", "freq = 0.5"), "crossover.freq: unknown field; did you mean 'hz'?"),
     "top key": (_edit(DCKF3, "structure", "sample_time_s = 0.2\nStructure"), "did you mean 'structure'?"),
     "top key prefix": (_edit(DCKF3, "structure", "sample_time = 0.2\nstructure"), "did you mean 'sample_time_s'?"),
