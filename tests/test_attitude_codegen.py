@@ -119,6 +119,27 @@ def test_c_runs_an_initial_attitude_and_the_ablation_switches(tmp_path):
 
 
 @needs_cc
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_c_agrees_on_shocks_counted_from_an_initial_attitude(tmp_path, magnetometer):
+    """With ``initial`` the clipping starts after the start-up's count of specific forces (tilt_n counted down):
+    a shock before it (sample 10, taken whole) and after it (sample 250, clipped; both at rest), as in Python
+    (the readings' bad samples and motion follow)."""
+    gyr, acc, mag = readings(n=3300)
+    acc[10, 0] += 200.0
+    acc[250, 0] += 200.0
+    mag = mag if magnetometer else None
+    f = AttitudeFilter(100.0, magnetometer=magnetometer, initial=[1.0, 0.0, 0.0, 0.0])    # the true attitude
+    q_c, state_c = run_c(tmp_path, f, gyr, acc, mag)
+    assert np.abs(q_c - f.run(gyr, acc, mag)).max() <= 1e-9
+    state_py = f.state()
+    assert max(abs(state_c[k] - state_py[k]) / max(1.0, abs(state_py[k])) for k in STATE_FIELDS) <= 1e-9
+    unclipped = AttitudeFilter(100.0, magnetometer=magnetometer, initial=[1.0, 0.0, 0.0, 0.0],
+                               accel_shock_sigma=1e15).run(gyr, acc, mag)
+    assert np.abs(q_c[:250] - unclipped[:250]).max() <= 1e-9                  # the early shock was taken whole
+    assert np.abs(q_c[250:] - unclipped[250:]).max() > 1e-3                   # the late shock was clipped
+
+
+@needs_cc
 def test_c_agrees_through_the_acceleration_levels_and_their_time_limit(tmp_path):
     """An 8 deg/s bias from a moving start: the levels engage, run out of time (max_accel_time_s)
     and the velocity channel restarts (and the tilt channel's lagged rows with it); C follows Python

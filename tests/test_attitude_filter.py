@@ -259,15 +259,17 @@ def test_taps_and_vibration_leave_the_tilt_alone():
     assert classic[1000:].max() > 1.0
 
 
-def still_run(magnetometer, shock=None, **params):
-    """A still sensor (30 s at 100 Hz, gyro bias and noise) with ``shock = (sample, m/s² on x, samples)`` added to
-    its specific force: the attitude estimates (N, 4)."""
-    q = rot.normalize(np.tile(rot.from_euler(np.array([[0.3, -0.2, 1.0]]))[0], (3000, 1)))
+def still_run(magnetometer, shock=None, n=3000, given=False, **params):
+    """A still sensor (``n`` samples at 100 Hz, gyro bias and noise) with ``shock = (sample, m/s² on x, samples)``
+    added to its specific force (``given``: the filter started from the true attitude): the attitude estimates
+    (N, 4)."""
+    q = rot.normalize(np.tile(rot.from_euler(np.array([[0.3, -0.2, 1.0]]))[0], (n, 1)))
     gyr, acc, mag = imu(q)
     if shock is not None:
-        k, size, n = shock
-        acc[k:k + n, 0] += size
-    return AttitudeFilter(RATE, magnetometer=magnetometer, **params).run(gyr, acc, mag if magnetometer else None)
+        k, size, samples = shock
+        acc[k:k + samples, 0] += size
+    f = AttitudeFilter(RATE, magnetometer=magnetometer, initial=q[0] if given else None, **params)
+    return f.run(gyr, acc, mag if magnetometer else None)
 
 
 def turned(a, b):
@@ -283,6 +285,48 @@ def test_a_shock_of_one_or_a_few_samples_barely_moves_the_attitude(magnetometer)
         # the same shock taken as a specific force (no clipping) turns the attitude by degrees
         unclipped = still_run(magnetometer, shock, accel_shock_sigma=1e15)
         assert turned(unclipped, clean)[1500:].max() > 2.0
+
+
+@pytest.mark.parametrize("magnetometer", [True, False])
+def test_a_shock_is_clipped_with_a_given_initial_attitude_too(magnetometer):
+    """With ``initial`` no start-up runs; its specific forces are counted instead and the clipping starts once
+    the start-up's ``1 / tilt_alpha`` (202 at 100 Hz) have been seen.  A shock before that (sample 5) is taken
+    whole, as it was before the count (the clipping then never started at all)."""
+    clean = still_run(magnetometer, n=1500, given=True)
+    shock = (1000, 200.0, 1)                                          # t = 10 s
+    assert turned(still_run(magnetometer, shock, n=1500, given=True), clean)[1000:].max() < 0.5
+    unclipped = still_run(magnetometer, shock, n=1500, given=True, accel_shock_sigma=1e15)
+    assert turned(unclipped, clean)[1000:].max() > 2.0
+    early = still_run(magnetometer, (5, 200.0, 1), n=1500, given=True)
+    np.testing.assert_array_equal(early, still_run(magnetometer, (5, 200.0, 1), n=1500, given=True,
+                                                   accel_shock_sigma=1e15))
+    assert turned(early, clean)[5:].max() > 2.0
+
+
+@pytest.mark.parametrize("given", [False, True])
+def test_the_clipping_starts_at_the_same_sample_with_or_without_an_initial_attitude(given):
+    """Both start at the first sample ``k`` (from 0) with ``k tilt_alpha >= 1`` (sample 202 at 100 Hz): a shock
+    there is clipped, one a sample sooner is taken whole (the same run as with the clipping off)."""
+    alpha = AttitudeFilter(RATE).design.constants["tilt_alpha"]
+    first = math.ceil(1.0 / alpha)
+    for k, clipped in ((first - 1, False), (first, True)):
+        est = still_run(False, (k, 200.0, 1), n=first + 20, given=given)
+        unclipped = still_run(False, (k, 200.0, 1), n=first + 20, given=given, accel_shock_sigma=1e15)
+        assert np.array_equal(est, unclipped) != clipped
+
+
+def test_a_state_saved_during_the_count_of_an_initial_attitude_restores():
+    """``tilt_n`` counts down from 0 with ``initial``: such a state restores and continues the run unchanged;
+    one below the count's end (``-1 / tilt_alpha``, 202 at 100 Hz) is refused by name."""
+    q0 = rot.from_euler(np.array([[0.3, -0.2, 1.0]]))[0]
+    f, g = AttitudeFilter(RATE, initial=q0), AttitudeFilter(RATE, initial=q0)
+    for _ in range(50):
+        f.step([0.0, 0.0, 0.0], [0.0, 0.0, GRAVITY])
+    assert f.state()["tilt_n"] == -50.0
+    g.restore(f.state())
+    assert g.step([0.1, 0.0, 0.0], [0.0, 0.2, GRAVITY]) == f.step([0.1, 0.0, 0.0], [0.0, 0.2, GRAVITY])
+    with pytest.raises(AttitudeInputError, match=r"tilt_n = -300\.0 must be a whole number from -203"):
+        g.restore({**f.state(), "tilt_n": -300.0})
 
 
 @pytest.mark.parametrize("seconds", [0.1, 0.5])

@@ -125,8 +125,9 @@ Every threshold is in physical units, derived from the noise figures where it ca
   detector's low-passed squared deviation, or of its noise floor), Huber-like, before any channel or the
   detector sees it; the clipped deviation still raises the spread, so a sustained change is followed within
   a tenth of a second (``_shock_clipped``).  Only once the tilt's start-up is over (``1 / omega``, longer than
-  the low-pass's time constant): before, the spread of a sensor started in motion is not yet measured (and
-  with a given ``initial`` attitude, which runs no start-up, nothing is clipped);
+  the low-pass's time constant): before, the spread of a sensor started in motion is not yet measured.  A
+  given ``initial`` attitude runs no start-up: its specific forces are counted (``tilt_n``, down from 0) and
+  the clipping starts once as many have been seen as the start-up takes (a shock before is taken whole);
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
   missing rate holds the last good one, a missing specific force or field skips its channel.
@@ -217,7 +218,8 @@ STATE_FIELDS = (
     "dist_time",                         # time the field has been disturbed without a break (s)
     "disturbed", "level",                # field disturbed (0/1); acceleration-disturbance level
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
-    "tilt_n",                            # start-up: specific forces the initial tilt averages
+    "tilt_n",                            # start-up: specific forces the initial tilt averages (with a given
+                                         # initial attitude: minus those seen until shocks are clipped)
     "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
@@ -233,7 +235,8 @@ STATE_LIMIT = 1e100
 #: readings, each one whose square is finite (the step's test of a field reading)
 _NORMS = ("norm_lp", "norm_ref", "norm_new")
 _MAX_NORM = math.sqrt(sys.float_info.max)
-#: the state's counters: whole numbers from 0 (readings averaged, samples missing)
+#: the state's counters: whole numbers from 0 (readings averaged, samples missing); ``tilt_n`` also from
+#: ``-1 / tilt_alpha`` (with a given initial attitude, counted down until shocks are clipped)
 _COUNTERS = ("ref_n", "new_n", "tilt_n", "missing_gyr", "missing_acc", "missing_mag", "gap_n")
 
 
@@ -337,8 +340,8 @@ class AttitudeParams:
         clipped deviation enters it, by up to a factor ``1 + alpha (sigma² - 1)`` per step (``alpha`` the rest
         low-pass's coefficient; 16 per tenth of a second at 100 Hz), so a motion's onset is followed; a shock
         of 200 m/s² at rest moves the attitude by 0.01 deg (2.7 unclipped).  From the end of the tilt's
-        start-up on (not with a given ``initial`` attitude, which runs none).  At least 1; 1e15 turns
-        the clipping off.
+        start-up on (``1 / omega``: 2 s by default); with a given ``initial`` attitude, which runs none, from
+        as many specific forces after the start.  At least 1; 1e15 turns the clipping off.
     max_speed_mps : float
         Speed (m/s) of the velocity channel beyond which the specific force is taken as a
         sustained acceleration and the tilt corrections are weighted down (default 4); also the
@@ -841,7 +844,8 @@ class AttitudeFilter:
             not positive semi-definite, a noise floor outside 1/16 to 16 times the densities' variance (in
             the rest detector's units), a negative time, a field norm that is negative or whose
             square overflows, a dip outside [-pi/2, pi/2], a
-            counter that is not a whole number, a flag or level out of its values, an
+            counter that is not a whole number from 0 (``tilt_n`` from about ``-1 / tilt_alpha``: counted down
+            with a given initial attitude), a flag or level out of its values, an
             ``accel_time`` beyond ``max_accel_time_s`` or any field beyond
             :data:`~cfdesign.nav.attitude_filter.STATE_LIMIT`; the message names the field and
             the filter's state is left unchanged.
@@ -925,9 +929,11 @@ class AttitudeFilter:
         for name in ("dip_lp", "dip_ref", "dip_new"):
             if abs(v[name]) > math.pi / 2:
                 return f"{name} = {v[name]!r} is not a dip angle (within [-pi/2, pi/2])"
+        # tilt_n counts down to the first whole number at or below -1 / tilt_alpha (2 more: rounding)
+        low = {"tilt_n": -1.0 / self.design.constants["tilt_alpha"] - 2.0}
         for name in _COUNTERS:
-            if v[name] < 0.0 or v[name] != math.floor(v[name]):
-                return f"{name} = {v[name]!r} must be a whole number from 0"
+            if v[name] < low.get(name, 0.0) or v[name] != math.floor(v[name]):
+                return f"{name} = {v[name]!r} must be a whole number from {math.ceil(low.get(name, 0.0)):d}"
         for name, allowed in (("started", (0.0, 1.0, 2.0)), ("disturbed", (0.0, 1.0)),
                               ("level", tuple(float(j) for j in range(len(self.design.velocity) - 1)))):
             if v[name] not in allowed:
@@ -1528,9 +1534,17 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         gfloor = _noise_floor(gnoise, gfloor, gdev, var_g, floor_up)
     still = False
     if acc_ok:
-        if tilt_n * tilt_alpha >= 1.0:
-            # after the tilt's start-up (its time 1 / omega is past the low-pass's, so the spread is measured)
+        if abs(tilt_n) * tilt_alpha >= 1.0:
+            # after the tilt's start-up (its time 1 / omega is past the low-pass's, so the spread is measured),
+            # or as many specific forces after a given initial attitude (tilt_n counted down, below)
             ax, ay, az = _shock_clipped(ax, ay, az, flx, fly, flz, fdev if fdev > ffloor else ffloor, shock_lim2)
+        elif tilt_n <= 0.0:
+            # a given initial attitude (only it reaches here with tilt_n <= 0: the first specific force
+            # without one sets tilt_n to 1) runs no start-up; tilt_n counts its specific forces down from 0
+            # instead, the start-up's count negated, so the clipping starts at the same sample.  One counter,
+            # not a new state field: every start-up and settling condition (0 < tilt_n alpha) is false for it,
+            # and a restart (after a gap or a tilt error) sets it to 1 as without an initial attitude
+            tilt_n -= 1.0
         flx += r_alpha * (ax - flx)
         fly += r_alpha * (ay - fly)
         flz += r_alpha * (az - flz)
