@@ -145,13 +145,16 @@ def _ratio(name, ratio, base, rate, origin="") -> Fraction:
 
 
 def _exact_sample_time(ratio, rate, origin) -> str:
-    """The advice on a ``sample_time_s`` rounded in the file (0.033333 beside a 30 Hz sensor): the
-    exact one, when the base rate comes from it (``origin``) and ``ratio`` is within 0.1 % of whole."""
-    whole = max(round(ratio), 1)
-    if not origin or abs(ratio - whole) > 1e-3 * ratio:
+    """The advice on a ``sample_time_s`` rounded in the file (0.033333 beside a 30 Hz sensor; 0.066667
+    beside a 10 Hz one, 2 readings every 3 steps): the exact one, when the base rate comes from it
+    (``origin``) and ``ratio`` is within 0.1 % of a fraction ``p / q`` with ``q`` up to 100: ``T = q / (p
+    rate)``."""
+    frac = Fraction(ratio).limit_denominator(100)
+    if not origin or not frac or abs(ratio - frac) > 1e-3 * ratio:
         return ""
-    return (f"; sample_time_s = {1.0 / (whole * rate)!r} (1 / ({whole} rate_hz)) puts it on the ticks" if whole > 1
-            else f"; sample_time_s = {1.0 / rate!r} (1 / rate_hz) puts it on the ticks")
+    p, q = frac.numerator, frac.denominator
+    formula = "1 / rate_hz" if p == q == 1 else f"1 / ({p} rate_hz)" if q == 1 else f"{q} / ({p} rate_hz)"
+    return f"; sample_time_s = {q / (p * rate)!r} ({formula}) puts it on the ticks"
 
 
 def _nearest_rate(ratio, base) -> str:

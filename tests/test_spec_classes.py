@@ -1,6 +1,8 @@
 """Classes of design-file mistakes: each gives one line naming the key and the fix, never a silent
 ignore or a misleading 'missing field'; the nearest key for typos ('did you mean')."""
 
+import re
+
 import pytest
 
 import cfdesign
@@ -168,3 +170,12 @@ def test_what_stays_accepted(tmp_path):
     assert load_spec(path).crossover == {"hz": (0.5,), "damping": None}
     path.write_text(CHAIN)
     assert load_spec(path).sensor("gyro").bias.psd == pytest.approx(1e-8)
+
+
+def test_a_rounded_sample_time_beside_a_sensor_read_2_steps_in_3_is_given_exactly():
+    """0.066667 s beside a 10 Hz sensor (read 2 steps in 3): the exact sample time, 2 / (3 x 10 Hz),
+    not a rate of 9.99995 Hz (the advice for a rate that has no short period)."""
+    from cfdesign.designer import multirate_schedule
+
+    with pytest.raises(SpecError, match=re.escape("; sample_time_s = 0.06666666666666667 (2 / (3 rate_hz)) puts it")):
+        multirate_schedule({"gps": 10.0}, sample_time_s=0.066667)
