@@ -1246,7 +1246,7 @@ def read_log_columns(path, columns, time_column: str | None = None, time_unit: s
         its name gives (``time [ms]``), else seconds.
     find_time : bool
         Without ``time_column``, take the log's time column as ``cfdesign run`` finds it
-        (:func:`cfdesign.logs.read.time_column`: ``time``, ``t``, ``timestamp``, in any case or
+        (``cfdesign.logs.read.time_column``: ``time``, ``t``, ``timestamp``, in any case or
         with a unit), if it has one.
 
     Returns
