@@ -650,10 +650,23 @@ def test_map_and_the_python_api_take_dataframes(heading):
     b = run_log(heading, log).estimates
     assert np.array_equal(a["heading"].to_numpy(), b["heading"].to_numpy())
     # the runtime takes a DataFrame as it takes a dict of arrays (rows = ticks)
-    c = Runtime(heading, x0=[log["compass"][0], 0.0]).run(log)  # run_log starts from the first reading
+    # run_log starts from the first reading, the most precise one on a shared tick (the odometry's, not the compass's)
+    var = {s.name: heading.R[s.index, s.index] for s in heading.measurements if log[s.name].notna()[0]}
+    assert len(var) == 2 and min(var, key=var.get) == "odometry"
+    c = Runtime(heading, x0=[log[min(var, key=var.get)][0], 0.0]).run(log)
     assert np.max(np.abs(wrap(c - b["heading"].to_numpy()))) < 1e-6
     with pytest.raises(DataError, match=r"--map spin: .* has no sensor 'spin'"):
         run_log(heading, log, mapping={"spin": "gz"})
+
+
+def test_the_state_starts_from_the_most_precise_direct_reading_of_its_tick(heading):
+    """The compass (the noisier sensor) 0.3 rad off on the first row, the odometry right: the start
+    is the odometry's reading, whatever the sensors' names (the first by name, the compass, had
+    started the heading 0.3 rad off, its error then decaying over the filter's time constant)."""
+    log, truth = heading_log(0, 0, n=300)
+    log.loc[0, "compass"] = log.loc[0, "odometry"] + 0.3
+    est = run_log(heading, log).estimates["heading"].to_numpy()
+    assert abs(wrap(est[0] - log.loc[0, "odometry"])) < 0.02 and abs(wrap(est[0] - truth[0])) < 0.05
 
 
 def test_blocks_equal_one_pass_also_across_a_tick_split_between_blocks(heading):

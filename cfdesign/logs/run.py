@@ -337,7 +337,7 @@ class _Runner:
         from ..timing import PAUSE_TICKS
 
         self.table, self.lock, self.output, self.from_reading = table, lock, output, from_reading
-        # (tick, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
+        # (tick, variance, sensor, value) of the log's first direct reading (:func:`_first_direct`): the start
         # when it lies in a later block than the first
         self.first_reading = first_reading
         self.covariances = covariances  # standard deviations that follow missed readings
@@ -708,7 +708,7 @@ class _Runner:
         x = np.zeros(self.table.F.shape[0])
         first = self.first_reading or _first_direct(self.table, np.arange(len(next(iter(dense.values())))), dense)
         if first is not None:
-            x[0] = first[2]
+            x[0] = first[3]
         return x
 
     def _dense(self, ticks, readings, first, last):

@@ -251,7 +251,7 @@ def _lock(table, blocks, cols, source, types=False):
         for name, held in inputs.items():
             held.add(ticks, np.isfinite(values[cols.sensors[name]]), first_row)
         here = _first_direct(table, ticks, {s.name: values[cols.sensors[s.name]] for s in table.measurements})
-        if here is not None and (first is None or here[:2] < first[:2]):
+        if here is not None and (first is None or here[:3] < first[:3]):
             first = here
         last = int(ticks[-1]) if len(ticks) else last
     place.check_rate()
@@ -283,10 +283,13 @@ def _check_float32_time(t, name, dt, source, scale=1.0):
 
 
 def _first_direct(table, ticks, readings):
-    """``(tick, sensor, value)`` of the first usable reading (:func:`~cfdesign.runtime.filter.usable`;
-    the first of its tick, as ``_Runner._dense`` keeps it) of a sensor whose row of H picks the
-    quantity (state 0), the sensor first by name on a shared tick; None when there is none.
-    ``readings``: ``{sensor: values}`` of the rows at ``ticks`` (ascending; NaN where none)."""
+    """``(tick, variance, sensor, value)`` of the first usable reading
+    (:func:`~cfdesign.runtime.filter.usable`; the first of its tick, as ``_Runner._dense`` keeps it)
+    of a sensor whose row of H picks the quantity (state 0); on a shared tick the most precise one
+    (the least variance in the table's ``R``; a table without ``R``: the first by name; a compass of
+    0.05 rad beside odometry of 0.01 rad had started the heading from the compass, by its name),
+    None when there is none.  ``readings``: ``{sensor: values}`` of the rows at ``ticks``
+    (ascending; NaN where none).  Tuples compare as the order of preference."""
     from ..runtime.filter import usable  # a rejected reading (inf, beyond the limit) is no start
 
     e0 = np.eye(table.F.shape[0])[0]
@@ -299,8 +302,9 @@ def _first_direct(table, ticks, readings):
         at, row = _unique(ticks[ok], return_index=True)
         good = np.flatnonzero(usable(col[ok[row]]))
         if good.size:
-            firsts.append((int(at[good[0]]), s.name, float(col[ok[row[good[0]]]])))
-    return min(firsts, key=lambda f: f[:2]) if firsts else None
+            var = float(table.R[s.index, s.index]) if table.R is not None else 0.0
+            firsts.append((int(at[good[0]]), var, s.name, float(col[ok[row[good[0]]]])))
+    return min(firsts) if firsts else None
 
 
 def _unique(a, return_index=False):
