@@ -1120,9 +1120,10 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
             lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s); "
                          + _ci_text(rw))
         else:
-            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); a structure "
-                         "that estimates the bias (a cf2 of order 2, for one) needs bias = { model = \"random_walk\", "
-                         "density = ... } from a longer recording or the datasheet")
+            lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); if this is "
+                         "the rate sensor of a structure that estimates its bias (a cf2 of order 2's gyro, for one), "
+                         "it needs bias = { model = \"random_walk\", density = ... } from a longer recording or the "
+                         "datasheet; other sensors need none")
         if bi is not None:
             lines.append(f"# bias instability B = {bi.value:.4g} {unit} ({_ci_text(bi)}); the design "
                          "models the bias as a random walk")
