@@ -207,9 +207,13 @@ def _summary(table) -> str:
         lines.append(f"  multirate: period {table.period} steps; measurements per phase: "
                      + ", ".join(f"{k}:{'+'.join(table.schedule.names(k))}" for k in range(table.period)
                                  if table.schedule.rows(k)))
-        for k, K in enumerate(table.K):
-            if table.schedule.rows(k):
-                lines.append(f"  K[{k}] = {K.ravel().tolist()}")
+        for k, K in enumerate(table.K):  # each state's gains on the phase's readings, named
+            rows = table.schedule.rows(k)
+            if rows:
+                names = [table.measurements[i].name for i in rows]
+                lines.append(f"  K[{k}]: " + "; ".join(
+                    f"{state} <- " + ", ".join(f"{name} {K[r, i]:.6g}" for name, i in zip(names, rows, strict=True))
+                    for r, state in enumerate(table.states)))
     elif table.gains:
         lines.append("  gains: " + ", ".join(f"{name} = {table.gains[name]:.6g}" for name in sorted(table.gains)))
     else:  # a table without named gains (discretised, recomputed): the matrix, a row per state

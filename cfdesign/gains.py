@@ -761,7 +761,9 @@ class GainTable:
     @property
     def predicted_std(self) -> float:
         """Predicted steady-state standard deviation of the estimate the table outputs
-        (``output``; first state), worst phase."""
+        (``output``; first state); for a multirate table the largest of its phases' (the RMS over
+        the period, which the RMS error over a whole log approaches, is the 'predicted' figure of
+        ``cfdesign run --reference`` and the second one of the design summary)."""
         return self.predicted_std_of(self.output)
 
     def predicted_std_of(self, output: str, state: int = 0) -> float:
