@@ -756,7 +756,7 @@ def _one_line(text: str, limit: int = 300) -> str:
 
 
 def _error(exc):
-    message = _one_line(str(exc), 2000)
+    message = _one_line(str(exc), 2000).replace(STDIN, "standard input")  # '-' as the user wrote it
     print(message if message.startswith("cfdesign") else f"cfdesign: error: {message}", file=sys.stderr)
 
 
