@@ -315,6 +315,21 @@ def test_the_clipping_starts_at_the_same_sample_with_or_without_an_initial_attit
         assert np.array_equal(est, unclipped) != clipped
 
 
+def test_an_initial_attitude_takes_gravitys_norm_when_its_count_ends():
+    """With ``initial`` the start-up that measures gravity's norm (``tilt_f``, the tilt-error test's reference)
+    does not run; it is taken from the low-passed specific force when the count of ``1 / tilt_alpha`` ends
+    (it stayed 0, so the test that restarts a tilt seen through an error could never pass)."""
+    q0 = rot.from_euler(np.array([[0.3, -0.2, 1.0]]))[0]
+    f = AttitudeFilter(RATE, initial=q0, magnetometer=False)
+    first = math.ceil(1.0 / f.design.constants["tilt_alpha"])
+    up = rot.rotate(rot.conjugate(q0[None, :]), np.array([[0.0, 0.0, 9.81]]))[0]  # gravity in the body frame
+    for k in range(first + 5):
+        f.step([0.0, 0.0, 0.0], up)
+        if k == first - 3:
+            assert f.state()["tilt_f"] == 0.0
+    assert f.state()["tilt_f"] == pytest.approx(9.81, rel=1e-3)
+
+
 def test_a_state_saved_during_the_count_of_an_initial_attitude_restores():
     """``tilt_n`` counts down from 0 with ``initial``: such a state restores and continues the run unchanged;
     one below the count's end (``-1 / tilt_alpha``, 202 at 100 Hz) is refused by name."""

@@ -220,7 +220,8 @@ STATE_FIELDS = (
     "accel_time",                        # time the levels have run (s; negative: the motion design for that long)
     "tilt_n",                            # start-up: specific forces the initial tilt averages (with a given
                                          # initial attitude: minus those seen until shocks are clipped)
-    "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction)
+    "tilt_f",                            # start-up: norm of their mean (m/s², upright after each correction;
+                                         # with an initial attitude: the low-passed norm when its count ends)
     "lgx", "lgy", "lgz",                 # last good rate (rad/s)
     "started", "missing_gyr", "missing_acc", "missing_mag",
     "gap_n",                             # rates missing in a row since the start (a gap in the gyro); with
@@ -1549,6 +1550,10 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         fly += r_alpha * (ay - fly)
         flz += r_alpha * (az - flz)
         fdev += r_alpha * ((ax - flx) * (ax - flx) + (ay - fly) * (ay - fly) + (az - flz) * (az - flz) - fdev)
+        if tilt_f == 0.0 and tilt_n < 0.0 and -tilt_n * tilt_alpha >= 1.0:
+            # a given initial attitude's count done: gravity's norm, which the start-up would have measured
+            # (tilt_f, the tilt-error test's reference; 0 had kept that test from ever passing)
+            tilt_f = math.sqrt(flx * flx + fly * fly + flz * flz)
         if not first:
             fnoise += r_alpha * (d_scale * ((ax - lax) * (ax - lax) + (ay - lay) * (ay - lay) + (az - laz) * (az - laz))
                                  - fnoise)
