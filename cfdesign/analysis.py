@@ -238,15 +238,27 @@ class FrequencyResponse:
         return np.degrees(np.unwrap(np.angle(resp)))
 
     def dominant_order(self) -> list:
-        """Band names ordered by the frequency at which each band peaks (low-pass first).
+        """Band names ordered by the frequency at which each band rises to dominance (low-pass first).
+
+        A band's rise is the lowest frequency of the grid where its magnitude reaches 1/2 (bands
+        that sum to one each pass about half the signal where they take over), or, for a band that
+        never does (a weak band-pass), half its own peak.  Not the frequency of the peak: in a
+        discrete table a band of a rate or acceleration sensor grows without bound towards the
+        Nyquist frequency (the held input's zero at z = -1 divided out), where a band-pass and a
+        high-pass band then both peaked, and the crossovers were drawn between the wrong bands.
 
         Returns
         -------
         list of str
-            The band (sensor) names, the band that peaks at the lowest frequency first.
+            The band (sensor) names, the one that dominates at the lowest frequencies first.
         """
-        peak = {k: self.omega[np.argmax(np.abs(v))] for k, v in self.bands.items()}
-        return sorted(peak, key=lambda k: (peak[k], k))
+        def rise(v):
+            m = np.abs(v)
+            reach = m >= (0.5 if m.max() >= 0.5 else m.max() / 2)
+            return self.omega[np.argmax(reach)]
+
+        first = {k: rise(v) for k, v in self.bands.items()}
+        return sorted(first, key=lambda k: (first[k], k))
 
     def crossovers(self) -> list:
         """Where adjacent bands have equal magnitude.

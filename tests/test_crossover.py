@@ -55,6 +55,15 @@ def test_three_band_crossovers_at_both_frequencies(discrete):
     mag = magnitudes(table, [0.05, 2.0])
     assert mag["position"][0] == pytest.approx(mag["velocity"][0], rel=1e-6)
     assert mag["velocity"][1] == pytest.approx(mag["acceleration"][1], rel=1e-6)
+    # the Bode plot marks those crossovers (discrete: the rate and acceleration bands both grow towards
+    # Nyquist, where ordering the bands by their peaks had drawn 'position/acceleration' at 0.32 Hz)
+    from cfdesign.analysis import frequency_response
+    from cfdesign.designer import designed_observer
+
+    spec = parse_spec({"structure": "cf3", "discrete": discrete, "crossover": {"hz": [0.05, 2.0]}, "sensors": CHAIN})
+    drawn = [(a, b, w / (2 * np.pi)) for a, b, w in frequency_response(designed_observer(spec, table)).crossovers()]
+    assert [(a, b) for a, b, _ in drawn] == [("position", "velocity"), ("velocity", "acceleration")]
+    assert [w for _, _, w in drawn] == pytest.approx([0.05, 2.0], rel=1e-6)
 
 
 def test_closed_forms_are_the_sympy_solutions():
