@@ -345,7 +345,9 @@ def cmd_run(args) -> int:
         for r in failed:
             named = r["error"] if r["error"].startswith(r["log"]) else f"{r['log']}: {r['error']}"
             print(f"cfdesign: {named}", file=sys.stderr)
-        print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}")
+        noted = sum(1 for r in rows if r.get("notes"))
+        print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}"
+              + (f" ({noted} log{'s' if noted > 1 else ''} with notes: its notes column)" if noted else ""))
         return 3 if any(r["error"].startswith(INTERNAL) for r in failed) else 2 if failed else 0
     result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)
     for note in result.notes:

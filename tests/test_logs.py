@@ -1036,6 +1036,8 @@ def test_many_logs_on_dask_with_a_summary(heading, tmp_path, cli, capfd, caplog,
     # beside them the prediction each log's figure should come to (over every row here: no settled rows)
     assert columns[columns.index("rms_settled_heading") + 1] == "predicted_std_heading"
     assert summary["predicted_std_heading"].iloc[1:].gt(0).all() and summary["predicted_std_heading"].isna().iloc[0]
+    # each log's notes, which one log's run prints (they went nowhere): robot1's compass 10 rows late
+    assert "compass 10 ticks, odometry 1 ticks after the table's schedule" in summary["notes"].iloc[2]
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["robot0.csv", "robot1.csv", "robot2.csv",
                                                                     "summary.csv"]
 

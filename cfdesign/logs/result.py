@@ -83,7 +83,9 @@ class LogResult:
             ``log``, ``samples``, ``readings_not_used``, and for each reference ``rms_<state>``
             (over every row), ``rms_settled_<state>`` (after the start-up, ``startup_s``) and
             ``predicted_std_<state>``, what the settled figure should come to for this log
-            (``predicted_std``: missed readings and recomputed gains make it differ from log to log).
+            (``predicted_std``: missed readings and recomputed gains make it differ from log to log),
+            then ``notes``: the log's notes (:attr:`notes`, what ``cfdesign run`` prints for one log:
+            a cut last line, offsets found, gains recomputed), joined by `` | ``.
         """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
         for k, v in self.rms.items():
@@ -91,4 +93,5 @@ class LogResult:
                         f"predicted_std_{k}": self.predicted_std.get(k, math.nan)})
         if self.rms:
             row["startup_s"] = self.startup_s
+        row["notes"] = " | ".join(self.notes)
         return row
