@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import json
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -426,6 +427,9 @@ def _pairs(items, option, form) -> dict:
         key, sep, value = item.partition("=")
         if not sep or not key.strip() or not value.strip():
             raise CfdesignError(f"{option} {item!r} is not of the form {form}")
+        if re.search(r",\s*[^,=\s]+\s*=", value):  # 'a=x,b=y': one column named 'x,b=y' was looked for
+            raise CfdesignError(f"{option} {item!r}: one {form} per {option}; repeat it for each "
+                                f"({option} {key.strip()}={value.split(',')[0].strip()} {option} ...)")
         if key.strip() in out:  # the last one winning in silence ran a sensor on the column not meant
             raise CfdesignError(f"{option} {key.strip()} is given twice ({out[key.strip()]!r} and {value.strip()!r})")
         out[key.strip()] = value.strip()

@@ -601,7 +601,8 @@ def _check_sensors(spec, obs):
     for x in spec.sensors:
         if x.name not in names:
             raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})"
-                            f"{did_you_mean(x.name, names)}")
+                            + (did_you_mean(x.name, names) or f"; a sensor of another name plays one of them with "
+                               f"port = \"...\" (port = \"{sorted(names)[0]}\", say)"))
     for s in obs.sensors:
         given = spec.sensor(s.name)
         if given.measures is not None:

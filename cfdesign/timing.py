@@ -750,13 +750,18 @@ def lock_schedule(table, arrivals: dict, n_ticks: int, *, recompute: bool = True
                          else "gains recomputed for the arrival pattern (periodic DARE of the table's model)"
                          if any(s.offsets for s in segments) else "the schedule is locked to the arrivals"))
     if varying and not faster:
-        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
-                     "sensor): the log runs the Kalman filter of the table's model with gains from the readings "
+        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log ({_WHY_CHANGES}): "
+                     "the log runs the Kalman filter of the table's model with gains from the readings "
                      "as they arrive")
     elif len(segments) > 1 and not faster:
-        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log (a drifting or slipping "
-                     "sensor): each stretch runs with the gains of its own pattern")
+        notes.append(f"the arrival pattern changes {len(segments) - 1} times in the log ({_WHY_CHANGES}): "
+                     "each stretch runs with the gains of its own pattern")
     return Lock(segments or [Segment(0, n_ticks)], main, rates, notes, varying)
+
+
+#: why a slow sensor's arrival pattern changes along a log, for the note that says it does
+_WHY_CHANGES = ("a drifting or slipping sensor, or time stamps jittered near the middle between two ticks, "
+                "where a rate that is not a whole fraction of the base rate puts some of its readings")
 
 
 def _arrival_rate(ticks, per_period: int, dt: float) -> float:

@@ -318,3 +318,25 @@ def test_noise_refuses_times_whose_unit_is_a_guess(tmp_path, header, times, unit
     else:
         rate = read_log_columns(tmp_path / "log.csv", ["gyro"], header, unit)[0]
         assert rate == pytest.approx(100.0 if header.endswith("[ms]") or unit == "ms" else 0.1 if unit else 0.5)
+
+
+def test_several_mappings_in_one_map_option_are_named(heading, reference, tmp_path, cli):
+    """``--map a=x,b=y`` looked for one column named 'x,b=y' ('missing column(s) x,b=y (sensor a)'):
+    the option takes one mapping, repeated."""
+    log, _ = reference
+    log.to_csv(tmp_path / "log.csv", index=False)
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv",
+                       "--map", "gyro=gyro,compass=compass")
+    assert code == 2 and "one SENSOR=COLUMN per --map; repeat it for each" in err and err.count("\n") == 1
+
+
+def test_a_ros_export_runs_on_its_nanosecond_time_without_options(heading, reference):
+    """``rostopic echo -p`` writes ``%time``, integer nanoseconds since 1970: taken as the time, in ns,
+    without --time and --time-unit (it ran one row a tick, exit 0, with a note)."""
+    log = reference[0].drop(index=[50, 51, 52]).reset_index(drop=True)  # three IMU rows lost: times tell
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    ns = 1_700_000_000 * 10**9 + np.round(log["time"].to_numpy() * 1e9).astype(np.int64)
+    ros = log.drop(columns=["time"]).assign(**{"%time": ns})[["%time", "gyro", "odometry", "compass"]]
+    got = run_log(heading, ros).estimates
+    assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9) and got["%time"].tolist() == ns.tolist()
+

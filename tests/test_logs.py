@@ -383,10 +383,10 @@ def test_durations_as_times_run_as_seconds(heading, tmp_path):
 
 
 def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_path, cli):
-    """The integer nanoseconds since 1970 of a ROS ``rostopic echo -p`` export (``%time``) run with
-    ``--time-unit ns`` as the seconds do, the column written as it was; without it, the error
-    names nanoseconds (it asked 'are the times in seconds?' of a 'gap' of 1e7 s); milliseconds
-    in Python with ``time_unit='ms'``."""
+    """The integer nanoseconds since 1970 of a ROS ``rostopic echo -p`` export (``%time``) run as the
+    seconds do, by the column's name or with ``--time-unit ns``, the column written as it was; read
+    as seconds (``--time-unit s``), the error names nanoseconds (it asked 'are the times in
+    seconds?' of a 'gap' of 1e7 s); milliseconds in Python with ``time_unit='ms'``."""
     from cfdesign.logs.plot import _time_axis
 
     log, _ = heading_log(0, 0, n=1000, jitter=0.0)
@@ -395,8 +395,10 @@ def test_times_in_nanoseconds_or_milliseconds_run_with_their_unit(heading, tmp_p
     ns.insert(0, "%time", 1_700_000_000_000_000_000 + np.arange(1000, dtype=np.int64) * 10_000_000)
     ns.to_csv(tmp_path / "ros.csv", index=False)
     table = heading.save(tmp_path / "g.json")
-    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time")
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time-unit", "s")
     assert code == 2 and "times in nanoseconds? They are read as seconds unless --time-unit ns is given" in err
+    code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv")  # '%time' is ROS's: ns
+    assert code == 0 and np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12), err
     code, _, err = cli("run", table, tmp_path / "ros.csv", "-o", tmp_path / "e.csv", "--time", "%time",
                        "--time-unit", "ns")
     assert code == 0, err

@@ -119,6 +119,10 @@ CASES = {
                                  "crossover.hz: the predicted error covariance"),
     "sample time rounded": (_edit(DCKF3, "structure", "sample_time_s = 0.066667\nstructure").replace("5.0", "15.0"),
                             "; sample_time_s = 0.06666666666666667 (1 / rate_hz) puts it on the ticks"),
+    # a fixed structure's sensor under another name: the port that plays it
+    "sensor named otherwise": (_edit(DCKF3, "[sensors.compass]", "[sensors.mag]"),
+                               "sensors.mag: dckf3 has no such sensor (it has compass, gyro, odometry); a sensor of "
+                               "another name plays one of them with port = "),
     # a slower sensor listed first: the base period is 1 / (3 x 5 Hz), not 3 / 5 Hz (0.6 s had been advised)
     "sample time rounded, slower sensor": (_edit(DCKF3, "structure", "sample_time_s = 0.066667\nstructure"),
                                            "; sample_time_s = 0.06666666666666667 (1 / (3 rate_hz)) puts it"),

@@ -203,5 +203,5 @@ def test_the_fleet_summary_has_the_settled_rms_beside_the_rms():
     r = LogResult(None, 10, {"heading": 0.5}, rms_settled={"heading": 0.1}, predicted_std={"heading": 0.09},
                   startup_s=16.1)
     assert list(r.summary().items())[3:] == [("rms_heading", 0.5), ("rms_settled_heading", 0.1),
-                                             ("predicted_std_heading", 0.09), ("startup_s", 16.1)]
-    assert list(LogResult(None, 10).summary()) == ["log", "samples", "readings_not_used"]
+                                             ("predicted_std_heading", 0.09), ("startup_s", 16.1), ("notes", "")]
+    assert list(LogResult(None, 10).summary()) == ["log", "samples", "readings_not_used", "notes"]

@@ -12,6 +12,8 @@ from ..errors import CfdesignError, DataError
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t", "timestamp")
+#: the time column of a ROS ``rostopic echo -p`` export: integer nanoseconds since 1970
+ROS_TIME = "%time"
 #: units a numeric time column may be in (``time_unit``, ``cfdesign run --time-unit``): seconds each
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 #: cells that are no reading (in lower case, spaces stripped): those pandas reads as missing
@@ -110,9 +112,12 @@ def _time_unit(source, time, time_unit, units=None) -> str:
 
 def _named_unit(time, units=None):
     """The unit of time (of :data:`TIME_UNITS`) that the name of the column ``time`` gives
-    (``time [ms]``), else the row of ``units`` under a CSV's header (``{column: unit}``), else None."""
+    (``time [ms]``; ``%time``, a ROS export's: ns), else the row of ``units`` under a CSV's header
+    (``{column: unit}``), else None."""
     if time is None:
         return None
+    if time == ROS_TIME:
+        return "ns"
     named = _unit(time)[1] or _UNIT_NAMES.get((units or {}).get(time, "").strip(" []()").lower())
     return named if named in TIME_UNITS else None
 

@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import CfdesignError, DataError
 from .columns import (
     MISSING,
+    ROS_TIME,
     TIME_COLUMNS,
     TIME_UNITS,
     _Columns,
@@ -40,8 +41,8 @@ def _numbers_only(header) -> bool:
 
 def time_column(header):
     """The time column of a log whose options name none: ``time``, ``t`` or ``timestamp``, else
-    one of them in another case (``Time``), else with a unit (``time [ms]``, ``t_us``); None when
-    the header has none of them.
+    one of them in another case (``Time``), else with a unit (``time [ms]``, ``t_us``), else a ROS
+    ``rostopic echo -p`` export's ``%time`` (nanoseconds); None when the header has none of them.
 
     Parameters
     ----------
@@ -61,7 +62,8 @@ def time_column(header):
     """
     return next((c for c in TIME_COLUMNS if c in header), None) or next(
         (h for c in TIME_COLUMNS for h in header if h.lower() == c), None) or next(
-        (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None)
+        (h for c in TIME_COLUMNS for h in header if _time_with_unit(h) == c), None) or (
+        ROS_TIME if ROS_TIME in header else None)
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,

@@ -84,8 +84,8 @@ class LogResult:
             (over every row), ``rms_settled_<state>`` (after the start-up, ``startup_s``) and
             ``predicted_std_<state>``, what the settled figure should come to for this log
             (``predicted_std``: missed readings and recomputed gains make it differ from log to log),
-            then ``notes``: the log's notes (:attr:`notes`, what ``cfdesign run`` prints for one log:
-            a cut last line, offsets found, gains recomputed), joined by `` | ``.
+            then ``notes``: the log's notes (what ``cfdesign run`` prints for one log: a cut last
+            line, offsets found, gains recomputed), joined by a vertical bar.
         """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
         for k, v in self.rms.items():
