@@ -1,24 +1,14 @@
 """Design files: every built-in example loads; bad files give one clear line naming the field."""
 
 
+from pathlib import Path
+
 import pytest
 
 from cfdesign.errors import SpecError
 from cfdesign.spec import EXAMPLES, example_path, load_spec
 
-GOOD = """
-structure = "dckf3"
-[sensors.gyro]
-rate_hz = 5.0
-noise = { std = 0.05 }
-bias = { model = "random_walk", density = 1e-3 }
-[sensors.compass]
-rate_hz = 5.0
-noise = { std = 0.04 }
-[sensors.odometry]
-rate_hz = 5.0
-noise = { std = 0.01 }
-"""
+GOOD = (Path(__file__).parent / "fixtures" / "dckf3_5hz.toml").read_text()
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

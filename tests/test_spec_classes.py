@@ -2,6 +2,7 @@
 ignore or a misleading 'missing field'; the nearest key for typos ('did you mean')."""
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -9,18 +10,7 @@ import cfdesign
 from cfdesign.errors import SpecError
 from cfdesign.spec import did_you_mean, load_spec
 
-DCKF3 = """structure = "dckf3"
-[sensors.gyro]
-rate_hz = 5.0
-noise = { std = 0.05 }
-bias = { model = "random_walk", density = 1e-3 }
-[sensors.compass]
-rate_hz = 5.0
-noise = { std = 0.04 }
-[sensors.odometry]
-rate_hz = 5.0
-noise = { std = 0.01 }
-"""
+DCKF3 = (Path(__file__).parent / "fixtures" / "dckf3_5hz.toml").read_text()
 CF2 = """structure = "cf2"
 order = 2
 discrete = true
