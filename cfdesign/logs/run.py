@@ -408,15 +408,21 @@ class _Runner:
             self.x, self.u_last = self._start(dense), np.zeros(len(self.table.inputs))
             self.pending = self.late_start
         parts, shifts = [], []
-        restarts = self._restart_ticks(dense, first)
-        cuts = [first, *(r for _, r in restarts), last + 1]
+        restarts, ends = self._restart_ticks(dense, first)
+        at = {r: (i, e) for i, (e, r) in enumerate(restarts)}
+        cuts = [first, *sorted({*ends, *at}), last + 1]
         for k, (a, b) in enumerate(itertools.pairwise(cuts)):
-            start = k == 1 and self.late_start  # the log's first direct reading: no gate
-            moved = self._restart(dense, a - first, gate=not start) if k else None
+            if k and a in ends:
+                self._forget()
+            moved = None
+            if k and a in at:
+                i, e = at[a]
+                start = i == 0 and self.late_start  # the log's first direct reading: no gate
+                moved = self._restart(dense, a - first, gate=not start)
             if moved is not None:
-                shifts.append((max(restarts[k - 1][0], first), a, *moved))
+                shifts.append((max(e, first), a, *moved))
                 # the start-up after a pause runs from its end; the log's, from that first reading
-                self.restarts.append(a if start else restarts[k - 1][0])
+                self.restarts.append(a if start else e)
                 if start:
                     self.late_start, self.start_tick = False, a
             if a < b:
@@ -498,17 +504,18 @@ class _Runner:
         e0 = np.eye(self.table.F.shape[0])[0]
         return [i for i, s in enumerate(self.table.measurements) if np.array_equal(self.table.H[s.index], e0)]
 
-    def _restart_ticks(self, dense, first) -> list:
+    def _restart_ticks(self, dense, first) -> tuple:
         """Ticks (ascending) of the direct readings that start state 0 again: the first one at or
         after the end of each pause (more than :data:`~cfdesign.timing.PAUSE_TICKS` ticks without
         a reading of any input sensor: the logger stopped, the vehicle moved on, and what it did
-        meanwhile is unknown), pauses counted in :attr:`pauses`."""
+        meanwhile is unknown), pauses counted in :attr:`pauses`, as ``(pause's end, reading)``; and
+        the ticks where a pause ends (:meth:`_forget`)."""
         from ..runtime.filter import usable
         from ..timing import PAUSE_TICKS
 
         inputs, direct = self.table.inputs, self._direct()
         if not inputs or not direct:
-            return []
+            return [], set()
         n = len(dense[inputs[0].name])
         have = np.zeros(n, dtype=bool)
         for s in inputs:
@@ -530,7 +537,7 @@ class _Runner:
                 self.pending = True
                 break
             out.append((e, e + int(r[0])))
-        return [(first + e, first + r) for e, r in out]
+        return [(first + e, first + r) for e, r in out], {first + int(e) for e in ends}
 
     def _restart(self, dense, k, gate=True):
         """State 0 started again from the direct reading at index ``k`` of ``dense`` (the most
@@ -572,11 +579,31 @@ class _Runner:
             kf.x = x
         else:
             self.x = x
-        for P in (self.P_missed, None if kf is None else kf.P, None if self.bridge is None else self.bridge.P):
-            if P is not None and R is not None:
+        if R is not None:
+            for P in self._covariances():
                 P[0, :] = P[:, 0] = 0.0
                 P[0, 0] = R[best, best]
         return delta, math.sqrt(R[best, best]) if R is not None else 0.0
+
+    def _covariances(self) -> list:
+        """The covariances carried from tick to tick (of the Kalman filter over the arrivals, the
+        bridging filter, the missed readings' standard deviations) that exist so far."""
+        kf = getattr(self, "_arrivals", None)
+        return [P for P in (self.P_missed, None if kf is None else kf.P, None if self.bridge is None else self.bridge.P)
+                if P is not None]
+
+    def _forget(self):
+        """At a pause's end, state 0 (what the vehicle did over the pause is unknown) is made
+        uncorrelated with the other states in the covariances carried, its variance kept: the
+        held inputs had correlated its error over the pause with the other states', so a reading of
+        another state (a velocity) before the first direct reading stepped it (39.7 m on a 30 s
+        pause of a position filter, its 10 Hz velocity read 5 ticks after the end), and the rows
+        before that reading were left off by the step (37 m from the truth) when the ticks from
+        the pause's end moved onto the direct reading (:meth:`_restart`) by one amount."""
+        for P in self._covariances():
+            p00 = P[0, 0]
+            P[0, :] = P[:, 0] = 0.0
+            P[0, 0] = p00
 
     def _run_arrivals(self, dense, first, last):
         """Ticks ``first..last`` through the Kalman filter over the actual arrivals
