@@ -123,7 +123,10 @@ def _check_sizes(d, source):
 
 
 def _check_numbers(value, source, where=""):
-    """Refuse a number that is not a finite double (an integer of 400 digits) before any use."""
+    """Refuse a number that is not a finite double (an integer of 400 digits, or ``1e309``, which
+    JSON reads as inf) anywhere in the table before any use.  The matrices were checked on
+    their own; an inf in ``gains``, ``checks`` or ``provenance`` loaded, then the table could not
+    be written (``cfdesign export --format json``: an internal error)."""
     if isinstance(value, dict):
         for key, item in value.items():
             _check_numbers(item, source, f"{where}/{key}" if where else str(key))
@@ -133,6 +136,9 @@ def _check_numbers(value, source, where=""):
     elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > 2 ** 1023:
         raise GainTableError(f"{source}: {where or '(top level)'}: {str(value)[:20]}... is beyond the range of a "
                              "double")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise GainTableError(f"{source}: {where or '(top level)'}: {value} is not a finite number (a number beyond "
+                             f"the range of a double, such as 1e309, reads as {'-' if value < 0 else ''}inf)")
 
 
 def _check_schema(data, source):

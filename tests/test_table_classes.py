@@ -1,0 +1,59 @@
+"""Adversarial pass over gain tables, export and verify, one property per class of input that was
+mishandled: a number beyond the double range in any field, a sensor name too long for C, an output
+name ending in '/', and a sensor that differs from the spec's in one field."""
+
+import json
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+import cfdesign
+from cfdesign.errors import GainTableError
+from cfdesign.gains import load_gains
+
+FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@pytest.fixture(scope="module")
+def cf3():
+    """A continuous table with named gains (cheap to design) and its spec."""
+    spec = cfdesign.load_spec(cfdesign.example_path("cf3"))
+    return spec, cfdesign.design(spec)
+
+
+@pytest.fixture(scope="module")
+def position():
+    """A discrete multirate table (the C generator's input)."""
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+
+
+def numeric_leaves(value, path=()):
+    """The path of every number in a JSON value."""
+    if isinstance(value, dict):
+        return [p for key, item in value.items() for p in numeric_leaves(item, (*path, key))]
+    if isinstance(value, list):
+        return [p for i, item in enumerate(value) for p in numeric_leaves(item, (*path, i))]
+    return [path] if isinstance(value, (int, float)) and not isinstance(value, bool) else []
+
+
+def test_a_number_beyond_the_double_range_is_refused_wherever_it_is(cf3, tmp_path):
+    """``1e309`` reads as inf: in a matrix it was refused, in ``gains``, ``checks`` or
+    ``provenance`` it loaded, and writing the table (``export --format json``) then failed with an
+    internal error.  Every number of the table, replaced in turn, is refused by load_gains with
+    the field named."""
+    data = cf3[1].to_dict()
+    leaves = numeric_leaves(data)
+    assert any(p[0] == "gains" for p in leaves) and any(p[0] == "provenance" for p in leaves)
+    path = tmp_path / "t.json"
+    for where in leaves:
+        for token in ("1e309", "-1e400"):
+            edited = json.loads(json.dumps(data))
+            node = edited
+            for key in where[:-1]:
+                node = node[key]
+            node[where[-1]] = "@"
+            path.write_text(json.dumps(edited).replace('"@"', token))
+            with pytest.raises(GainTableError) as info:
+                load_gains(path)
+            if where[0] in ("gains", "checks", "provenance"):  # matrices name the matrix ('K[0] has a value ...')
+                assert "/".join(map(str, where)) in str(info.value) and "inf" in str(info.value)
