@@ -23,6 +23,7 @@ import keyword
 import math
 import numbers
 import os
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -1260,5 +1261,27 @@ def load_gains(path) -> GainTable:
     except RecursionError:
         raise GainTableError(f"{path}: not a gain table: JSON nested too deeply") from None
     except ValueError as exc:  # JSONDecodeError (with the place), and the hooks' refusals (a NaN, a key twice)
-        raise GainTableError(f"{path}: not valid JSON: {exc}") from None
+        what = _not_json(text) if not text.lstrip().startswith("{") else None  # a table starts with '{'
+        raise GainTableError(f"{path}: {what or f'not valid JSON: {exc}'}") from None
     return GainTable.from_dict(data, str(path))
+
+
+#: the first line of a TOML file: a comment, a [section] or [[array]] header, a key = value
+_TOML_LINE = re.compile(r"#|\[\[?\s*[A-Za-z_][\w.\"' -]*\]\]?\s*(#.*)?$|[A-Za-z_][\w.-]*\s*=")
+
+
+def _not_json(text: str) -> str | None:
+    """What a file that is not JSON and does not start as a table is, where that can be told: an
+    empty file, a CSV of gains, a design file.  Each was 'not valid JSON: Expecting value: line 1
+    column 1 (char 0)', which said nothing of what to read instead."""
+    body = text.strip()
+    if not body:
+        return "the file is empty: a gain table is the JSON file that cfdesign design -o writes"
+    first = body.splitlines()[0]
+    if first.startswith("phase,state"):
+        return ("this is a CSV of the gains (cfdesign export --format csv), which holds the gains only: commands "
+                "read the JSON gain table (cfdesign design -o, cfdesign export --format json)")
+    if _TOML_LINE.match(first):
+        return ("this looks like a design file (TOML), not a gain table (JSON): cfdesign design FILE -o table.json "
+                "makes its table")
+    return None

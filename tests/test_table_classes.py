@@ -3,12 +3,14 @@ mishandled: a number beyond the double range in any field, a sensor name too lon
 name ending in '/', and a sensor that differs from the spec's in one field."""
 
 import json
+import re
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 import cfdesign
 from cfdesign.errors import GainTableError
+from cfdesign.export import write_gain_csv
 from cfdesign.gains import load_gains
 
 FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -57,3 +59,22 @@ def test_a_number_beyond_the_double_range_is_refused_wherever_it_is(cf3, tmp_pat
                 load_gains(path)
             if where[0] in ("gains", "checks", "provenance"):  # matrices name the matrix ('K[0] has a value ...')
                 assert "/".join(map(str, where)) in str(info.value) and "inf" in str(info.value)
+
+
+@pytest.mark.parametrize("example", ["cf3", "position", "robot-heading", "tilt"])
+def test_a_file_that_is_not_a_table_says_what_it_is(cf3, position, tmp_path, example):
+    """An empty file, the CSV export and a design file given as the table all said 'not valid JSON:
+    Expecting value: line 1 column 1 (char 0)'; each now says what it is and what to read.  A cut
+    table (which starts as one) keeps the JSON parser's place of the fault."""
+    path = tmp_path / "t.json"
+    cases = {"": "the file is empty", "\ufeff \r\n": "the file is empty",
+             cfdesign.example_path(example).read_text(): "looks like a design file (TOML)"}
+    for table in (cf3[1], position):
+        write_gain_csv(table, tmp_path / "g.csv")
+        cases[(tmp_path / "g.csv").read_text()] = "is a CSV of the gains"
+        cases[table.to_json()[:-40]] = "not valid JSON: Expecting"
+    cases["[1, 2"] = "not valid JSON: Expecting ',' delimiter"
+    for text, told in cases.items():
+        path.write_text(text)
+        with pytest.raises(GainTableError, match=re.escape(told)):
+            load_gains(path)
