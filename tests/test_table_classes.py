@@ -2,16 +2,19 @@
 mishandled: a number beyond the double range in any field, a sensor name too long for C, an output
 name ending in '/', and a sensor that differs from the spec's in one field."""
 
+import dataclasses
 import json
 import re
 
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import cfdesign
-from cfdesign.errors import GainTableError
+from cfdesign.codegen import render_c
+from cfdesign.errors import CfdesignError, GainTableError
 from cfdesign.export import write_gain_csv
-from cfdesign.gains import load_gains
+from cfdesign.gains import Schedule, load_gains
 
 FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
@@ -59,6 +62,24 @@ def test_a_number_beyond_the_double_range_is_refused_wherever_it_is(cf3, tmp_pat
                 load_gains(path)
             if where[0] in ("gains", "checks", "provenance"):  # matrices name the matrix ('K[0] has a value ...')
                 assert "/".join(map(str, where)) in str(info.value) and "inf" in str(info.value)
+
+
+@FUZZ
+@given(length=st.integers(64, 20_000))
+def test_a_sensor_name_too_long_for_c_is_named_briefly_with_the_advice(position, length):
+    """A 5000-character sensor name filled the error line with the C name, and the advice at its
+    end was cut off (the CLI caps a line at 2000 characters)."""
+    table = position
+    names = {"gps": "g" * length}
+    sensors = [dataclasses.replace(s, name=names.get(s.name, s.name)) for s in table.sensors]
+    measured = [s.name for s in sensors if s.role == "measurement"]
+    schedule = Schedule.from_names(measured, [[names.get(x, x) for x in table.schedule.names(k)]
+                                              for k in range(table.period)])
+    with pytest.raises(CfdesignError) as info:
+        render_c(dataclasses.replace(table, sensors=sensors, schedule=schedule))
+    message = str(info.value)
+    assert len(message) < 300 and message.endswith("C code needs a shorter prefix or sensor name")
+    assert f"has {len('POSITION_Y_') + length} characters" in message
 
 
 @pytest.mark.parametrize("example", ["cf3", "position", "robot-heading", "tilt"])

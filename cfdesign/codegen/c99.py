@@ -184,11 +184,17 @@ def check_c_names(files: dict, prefix: str) -> dict:
         if rule is None and len(name) > _SIGNIFICANT[what]:
             rule = (f"{len(name)} characters, beyond the {_SIGNIFICANT[what]} C99 guarantees significant in "
                     f"{'an external name' if what == 'external' else 'a macro or internal name'}")
-            raise CfdesignError(f"C name {name!r} has {rule}; C code needs a shorter prefix or sensor name")
+            raise CfdesignError(f"C name {_shown(name)!r} has {rule}; C code needs a shorter prefix or sensor name")
         if rule is not None:
-            raise CfdesignError(f"C name {name!r} is reserved in C99: {rule}; C code needs another prefix or "
+            raise CfdesignError(f"C name {_shown(name)!r} is reserved in C99: {rule}; C code needs another prefix or "
                                 "sensor name")
     return files
+
+
+def _shown(name: str) -> str:
+    """A C name as a message quotes it: cut after 60 characters (a sensor name of 5000 filled the
+    line, and the advice at its end was cut off)."""
+    return name if len(name) <= 80 else f"{name[:60]}..."
 
 
 def check_c_identifier(name, what: str) -> str:
@@ -232,7 +238,7 @@ def check_c_identifier(name, what: str) -> str:
         problem = "is reserved in C (leading __ or _ and a capital letter)"
     else:
         return name
-    raise CfdesignError(f"{what} {name!r} {problem}; C code needs a valid C identifier")
+    raise CfdesignError(f"{what} {_shown(name)!r} {problem}; C code needs a valid C identifier")
 
 
 def check_c_prefix(prefix) -> str:
@@ -269,7 +275,7 @@ def check_c_prefix(prefix) -> str:
     """
     prefix = check_c_identifier(prefix, "C prefix")
     if prefix.startswith("_"):
-        raise CfdesignError(f"C prefix {prefix!r} starts with '_': names with file scope that do are reserved "
+        raise CfdesignError(f"C prefix {_shown(prefix)!r} starts with '_': names with file scope that do are reserved "
                             "in C (and so is its header guard); C code needs another prefix")
     return prefix
 
