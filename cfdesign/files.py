@@ -24,7 +24,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device", "utf8_text", "path_of"]
+           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path"]
 
 
 def is_dir(path) -> bool:
@@ -194,6 +194,36 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.realpath(a) == os.path.realpath(b)
 
 
+def file_path(value) -> Path:
+    """The path of a file to write: :func:`path_of`, and not a name ending in a slash.
+
+    ``-o new/`` (a folder meant) wrote a file named ``new``: :class:`~pathlib.Path` drops the
+    trailing slash.
+
+    Parameters
+    ----------
+    value : str, bytes or os.PathLike
+        What the caller passed as the file.
+
+    Returns
+    -------
+    Path
+        The path.
+
+    Raises
+    ------
+    OutputError
+        ``value`` is not a path, is empty, or ends in a slash (an existing directory named so is
+        refused where it is written: 'it is a directory').
+    """
+    path = path_of(value, OutputError, "cannot write")
+    text = os.fsdecode(value)
+    if text.endswith(("/", os.sep)) and not is_dir(path):
+        raise OutputError(f"cannot write {text}: a name ending in '/' names a directory, and this writes a file "
+                          "(name the file)")
+    return path
+
+
 def _umask_mode() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -220,7 +250,7 @@ def write_files(contents: dict) -> list:
         a directory, the disk is full) or two targets are one file; no target was changed.
     """
     for path in contents:
-        path_of(path, OutputError, "cannot write")
+        file_path(path)
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
     staged, streams = [], []
     try:
@@ -327,7 +357,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     >>> with open_atomic("estimates.csv", newline="") as fh:   # doctest: +SKIP
     ...     fh.write("time,heading\n")
     """
-    path = path_of(path, OutputError, "cannot write")
+    path = file_path(path)
     if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
         try:
             with open(path, mode, **kwargs) as fh:

@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 
 import cfdesign
 from cfdesign.codegen import render_c
-from cfdesign.errors import CfdesignError, GainTableError
+from cfdesign.errors import CfdesignError, GainTableError, OutputError
 from cfdesign.export import write_gain_csv
+from cfdesign.files import open_atomic, write_text
 from cfdesign.gains import Schedule, load_gains
 
 FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -80,6 +81,21 @@ def test_a_sensor_name_too_long_for_c_is_named_briefly_with_the_advice(position,
     message = str(info.value)
     assert len(message) < 300 and message.endswith("C code needs a shorter prefix or sensor name")
     assert f"has {len('POSITION_Y_') + length} characters" in message
+
+
+@pytest.mark.parametrize("writer", ["save", "csv", "text", "stream"])
+def test_an_output_name_ending_in_a_slash_is_not_written_as_a_file(cf3, tmp_path, writer):
+    """``-o out/`` (a folder meant) wrote a file named ``out``: pathlib drops the slash."""
+    table = cf3[1]
+    write = {"save": table.save, "csv": lambda p: write_gain_csv(table, p), "text": lambda p: write_text(p, "x"),
+             "stream": lambda p: open_atomic(p).__enter__()}[writer]
+    for name in ("new/", "new//", "sub/new/"):
+        with pytest.raises(OutputError, match=re.escape(f"cannot write {tmp_path}/{name}: a name ending in '/'")):
+            write(f"{tmp_path}/{name}")
+        assert not list(tmp_path.iterdir())
+    (tmp_path / "folder").mkdir()
+    with pytest.raises(OutputError, match="it is a directory"):
+        write(f"{tmp_path}/folder/")
 
 
 @pytest.mark.parametrize("example", ["cf3", "position", "robot-heading", "tilt"])
