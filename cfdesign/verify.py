@@ -430,13 +430,13 @@ def _same_design(table, spec, rtol) -> list:
     from .designer import design
 
     fresh = design(spec)
-    checks = [Check(f"spec: {name}", False, f"the table has {_show(_field(table, name))}, the spec gives "
-                    f"{_show(_field(fresh, name))}")
+    checks = [Check(f"spec: {name}", False, _sensor_differences(table.sensors, fresh.sensors) if name == "sensors"
+                    else f"the table has {_show(_field(table, name))}, the spec gives {_show(_field(fresh, name))}")
               for name in _RUNNING_FIELDS if _field(table, name) != _field(fresh, name)]
     if (table.sample_time_s is None) != (fresh.sample_time_s is None) or (
             table.sample_time_s and abs(table.sample_time_s - fresh.sample_time_s) > rtol * fresh.sample_time_s):
         checks.append(Check("spec: sample_time_s", False, f"the table has {table.sample_time_s!r} s, the spec gives "
-                            f"{fresh.sample_time_s!r} s"))
+                            f"{fresh.sample_time_s!r} s{_by(table.sample_time_s, fresh.sample_time_s)}"))
     if checks:  # different filters: comparing their numbers says nothing more
         return checks
     model = max(((_relative(getattr(fresh, m), getattr(table, m)), m) for m in _MODEL), key=lambda w: w[0])
@@ -503,6 +503,29 @@ def _worst_gain(fresh, table, k, scale) -> tuple:
     phase = f"phase {k}, " if fresh.period > 1 else ""
     return float(diff[i, j]), (f" at K[{k}][{i},{j}]{what}: {phase}state {i}, {sensor}: table "
                                f"{B[i, j]:.10g}, spec {A[i, j]:.10g}")
+
+
+def _by(a, b) -> str:
+    """`` (relative difference +1.0e-09)`` between two numbers, or ``''`` where it is not defined."""
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and b:
+        return f" (relative difference {(a - b) / b:+.1e})"
+    return ""
+
+
+def _sensor_differences(mine, theirs) -> str:
+    """What differs between a table's sensors and the spec's, field by field (``compass rate_hz: the
+    table has 5.000000005, the spec 5.0 (relative difference +1.0e-09)``).  Both lists in full, each
+    rate as ``5 Hz``, hid a difference below the sixth digit: the two lists read the same."""
+    ours, spec = {s.name: s for s in mine}, {s.name: s for s in theirs}
+    parts = [f"the table has sensor {name}, the spec has none of that name" for name in ours if name not in spec]
+    parts += [f"the spec has sensor {name}, the table has none of that name" for name in spec if name not in ours]
+    for name in (n for n in ours if n in spec):
+        for key in ("role", "index", "order", "rate_hz"):
+            a, b = getattr(ours[name], key), getattr(spec[name], key)
+            if a != b:
+                parts.append(f"{name} {key}: the table has {a!r}, the spec {b!r}"
+                             f"{_by(a, b) if key == 'rate_hz' else ''}")
+    return "; ".join(parts) or f"the table has {_show(tuple(mine))}, the spec gives {_show(tuple(theirs))}"
 
 
 def _show(value) -> str:

@@ -16,6 +16,7 @@ from cfdesign.errors import CfdesignError, GainTableError, OutputError
 from cfdesign.export import write_gain_csv
 from cfdesign.files import open_atomic, write_text
 from cfdesign.gains import Schedule, load_gains
+from cfdesign.verify import verify_table
 
 FUZZ = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
@@ -96,6 +97,29 @@ def test_an_output_name_ending_in_a_slash_is_not_written_as_a_file(cf3, tmp_path
     (tmp_path / "folder").mkdir()
     with pytest.raises(OutputError, match="it is a directory"):
         write(f"{tmp_path}/folder/")
+
+
+@FUZZ
+@given(data=st.data())
+def test_verify_names_the_sensor_field_that_differs_from_the_spec_and_by_how_much(cf3, data):
+    """Every sensor listed in full, rates as ``5 Hz``, hid a rate differing below the sixth digit
+    (the two lists read the same) and named no field: the FAIL line names the sensor, the field
+    and both values, the rate's relative difference to two digits."""
+    spec, table = cf3
+    sensor = data.draw(st.sampled_from(table.sensors))
+    key = data.draw(st.sampled_from(["rate_hz", "order", "rate_hz"]))
+    if key == "rate_hz":
+        relative = data.draw(st.sampled_from([1, -1])) * 10.0 ** data.draw(st.integers(-11, -1))
+        value = sensor.rate_hz * (1 + relative)
+    else:
+        value = sensor.order + 1
+    sensors = [dataclasses.replace(s, **{key: value}) if s == sensor else s for s in table.sensors]
+    checks = verify_table(dataclasses.replace(table, sensors=sensors), spec)
+    lines = [c.line() for c in checks if not c.ok]
+    line = next(x for x in lines if x.startswith("FAIL spec: sensors"))
+    assert f"{sensor.name} {key}: the table has {value!r}, the spec {getattr(sensor, key)!r}" in line
+    if key == "rate_hz":
+        assert f"(relative difference {(value - sensor.rate_hz) / sensor.rate_hz:+.1e})" in line
 
 
 @pytest.mark.parametrize("example", ["cf3", "position", "robot-heading", "tilt"])
