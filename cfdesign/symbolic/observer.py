@@ -979,7 +979,9 @@ class Observer:
         Parameters
         ----------
         values : dict, optional
-            ``{name: number}``: gains by name, ``'T'`` for the sample time (s).
+            ``{name: number}``: gains by name (or by their sympy symbols, ``f.symbol("k1")``), ``'T'``
+            for the sample time (s); numbers are ints, floats, numpy scalars, Fractions, Decimals or
+            sympy numbers.
         **kwargs : float
             More ``name=number`` pairs.
 
@@ -1085,7 +1087,8 @@ class Observer:
         Parameters
         ----------
         values : dict, optional
-            ``{name: number}`` for every gain (and ``'T'`` when the sample time is symbolic).
+            ``{name: number}`` for every gain (and ``'T'`` when the sample time is symbolic); keys as
+            in :meth:`subs`.
         **kwargs : float
             More ``name=number`` pairs.
 
