@@ -596,13 +596,22 @@ def _apply_ports(spec, obs):
     return obs.renamed(ports)
 
 
+def _port_hint(sensor, obs) -> str:
+    """How a sensor of another name plays a port: the port that reads what it measures, if one does
+    (a 'gyro' measuring rate was told port = "angle", the first name in the alphabet)."""
+    order = QUANTITY_ORDERS.get(sensor.measures)
+    fits = sorted(x.name for x in obs.sensors if x.order == order)
+    which = f"port = \"{fits[0]}\": it reads {sensor.measures}" if fits else \
+        f"port = \"{sorted(x.name for x in obs.sensors)[0]}\", say"
+    return f"; a sensor of another name plays one of them with port = \"...\" ({which})"
+
+
 def _check_sensors(spec, obs):
     names = {x.name for x in obs.sensors}
     for x in spec.sensors:
         if x.name not in names:
             raise SpecError(f"sensors.{x.name}: {obs.name} has no such sensor (it has {', '.join(sorted(names))})"
-                            + (did_you_mean(x.name, names) or f"; a sensor of another name plays one of them with "
-                               f"port = \"...\" (port = \"{sorted(names)[0]}\", say)"))
+                            + (did_you_mean(x.name, names) or _port_hint(x, obs)))
     for s in obs.sensors:
         given = spec.sensor(s.name)
         if given.measures is not None:

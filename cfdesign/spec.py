@@ -266,6 +266,19 @@ GAIN_RANGE = (1e-100, 1e100)
 MAX_SENSORS = 32
 
 
+_FROM_TEXT = "cfdesign.parse_spec(tomllib.loads(text)) reads a design given as text"
+
+
+def _toml_text(value) -> bool:
+    """Whether ``value`` is a design written out as TOML text rather than a path: it spans lines,
+    or it has a ``key = value`` or ``[table]`` line and names no file."""
+    if not isinstance(value, str) or not value.strip():
+        return False
+    if "\n" in value.strip():
+        return True
+    return bool(re.match(r"\s*(\[[^\]]+\]|[A-Za-z0-9_\"-]+\s*=)", value)) and not os.path.exists(value)
+
+
 def require_spec(value, what: str) -> None:
     """Refuse anything but a :class:`FilterSpec` where a function needs one.
 
@@ -286,6 +299,8 @@ def require_spec(value, what: str) -> None:
     """
     if isinstance(value, FilterSpec):
         return
+    if _toml_text(value):
+        raise SpecError(f"{what} takes a FilterSpec, got TOML text: {_FROM_TEXT}")
     if isinstance(value, (str, bytes, os.PathLike)):
         hint = f": read the design file with cfdesign.load_spec({os.fsdecode(value)!r})"
     elif isinstance(value, dict):
@@ -410,6 +425,9 @@ def load_spec(path) -> FilterSpec:
     >>> spec.structure, [s.name for s in spec.sensors]
     ('dckf3', ['odometry_rate', 'gyro_heading', 'compass'])
     """
+    if _toml_text(path):  # the whole text came back in a 'No such file' message over many lines
+        raise SpecError(f"load_spec takes the path of a design file, got TOML text "
+                        f"(starting {' '.join(path.split())[:30]!r}): {_FROM_TEXT}")
     path = path_of(path, SpecError, "load_spec")
     try:
         size = path.stat().st_size
@@ -471,6 +489,10 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
     ...
     cfdesign.errors.SpecError: sensors.gyro.rate_hz must be positive, got -1
     """
+    if isinstance(data, (str, bytes, os.PathLike)):
+        what = "TOML text" if _toml_text(data) else f"a {type(data).__name__}"
+        raise SpecError(f"parse_spec takes the design as a dict, got {what}: parse_spec(tomllib.loads(text)) "
+                        "reads text, cfdesign.load_spec(path) a file")
     if not isinstance(data, dict):
         raise SpecError("a design must be a table")
     _no_unknown(data, _TOP_KEYS, "", _TOP_ELSEWHERE)

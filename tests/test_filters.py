@@ -179,3 +179,18 @@ def test_cfn_rejects_bad_n():
     for bad in (1, 8, 2.5, "3"):
         with pytest.raises(cfdesign.StructureError):
             cfdesign.cfn(bad)
+
+
+def test_counts_are_whole_numbers():
+    """cf2(order=2.0) failed with a raw TypeError from list arithmetic and order=True built order 1;
+    a numpy integer for cfn's n (a loop over np.arange) was refused."""
+    import numpy as np
+
+    assert cfdesign.cfn(np.int64(3)).bands == cfdesign.cfn(3).bands
+    assert cfdesign.cf2(order=np.int64(2)).name == "cf2 (order 2)"
+    for bad in (2.0, True, "2", 3):
+        with pytest.raises(cfdesign.StructureError, match=f"cf2 order must be 1 or 2, got {bad!r}"):
+            cfdesign.cf2(order=bad)
+    for bad in (2.0, "3", 1, 8):
+        with pytest.raises(cfdesign.StructureError, match="cfn needs a whole number of bands"):
+            cfdesign.cfn(bad)

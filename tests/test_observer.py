@@ -285,3 +285,39 @@ def test_the_gain_free_check_is_sound_on_random_observers(seed):
     assert obs.relations_follow_the_model is (seed % 2 == 0)
     assert holds is (seed % 2 == 0) and obs.proof().holds is holds
     assert (obs.residual_numerator == 0) is holds
+
+
+def test_values_by_symbol_and_exact_decimal():
+    """A dict keyed by the observer's own sympy symbols (``{k11: 0.3}``) was told 'needs a value
+    for k11'; a Decimal was 'not a real number'.  Both give the poles of the same numbers by name."""
+    from decimal import Decimal
+
+    f = cfdesign.dckf3()
+    by_name = f.with_gains(**DCKF3_GAINS)
+    by_symbol = f.with_gains({f.symbol(k): v for k, v in DCKF3_GAINS.items() if k != "T"}, T=0.2)
+    assert by_symbol.K == by_name.K and by_symbol.sample_time == by_name.sample_time
+    exact = f.with_gains({**DCKF3_GAINS, "k11": Decimal("0.3"), "T": Decimal("0.2")})
+    assert exact.K == by_name.K and exact.sample_time == sp.Rational(1, 5)
+    for bad, said in ((2, "give the values by name"), ({1: 2}, "named by its name"),
+                      ({**DCKF3_GAINS, "k11": Decimal("NaN")}, "k11 must be finite")):
+        with pytest.raises(cfdesign.GainError, match=said):
+            f.with_gains(bad)
+    with pytest.raises(cfdesign.GainError, match="k11 is given twice"):
+        f.with_gains({f.symbol("k11"): 0.3}, **DCKF3_GAINS)
+
+
+def test_gain_matrix_and_model_shapes_are_told():
+    """A ragged, 1-D or scalar gain matrix raised raw ValueError/TypeError; H's wrong width read
+    'H must be Nonex1'; numeric_model(0) gave B = 0 without a word."""
+    f = cfdesign.ckf3()
+    for K in ([[1, 2], [3]], np.array([1.0, 2.0]), 2.0):
+        with pytest.raises(cfdesign.StructureError, match=r"^K "):
+            f.with_gain_matrix(K)
+    with pytest.raises(cfdesign.GainError, match="must be a real number"):
+        f.with_gain_matrix([[sp.Symbol("a"), 0], [0, 1]])
+    assert f.with_gain_matrix(np.array([[1, 2], [3, 4.0]])).K == sp.Matrix([[1, 2], [3, 4]])
+    with pytest.raises(cfdesign.StructureError, match=r"H must be \(measurements\)x1: one column per state, got 1x2"):
+        Observer([[0]], [[1]], [[1, 0]], [[1]], [Sensor.input("g", "rate"), Sensor.measurement("c", "angle", 0)])
+    for bad in (0, -0.1):
+        with pytest.raises(cfdesign.GainError, match="sample time must be positive"):
+            cfdesign.dckf3().numeric_model(bad)

@@ -72,3 +72,32 @@ def test_cli_design_default_example_writes_table_and_bode(tmp_path, cli, monkeyp
     assert code == 0, err
     assert "dckf3" in out and "complementary (exact proof): True" in out
     assert (tmp_path / "g.json").stat().st_size > 500 and (tmp_path / "b.png").stat().st_size > 10_000
+
+
+def test_toml_text_where_a_path_or_dict_goes():
+    """TOML text given to load_spec came back whole in a 'No such file' message over many lines;
+    parse_spec said only 'a design must be a table'; design() advised load_spec(the text)."""
+    import cfdesign
+    from cfdesign.spec import parse_spec, require_spec
+
+    one_line = 'structure = "cf2"'
+    for text in (GOOD, one_line, "[sensors.gyro]"):
+        for call in (load_spec, parse_spec, lambda t: require_spec(t, "design")):
+            with pytest.raises(SpecError, match=r"tomllib\.loads\(text\)") as err:
+                call(text)
+            assert "\n" not in str(err.value)
+    with pytest.raises(SpecError, match="cannot read design file"):  # a path stays a path
+        load_spec("no/such/design.toml")
+    assert cfdesign.design(parse_spec(__import__("tomllib").loads(GOOD))).K
+
+
+def test_port_hint_reads_what_the_sensor_measures():
+    """A 'gyro' measuring rate on cf2 was told port = "angle" (the first name in the alphabet)."""
+    import cfdesign
+    from cfdesign.spec import parse_spec
+
+    for measures, port in (("rate", "rate"), ("angle", "angle")):
+        data = {"structure": "cf2", "sensors": {"mine": {"measures": measures, "rate_hz": 100.0,
+                                                          "noise": {"std": 0.01}}}}
+        with pytest.raises(SpecError, match=f'port = "{port}": it reads {measures}'):
+            cfdesign.design(parse_spec(data))

@@ -21,6 +21,8 @@ section "Three-band filters", derives both):
 
 from __future__ import annotations
 
+import numbers
+
 import sympy as sp
 
 from ..errors import StructureError
@@ -45,6 +47,13 @@ def _observer(Fc, Bc, H, K, sensors, name, discrete):
 
 #: rate-gyro model with a rate-correction state: psi' = u + c, c' = 0 (c = -gyro bias)
 _BIASED_RATE = (sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([1, 0]))
+
+
+def _whole(value, message: str) -> int:
+    """``value`` as an int (numpy integers too); ``message`` and the value in a StructureError otherwise."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return int(value)
+    raise StructureError(f"{message}, got {value!r}")
 
 
 def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
@@ -82,6 +91,7 @@ def cf2(order: int = 1, *, discrete: bool = False) -> Observer:
     >>> cfdesign.cf2(order=2).bands
     {'rate': s**2/(k1*s + k2 + s**2), 'angle': (k1*s + k2)/(k1*s + k2 + s**2)}
     """
+    order = _whole(order, "cf2 order must be 1 or 2")  # 2.0 failed deep in list arithmetic, True was order 1
     if order == 1:
         (Fc, Bc), K = integrator_chain(1), sp.Matrix([[sp.Symbol("k")]])
     elif order == 2:
@@ -129,8 +139,10 @@ def cfn(n: int, *, full: bool = False, discrete: bool = False) -> Observer:
     >>> list(cfdesign.cfn(4).bands)
     ['jerk', 'acceleration', 'velocity', 'position']
     """
-    if not isinstance(n, int) or isinstance(n, bool) or not 2 <= n <= len(DERIVATIVE_NAMES):
-        raise StructureError(f"cfn needs 2 <= n <= {len(DERIVATIVE_NAMES)} bands, got {n!r}")
+    n = _whole(n, f"cfn needs a whole number of bands n (an int) with 2 <= n <= {len(DERIVATIVE_NAMES)}")
+    if not 2 <= n <= len(DERIVATIVE_NAMES):
+        raise StructureError(f"cfn needs a whole number of bands n (an int) with 2 <= n <= {len(DERIVATIVE_NAMES)}, "
+                             f"got {n!r}")
     m = n - 1
     if full:
         K = sp.Matrix(m, m, lambda i, j: sp.Symbol(f"k{i + 1}{j + 1}"))

@@ -29,8 +29,9 @@ from __future__ import annotations
 import keyword
 import math
 import numbers
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from decimal import Decimal
 from fractions import Fraction
 from functools import cached_property
 
@@ -373,7 +374,8 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     if M.shape == (0, 0) and rows:
         M = sp.zeros(rows, cols or 0)
     if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
-        raise StructureError(f"{name} must be {rows}x{cols}, got {M.shape[0]}x{M.shape[1]}")
+        want = f"{rows}x{cols}" if rows is not None else f"(measurements)x{cols}: one column per state"
+        raise StructureError(f"{name} must be {want}, got {M.shape[0]}x{M.shape[1]}")
     return M
 
 
@@ -402,6 +404,11 @@ def exact_number(value, name: str = "value"):
         return value
     if isinstance(value, np.ndarray) and value.ndim == 0:  # a 0-d array: float(K @ h), K[i, j] of a product
         value = value[()]
+    if isinstance(value, Decimal):  # exact decimal (not a numbers.Real): Fraction takes it as written
+        if not value.is_finite():
+            raise GainError(f"{name} must be finite, got {value!r}")
+        fr = Fraction(value)
+        return sp.Rational(fr.numerator, fr.denominator)
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise GainError(f"{name} must be a real number, got {value!r}")
     if isinstance(value, numbers.Integral):
@@ -972,7 +979,9 @@ class Observer:
         Parameters
         ----------
         values : dict, optional
-            ``{name: number}``: gains by name, ``'T'`` for the sample time (s).
+            ``{name: number}``: gains by name (or by their sympy symbols, ``f.symbol("k1")``), ``'T'``
+            for the sample time (s); numbers are ints, floats, numpy scalars, Fractions, Decimals or
+            sympy numbers.
         **kwargs : float
             More ``name=number`` pairs.
 
@@ -992,7 +1001,7 @@ class Observer:
         >>> cfdesign.cf2().subs(k=0.5).bands
         {'rate': s/(s + 1/2), 'angle': 1/(2*(s + 1/2))}
         """
-        values = {**(values or {}), **kwargs}
+        values = self._named_values(values, kwargs)
         params = {p.name: p for p in self.parameters}
         unknown = sorted(set(values) - set(params))
         if unknown:
@@ -1009,6 +1018,30 @@ class Observer:
                    for x in self.sensors]
         return self._replace(*(M.subs(mapping) for M in (self.F, self.B, self.H, self.K)), sensors=sensors,
                              sample_time=sample_time, output=self.output.subs(mapping))
+
+    def _named_values(self, values, kwargs) -> dict:
+        """``{name: value}`` from a dict (keys: names or the sympy symbols) and keyword pairs."""
+        params = ", ".join(p.name for p in self.parameters) or "none"
+        if values is None:
+            values = {}
+        if not isinstance(values, Mapping):  # with_gains(2): a raw "'int' object is not a mapping"
+            raise GainError(f"{self.name}: give the values by name, as name=number pairs or a dict "
+                            f"{{name: number}}, not {type(values).__name__} {values!r:.40} (parameters: {params})")
+        named = {}
+        for key, value in values.items():
+            if isinstance(key, sp.Symbol):  # {k11: 0.3} with the symbols of f.parameters: taken by name
+                key = key.name
+            if not isinstance(key, str):
+                raise GainError(f"{self.name}: a parameter is named by its name (str) or its sympy symbol, got "
+                                f"{key!r:.40} (parameters: {params})")
+            if key in named:
+                raise GainError(f"{self.name}: {key} is given twice")
+            named[key] = value
+        for key, value in kwargs.items():
+            if key in named:
+                raise GainError(f"{self.name}: {key} is given twice")
+            named[key] = value
+        return named
 
     def renamed(self, names: dict, name: str | None = None) -> Observer:
         """The same observer with sensors renamed (e.g. a physical sensor in a port).
@@ -1054,7 +1087,8 @@ class Observer:
         Parameters
         ----------
         values : dict, optional
-            ``{name: number}`` for every gain (and ``'T'`` when the sample time is symbolic).
+            ``{name: number}`` for every gain (and ``'T'`` when the sample time is symbolic); keys as
+            in :meth:`subs`.
         **kwargs : float
             More ``name=number`` pairs.
 
@@ -1075,7 +1109,7 @@ class Observer:
         >>> g.bands, g.poles()
         ({'rate': s/(s + 2), 'angle': 2/(s + 2)}, [-2])
         """
-        values = {**(values or {}), **kwargs}
+        values = self._named_values(values, kwargs)
         missing = [p.name for p in self.parameters if p.name not in values]
         if missing:
             raise GainError(f"{self.name} needs a value for {', '.join(missing)}")
@@ -1115,6 +1149,8 @@ class Observer:
             if sample_time is None:
                 raise GainError(f"{self.name} is discrete: give the sample time")
             mapping[self.sample_time] = exact_number(sample_time, "sample time")
+            if mapping[self.sample_time] <= 0:  # T = 0 gave B = 0 and F = I without a word
+                raise GainError(f"{self.name}: sample time must be positive (s), got {sample_time!r}")
         out = {k: M.subs(mapping) for k, M in (("F", self.F), ("B", self.B), ("H", self.H))}
         if self.continuous is not None:
             out["Fc"], out["Bc"] = self.continuous
@@ -1143,7 +1179,8 @@ class Observer:
         obs = self
         if sample_time is not None and self._sample_time_symbol is not None:
             obs = self.subs({self._sample_time_symbol.name: sample_time})
-        K = sp.Matrix([[exact_number(v, f"K[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(K)])
+        K = _matrix("K", K, self.n_states, self.H.shape[0])  # shape and finiteness; a ragged K or a scalar named
+        K = K.applyfunc(lambda e: exact_number(e, "K entry"))  # numbers only: no symbol left
         return obs._replace(obs.F, obs.B, obs.H, K, gain_form=gain_form)
 
     @property
