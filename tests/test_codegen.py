@@ -63,14 +63,15 @@ def readings(table, seed=1):
     return sinusoid_readings(table, N, seed=seed, missing=0.02)
 
 
-def run_c(table, data, folder, precision):
-    """Generate, compile with the driver fixture, run on ``data``; the C estimates."""
+def run_c(table, data, folder, precision, cflags=()):
+    """Generate, compile with the driver fixture (and ``cflags``), run on ``data``; the C estimates."""
     prefix = write_c(table, folder, precision=precision)[0].name.removesuffix("_gains.h")
     driver = folder / "driver.c"
     template = Template((FIXTURES / "codegen_driver.c.in").read_text())
     driver.write_text(template.substitute(prefix=prefix, PREFIX=prefix.upper()))
     exe = folder / "driver"
-    build = subprocess.run([CC, *CFLAGS, "-o", str(exe), str(driver), str(folder / f"{prefix}_filter.c"), "-lm"],
+    build = subprocess.run([CC, *CFLAGS, *cflags, "-o", str(exe), str(driver), str(folder / f"{prefix}_filter.c"),
+                            "-lm"],
                            capture_output=True, text=True)
     assert build.returncode == 0, f"generated C does not compile:\n{build.stderr}"
     rt = Runtime(table)
@@ -397,3 +398,121 @@ def test_c_treats_inf_and_huge_readings_as_missing_like_python(tables, tmp_path)
     py = np.array([rt.step(**{n: data[n][k] for n in names}) for k in range(5000)])
     c = run_c(table, data, tmp_path, "double")
     assert np.isfinite(c).all() and difference(table, c, py) <= 1e-12
+
+
+# ---------------------------------------------------------------------- firmware use
+#: the warnings a firmware build turns on; the generated C and a program using it compile clean
+STRICT = ["-std=c99", "-pedantic", "-O2", "-Wall", "-Wextra", "-Werror", "-Wconversion", "-Wdouble-promotion",
+          "-Wshadow", "-Wcast-qual", "-Wstrict-prototypes", "-Wmissing-prototypes"]
+CXX = shutil.which("c++")
+NM = shutil.which("nm")
+
+
+@needs_cc
+def test_missing_marker_is_missing_under_fast_math(tables, tmp_path):
+    """``<PREFIX>_MISSING`` (finite, beyond the reading limit) is a missing reading without NaN, so
+    it holds under -ffast-math, where a compiler may assume no value is NaN: the C fed it, built
+    with -ffast-math, agrees with the Python runtime fed NaN to the rounding of reassociation."""
+    table = tables["dckf3"]
+    data = {k: v[:20_000].copy() for k, v in readings(table).items()}
+    rt = Runtime(table)
+    names = rt.inputs + rt.measurements
+    py = Runtime(table).run(data)
+    marked = {k: np.where(np.isnan(v), -1e301, v) for k, v in data.items()}  # the driver passes _MISSING
+    c = run_c(table, marked, tmp_path, "double", cflags=["-ffast-math", "-DDRIVER_MARK_MISSING"])
+    assert sum(np.isnan(data[n]).sum() for n in names) > 500
+    assert np.isfinite(c).all() and difference(table, c, py) <= 1e-9 * np.max(np.abs(py))
+
+
+@needs_cc
+def test_a_slow_sensor_off_the_schedule_is_locked_by_its_phase_macro(tables, tmp_path):
+    """A GPS fix that arrives 17 ticks after phase 0 is ignored unless the schedule is locked to
+    it: set ``s->phase = POSITION_PHASE_GPS`` before each fix's step, as the header says.  The
+    reference is the Python runtime on the same rows after 33 idle ones (state and input 0), which
+    puts the fixes at phase 0 with no phase set."""
+    table = tables["position"]
+    n, idle = 10_000, 33
+    data = {k: v[:n].copy() for k, v in readings(table).items()}
+    data["gps"][np.arange(n) % table.period != 17] = np.nan
+    padded = {k: np.concatenate([np.zeros(idle) if k != "gps" else np.full(idle, np.nan), v]) for k, v in data.items()}
+    py = Runtime(table).run(padded)[idle:]
+    locked = run_c(table, data, tmp_path, "double", cflags=["-DDRIVER_LOCK=POSITION_Y_GPS",
+                                                            "-DDRIVER_LOCK_PHASE=POSITION_PHASE_GPS"])
+    assert difference(table, locked, py) <= 1e-9 * np.max(np.abs(py))
+    naive = run_c(table, data, tmp_path, "double")          # the fixes fall at phase 17: never read
+    assert difference(table, naive, py) > 1.0
+
+
+def test_phase_macros_name_the_first_phase_of_each_slow_sensor():
+    """``<PREFIX>_PHASE_<NAME>`` for the measurements not read every step, none for single-rate."""
+    import tomllib
+
+    from cfdesign.spec import parse_spec
+
+    table = cfdesign.design(parse_spec(tomllib.loads(TWO_COMPASSES)))
+    gains = next(text for name, text in render_c(table, prefix="h").items() if name.endswith("gains.h"))
+    want = {s: table.schedule.phases(s)[0] for s in table.sensor_names("measurement")
+            if len(table.schedule.phases(s)) < table.period}
+    got = dict(re.findall(r"#define H_PHASE_(\w+) (\d+)", gains))
+    assert want and got == {s.upper(): str(k) for s, k in want.items()}
+    single = render_c(cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3"))))
+    assert "#define DCKF3_PHASE_" not in "".join(single.values())
+
+
+@needs_cc
+def test_two_filters_in_one_program_compile_clean_under_strict_warnings(tables, tmp_path):
+    """A heading (double) and a position (float) filter with their own prefixes in one program:
+    no symbol clash, no warning under a firmware build's flags (C99 and C++), and each object
+    defines only ``<prefix>_init`` and ``<prefix>_step``, with no writable data (the state is
+    the caller's struct: one per instance, nothing shared between threads)."""
+    write_c(tables["dckf3"], tmp_path, prefix="heading")
+    write_c(tables["position"], tmp_path, prefix="pos", precision="float")
+    (tmp_path / "main.c").write_text(MAIN_TWO_FILTERS)
+    sources = [str(tmp_path / f) for f in ("main.c", "heading_filter.c", "pos_filter.c")]
+    build = subprocess.run([CC, *STRICT, "-o", str(tmp_path / "main"), *sources, "-lm"], capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    run = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True, check=True)
+    heading, pos = map(float, run.stdout.split())
+    rt = Runtime(tables["position"])
+    rt.x = [5000.0, 0.0, 0.0]
+    assert heading == Runtime(tables["dckf3"]).step(gyro=0.1, odometry=0.2) and abs(pos - rt.step(gps=5001.0)) < 1e-3
+    if CXX:
+        build = subprocess.run([CXX, "-x", "c++", "-Wall", "-Wextra", "-Werror", "-o", str(tmp_path / "main_cc"),
+                                *sources, "-lm"], capture_output=True, text=True)
+        assert build.returncode == 0, build.stderr
+    if NM:
+        for prefix in ("heading", "pos"):
+            obj = tmp_path / f"{prefix}.o"
+            subprocess.run([CC, *STRICT, "-c", "-o", str(obj), str(tmp_path / f"{prefix}_filter.c")], check=True)
+            symbols = [line.split() for line in subprocess.run([NM, str(obj)], capture_output=True, text=True,
+                                                               check=True).stdout.splitlines()]
+            defined = {s[-1]: s[-2] for s in symbols if len(s) == 3}
+            assert {name for name, kind in defined.items() if kind in "TDBCG"} == {f"{prefix}_init", f"{prefix}_step"}
+            assert not {kind for kind in defined.values()} & set("DdBbCGgSs")
+
+
+MAIN_TWO_FILTERS = """
+#include <math.h>
+#include <stdio.h>
+
+#include "heading_filter.h"
+#include "pos_filter.h"
+
+int main(void)
+{
+    heading_state h;
+    pos_state p;
+    const heading_real hu[HEADING_NU_ALLOC] = {0.1};
+    heading_real hy[HEADING_NY_ALLOC];
+    const pos_real pu[POS_NU_ALLOC] = {POS_MISSING};
+    const pos_real py[POS_NY_ALLOC] = {5001.0f};
+
+    heading_init(&h);
+    pos_init(&p);
+    p.x[0] = 5000.0f;
+    hy[HEADING_Y_COMPASS] = NAN;
+    hy[HEADING_Y_ODOMETRY] = 0.2;
+    printf("%.17g %.9g\\n", heading_step(&h, hu, hy), (double)pos_step(&p, pu, py));
+    return 0;
+}
+"""

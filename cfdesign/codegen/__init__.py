@@ -4,7 +4,10 @@
 form; a continuous table is refused):
 
 * ``<prefix>_gains.h``: dimensions, period, sample time, wrap flag, sensor index macros
-  (``<PREFIX>_U_<INPUT>``, ``<PREFIX>_Y_<MEASUREMENT>``) and the ``F, B, H, K`` arrays as
+  (``<PREFIX>_U_<INPUT>``, ``<PREFIX>_Y_<MEASUREMENT>``), ``<PREFIX>_MISSING`` (a finite
+  reading beyond the limit: missing without NaN, so also under ``-ffast-math``), the phase each
+  slow sensor of a multirate schedule is read at (``<PREFIX>_PHASE_<MEASUREMENT>``: set
+  ``s->phase`` to it before the step of each of its readings) and the ``F, B, H, K`` arrays as
   ``static const`` with every value in full precision, under a do-not-edit comment with the
   table's provenance;
 
@@ -32,7 +35,8 @@ heading crossing +-pi, compared modulo 2 pi; the multirate position table, perio
 * ``precision='double'``: ``max |C - Python| <= 1e-12`` required; measured 2.7e-15 rad
   (robot heading) and 0, bit-identical (position), with gcc -O2 on x86-64.  This assumes
   IEEE double arithmetic without extended precision or contraction into fused
-  multiply-adds (the default with ``-std=c99``; do not use ``-ffast-math``).
+  multiply-adds (the default with ``-std=c99``); with ``-ffast-math`` or on x87 the agreement is
+  to rounding (measured 2e-14 relative), and missing readings must be ``<PREFIX>_MISSING``.
 * ``precision='float'``: single-precision rounding; the documented bound is
   ``max |C - Python| <= 2e-6 x max |estimate|`` for the robot heading (measured 3.3e-7 x,
   1.05e-6 rad) and ``<= 1e-4 x max |estimate|`` for the position (measured 2.0e-5 x,

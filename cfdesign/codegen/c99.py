@@ -347,7 +347,8 @@ def _fields(table, prefix, precision, output) -> dict:
         "posterior": int(output == "posterior"), "output": output, "wrap_angle": int(bool(table.wrap_angle)),
         "active": _initializer(_padded(active, (table.period, max(m, 1)), "schedule").astype(int), ""),
         "measured": _initializer(active.any(axis=1).astype(int), ""),
-        "sensor_macros": _sensor_macros(sensors, prefix),
+        "sensor_macros": _sensor_macros(sensors, prefix), "phase_macros": _phase_macros(table, prefix),
+        "missing": _literal(MISSING, suffix, "missing marker"),
         "pi": _literal(math.pi, suffix, "pi"), "two_pi": _literal(2 * math.pi, suffix, "2 pi"),
     }
 
@@ -485,6 +486,24 @@ def _sensor_macros(sensors, prefix) -> str:
     return "\n".join(lines)
 
 
+def _phase_macros(table, prefix) -> str:
+    """``#define <PREFIX>_PHASE_<NAME> k``, the first phase a measurement is read at, for every
+    measurement the schedule does not read at each step (none for a single-rate table): the
+    value to give ``s->phase`` before the step of a reading that arrives off the schedule."""
+    lines = []
+    for s in table.measurements:
+        phases = list(table.schedule.phases(s.name))
+        if phases and len(phases) < table.period:
+            lines.append(f"#define {prefix.upper()}_PHASE_{s.name.upper()} {phases[0]}  /* {s.name}: "
+                         f"{_phases_text(phases, table.period, prefix)} */")
+    if not lines:
+        return ""
+    return ("\n/*\n * the schedule reads a slow sensor only at its phases; a reading at any other phase is\n"
+            " * ignored.  Lock the schedule to the sensor: when its reading arrives, set\n"
+            f" * s->phase = {prefix.upper()}_PHASE_<NAME> before that step (lock to one sensor).\n */\n"
+            + "\n".join(lines) + "\n")
+
+
 def _padded(values, shape, what):
     """``values`` as a float array of ``shape``, zero-padded where a dimension is empty."""
     a = np.asarray(values, dtype=float)
@@ -495,6 +514,8 @@ def _padded(values, shape, what):
     return out
 
 
+#: the generated ``<PREFIX>_MISSING``: a finite reading beyond READING_LIMIT (missing without NaN)
+MISSING = 1e30
 #: float: the largest finite value and the smallest positive (subnormal) one
 _FLOAT_RANGE = (3.4028234663852886e38, 1.401298464324817e-45)
 
