@@ -842,15 +842,44 @@ class Observer:
         bool
             True when every relation is the model's (each difference cancels to zero).
         """
-        n, v = self.n_states, self.variable
-        drive = sp.zeros(n, 1)
+        return all(sp.cancel(got - want) == 0 for _, got, want in self.model_readings())
+
+    def model_readings(self, F=None, B=None, relation=None, variable=None) -> list:
+        """What the model makes of exact readings: each measurement and the estimate, beside its relation.
+
+        ``X(v) = (vI - F)^-1 sum_inputs B_i D_i(v)`` is the state exact inputs drive; the
+        estimate reads ``C X`` (wanted: ``1``, the common quantity itself) and measurement ``j``
+        reads ``H_j X`` (wanted: its relation ``D_j``).  Every pair equal is
+        :attr:`relations_follow_the_model`; a pair that differs says which relation the model
+        does not follow.
+
+        Parameters
+        ----------
+        F, B : sympy.Matrix, optional
+            Another model to drive (default: the observer's), of the same shapes.
+        relation : callable, optional
+            ``relation(sensor) -> D(v)`` (default: :meth:`relation`).
+        variable : sympy.Symbol, optional
+            The variable ``v`` of ``relation`` (default: the observer's).
+
+        Returns
+        -------
+        list of (Sensor or None, sympy expression, sympy expression)
+            ``(None, C X, 1)`` first, then ``(sensor, H_j X, D_j)`` per measurement, each
+            reduced with ``sympy.cancel``.
+        """
+        F = self.F if F is None else F
+        B = self.B if B is None else B
+        relation = relation or self.relation
+        v = variable or self.variable
+        drive = sp.zeros(self.n_states, 1)
         for x in self.sensors:
             if x.role == "input":
-                drive += self.B[:, x.index] * self.relation(x)
-        X = (v * sp.eye(n) - self.F).LUsolve(drive).applyfunc(sp.cancel)
-        rows = [(self.output, sp.Integer(1))]
-        rows += [(self.H[x.index, :], self.relation(x)) for x in self.sensors if x.role != "input"]
-        return all(sp.cancel((row * X)[0, 0] - want) == 0 for row, want in rows)
+                drive += B[:, x.index] * relation(x)
+        X = (v * sp.eye(self.n_states) - F).LUsolve(drive).applyfunc(sp.cancel)
+        rows = [(None, (self.output * X)[0, 0], sp.Integer(1))]
+        rows += [(x, (self.H[x.index, :] * X)[0, 0], relation(x)) for x in self.sensors if x.role != "input"]
+        return [(x, sp.cancel(got), want) for x, got, want in rows]
 
     @cached_property
     def residual_numerator(self):

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-__all__ = ["Proof", "prove"]
+__all__ = ["Proof", "prove", "explain"]
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,10 @@ class Proof:
         ``sum_i T_i - 1`` in canonical form (``0`` when the proof holds).
     parameters : tuple
         Symbols left free (the identity holds for all their values).
+    reason : str
+        Why a proof that fails fails, in terms of the model and the sensors (a continuous
+        model given as discrete, a sample time left symbolic, the sensor whose relation the
+        model does not follow); ``""`` when the proof holds.
     """
 
     structure: str
@@ -48,6 +52,7 @@ class Proof:
     total: object
     residual: object
     parameters: tuple
+    reason: str = ""
 
     @property
     def holds(self) -> bool:
@@ -63,7 +68,7 @@ class Proof:
         return f"FAILS: the bands sum to {self.total}, not 1"
 
     def text(self) -> str:
-        """Plain-text rendering: every band, the sum, the residual and the verdict.
+        """Plain-text rendering: every band, the sum, the residual, the verdict and why a proof fails.
 
         Returns
         -------
@@ -88,6 +93,8 @@ class Proof:
         lines += [f"  {'sum':<{width}} = {self.total}",
                   f"  {'sum - 1':<{width}} = {self.residual}",
                   f"  {self.verdict}"]
+        if self.reason:
+            lines.append(f"  why: {self.reason}")
         return "\n".join(lines)
 
     def latex(self) -> str:
@@ -111,7 +118,7 @@ class Proof:
         -------
         dict
             ``structure``, ``variable``, ``bands`` (``{sensor: str}``), ``sum``, ``residual``
-            (strings) and ``holds`` (bool).
+            (strings), ``holds`` (bool) and ``reason`` (str, ``""`` when it holds).
         """
         return {
             "structure": self.structure,
@@ -120,6 +127,7 @@ class Proof:
             "sum": str(self.total),
             "residual": str(self.residual),
             "holds": self.holds,
+            "reason": self.reason,
         }
 
     def __str__(self):
@@ -150,7 +158,8 @@ def prove(observer) -> Proof:
     Returns
     -------
     Proof
-        The outcome; ``holds`` is True when the bands sum to exactly one.
+        The outcome; ``holds`` is True when the bands sum to exactly one, and when it is not,
+        ``reason`` says why (:func:`explain`).
 
     Raises
     ------
@@ -178,7 +187,184 @@ def prove(observer) -> Proof:
     bands = observer.bands
     total = sp.cancel(sp.together(sum(bands.values())))
     residual = sp.cancel(sp.together(total - 1))
-    return Proof(observer.name, observer.variable, dict(bands), total, residual, observer.parameters)
+    reason = "" if residual == 0 else explain(observer)
+    return Proof(observer.name, observer.variable, dict(bands), total, residual, observer.parameters, reason)
+
+
+def explain(observer) -> str:
+    """Why the bands of an observer do not sum to one, in terms a user can act on.
+
+    The bands sum to one for every gain when the sensors' relations are a trajectory of the
+    model (``docs/derivations.md``, "Bands, and why they sum to one"), so a proof that fails
+    has a relation the model does not follow.  The usual ways to get there are named first: a
+    continuous ``F, B`` given with ``domain='z'``, a sample time left symbolic beside numeric
+    ``F, B``, ``F, B`` sampled at another sample time than the one given; otherwise each
+    relation the model does not follow is named with the one the model implies.
+
+    Parameters
+    ----------
+    observer : Observer
+        Symbolic or numeric.
+
+    Returns
+    -------
+    str
+        One sentence or more; ``""`` when the relations follow the model (the proof holds).
+
+    Examples
+    --------
+    A numeric ``F, B`` sampled at 0.01 s, given without ``sample_time=``:
+
+    >>> import cfdesign
+    >>> gyro, compass = cfdesign.Sensor.input("gyro", "rate"), cfdesign.Sensor.measurement("compass", "angle", 0)
+    >>> obs = cfdesign.Observer([[1]], [[0.01]], [[1]], [[0.5]], [gyro, compass], domain="z")
+    >>> print(explain(obs).split("; ")[-1])
+    pass sample_time=0.01 (s), the sample time F and B follow
+    """
+    if observer.relations_follow_the_model:
+        return ""
+    for cause in (_continuous_model_as_discrete, _symbolic_sample_time, _other_sample_time):
+        reason = cause(observer)
+        if reason:
+            return reason
+    return _unfollowed_relations(observer)
+
+
+def _default_relations(obs) -> bool:
+    """True when every sensor has the chain's relation (none written by hand)."""
+    return all(x.relation is None for x in obs.sensors)
+
+
+def _continuous_model_as_discrete(obs) -> str:
+    """A continuous ``F, B`` (its relations ``s**order`` follow it) given with ``domain='z'``."""
+    if not obs.discrete or not _default_relations(obs):
+        return ""
+    from .observer import s
+
+    rows = obs.model_readings(relation=lambda x: s**x.order, variable=s)
+    if any(sp.cancel(got - want) != 0 for _, got, want in rows):
+        return ""
+    return ("F and B are a continuous model (x' = F x + B u follows the relations s**order) given with "
+            "domain='z': sample it first (cfdesign.symbolic.zoh(F, B, T), or control.c2d with "
+            "Observer.from_statespace), or build the observer with domain='s'")
+
+
+def _symbolic_sample_time(obs) -> str:
+    """The sample time left a symbol (no ``sample_time=``) while ``F, B`` are numbers without it."""
+    t = obs._sample_time_symbol
+    if t is None or obs.F.has(t) or obs.B.has(t):
+        return ""
+    uses = [x.name for x in obs.sensors if obs.relation(x).has(t)]
+    if not uses:
+        return ""
+    fit = _fitting_sample_time(obs)
+    if fit is not None:
+        act = f"pass sample_time={float(fit):g} (s), the sample time F and B follow"
+    else:
+        act = "pass sample_time=<the model's sample time, s>"
+        if not (obs.F.free_symbols | obs.B.free_symbols | obs.H.free_symbols) and _default_relations(obs):
+            act += (" (no sample time makes these F and B follow the relations: with it given, the proof names "
+                    "the relation they do not follow)")
+    which = "relation of " + uses[0] if len(uses) == 1 else "relations of " + ", ".join(uses)
+    return (f"the sample time {t} is left symbolic (no sample_time= given) while F and B hold no {t}: "
+            f"the {which} involve{'s' if len(uses) == 1 else ''} {t} and the model does not; {act}")
+
+
+def _other_sample_time(obs) -> str:
+    """Numeric ``F, B`` sampled at another sample time than the observer's (numeric) one."""
+    if not obs.discrete or obs._sample_time_symbol is not None:
+        return ""
+    fit = _fitting_sample_time(obs)
+    if fit is None or fit == obs.sample_time:
+        return ""
+    return (f"F and B follow a sample time of {float(fit):g} s, not the sample_time={float(obs.sample_time):g} "
+            "given: give the model's sample time, or sample F and B at the one given")
+
+
+def _fitting_sample_time(obs):
+    """The positive sample time at which numeric ``F, B, H`` follow the chain's relations, or None."""
+    from .observer import discrete_relation
+
+    if not _default_relations(obs) or (obs.F.free_symbols | obs.B.free_symbols | obs.H.free_symbols):
+        return None
+    t = sp.Dummy("T", positive=True)
+    common = sp.Integer(0)  # gcd of every coefficient (in t) of every difference's numerator (in v)
+    for _, got, want in obs.model_readings(relation=lambda x: discrete_relation(x.order, obs.chain_order, t)):
+        for c in sp.Poly(sp.numer(sp.together(got - want)), obs.variable).coeffs():
+            common = sp.gcd(common, c)
+    if common == 0 or common.free_symbols != {t}:
+        return None
+    fits = sorted(r for r in sp.roots(sp.Poly(common, t)) if r.is_positive)
+    return fits[0] if fits else None
+
+
+def _unfollowed_relations(obs) -> str:
+    """Each relation the model does not follow, beside the one it implies."""
+    (_, estimate, _), *measured = obs.model_readings()
+    out = [] if sp.cancel(estimate - 1) == 0 else [_inputs_not_integrated(obs, estimate)]
+    for x, got, want in measured if estimate != 0 else ():
+        reads = sp.factor(sp.cancel(got / estimate))  # what the measurement reads of the quantity C X
+        if sp.cancel(reads - want) != 0:
+            out.append(f"measurement {x.name} is declared {_kind(x.order)}, relation {want}, but row {x.index} "
+                       f"of H reads {reads} times the quantity{_like(obs, reads)}")
+    return "the sensors' relations are not a trajectory of the model: " + "; ".join(out)
+
+
+def _inputs_not_integrated(obs, estimate) -> str:
+    """What exact input readings make of the estimate, when it is not the quantity itself."""
+    inputs = [x for x in obs.sensors if x.role == "input"]
+    if not inputs:
+        return "no input sensor drives the model, so exact readings leave the estimate at 0, not the quantity"
+    names = ", ".join(x.name for x in inputs)
+    if estimate == 0:
+        return f"the input(s) {names} do not reach the estimate (check the columns of B and the output row)"
+    if len(inputs) > 1:
+        return (f"F and B do not integrate the inputs {names} into the common quantity: exact readings drive "
+                f"the estimate to ({sp.factor(estimate)}) times the quantity, not 1{_chain_hint(obs)}")
+    x, rel = inputs[0], obs.relation(inputs[0])
+    implied = sp.factor(sp.cancel(rel / estimate))
+    return (f"F and B do not integrate input {x.name}, declared {_kind(x.order)} with relation {rel}, into the common "
+            f"quantity: exact {x.name} readings drive the estimate to ({sp.factor(estimate)}) times the quantity, "
+            f"not 1; this model needs the relation {implied}{_like(obs, implied)}{_chain_hint(obs)}")
+
+
+def _names(order) -> str:
+    """``rate/velocity``: the quantity names of a derivative order (``""`` beyond them)."""
+    from ..spec import QUANTITY_ORDERS
+
+    return "/".join(name for name, k in QUANTITY_ORDERS.items() if k == order)
+
+
+def _kind(order) -> str:
+    """``'rate/velocity' (order 1)``."""
+    return f"'{_names(order)}' (order {order})" if _names(order) else f"order {order}"
+
+
+def _like(obs, relation) -> str:
+    """`` (the relation of an order-k sensor)`` when ``relation`` is a chain relation, else ``""``."""
+    from .observer import discrete_relation
+
+    for k in range(4):  # angle to jerk; in a discrete chain, a sensor of order k makes it at least of order k
+        chain = max(obs.chain_order, k)
+        standard = discrete_relation(k, chain, obs.sample_time) if obs.discrete else obs.variable**k
+        if sp.cancel(relation - standard) == 0:
+            return f" (the relation of an order-{k} '{_names(k)}' sensor)"
+    return ""
+
+
+def _chain_hint(obs) -> str:
+    """The chain model the relations assume, when the observer is that chain with one top-order input."""
+    from .observer import integrator_chain, zoh_chain
+
+    m = obs.chain_order
+    inputs = [x for x in obs.sensors if x.role == "input"]
+    if obs.n_states != m or len(inputs) != 1 or inputs[0].order != m or not _default_relations(obs):
+        return ""
+    F, B = zoh_chain(m, obs.sample_time) if obs.discrete else integrator_chain(m)
+    if F == obs.F and B == obs.B[:, inputs[0].index]:
+        return ""
+    how = f"cfdesign.symbolic.zoh_chain({m}, T)" if obs.discrete else f"cfdesign.symbolic.integrator_chain({m})"
+    return f"; the chain the relations assume has F = {F.tolist()}, B = {B.T.tolist()[0]} ({how})"
 
 
 class _Bands(Mapping):
