@@ -236,9 +236,8 @@ class Structure:
         Raises
         ------
         SpecError
-            A discrete observer without its continuous model.
-        CfdesignError
-            The discrete model is not the zero-order hold of the continuous one (a bug).
+            A discrete observer without its continuous model, or whose discrete ``F, B`` are not
+            the zero-order hold of it (the noise would be discretised for another model).
         """
         if obs.continuous is None:
             raise SpecError(f"structure {obs.name}: a discrete observer needs its continuous model "
@@ -251,9 +250,12 @@ class Structure:
         if obs.discrete:
             dt = 0.1 if obs._sample_time_symbol is not None else float(obs.sample_time)
             mine, ref = out.model(dt), obs.numeric_model(dt)
-            if not all(np.allclose(mine[k], ref[k], rtol=1e-12, atol=1e-15) for k in ("F", "B")):
-                raise CfdesignError(f"{obs.name}: its discrete model is not the zero-order hold of its continuous "
-                                    "one (a bug, please report it)")
+            off = [k for k in ("F", "B") if not np.allclose(mine[k], ref[k], rtol=1e-12, atol=1e-15)]
+            if off:  # the user's observer: its continuous model is the one the noise is discretised with
+                k, sym = off[0], " (T is symbolic: compared there)" if obs._sample_time_symbol is not None else ""
+                raise SpecError(f"structure {obs.name}: its discrete {' and '.join(off)} {'is' if len(off) == 1 else 'are'} not the zero-order "
+                                f"hold of continuous=(Fc, Bc) at T = {dt:g} s{sym} ({k} = {_row_text(ref[k])}, the hold "
+                                f"gives {_row_text(mine[k])}); build them with cfdesign.symbolic.zoh(Fc, Bc, T)")
         return out
 
     @property
@@ -786,7 +788,10 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
         field of a spec built or edited in Python breaks the rules of a design file
         (``cfdesign.spec.checked_spec``: a rate given as text, ``noise=None``), or the spec
         does not fit the structure (a missing or extra sensor, a rate, a bias the structure
-        cannot estimate); the message names the field.
+        cannot estimate); the message names the field.  An ``observer`` whose bands do not sum
+        to one (its model does not follow a sensor's relation: the message says which, as
+        ``cfdesign.symbolic.explain``) or whose discrete model is not the zero-order hold
+        of its ``continuous`` one.
     RiccatiError
         No stabilising optimal gain exists (a :class:`~cfdesign.errors.NotDetectableError`
         names the mode the sensors cannot see).
@@ -810,6 +815,11 @@ def design(spec: FilterSpec, observer=None) -> GainTable:
     else:
         _check_sensors(spec, observer)
         structure = Structure.from_observer(observer)
+        if not structure.proved:  # no gain makes it complementary: the numeric checks would blame the gains
+            from .symbolic.proof import explain
+
+            raise SpecError(f"structure {observer.name}: its bands do not sum to one for any gains, so it "
+                            f"cannot be designed as a complementary filter: {explain(observer)}")
     table = design_from_structure(structure, spec)
     obs = observer if observer is not None else build_structure(spec)
     if table.period == 1:
@@ -1335,6 +1345,11 @@ def _sparse_start(obs, pattern, free, K_opt, cost):
 
 
 # ---------------------------------------------------------------------------- table
+def _row_text(M) -> str:
+    """A small matrix on one line, six significant digits: ``[[1, 0.01], [0, 1]]``."""
+    return "[" + ", ".join("[" + ", ".join(f"{v:.6g}" for v in row) + "]" for row in np.atleast_2d(M)) + "]"
+
+
 def _pairs(values) -> list:
     return [[float(np.real(v)), float(np.imag(v))] for v in values]
 

@@ -104,3 +104,38 @@ def test_a_proof_that_holds_has_no_reason(obs):
     proof = obs.proof()
     assert proof.holds and proof.reason == "" and "why:" not in proof.text()
     assert cfdesign.symbolic.proof.explain(obs) == ""
+
+
+_POSITION_SPEC = {"name": "one axis", "structure": "position", "gain_form": "filter",
+                  "sensors": {"acc": {"measures": "acceleration", "noise": {"std": 0.01}, "rate_hz": 100},
+                              "gps": {"measures": "position", "noise": {"std": 1.0}, "rate_hz": 100}}}
+
+
+def _designed(obs):
+    with pytest.raises(cfdesign.SpecError) as err:
+        cfdesign.design(cfdesign.parse_spec(_POSITION_SPEC), observer=obs)
+    assert "\n" not in str(err.value) and "a bug" not in str(err.value)
+    return str(err.value)
+
+
+def test_design_of_an_observer_that_cannot_be_complementary_names_the_relation():
+    """A continuous model whose input also drives the position: its ZOH is consistent with it, but no gain
+    makes the bands sum to one; design named the gains' scaling (the numeric check), now the relation."""
+    T = sp.Rational(1, 100)
+    Fc, Bc = sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([[1], [1]])
+    obs = Observer(*zoh(Fc, Bc, T), [[1, 0]], [[k1], [k2]], [ACC, GPS], domain="z", sample_time=T,
+                   gain_form="filter", continuous=(Fc, Bc))
+    message = _designed(obs)
+    assert "do not sum to one for any gains" in message and "input acc" in message and "zoh_chain(2, T)" in message
+
+
+def test_design_of_a_discrete_model_that_is_not_the_hold_of_its_continuous_one():
+    """B = [0, T] beside continuous=(chain): the user's model, not a fault of cfdesign; the entry is shown."""
+    T = sp.Rational(1, 100)
+    obs = Observer([[1, T], [0, 1]], [[0], [T]], [[1, 0]], [[k1], [k2]], [ACC, GPS], domain="z", sample_time=T,
+                   gain_form="filter", continuous=([[0, 1], [0, 0]], [[0], [1]]))
+    message = _designed(obs)
+    assert "B is not the zero-order hold" in message and "[[5e-05], [0.01]]" in message
+    good = Observer(*zoh(sp.Matrix([[0, 1], [0, 0]]), sp.Matrix([[0], [1]]), T), obs.H, obs.K, obs.sensors,
+                    domain="z", sample_time=T, gain_form="filter", continuous=([[0, 1], [0, 0]], [[0], [1]]))
+    assert cfdesign.design(cfdesign.parse_spec(_POSITION_SPEC), observer=good).checks["complementary"]
