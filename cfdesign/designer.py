@@ -252,10 +252,12 @@ class Structure:
             mine, ref = out.model(dt), obs.numeric_model(dt)
             off = [k for k in ("F", "B") if not np.allclose(mine[k], ref[k], rtol=1e-12, atol=1e-15)]
             if off:  # the user's observer: its continuous model is the one the noise is discretised with
-                k, sym = off[0], " (T is symbolic: compared there)" if obs._sample_time_symbol is not None else ""
-                raise SpecError(f"structure {obs.name}: its discrete {' and '.join(off)} {'is' if len(off) == 1 else 'are'} not the zero-order "
-                                f"hold of continuous=(Fc, Bc) at T = {dt:g} s{sym} ({k} = {_row_text(ref[k])}, the hold "
-                                f"gives {_row_text(mine[k])}); build them with cfdesign.symbolic.zoh(Fc, Bc, T)")
+                k, verb = off[0], "is" if len(off) == 1 else "are"
+                sym = " (T is symbolic: compared there)" if obs._sample_time_symbol is not None else ""
+                raise SpecError(f"structure {obs.name}: its discrete {' and '.join(off)} {verb} not the "
+                                f"zero-order hold of continuous=(Fc, Bc) at T = {dt:g} s{sym} ({k} = "
+                                f"{_row_text(ref[k])}, the hold gives {_row_text(mine[k])}); build them with "
+                                "cfdesign.symbolic.zoh(Fc, Bc, T)")
         return out
 
     @property
