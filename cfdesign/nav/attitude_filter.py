@@ -130,7 +130,9 @@ Every threshold is in physical units, derived from the noise figures where it ca
   the clipping starts once as many have been seen as the start-up takes (a shock before is taken whole);
 * bad samples: non-finite readings, a rate above ``gyro_range_rps`` or a specific force above
   ``accel_range_mps2`` (physically impossible for the sensor) are missing and counted: a
-  missing rate holds the last good one, a missing specific force or field skips its channel.
+  missing rate holds the last good one, a missing specific force or field skips its channel (the rest test
+  keeps the accelerometer's side as its last reading left it, so an accelerometer slower than the gyro, NaN
+  between its readings, still lets the sensor rest).
   A gap in the gyro longer than the tilt's start-up (``1 / omega``, 2 s by default) has lost the
   attitude (the body turned unseen; the held rate only extrapolates): the first rate after it
   runs the start-up again from the specific force, keeping the heading held through the gap (in
@@ -1533,7 +1535,10 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
         gnoise += r_alpha * (d_scale * ((gx - ox) * (gx - ox) + (gy - oy) * (gy - oy) + (gz - oz) * (gz - oz))
                              - gnoise)
         gfloor = _noise_floor(gnoise, gfloor, gdev, var_g, floor_up)
-    still = False
+    # each sensor within the designed threshold or REST_FLOOR_K times its noise floor, whichever is larger
+    kg = REST_FLOOR_K * gfloor
+    db = (glx - bx) * (glx - bx) + (gly - by) * (gly - by) + (glz - bz) * (glz - bz)
+    still = use_rest and gdev < (kg if kg > th_g2 else th_g2) and db < th_b2
     if acc_ok:
         if abs(tilt_n) * tilt_alpha >= 1.0:
             # after the tilt's start-up (its time 1 / omega is past the low-pass's, so the spread is measured),
@@ -1559,11 +1564,13 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
                                  - fnoise)
             ffloor = _noise_floor(fnoise, ffloor, fdev, var_a, floor_up)
         lax, lay, laz = ax, ay, az
-        db = (glx - bx) * (glx - bx) + (gly - by) * (gly - by) + (glz - bz) * (glz - bz)
-        # each sensor within the designed threshold or REST_FLOOR_K times its noise floor, whichever is larger
-        kg, ka = REST_FLOOR_K * gfloor, REST_FLOOR_K * ffloor
-        still = (use_rest and gdev < (kg if kg > th_g2 else th_g2) and fdev < (ka if ka > th_a2 else th_a2)
-                 and db < th_b2)
+        ka = REST_FLOOR_K * ffloor
+        still = still and fdev < (ka if ka > th_a2 else th_a2)
+    else:
+        # no specific force this step (an accelerometer slower than the gyro, a dropped reading): its side of
+        # the test stays as the last one left it (had it ended every rest, a 100 Hz accelerometer beside a
+        # 200 Hz gyro never rested and the bias was never learnt: 4.3 deg RMS against 0.2)
+        still = still and rest_time > 0.0
     was_rest = rest_time >= rest_min
     rest_time = rest_time + T if still else 0.0
     rest = rest_time >= rest_min
