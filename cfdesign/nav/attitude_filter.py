@@ -133,7 +133,8 @@ Every threshold is in physical units, derived from the noise figures where it ca
   missing rate holds the last good one, a missing specific force or field skips its channel (the rest test
   keeps the accelerometer's side as its last reading left it, so an accelerometer slower than the gyro, NaN
   between its readings, still lets the sensor rest).
-  A gap in the gyro longer than the tilt's start-up (``1 / omega``, 2 s by default) has lost the
+  A gap in the gyro longer than the tilt's start-up (``1 / omega``, 2 s by default), or one over which the
+  held rate turned the attitude by more than ``GAP_TURN_RAD`` (0.3 rad: 0.3 s at 1 rad/s), has lost the
   attitude (the body turned unseen; the held rate only extrapolates): the first rate after it
   runs the start-up again from the specific force, keeping the heading held through the gap (in
   9D the field then sets it: the heading channel's prior is reopened) and the gyro bias.  Without
@@ -178,6 +179,13 @@ DISTURBANCE_FACTORS = (4.0, 16.0, 64.0, 256.0, 1024.0)
 #: specific force: the start-up (one) and the 2 % settling time ``4 / (zeta omega)`` (``zeta = 1/sqrt(2)``)
 #: in which it removes what the start-up left of a sensor that was moving (the velocity it had)
 TILT_SETTLE = 1.0 + 4.0 * math.sqrt(2.0)
+
+#: a gap in the gyro over which the held rate (less the bias) turned the attitude by more than this (rad) runs the
+#: tilt's start-up again, as a gap longer than the start-up does: the body turned unseen and the held rate only
+#: extrapolates (gaps of 0.5-1.9 s while turning at ~1 rad/s left 3-21 deg RMS over the next 25-30 s, one of
+#: 1 s still 20 deg off 20 s later; with the restart 1.1-6.4 deg; below about 0.3 rad the restart's own start-up
+#: in motion costs more than the extrapolation: a 0.1-0.2 s gap 0.3-0.6 deg held, 0.9-1.0 deg restarted)
+GAP_TURN_RAD = 0.3
 
 #: the variance of a heading not known at all (uniform on the circle): the 9D heading channel's prior
 #: without a given initial attitude, and after a gap in the gyro
@@ -1467,11 +1475,14 @@ def _step(s, coef, gx, gy, gz, ax, ay, az, mx, my, mz, nine):
     ox, oy, oz = lgx, lgy, lgz                         # the previous sample's rate (held if it was missing)
     g_ok = gx * gx + gy * gy + gz * gz <= g_range2
     if g_ok:
+        # the turn the held rate made over the gap (none without one), squared
+        held2 = (gap_n * T) ** 2 * ((lgx - bx) ** 2 + (lgy - by) ** 2 + (lgz - bz) ** 2) if gap_n > 0.0 else 0.0
         lgx, lgy, lgz = gx, gy, gz
-        if gap_n * tilt_alpha >= 1.0:
-            # the gyro was missing for longer than the tilt's start-up: the held rate has lost the attitude
-            # (the body turned unseen), which the velocity channel would take for a sustained acceleration
-            # and the field check for a disturbance; the start-up runs again, keeping the heading and the bias
+        if gap_n * tilt_alpha >= 1.0 or held2 > GAP_TURN_RAD * GAP_TURN_RAD:
+            # the gyro was missing for longer than the tilt's start-up, or the held rate turned the attitude by more
+            # than GAP_TURN_RAD meanwhile: the held rate has lost the attitude (the body turned unseen), which the
+            # velocity channel would take for a sustained acceleration and the field check for a disturbance; the
+            # start-up runs again, keeping the heading and the bias
             started = 0.0
         elif started == 2.0:
             gap_n = 0.0
