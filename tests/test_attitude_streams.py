@@ -10,7 +10,7 @@ import pytest
 from test_attitude_filter import imu, motion
 
 from cfdesign.errors import AttitudeInputError
-from cfdesign.nav import AttitudeFilter, align_imu, estimate_attitude
+from cfdesign.nav import AttitudeFilter, align_imu, estimate_attitude, hard_iron_offset
 
 RATE = 200.0
 #: an Android-like epoch in nanoseconds (1.7e18): beyond float64's integers, so exactness needs int64 stamps
@@ -176,3 +176,31 @@ def test_streams_of_other_lengths_given_to_the_filter_name_align_imu():
     _, _, streams, _ = phone_streams(n=1000)
     with pytest.raises(AttitudeInputError, match=r"acc has \d+ rows but gyr has \d+: .*align_imu"):
         estimate_attitude(streams["gyr"][1], streams["acc"][1], streams["mag"][1], RATE)
+
+
+# ---------------------------------------------------------------------- hard iron
+def test_a_hard_iron_offset_is_warned_of_and_its_subtraction_gives_the_heading():
+    """A field fixed to the sensor (an uncalibrated phone magnetometer: 15, -10, 30 µT beside a 45 µT field) turned
+    the heading far off without a word.  Now run warns, naming the offset, and hard_iron_offset finds it (within
+    0.5 µT), so the field less it gives the heading of the clean one."""
+    q, full, _, _ = phone_streams(n=6000)
+    offset = np.array([15.0, -10.0, 30.0])
+    with pytest.warns(UserWarning, match=r"mag: the readings lie on a sphere centred at \(15, -10, 30\).*hard-iron"):
+        bad = estimate_attitude(full["gyr"], full["acc"], full["mag"] + offset, RATE)
+    found = hard_iron_offset(full["mag"] + offset)
+    assert np.abs(found - offset).max() < 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fixed = estimate_attitude(full["gyr"], full["acc"], full["mag"] + offset - found, RATE)
+    clean = rms_angle(estimate_attitude(full["gyr"], full["acc"], full["mag"], RATE), q)
+    assert rms_angle(bad, q) > 5.0 and rms_angle(fixed, q) < clean + 0.2
+
+
+def test_no_hard_iron_is_told_from_a_field_that_did_not_turn_or_was_disturbed_from_outside():
+    """Readings that hardly turned (a sensor at rest) tell no sphere; a field disturbed from outside (the norm
+    changing with the place, not the orientation) fits no sphere better than its mean; a calibrated one has none."""
+    _, full, _, _ = phone_streams(n=6000)
+    assert hard_iron_offset(full["mag"][:1000] + np.array([15.0, -10.0, 30.0])) is None     # the first 5 s: at rest
+    assert hard_iron_offset(full["mag"]) is None
+    place = 1.0 + 0.3 * np.sin(np.arange(6000) / 700.0)[:, None]                           # the norm 0.7-1.3 times
+    assert hard_iron_offset(full["mag"] * place) is None

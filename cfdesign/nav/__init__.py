@@ -32,7 +32,7 @@ from importlib import import_module
 _LAZY = {
     ".quaternion_attitude": ["estimate_attitude"],
     ".attitude_filter": ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude"],
-    ".attitude_streams": ["align_imu", "AlignedImu"],
+    ".attitude_streams": ["align_imu", "AlignedImu", "hard_iron_offset"],
     ".euler_attitude": ["EulerAttitudeFilter", "EulerEstimate"],
     ".attitude_channel": ["design_channel"],
     "..errors": ["AttitudeInputError"],
@@ -43,7 +43,8 @@ _LAZY = {
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
 __all__ = ["estimate_attitude", "AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude",
-           "align_imu", "AlignedImu", "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError", "design_channel",
+           "align_imu", "AlignedImu", "hard_iron_offset", "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError",
+           "design_channel",
            "euler_rate_matrix", "euler_rate_matrix_inverse", "mps_euler", "mps_quaternion", "PositionFilter",
            "PositionEstimate"]
 

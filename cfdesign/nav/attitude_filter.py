@@ -1097,7 +1097,8 @@ class AttitudeFilter:
             than twice as noisy (in std) as its density (``gyro_noise_density``, ``accel_noise_density``;
             rest is then detected against the noise measured); more than 5 % of the rows without a rate but with
             a specific force or a field (streams merged by time stamp: put them on the gyro's clock with
-            :func:`~cfdesign.nav.align_imu`).  The filter runs anyway.
+            :func:`~cfdesign.nav.align_imu`); in 9D, field readings on a sphere away from zero (a hard-iron
+            offset: :func:`~cfdesign.nav.hard_iron_offset`).  The filter runs anyway.
         """
         gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
         self._units.check_median(gyr, stacklevel=3)
@@ -1215,7 +1216,26 @@ def _arrays(gyr, acc, mag, nine):
                                      "the gyro's clock with cfdesign.nav.align_imu first")
     _check_units(gyr, acc)
     _check_merged(gyr, acc, mag)
+    if mag is not None:
+        _check_hard_iron(mag)
     return gyr, acc, mag
+
+
+def _check_hard_iron(mag):
+    """Warn when the field readings lie on a sphere away from zero (:func:`~cfdesign.nav.hard_iron_offset`): a
+    hard-iron offset, which the filter does not remove (30 µT beside a 50 µT field: 23 deg RMS in heading)."""
+    import warnings
+
+    from .attitude_streams import hard_iron_offset
+
+    offset = hard_iron_offset(mag)
+    if offset is not None:
+        norm = float(np.median(np.linalg.norm(mag[np.isfinite(mag).all(axis=1)] - offset, axis=1)))
+        warnings.warn(f"mag: the readings lie on a sphere centred at ({', '.join(f'{v:.3g}' for v in offset)}), "
+                      f"{float(np.linalg.norm(offset)) / norm:.2g} times the field's norm ({norm:.3g}) from zero: a "
+                      "hard-iron offset (an uncalibrated magnetometer, a magnet fixed to the device), which the filter "
+                      "does not remove and which turns the heading; subtract cfdesign.nav.hard_iron_offset(mag) from "
+                      "mag, or log the calibrated field", UserWarning, stacklevel=4)
 
 
 #: the share of the rows of :meth:`AttitudeFilter.run` without a rate but with another sensor's reading, next to a row

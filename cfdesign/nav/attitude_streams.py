@@ -25,7 +25,7 @@ from ..errors import AttitudeInputError
 from ..timing import grid_fit, nearest_tick
 from .attitude_inputs import rows
 
-__all__ = ["AlignedImu", "align_imu", "TIME_UNITS"]
+__all__ = ["AlignedImu", "align_imu", "hard_iron_offset", "TIME_UNITS"]
 
 #: units the time stamps may be in: seconds each
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -207,3 +207,66 @@ def _on_ticks(t, values, origin, spacing, n) -> tuple:
         out = np.where(number[:, None] > 0, total / number[:, None], np.nan)
     ticks = int((number > 0).sum())
     return out, {"readings": len(t), "ticks": ticks, "shared": int(len(k) - ticks), "outside": int((~inside).sum())}
+
+
+#: the hard-iron check (:func:`hard_iron_offset`): the least turn of the readings' directions that lets a sphere be
+#: told from their mean (the smallest principal spread of the unit directions, about 0.3 rad), the offset beyond which
+#: it matters (relative to the field's norm: 0.1, a heading error up to about 6 deg) and how much better than the raw
+#: norms the sphere must fit them (the norms' spread about it at most a third of theirs about their mean)
+HARD_IRON_SPREAD, HARD_IRON_SHARE, HARD_IRON_FIT = 0.1, 0.1, 1.0 / 3.0
+
+
+def hard_iron_offset(mag):
+    """The centre of the sphere the field readings lie on: a hard-iron offset, if they turned enough to show one.
+
+    A field fixed to the sensor (an uncalibrated magnetometer, a magnet or steel carried with it) adds the same
+    vector to every reading, so the readings of a turning sensor lie on a sphere about it instead of about zero; the
+    filter, which reads the field's direction, then errs in heading by up to the offset over the horizontal field
+    (a 30 µT offset beside 50 µT: 23 deg RMS).  The centre is the linear least-squares sphere
+    (``|m|² = 2 c . m + k``).
+
+    Parameters
+    ----------
+    mag : array_like (N, 3)
+        Field readings, any one unit; non-finite rows are left out.
+
+    Returns
+    -------
+    ndarray (3,) or None
+        The offset (the field's unit), or None when it cannot be told or does not matter: the readings did not turn
+        enough (the smallest spread of their directions below ``HARD_IRON_SPREAD``), the sphere fits their norms no
+        better than their mean does (``HARD_IRON_FIT``: a field disturbed from outside), or the offset is below
+        ``HARD_IRON_SHARE`` of the field.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cfdesign.nav import hard_iron_offset
+    >>> rng = np.random.default_rng(0)
+    >>> u = rng.standard_normal((500, 3))
+    >>> field = 50.0 * u / np.linalg.norm(u, axis=1, keepdims=True)
+    >>> np.round(hard_iron_offset(field + [15.0, -10.0, 30.0]), 6).tolist()
+    [15.0, -10.0, 30.0]
+    >>> hard_iron_offset(field) is None
+    True
+    """
+    m = rows("mag", mag, 3)
+    with np.errstate(invalid="ignore", over="ignore"):
+        m = m[np.isfinite(m).all(axis=1) & (np.abs(m).sum(axis=1) > 0)]
+    if len(m) < 10:
+        return None
+    scale = float(np.median(np.linalg.norm(m, axis=1)))
+    m = m / scale
+    norms = np.linalg.norm(m, axis=1)
+    if np.linalg.eigvalsh(np.cov((m / norms[:, None]).T))[0] < HARD_IRON_SPREAD ** 2:
+        return None
+    a = np.column_stack((2.0 * m, np.ones(len(m))))
+    sol = np.linalg.lstsq(a, norms * norms, rcond=None)[0]
+    centre, radius2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
+    if radius2 <= 0.0:
+        return None
+    fit = np.linalg.norm(m - centre, axis=1) - np.sqrt(radius2)
+    if (np.linalg.norm(centre) < HARD_IRON_SHARE * np.sqrt(radius2)
+            or np.sqrt(np.mean(fit * fit)) > HARD_IRON_FIT * np.std(norms)):
+        return None
+    return centre * scale
