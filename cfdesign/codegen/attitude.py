@@ -147,6 +147,7 @@ def render_attitude_c(attitude_filter, *, prefix="cf_attitude") -> dict:
         "mag_provisional": _hex(prov_s), "mag_follow": _hex(follow_f), "hold_var": _hex(hold_var),
         "rest_lp_var": _hex(lp_var), "rest_gyro_var": _hex(var_g), "rest_accel_var": _hex(var_a),
         "rest_floor_up": _hex(floor_up), "rest_diff_scale": _hex(d_scale), "rest_floor_k": _hex(af.REST_FLOOR_K),
+        "gap_turn_rad": _hex(af.GAP_TURN_RAD),
         "rest_floor_cap": _hex(af.REST_FLOOR_CAP), "shock_lim2": _hex(shock_lim2),
         "gravity": _hex(_gravity()), "pi": _hex(math.pi), "two_pi": _hex(2 * math.pi),
         "heading_var0": _hex(HEADING_VAR0),

@@ -10,6 +10,8 @@ user's own design given as ``tables=`` / ``table=``.
   optional magnetometer: rest, gyro bias, magnetic and acceleration disturbances; 6D and 9D;
   exported as C by :mod:`cfdesign.codegen.attitude`), :func:`estimate_attitude` its
   whole-array call (:mod:`~cfdesign.nav.attitude_filter`, :mod:`~cfdesign.nav.quaternion_attitude`);
+  :func:`align_imu` puts streams at their own rates and time stamps (a phone's logger) on the gyro's
+  clock for them (:mod:`~cfdesign.nav.attitude_streams`);
 * :class:`EulerAttitudeFilter` - the Euler-angle filter of Vasconcelos et al. (low-pitch
   vehicles; :mod:`~cfdesign.nav.euler_attitude`);
 * :func:`design_channel` - the gains of one attitude channel (:mod:`~cfdesign.nav.attitude_channel`);
@@ -30,6 +32,7 @@ from importlib import import_module
 _LAZY = {
     ".quaternion_attitude": ["estimate_attitude"],
     ".attitude_filter": ["AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude"],
+    ".attitude_streams": ["align_imu", "AlignedImu", "hard_iron_offset"],
     ".euler_attitude": ["EulerAttitudeFilter", "EulerEstimate"],
     ".attitude_channel": ["design_channel"],
     "..errors": ["AttitudeInputError"],
@@ -40,7 +43,8 @@ _LAZY = {
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
 __all__ = ["estimate_attitude", "AttitudeFilter", "AttitudeParams", "AttitudeRun", "design_attitude",
-           "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError", "design_channel",
+           "align_imu", "AlignedImu", "hard_iron_offset", "EulerAttitudeFilter", "EulerEstimate", "AttitudeInputError",
+           "design_channel",
            "euler_rate_matrix", "euler_rate_matrix_inverse", "mps_euler", "mps_quaternion", "PositionFilter",
            "PositionEstimate"]
 
