@@ -686,10 +686,11 @@ def _identify(tau, adev, m, n, rate_hz):
     stop = _above_model(tau, adev, fit, rate_hz)
     if stop == len(tau):
         return (*fit, stop)
-    coef, terms, missing, edf, _ = _identify(tau[:stop], adev[:stop], m[:stop], n, rate_hz)
+    # the refit may leave out more octaves (its model is lower): the first octave left out is its stop
+    coef, terms, missing, edf, first = _identify(tau[:stop], adev[:stop], m[:stop], n, rate_hz)
     parts = _basis(tau[stop:], 1.0 / rate_hz) * coef
     tail = _edf(parts, m[stop:], n + 1) if parts.any() else np.maximum(edf_simple(n + 1, m[stop:], 0), 1.0)
-    return coef, terms, missing, np.concatenate([edf, tail]), stop
+    return coef, terms, missing, np.concatenate([edf, tail]), first
 
 
 def _above_model(tau, adev, fit, rate_hz) -> int:

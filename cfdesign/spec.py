@@ -271,12 +271,18 @@ _FROM_TEXT = "cfdesign.parse_spec(tomllib.loads(text)) reads a design given as t
 
 def _toml_text(value) -> bool:
     """Whether ``value`` is a design written out as TOML text rather than a path: it spans lines,
-    or it has a ``key = value`` or ``[table]`` line and names no file."""
+    or it is one line of TOML (a ``key = value`` or ``[table]``) and names no file.  A path that
+    only starts like one (``lr=0.1.toml``, ``k=2/design.toml``) is not TOML, and stays a path."""
     if not isinstance(value, str) or not value.strip():
         return False
     if "\n" in value.strip():
         return True
-    return bool(re.match(r"\s*(\[[^\]]+\]|[A-Za-z0-9_\"-]+\s*=)", value)) and not os.path.exists(value)
+    if not re.match(r"\s*(\[[^\]]+\]|[A-Za-z0-9_\"-]+\s*=)", value) or os.path.exists(value):
+        return False
+    try:
+        return bool(tomllib.loads(value))
+    except tomllib.TOMLDecodeError:
+        return False
 
 
 def require_spec(value, what: str) -> None:

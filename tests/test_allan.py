@@ -672,3 +672,20 @@ def test_octaves_above_the_model_of_the_terms_kept_are_left_out_of_their_fit():
     assert np.all(fit.adev[left_out] > white.value / np.sqrt(fit.tau_s[left_out]))
     assert f"octaves from tau {fit.unresolved_from_s:.3g} s on left out of the fit" in fit.summary()
     assert "left out of the fit: the Allan deviation there lies above" in noise_toml([fit])
+
+
+def test_the_octave_named_unresolved_is_the_first_one_left_out_when_the_refit_leaves_out_more():
+    """White noise whose Allan deviation stands 2 times high at 2.56 s and 10 times from 5.12 s:
+    the fit over every octave leaves out those from 5.12 s, the refit without them (its model
+    lower) leaves out 2.56 s as well.  ``unresolved_from_s`` said 5.12 s, so 2.56 s was neither
+    fitted nor named as left out."""
+    from cfdesign.allan import _identify
+
+    rate, n = 50.0, 30_000
+    tau, _, m = oadev(np.random.default_rng(0).standard_normal(n), rate)
+    adev = 2e-3 / np.sqrt(tau)
+    adev[7] *= 2.0
+    adev[8:] *= 10.0
+    _, terms, _, edf, stop = _identify(tau, adev, m, n, rate)
+    assert tau[stop] == pytest.approx(2.56) and len(edf) == len(tau)
+    assert set(terms) == {"white"} and terms["white"].tau_range_s[1] < tau[stop]

@@ -86,8 +86,13 @@ def test_toml_text_where_a_path_or_dict_goes():
             with pytest.raises(SpecError, match=r"tomllib\.loads\(text\)") as err:
                 call(text)
             assert "\n" not in str(err.value)
-    with pytest.raises(SpecError, match="cannot read design file"):  # a path stays a path
-        load_spec("no/such/design.toml")
+    # a path stays a path, one that starts as a key = value too (a sweep's folder k=2/): it was told
+    # it was TOML text
+    for path in ("no/such/design.toml", "k=2/design.toml", "lr=0.1.toml", "[draft] design.toml"):
+        with pytest.raises(SpecError, match="cannot read design file"):
+            load_spec(path)
+        with pytest.raises(SpecError, match=r"read the design file with cfdesign\.load_spec"):
+            require_spec(path, "design")
     assert cfdesign.design(parse_spec(__import__("tomllib").loads(GOOD))).K
 
 
