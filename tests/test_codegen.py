@@ -443,18 +443,20 @@ def test_a_slow_sensor_off_the_schedule_is_locked_by_its_phase_macro(tables, tmp
     assert difference(table, naive, py) > 1.0
 
 
-def test_phase_macros_name_the_first_phase_of_each_slow_sensor():
-    """``<PREFIX>_PHASE_<NAME>`` for the measurements not read every step, none for single-rate."""
+def test_phase_macros_name_the_phase_of_each_sensor_read_once_a_period():
+    """``<PREFIX>_PHASE_<NAME>`` for the measurements read once a period, none for single-rate; a
+    sensor read twice a period (the compass, phases 2 and 7 of 10) is no lock: setting the phase to 2
+    at each of its readings would never reach phase 7, where the beacon alone is read."""
     import tomllib
 
     from cfdesign.spec import parse_spec
 
     table = cfdesign.design(parse_spec(tomllib.loads(TWO_COMPASSES)))
     gains = next(text for name, text in render_c(table, prefix="h").items() if name.endswith("gains.h"))
-    want = {s: table.schedule.phases(s)[0] for s in table.sensor_names("measurement")
-            if len(table.schedule.phases(s)) < table.period}
+    phases = {s: list(table.schedule.phases(s)) for s in table.sensor_names("measurement")}
+    assert phases == {"compass": [2, 7], "beacon": [7]}
     got = dict(re.findall(r"#define H_PHASE_(\w+) (\d+)", gains))
-    assert want and got == {s.upper(): str(k) for s, k in want.items()}
+    assert got == {"BEACON": "7"} and "compass: phases 2, 7 of 10" in gains
     single = render_c(cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3"))))
     assert "#define DCKF3_PHASE_" not in "".join(single.values())
 

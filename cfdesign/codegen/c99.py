@@ -487,21 +487,32 @@ def _sensor_macros(sensors, prefix) -> str:
 
 
 def _phase_macros(table, prefix) -> str:
-    """``#define <PREFIX>_PHASE_<NAME> k``, the first phase a measurement is read at, for every
-    measurement the schedule does not read at each step (none for a single-rate table): the
-    value to give ``s->phase`` before the step of a reading that arrives off the schedule."""
-    lines = []
+    """``#define <PREFIX>_PHASE_<NAME> k`` for every measurement the schedule reads once a period
+    (none for a single-rate table): the value to give ``s->phase`` before the step of its reading,
+    which locks the whole schedule to that sensor.  A sensor read at several phases of a period
+    (a 10 Hz compass in a period of 0.2 s) is listed with its phases but has no macro: setting
+    ``s->phase`` to one of them at each of its readings would repeat part of the period and skip
+    the phases after it (another sensor read only there would never be read)."""
+    once, several = [], []
     for s in table.measurements:
         phases = list(table.schedule.phases(s.name))
-        if phases and len(phases) < table.period:
-            lines.append(f"#define {prefix.upper()}_PHASE_{s.name.upper()} {phases[0]}  /* {s.name}: "
-                         f"{_phases_text(phases, table.period, prefix)} */")
-    if not lines:
+        if len(phases) == 1 and table.period > 1:
+            once.append(f"#define {prefix.upper()}_PHASE_{s.name.upper()} {phases[0]}  /* {s.name}: "
+                        f"{_phases_text(phases, table.period, prefix)} */")
+        elif 1 < len(phases) < table.period:
+            several.append(f" * {s.name}: {_phases_text(phases, table.period, prefix)}")
+    if not once and not several:
         return ""
-    return ("\n/*\n * the schedule reads a slow sensor only at its phases; a reading at any other phase is\n"
-            " * ignored.  Lock the schedule to the sensor: when its reading arrives, set\n"
-            f" * s->phase = {prefix.upper()}_PHASE_<NAME> before that step (lock to one sensor).\n */\n"
-            + "\n".join(lines) + "\n")
+    text = ("\n/*\n * the schedule reads a slow sensor only at its phases; a reading at any other phase is\n"
+            " * ignored.  Lock the schedule to a sensor read once a period: when its reading arrives, set\n"
+            f" * s->phase = {prefix.upper()}_PHASE_<NAME> before that step (one sensor; the others fall\n"
+            " * where the period puts them).")
+    if several:
+        text += ("  Read at several phases, so not a lock (setting s->phase at\n"
+                 " * each of their readings would repeat part of the period):\n" + "\n".join(several))
+    if not once:
+        text += "\n * No sensor is read once a period: no reading can lock the whole schedule."
+    return text + "\n */\n" + "\n".join(once) + ("\n" if once else "")
 
 
 def _padded(values, shape, what):
