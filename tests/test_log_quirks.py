@@ -121,3 +121,43 @@ def test_readings_in_other_units_than_the_table_s_are_named(heading, columns, na
     notes = [n for n in run_log(heading, log).notes if "predicted standard deviations from the estimate" in n]
     assert sorted(n.split(":")[0] for n in notes) == named, notes
     assert all("other units than the table's (degrees for radians" in n for n in notes)
+
+
+def test_readings_noisier_than_the_design_are_named_with_their_figures(heading):
+    """Readings in the right unit but far noisier than the design file says (an accelerometer's
+    angle on a moving vehicle: BROAD's slow translation, 25 times its static noise) had the note
+    of a unit, sign or sensor mix-up only.  It names the noise too, with the readings' RMS distance
+    from the estimate against the one predicted (recomputed here from the ``--std`` columns)."""
+    log, _ = turning_log()
+    rng = np.random.default_rng(1)
+    odo = log["odometry"].notna()
+    log.loc[odo, "odometry"] = wrap(log.loc[odo, "odometry"] + 0.2 * rng.standard_normal(int(odo.sum())))
+    result = run_log(heading, log, std=True)
+    note = next(n for n in result.notes if n.startswith("odometry:"))
+    assert "or noisier than the design file says" in note and "other units than the table's" in note, note
+    est = result.estimates[odo.to_numpy()]
+    r = wrap(log.loc[odo, "odometry"].to_numpy() - est["heading"].to_numpy())
+    s = next(s for s in heading.measurements if s.name == "odometry")
+    var = heading.R[s.index, s.index] + est["heading_std"].to_numpy() ** 2
+    ratio = float(note.split("times the")[0].rsplit(", ", 1)[1])
+    assert ratio == pytest.approx(np.sqrt(np.mean(r ** 2) / np.mean(var)), rel=2e-3)
+
+
+def test_errors_far_beyond_the_prediction_are_noted(heading):
+    """A settled RMS error many times the predicted std (BROAD's slow translation: 157 times, a
+    pitch designed with the accelerometer's static noise) was printed beside it without a word.
+    A note says the log does not follow the design's noise model; the log that follows it
+    (RMS within 10 % of the prediction) has none."""
+    log, psi = turning_log(n=20000)
+    log["truth"] = wrap(psi)
+    clean = run_log(heading, log, reference="truth")
+    assert clean.rms_settled["heading"] < 1.1 * clean.predicted_std["heading"]
+    assert not any("noise model" in n for n in clean.notes), clean.notes
+    rng = np.random.default_rng(2)
+    odo = log["odometry"].notna()
+    log.loc[odo, "odometry"] = wrap(log.loc[odo, "odometry"] + 0.1 * rng.standard_normal(int(odo.sum())))
+    noisy = run_log(heading, log, reference="truth")
+    ratio = noisy.rms_settled["heading"] / noisy.predicted_std["heading"]
+    assert ratio > 3
+    assert any(n.startswith(f"the RMS error of heading after the start-up is {ratio:.3g} times the predicted std: "
+                            "the log does not follow the design file's noise model") for n in noisy.notes), noisy.notes

@@ -195,6 +195,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     notes += lock.notes + _far_note(far) + [n for n in [runner.start_note(table.sample_time_s),
                                                         runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
+    notes += _model_note(settled, predicted, writer.settled_rows, startup)
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
                      startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
@@ -217,14 +218,18 @@ def _check_bounded(table, states, ticks, source):
 #: a reading this many predicted standard deviations from the estimate disagrees with it; a note
 #: names a sensor when most of its readings (FAR_SHARE) do
 FAR_SIGMA, FAR_SHARE = 5.0, 0.5
+#: a settled RMS error against a reference this many times the predicted std is no spread of the
+#: design's noise model (over a fifth of a start-up's length of settled rows at least): a note says so
+MODEL_RATIO = 3.0
 
 
 def _far(table, readings, states, stds, counts):
     """Count, per measurement sensor, its readings and those more than :data:`FAR_SIGMA`
     predicted standard deviations (its noise and the estimate's, ``H`` of ``stds``) from the
-    estimate ``H x`` of their row, into ``counts`` (``{sensor: [far, readings]}``): a column in
-    degrees for radians, in mrad/s, of another sign or sensor ran with exit status 0 (a compass
-    in degrees moved the 100/10/1 Hz heading 0.004 rad, all in degrees 3.1 rad)."""
+    estimate ``H x`` of their row, and sum their squared distances and predicted variances, into
+    ``counts`` (``{sensor: [far, readings, squares, variances]}``): a column in degrees for
+    radians, in mrad/s, of another sign or sensor ran with exit status 0 (a compass in degrees
+    moved the 100/10/1 Hz heading 0.004 rad, all in degrees 3.1 rad)."""
     if table.R is None:
         return
     e0 = np.eye(table.F.shape[0])[0]
@@ -237,17 +242,38 @@ def _far(table, readings, states, stds, counts):
         if table.wrap_angle and np.array_equal(h, e0):
             r = wrap(r)
         var = table.R[s.index, s.index] + (stds[ok] ** 2) @ (h ** 2)
-        c = counts.setdefault(s.name, [0, 0])
+        c = counts.setdefault(s.name, [0, 0, 0.0, 0.0])
         c[0] += int(np.sum(r ** 2 > FAR_SIGMA ** 2 * var))
         c[1] += int(ok.sum())
+        c[2] += float(np.sum(r ** 2))
+        c[3] += float(np.sum(var))
 
 
 def _far_note(counts) -> list:
-    """The notes of :func:`_far`'s counts: the sensors most of whose readings disagree."""
+    """The notes of :func:`_far`'s counts: the sensors most of whose readings disagree, with
+    their RMS distance from the estimate against the one predicted."""
     return [f"{name}: {far} of its {n} readings lie more than {FAR_SIGMA:g} predicted standard deviations from "
-            f"the estimate: its column, or an input's, may be in other units than the table's (degrees for "
-            f"radians, mrad/s), of another sign or of another sensor" for name, (far, n) in counts.items()
-            if n and far > FAR_SHARE * n]
+            f"the estimate (RMS {math.sqrt(sq / n):.3g}, {math.sqrt(sq / var):.3g} times the {math.sqrt(var / n):.3g} "
+            f"predicted): its column, or an input's, may be in other units than the table's (degrees for "
+            f"radians, mrad/s), of another sign or of another sensor, or noisier than the design file says (an "
+            f"error that is not white counts: an accelerometer's angle while the vehicle accelerates; see the "
+            f"noise guide)" for name, (far, n, sq, var) in counts.items() if n and far > FAR_SHARE * n]
+
+
+def _model_note(settled, predicted, rows, startup) -> list:
+    """A note per reference whose RMS error after the start-up is more than :data:`MODEL_RATIO`
+    times the predicted std, over at least a fifth of ``startup`` settled rows (about the
+    error's correlation time: a log that follows the model is that far off in 0.3 % of such
+    stretches): the log does not follow the design's noise model (BROAD's slow translation, a
+    pitch designed with the accelerometer's noise at rest: 0.0276 rad against a predicted
+    0.000175 rad, noted only as readings in other units)."""
+    if rows < max(startup / 5, 1):
+        return []
+    return [f"the RMS error of {state} after the start-up is {rms / predicted[state]:.3g} times the predicted "
+            f"std: the log does not follow the design file's noise model, which the predicted figures take as "
+            f"given (a sensor noisier than its figure or whose error is not white, in other units, of another "
+            f"sign)" for state, rms in settled.items()
+            if math.isfinite(rms) and predicted.get(state, 0) > 0 and rms > MODEL_RATIO * predicted[state]]
 
 
 def _same_file(a, b) -> bool:
