@@ -159,7 +159,7 @@ def prove(observer) -> Proof:
     -------
     Proof
         The outcome; ``holds`` is True when the bands sum to exactly one, and when it is not,
-        ``reason`` says why (:func:`explain`).
+        ``reason`` says why (:func:`~cfdesign.symbolic.proof.explain`).
 
     Raises
     ------
