@@ -1,5 +1,6 @@
 """The attitude filter as C99: compiled with -Werror, agrees with Python sample by sample (double, 1e-9)."""
 
+import re
 import shutil
 import subprocess
 
@@ -20,6 +21,11 @@ DRIVER = r"""
 #include <stdio.h>
 #include <string.h>
 #include "cf_attitude.h"
+#ifdef DRIVER_MARKED  /* missing readings come as CF_ATTITUDE_MISSING (no NaN under -ffast-math) */
+#define ABSENT(v) ((v) >= CF_ATTITUDE_MISSING)
+#else
+#define ABSENT(v) ((v) != (v))
+#endif
 /* stdin: n, a flag and (flag 1) the state to start from, then n rows of 9 doubles (gyr, acc,
    mag; a NaN mag[0] passes NULL), binary; stdout: n rows of the quaternion, then the final state */
 int main(void)
@@ -36,7 +42,7 @@ int main(void)
     for (k = 0; k < n; ++k) {
         if (fread(row, sizeof(double), 9, stdin) != 9)
             return 2;
-        cf_attitude_step(&s, row, row + 3, row[6] != row[6] ? NULL : row + 6, q);
+        cf_attitude_step(&s, row, row + 3, ABSENT(row[6]) ? NULL : row + 6, q);
         fwrite(q, sizeof(double), 4, stdout);
     }
     fwrite(&s, sizeof s, 1, stdout);
@@ -71,13 +77,14 @@ def readings(n=8000, rate=100.0, seed=3):
     return gyr, acc, mag
 
 
-def run_c(tmp_path, f, gyr, acc, mag, state=None):
-    """The generated C of ``f`` compiled and run (from ``state``, a dict of
-    :meth:`AttitudeFilter.state`, else from its init): (quaternions, final state dict)."""
+def run_c(tmp_path, f, gyr, acc, mag, state=None, cflags=()):
+    """The generated C of ``f`` compiled (with ``cflags`` besides the strict ones) and run (from
+    ``state``, a dict of :meth:`AttitudeFilter.state`, else from its init): (quaternions, final
+    state dict)."""
     write_attitude_c(f, tmp_path)
     (tmp_path / "driver.c").write_text(DRIVER)
     exe = tmp_path / "driver"
-    build = subprocess.run([CC, *CFLAGS, f"-I{tmp_path}", "-o", str(exe), str(tmp_path / "driver.c"),
+    build = subprocess.run([CC, *CFLAGS, *cflags, f"-I{tmp_path}", "-o", str(exe), str(tmp_path / "driver.c"),
                             str(tmp_path / "cf_attitude.c"), "-lm"], capture_output=True, text=True)
     assert build.returncode == 0, build.stderr
     rows = np.hstack([gyr, acc, np.full_like(acc, np.nan) if mag is None else mag])
@@ -106,6 +113,22 @@ def test_c_agrees_with_python_sample_by_sample(tmp_path, magnetometer):
     assert state_c["missing_acc"] == 11 and state_c["missing_gyr"] == 4
     if magnetometer:
         assert state_c["missing_mag"] == 101
+
+
+@needs_cc
+def test_the_missing_marker_needs_no_nan_under_fast_math(tmp_path):
+    """``CF_ATTITUDE_MISSING`` (finite, beyond every range) marks a missing gyro or accelerometer
+    reading where NaN cannot (-ffast-math lets the compiler assume there is none): the C built with
+    -ffast-math and fed the marker counts the same missing readings as Python fed NaN and follows it
+    to the rounding of reassociation (1e-9 measured ~1e-15)."""
+    gyr, acc, mag = readings(n=4000)
+    f = AttitudeFilter(100.0)
+    header = render_attitude_c(f)["cf_attitude.h"]
+    marker = float(re.search(r"#define CF_ATTITUDE_MISSING (\S+)", header).group(1))
+    marked = [np.where(np.isnan(x), marker, x) for x in (gyr, acc, mag)]
+    q_c, state_c = run_c(tmp_path, f, *marked, cflags=["-ffast-math", "-DDRIVER_MARKED"])
+    assert np.abs(q_c - f.run(gyr, acc, mag)).max() <= 1e-9
+    assert (state_c["missing_gyr"], state_c["missing_acc"], state_c["missing_mag"]) == (4, 11, 101)
 
 
 @needs_cc
