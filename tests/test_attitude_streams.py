@@ -154,13 +154,16 @@ def test_six_axis_streams_and_seconds():
 
 
 @pytest.mark.parametrize(("change", "match"), [
-    (lambda s: s.update(t_acc=s["t_acc"][::-1].copy()), r"t_acc goes back at reading 1 .*sort each stream"),
+    (lambda s: s.update(t_acc=s["t_acc"][::-1].copy()), r"t_acc goes back at row 1 .*sort each stream"),
     (lambda s: s.update(t_gyr=s["t_gyr"][:-1]), r"t_gyr has \d+ time stamps but gyr has \d+ readings"),
     (lambda s: s.update(t_mag=None), r"give t_mag and mag together"),
     (lambda s: s.update(time_unit="min"), r"time_unit must be one of s, ms, us, ns"),
     (lambda s: s.update(t_gyr=np.where(np.arange(len(s["t_gyr"])) == 5, np.nan, 1.0 * s["t_gyr"])),
-     r"t_gyr: the time stamp of reading 5 is nan"),
+     r"t_gyr: the time stamp of row 5 is nan"),
     (lambda s: s.update(t_acc=s["t_acc"].astype(str)), r"t_acc must be numbers"),
+    (lambda s: s.update(acc=np.full_like(s["acc"], np.nan)), r"acc has no reading"),            # IndexError before
+    (lambda s: s.update(t_mag=s["t_mag"][:0], mag=s["mag"][:0]), r"mag has no reading"),
+    (lambda s: s.update(t_acc=s["t_acc"] // 1000), r"t_acc: none of the \d+ readings falls within the gyro's span"),
 ])
 def test_bad_stamps_are_refused_naming_the_column(change, match):
     _, _, streams, _ = phone_streams(n=1000)
@@ -176,6 +179,17 @@ def test_streams_of_other_lengths_given_to_the_filter_name_align_imu():
     _, _, streams, _ = phone_streams(n=1000)
     with pytest.raises(AttitudeInputError, match=r"acc has \d+ rows but gyr has \d+: .*align_imu"):
         estimate_attitude(streams["gyr"][1], streams["acc"][1], streams["mag"][1], RATE)
+
+
+def test_a_merged_tables_bad_stamp_is_named_by_its_row_in_the_table():
+    """A merged table (one time column, NaN where a sensor has no sample): the row named is the table's, not the
+    sensor's reading count (reading 10 of the accelerometer was row 31 of the table)."""
+    t = np.arange(60) * 0.0025
+    gyr, acc = np.full((60, 3), np.nan), np.full((60, 3), np.nan)
+    gyr[::2], acc[1::2] = 0.0, [0.0, 0.0, 9.81]
+    t[31] = np.nan
+    with pytest.raises(AttitudeInputError, match=r"t_acc: the time stamp of row 31 is nan"):
+        align_imu(t, gyr, t, acc)
 
 
 # ---------------------------------------------------------------------- hard iron
@@ -204,3 +218,15 @@ def test_no_hard_iron_is_told_from_a_field_that_did_not_turn_or_was_disturbed_fr
     assert hard_iron_offset(full["mag"]) is None
     place = 1.0 + 0.3 * np.sin(np.arange(6000) / 700.0)[:, None]                           # the norm 0.7-1.3 times
     assert hard_iron_offset(full["mag"] * place) is None
+
+
+def test_a_turn_about_one_axis_tells_no_offset():
+    """Readings turned about one axis only lie on a circle: every sphere through it fits, the offset along the axis
+    is unknown (the fit gave x = -1.3 for 35.9 µT, and run's warning advised subtracting it); now none is told."""
+    rng = np.random.default_rng(1)
+    th = np.linspace(0.0, 2.0 * np.pi, 1000)
+    field, offset = np.array([-38.0, -30.9, -10.0]), np.array([35.9, 9.9, -32.8])
+    c, s = np.cos(th), np.sin(th)                                      # the field turned about the body's x axis
+    about_x = np.column_stack((np.full_like(th, field[0]), c * field[1] - s * field[2], s * field[1] + c * field[2]))
+    about_x += offset + rng.normal(0, 0.3, (1000, 3))
+    assert hard_iron_offset(about_x) is None

@@ -112,8 +112,9 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
     ------
     AttitudeInputError
         A time column that is not one-dimensional, not finite or goes back (the message names the column and
-        the row), readings that are not (N, 3) or whose length differs from their time column's, an unknown
-        ``time_unit``, ``mag`` without ``t_mag`` (or the reverse), or a gyro with fewer than two readings.
+        the row as given), readings that are not (N, 3) or whose length differs from their time column's, an
+        unknown ``time_unit``, ``mag`` without ``t_mag`` (or the reverse), a stream without a reading or none
+        within the gyro's span (other clocks or time units), or a gyro with fewer than two readings.
 
     Examples
     --------
@@ -146,6 +147,10 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
     out, counts = {}, {}
     for name, (_, v) in streams.items():
         out[name], counts[name] = _on_ticks(seconds[name], v, origin, spacing, n)
+        if not counts[name]["ticks"]:
+            raise AttitudeInputError(f"t_{name}: none of the {len(v)} readings falls within the gyro's span "
+                                     f"({_span(seconds[name])} s against {_span(tg)} s from the earliest stamp): "
+                                     "streams on other clocks or in other time units?")
     return AlignedImu(time=(origin + spacing * np.arange(n)), t0=start.item(), rate_hz=1.0 / spacing,
                       gyr=out["gyr"], acc=out["acc"], mag=out.get("mag"), counts=counts)
 
@@ -161,15 +166,19 @@ def _stream(name, t, values) -> tuple:
         raise AttitudeInputError(f"t_{name} has {len(t)} time stamps but {name} has {len(v)} readings")
     if t.dtype.kind not in "iuf":
         raise AttitudeInputError(f"t_{name} must be numbers (time stamps in the time_unit), got {t.dtype}")
-    keep = ~np.isnan(v).all(axis=1)
-    t, v = t[keep], v[keep]
+    row = np.flatnonzero(~np.isnan(v).all(axis=1))   # the rows given (a merged table's numbering) that hold one
+    t, v = t[row], v[row]
+    if not len(t):
+        raise AttitudeInputError(f"{name} has no reading (every row empty or NaN): align_imu needs each stream it is "
+                                 "given")
     if t.dtype.kind == "f" and not np.isfinite(t).all():
-        row = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise AttitudeInputError(f"t_{name}: the time stamp of reading {row} is {float(t[row])}, not a finite number")
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise AttitudeInputError(f"t_{name}: the time stamp of row {row[i]} is {float(t[i])}, not a finite number")
     back = np.flatnonzero(np.diff(t) < 0)
     if len(back):
-        raise AttitudeInputError(f"t_{name} goes back at reading {back[0] + 1} ({t[back[0] + 1].item()!r} after "
-                                 f"{t[back[0]].item()!r}): sort each stream by time")
+        i = back[0] + 1
+        raise AttitudeInputError(f"t_{name} goes back at row {row[i]} ({t[i].item()!r} after {t[i - 1].item()!r}, "
+                                 f"row {row[i - 1]}): sort each stream by time")
     return t, v
 
 
@@ -185,6 +194,11 @@ def _interval(t, steps) -> float:
         if k @ k > 0:
             interval = float(k @ (t - t.mean()) / (k @ k))
     return interval
+
+
+def _span(t) -> str:
+    """The first and last of the times ``t`` (s), as text."""
+    return f"{t[0]:.6g} to {t[-1]:.6g}"
 
 
 def _seconds(t, start, scale) -> np.ndarray:
@@ -209,8 +223,10 @@ def _on_ticks(t, values, origin, spacing, n) -> tuple:
     return out, {"readings": len(t), "ticks": ticks, "shared": int(len(k) - ticks), "outside": int((~inside).sum())}
 
 
-#: the hard-iron check (:func:`hard_iron_offset`): the least turn of the readings' directions that lets a sphere be
-#: told from their mean (the smallest principal spread of the unit directions, about 0.3 rad), the offset beyond which
+#: the hard-iron check (:func:`hard_iron_offset`): the least turn of the readings' directions, from zero and about the
+#: fitted centre, that lets a sphere be told from their mean (the smallest principal spread of the unit directions: a
+#: turn about one axis only leaves the centre's component along it undetermined and spreads them about it by 0), the
+#: offset beyond which
 #: it matters (relative to the field's norm: 0.1, a heading error up to about 6 deg) and how much better than the raw
 #: norms the sphere must fit them (the norms' spread about it at most a third of theirs about their mean)
 HARD_IRON_SPREAD, HARD_IRON_SHARE, HARD_IRON_FIT = 0.1, 0.1, 1.0 / 3.0
@@ -234,7 +250,9 @@ def hard_iron_offset(mag):
     -------
     ndarray (3,) or None
         The offset (the field's unit), or None when it cannot be told or does not matter: the readings did not turn
-        enough (the smallest spread of their directions below ``HARD_IRON_SPREAD``), the sphere fits their norms no
+        enough (the smallest spread of their directions from zero, and about the centre, below ``HARD_IRON_SPREAD``: at
+        rest, or turned about one axis only, which leaves the centre's component along it unknown), the sphere fits
+        their norms no
         better than their mean does (``HARD_IRON_FIT``: a field disturbed from outside), or the offset is below
         ``HARD_IRON_SHARE`` of the field.
 
@@ -258,15 +276,24 @@ def hard_iron_offset(mag):
     scale = float(np.median(np.linalg.norm(m, axis=1)))
     m = m / scale
     norms = np.linalg.norm(m, axis=1)
-    if np.linalg.eigvalsh(np.cov((m / norms[:, None]).T))[0] < HARD_IRON_SPREAD ** 2:
+    if _spread(m) < HARD_IRON_SPREAD:       # hardly turned (at rest): no sphere to tell from the mean
         return None
     a = np.column_stack((2.0 * m, np.ones(len(m))))
     sol = np.linalg.lstsq(a, norms * norms, rcond=None)[0]
     centre, radius2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-    if radius2 <= 0.0:
+    if not (radius2 > 0.0 and _spread(m - centre) >= HARD_IRON_SPREAD):
         return None
     fit = np.linalg.norm(m - centre, axis=1) - np.sqrt(radius2)
     if (np.linalg.norm(centre) < HARD_IRON_SHARE * np.sqrt(radius2)
             or np.sqrt(np.mean(fit * fit)) > HARD_IRON_FIT * np.std(norms)):
         return None
     return centre * scale
+
+
+def _spread(d) -> float:
+    """The smallest principal standard deviation of the directions of the vectors ``d`` (rad, about): how far they
+    turned about their least-turned axis (0 for a turn about one axis only, whose directions lie on a cone)."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = d / np.linalg.norm(d, axis=1, keepdims=True)
+    u = u[np.isfinite(u).all(axis=1)]
+    return float(np.sqrt(max(np.linalg.eigvalsh(np.cov(u.T))[0], 0.0))) if len(u) > 3 else 0.0
