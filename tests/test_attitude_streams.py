@@ -164,6 +164,8 @@ def test_six_axis_streams_and_seconds():
     (lambda s: s.update(acc=np.full_like(s["acc"], np.nan)), r"acc has no reading"),            # IndexError before
     (lambda s: s.update(t_mag=s["t_mag"][:0], mag=s["mag"][:0]), r"mag has no reading"),
     (lambda s: s.update(t_acc=s["t_acc"] // 1000), r"t_acc: none of the \d+ readings falls within the gyro's span"),
+    # a last stamp of another clock: arrays for 2**62 ns of ticks were allocated (MemoryError) before
+    (lambda s: s["t_gyr"].__setitem__(-1, 2**62), r"t_gyr jumps by 2.9\d+e\+09 s at row \d+: .*split the log"),
 ])
 def test_bad_stamps_are_refused_naming_the_column(change, match):
     _, _, streams, _ = phone_streams(n=1000)

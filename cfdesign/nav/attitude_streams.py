@@ -76,6 +76,12 @@ class AlignedImu:
                          for name, c in self.counts.items())
 
 
+#: the most ticks :func:`align_imu` lays out per gyro reading (beyond a million): a log whose gyro stamps span more
+#: is mostly a gap - one stamp of another clock or unit (2**63 ns at the end of an Android log) would otherwise
+#: allocate arrays for years of ticks
+MAX_TICKS_PER_READING = 10
+
+
 def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") -> AlignedImu:
     """Put gyro, accelerometer (and magnetometer) streams, each with its own time stamps, on the gyro's clock.
 
@@ -114,7 +120,9 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
         A time column that is not one-dimensional, not finite or goes back (the message names the column and
         the row as given), readings that are not (N, 3) or whose length differs from their time column's, an
         unknown ``time_unit``, ``mag`` without ``t_mag`` (or the reverse), a stream without a reading or none
-        within the gyro's span (other clocks or time units), or a gyro with fewer than two readings.
+        within the gyro's span (other clocks or time units), a gyro with fewer than two readings, or gyro
+        stamps spanning more than :data:`MAX_TICKS_PER_READING` ticks per reading (beyond a million): a stamp
+        that jumps (the message names it).
 
     Examples
     --------
@@ -136,16 +144,21 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
     streams = {name: _stream(name, t, v) for name, (t, v) in given.items()}
     if len(streams["gyr"][0]) < 2:
         raise AttitudeInputError("gyr has fewer than two readings: its rate cannot be told from the time stamps")
-    start = min(t[0] for t, _ in streams.values())
-    seconds = {name: _seconds(t, start, TIME_UNITS[time_unit]) for name, (t, _) in streams.items()}
+    start = min(t[0] for t, _, _ in streams.values())
+    seconds = {name: _seconds(t, start, TIME_UNITS[time_unit]) for name, (t, _, _) in streams.items()}
     tg = seconds["gyr"]
     steps = np.diff(tg)
     if not (steps > 0).any():
         raise AttitudeInputError("t_gyr: every gyro reading has the same time stamp: its rate cannot be told")
     origin, spacing = grid_fit(tg, _interval(tg, steps))
     n = int(nearest_tick((tg[-1] - origin) / spacing)) + 1
+    if n > MAX_TICKS_PER_READING * len(tg) + 1_000_000:  # mostly empty ticks: a stamp of another clock or unit
+        i = int(np.argmax(steps)) + 1
+        raise AttitudeInputError(f"t_gyr jumps by {steps[i - 1]:.6g} s at row {streams['gyr'][2][i]}: the gyro's "
+                                 f"{len(tg)} readings would span {n} ticks of {spacing:.6g} s, nearly all empty; "
+                                 "fix that time stamp, or split the log there")
     out, counts = {}, {}
-    for name, (_, v) in streams.items():
+    for name, (_, v, _) in streams.items():
         out[name], counts[name] = _on_ticks(seconds[name], v, origin, spacing, n)
         if not counts[name]["ticks"]:
             raise AttitudeInputError(f"t_{name}: none of the {len(v)} readings falls within the gyro's span "
@@ -156,8 +169,8 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
 
 
 def _stream(name, t, values) -> tuple:
-    """A stream's time column and readings, checked (named ``t_<name>`` and ``name``), without the rows that
-    hold no reading (all three entries NaN: a merged table's other sensors)."""
+    """A stream's time column, readings and their rows as given, checked (named ``t_<name>`` and ``name``),
+    without the rows that hold no reading (all three entries NaN: a merged table's other sensors)."""
     v = rows(name, values, 3)
     t = np.asarray(t)
     if t.ndim != 1:
@@ -179,7 +192,7 @@ def _stream(name, t, values) -> tuple:
         i = back[0] + 1
         raise AttitudeInputError(f"t_{name} goes back at row {row[i]} ({t[i].item()!r} after {t[i - 1].item()!r}, "
                                  f"row {row[i - 1]}): sort each stream by time")
-    return t, v
+    return t, v, row
 
 
 def _interval(t, steps) -> float:
