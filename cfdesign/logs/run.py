@@ -160,7 +160,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
             states, _, stds = runner.run(ticks, readings)
             _check_bounded(table, states, ticks, source)
             _far(table, readings, states, stds, far)
-            writer.write(_estimates(table, block, cols, values, states, stds, std), runner.settled(ticks, startup))
+            writer.write(_estimates(table, block, cols, values, states, stds, std), runner.settled(ticks, startup),
+                         runner.steady(ticks, startup))
             bar.update(len(ticks))
 
     with _progress(n_rows, progress) as bar, writer:
@@ -195,7 +196,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     notes += lock.notes + _far_note(far) + [n for n in [runner.start_note(table.sample_time_s),
                                                         runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
-    notes += _model_note(settled, predicted, writer.settled_rows, startup)
+    notes += _model_note(*writer.steady(), writer.steady_rows, startup)
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
                      startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
@@ -262,7 +263,9 @@ def _far_note(counts) -> list:
 
 def _model_note(settled, predicted, rows, startup) -> list:
     """A note per reference whose RMS error after the start-up is more than :data:`MODEL_RATIO`
-    times the predicted std, over at least a fifth of ``startup`` settled rows (about the
+    times the predicted std, over the rows ``settled`` after the start-up of the log and of every
+    pause (one the filter carried over as well: the error the held inputs left fades over a start-up,
+    and the predicted std leaves it out), at least a fifth of ``startup`` of them (about the
     error's correlation time: a log that follows the model is that far off in 0.3 % of such
     stretches): the log does not follow the design's noise model (BROAD's slow translation, a
     pitch designed with the accelerometer's noise at rest: 0.0276 rad against a predicted
@@ -472,6 +475,15 @@ class _Runner:
         restart after every pause so far."""
         out = np.asarray(ticks) >= startup
         for e in self.restarts:
+            out &= ~((ticks >= e) & (ticks < e + startup))
+        return out
+
+    def steady(self, ticks, startup):
+        """:meth:`settled`, and also after the start-up that follows every pause so far, restarted or
+        carried over (the rows whose error the predicted std describes)."""
+        out = self.settled(ticks, startup)
+        for start, length in self.pauses:
+            e = start + length
             out &= ~((ticks >= e) & (ticks < e + startup))
         return out
 

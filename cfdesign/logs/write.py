@@ -67,6 +67,8 @@ class _Writer:
         self.path, self.keep = (Path(path) if path else None), keep
         self.frames, self.errors = [], {}
         self._settled = {}  # state -> (squared errors, their count, variances predicted) after the start-up
+        self._steady = {}  # the same after the start-up of the log and of every pause (:meth:`steady`)
+        self.steady_rows = 0
         self._predicted = {}  # state -> (variances predicted, their count) over every compared row
         self.settled_rows = 0
         self._ctx = self._fh = self._parquet = self._packed = None
@@ -96,9 +98,10 @@ class _Writer:
             self._ctx.__exit__(*exc)
         return False
 
-    def write(self, frame, settled):
-        """Write a block of estimates (``settled``: a boolean per row, the rows after the start-up)."""
-        self._errors(frame, settled)
+    def write(self, frame, settled, steady=None):
+        """Write a block of estimates (``settled``: a boolean per row, the rows after the start-up;
+        ``steady``: those also after the start-up of every pause, default ``settled``)."""
+        self._errors(frame, settled, settled if steady is None else steady)
         shown = frame.drop(columns=frame.attrs["hidden"])
         if self.keep:
             self.frames.append(frame)
@@ -145,10 +148,11 @@ class _Writer:
             raise OutputError(f"cannot write Parquet: a column changes type between blocks of the log "
                               f"({_first_line(exc)}); write CSV, or give the column one type") from None
 
-    def _errors(self, frame, settled):
+    def _errors(self, frame, settled, steady):
         from ..runtime.filter import usable
 
         self.settled_rows += int(np.count_nonzero(settled))
+        self.steady_rows += int(np.count_nonzero(steady))
         for state in frame.attrs.get("references", ()):
             ref = frame[f"{state}_reference"].to_numpy(dtype=float)
             err = frame[state].to_numpy() - ref
@@ -160,17 +164,23 @@ class _Writer:
             self.errors[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()))
             v, n = self._predicted.get(state, (0.0, 0))
             self._predicted[state] = (v + float(np.sum(var[ok])), n + int(ok.sum()))
-            ok &= settled
-            s, n, v = self._settled.get(state, (0.0, 0, 0.0))
-            self._settled[state] = (s + float(np.sum(err[ok] ** 2)), n + int(ok.sum()), v + float(np.sum(var[ok])))
+            for sums, rows in ((self._settled, settled), (self._steady, steady)):
+                s, n, v = sums.get(state, (0.0, 0, 0.0))
+                sums[state] = (s + float(np.sum(err[ok & rows] ** 2)), n + int((ok & rows).sum()),
+                               v + float(np.sum(var[ok & rows])))
 
-    def settled(self) -> tuple:
+    def settled(self, sums=None) -> tuple:
         """``({state: RMS error after the start-up}, {state: RMS of the predicted std over those
         rows, or over every compared row when none is after the start-up})``."""
-        rms = _rms({k: (s, n) for k, (s, n, _) in self._settled.items()})
+        sums = self._settled if sums is None else sums
+        rms = _rms({k: (s, n) for k, (s, n, _) in sums.items()})
         predicted = {k: math.sqrt(v / n) if n else math.sqrt(self._predicted[k][0] / self._predicted[k][1])
-                     if self._predicted[k][1] else math.nan for k, (_, n, v) in self._settled.items()}
+                     if self._predicted[k][1] else math.nan for k, (_, n, v) in sums.items()}
         return rms, predicted
+
+    def steady(self) -> tuple:
+        """:meth:`settled` over the rows also after the start-up of every pause (restarted or carried)."""
+        return self.settled(self._steady)
 
     def frame(self):
         if not self.frames:
