@@ -121,7 +121,7 @@ def align_imu(t_gyr, gyr, t_acc, acc, t_mag=None, mag=None, *, time_unit="s") ->
         the row as given), readings that are not (N, 3) or whose length differs from their time column's, an
         unknown ``time_unit``, ``mag`` without ``t_mag`` (or the reverse), a stream without a reading or none
         within the gyro's span (other clocks or time units), a gyro with fewer than two readings, or gyro
-        stamps spanning more than :data:`MAX_TICKS_PER_READING` ticks per reading (beyond a million): a stamp
+        stamps spanning more than ``MAX_TICKS_PER_READING`` ticks per reading (beyond a million): a stamp
         that jumps (the message names it).
 
     Examples
