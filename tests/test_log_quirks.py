@@ -196,3 +196,20 @@ def test_a_pause_carried_over_is_not_taken_for_a_noisier_sensor():
     assert not any("noise model" in n for n in clean.notes), clean.notes
     noisy = run_log(table, paused_tilt_log(10.0), reference="truth")
     assert any("does not follow the design file's noise model" in n for n in noisy.notes), noisy.notes
+
+
+def test_the_settled_rows_leave_out_each_start_up_as_one_pass_per_start_did():
+    """``_after`` (one search over the sorted start-ups, where a pass over the block's rows per pause
+    cost seconds a block with 10,000 pauses) marks the same rows as masking each start-up in turn:
+    unsorted, repeated and overlapping starts, a start before the block, an endless start-up."""
+    from cfdesign.logs.run import _after
+
+    rng = np.random.default_rng(4)
+    for startup in (0, 1, 7, 50, np.inf):
+        ticks = np.sort(rng.integers(0, 2000, 500))
+        starts = [int(s) for s in rng.integers(-100, 2100, 40)] + [300, 300, 305]
+        want = ticks >= startup
+        for e in starts:
+            want &= ~((ticks >= e) & (ticks < e + startup))
+        assert np.array_equal(_after(ticks, startup, starts), want)
+        assert np.array_equal(_after(ticks, startup, []), ticks >= startup)
