@@ -200,7 +200,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
                      startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
-                     len(runner.pauses))
+                     len(runner.pauses), len(runner.restarts) - (runner.start_tick is not None))
 
 
 def _check_bounded(table, states, ticks, source):
