@@ -367,6 +367,20 @@ def cmd_run(args) -> int:
     return 0
 
 
+def _pauses_text(result) -> str:
+    """What the settled rows leave out besides the log's start-up: the start-up after each restart
+    (a pause after which the first state started again), not after a pause carried over."""
+    restarts, carried = result.restarts, result.pauses - result.restarts
+    text = ""
+    if restarts:
+        text = (", and as long after the restart after the pause" if result.pauses == 1 else
+                f", and as long after each restart ({restarts} of {result.pauses} pauses)")
+    if carried:
+        text += ("; after the pause, carried over, every row counts" if carried == 1 and not restarts else
+                 f"; after {carried} pause{'s' * (carried > 1)} carried over, every row counts")
+    return text
+
+
 def _rms_line(state, result, unit="") -> str:
     """``RMS error of STATE: X over all rows; Y after the start-up (first S s); predicted Z``: the
     error over every row, over the rows after the start-up (the settled filter), and the predicted
@@ -374,9 +388,7 @@ def _rms_line(state, result, unit="") -> str:
     settled = result.rms_settled.get(state, float("nan"))
     startup = result.startup_s
     if settled == settled:
-        after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s" + (
-            (", and as long after the pause)" if result.pauses == 1
-             else f", and as long after each of {result.pauses} pauses)") if result.pauses else ")")
+        after = f"{settled:.6g}{unit} after the start-up (first {startup:.3g} s{_pauses_text(result)})"
     elif startup == float("inf"):
         after = "none after the start-up (the table's error does not die away: a state no sensor corrects)"
     elif result.settled_samples:

@@ -232,3 +232,21 @@ def test_a_turn_about_one_axis_tells_no_offset():
     about_x = np.column_stack((np.full_like(th, field[0]), c * field[1] - s * field[2], s * field[1] + c * field[2]))
     about_x += offset + rng.normal(0, 0.3, (1000, 3))
     assert hard_iron_offset(about_x) is None
+
+
+@pytest.mark.parametrize(("rate", "aligns"), [(100.0, True), (500.0, False)])
+def test_an_hours_pause_aligns_within_the_tick_bound_and_is_refused_beyond_it(rate, aligns):
+    """A gyro pause stays as NaN ticks up to MAX_TICKS_PER_READING a reading beyond a million ticks (the
+    guide's bound): an hour's pause between two 10 s stretches is 362,000 ticks at 100 Hz and aligns,
+    whole; at 500 Hz it is 1,810,000 ticks for 10,000 readings, refused naming the row after the jump."""
+    t = np.arange(int(10 * rate)) / rate
+    stamps = np.concatenate([t, t + 3610.0])
+    gyr = np.random.default_rng(0).standard_normal((len(stamps), 3))
+    n = round(3620 * rate)
+    if aligns:
+        out = align_imu(stamps, gyr, stamps, gyr)
+        assert len(out.gyr) == n and np.isnan(out.gyr[len(t):-len(t)]).all()
+        np.testing.assert_array_equal(out.gyr[-len(t):], gyr[len(t):])
+    else:
+        with pytest.raises(AttitudeInputError, match=rf"t_gyr jumps by 3600 s at row {len(t)}: .* {n} ticks"):
+            align_imu(stamps, gyr, stamps, gyr)

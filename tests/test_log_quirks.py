@@ -194,5 +194,43 @@ def test_a_pause_carried_over_is_not_taken_for_a_noisier_sensor():
     clean = run_log(table, paused_tilt_log(1.0), reference="truth")
     assert clean.pauses == 1 and clean.rms_settled["angle"] > 3 * clean.predicted_std["angle"]
     assert not any("noise model" in n for n in clean.notes), clean.notes
+    assert clean.restarts == 0  # carried over: its fading error is in the settled RMS, as the figure's line says
     noisy = run_log(table, paused_tilt_log(10.0), reference="truth")
+    assert noisy.restarts == 1
     assert any("does not follow the design file's noise model" in n for n in noisy.notes), noisy.notes
+
+
+def test_the_settled_rows_leave_out_each_start_up_as_one_pass_per_start_did():
+    """``_after`` (one search over the sorted start-ups, where a pass over the block's rows per pause
+    cost seconds a block with 10,000 pauses) marks the same rows as masking each start-up in turn:
+    unsorted, repeated and overlapping starts, a start before the block, an endless start-up."""
+    from cfdesign.logs.run import _after
+
+    rng = np.random.default_rng(4)
+    for startup in (0, 1, 7, 50, np.inf):
+        ticks = np.sort(rng.integers(0, 2000, 500))
+        starts = [int(s) for s in rng.integers(-100, 2100, 40)] + [300, 300, 305]
+        want = ticks >= startup
+        for e in starts:
+            want &= ~((ticks >= e) & (ticks < e + startup))
+        assert np.array_equal(_after(ticks, startup, starts), want)
+        assert np.array_equal(_after(ticks, startup, []), ticks >= startup)
+
+
+@pytest.mark.parametrize(("pauses", "restarts", "want"), [
+    (0, 0, "(first 16.1 s);"),
+    (1, 1, "(first 16.1 s, and as long after the restart after the pause);"),
+    (1, 0, "(first 16.1 s; after the pause, carried over, every row counts);"),
+    (3, 2, "(first 16.1 s, and as long after each restart (2 of 3 pauses); after 1 pause carried over, every row "
+           "counts);"),
+])
+def test_the_settled_figure_names_only_the_start_ups_it_leaves_out(pauses, restarts, want):
+    """The settled RMS leaves out the start-up after a restart, not after a pause the filter carried
+    over; ``cfdesign run``'s line said 'and as long after the pause' for both (a carried pause's
+    fading error was 15 times the prediction in a figure that claimed to leave it out)."""
+    from cfdesign.cli import _rms_line
+    from cfdesign.logs import LogResult
+
+    r = LogResult(None, 10, {"h": 0.5}, rms_settled={"h": 0.1}, predicted_std={"h": 0.09}, startup_s=16.1,
+                  settled_samples=5, pauses=pauses, restarts=restarts)
+    assert want in _rms_line("h", r)

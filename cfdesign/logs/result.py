@@ -49,11 +49,14 @@ class LogResult:
         to whole base ticks; ``inf`` when the error does not die away (a state no sensor
         corrects).  NaN when the log was run without a reference.
     settled_samples : int
-        Rows after the start-up (and after the start-up that follows each pause).
+        Rows after the start-up (and after the start-up that follows each restart).
     pauses : int
         Pauses of the logger: more than :data:`~cfdesign.timing.PAUSE_TICKS` ticks without a
-        reading of an input sensor, after each of which the first state starts again from the
-        first direct reading (its start-up left out of ``rms_settled``).
+        reading of an input sensor.
+    restarts : int
+        The pauses after which the first state started again from the first direct reading
+        (it disagreed with the state carried over): their start-up is left out of
+        ``rms_settled``; that of a pause carried over is not.
     """
 
     estimates: object
@@ -68,6 +71,7 @@ class LogResult:
     startup_s: float = math.nan
     settled_samples: int = 0
     pauses: int = 0
+    restarts: int = 0
 
     @property
     def without_gain(self) -> int:

@@ -200,7 +200,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
                      startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
-                     len(runner.pauses))
+                     len(runner.pauses), len(runner.restarts) - (runner.start_tick is not None))
 
 
 def _check_bounded(table, states, ticks, source):
@@ -473,19 +473,12 @@ class _Runner:
     def settled(self, ticks, startup):
         """Whether each of ``ticks`` is after the start-up (``startup`` ticks) of the log and of the
         restart after every pause so far."""
-        out = np.asarray(ticks) >= startup
-        for e in self.restarts:
-            out &= ~((ticks >= e) & (ticks < e + startup))
-        return out
+        return _after(ticks, startup, self.restarts)
 
     def steady(self, ticks, startup):
         """:meth:`settled`, and also after the start-up that follows every pause so far, restarted or
         carried over (the rows whose error the predicted std describes)."""
-        out = self.settled(ticks, startup)
-        for start, length in self.pauses:
-            e = start + length
-            out &= ~((ticks >= e) & (ticks < e + startup))
-        return out
+        return _after(ticks, startup, [*self.restarts, *(s + n for s, n in self.pauses)])
 
     def pause_note(self, dt):
         """One line on the pauses, or None."""
@@ -791,6 +784,18 @@ class _Runner:
             dense[name] = arr
         return dense
 
+
+def _after(ticks, startup, starts):
+    """Whether each of ``ticks`` (base ticks) is at or after ``startup`` and outside the ``startup`` ticks from
+    each of ``starts``: one search over the sorted starts (a pass over the rows for each one cost 4 s a block
+    of a million rows with 10,000 pauses)."""
+    ticks = np.asarray(ticks)
+    out = ticks >= startup
+    if len(starts):
+        starts = np.sort(np.asarray(starts, dtype=float))
+        i = np.searchsorted(starts, ticks, side="right") - 1  # the latest start-up begun at or before each tick
+        out &= ~((i >= 0) & (ticks - starts[np.maximum(i, 0)] < startup))
+    return out
 
 
 def _merge(into, counts):
