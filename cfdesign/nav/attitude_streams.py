@@ -12,7 +12,7 @@ tick), the same placement as ``cfdesign run`` (``docs/logs.md``): a reading is u
 interval from when it was taken.  A tick without a reading of a sensor is NaN, which the filter counts as
 missing (a missing rate holds the last one; a missing specific force or field skips its correction), and a
 pause in the gyro is as many NaN ticks as it lasted, so the filter's gap handling sees it (a gap longer than
-the tilt's start-up, 2 s, runs the start-up again), up to :data:`MAX_TICKS_PER_READING` ticks per gyro reading
+the tilt's start-up, 2 s, runs the start-up again), up to ``MAX_TICKS_PER_READING`` ticks per gyro reading
 beyond a million: a longer pause (an hour in a 20 s log at 500 Hz) is refused naming its row.
 """
 
