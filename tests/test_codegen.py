@@ -457,6 +457,11 @@ def test_phase_macros_name_the_phase_of_each_sensor_read_once_a_period():
     assert phases == {"compass": [2, 7], "beacon": [7]}
     got = dict(re.findall(r"#define H_PHASE_(\w+) (\d+)", gains))
     assert got == {"BEACON": "7"} and "compass: phases 2, 7 of 10" in gains
+    four = TWO_COMPASSES.replace("rate_hz = 5.0", "rate_hz = 4.0").replace("offset_s = 0.14", "offset_s = 0.0")
+    none = next(text for name, text in render_c(cfdesign.design(parse_spec(tomllib.loads(four))), prefix="h").items()
+                if name.endswith("gains.h"))
+    assert "#define H_PHASE_" not in none and "No sensor is read once a period" in none
+    assert "Lock the schedule to a sensor" not in none
     single = render_c(cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3"))))
     assert "#define DCKF3_PHASE_" not in "".join(single.values())
 

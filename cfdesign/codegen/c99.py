@@ -503,15 +503,16 @@ def _phase_macros(table, prefix) -> str:
             several.append(f" * {s.name}: {_phases_text(phases, table.period, prefix)}")
     if not once and not several:
         return ""
-    text = ("\n/*\n * the schedule reads a slow sensor only at its phases; a reading at any other phase is\n"
-            " * ignored.  Lock the schedule to a sensor read once a period: when its reading arrives, set\n"
-            f" * s->phase = {prefix.upper()}_PHASE_<NAME> before that step (one sensor; the others fall\n"
-            " * where the period puts them).")
+    text = "\n/*\n * the schedule reads a slow sensor only at its phases; a reading at any other phase is\n * ignored."
+    if once:
+        text += ("  Lock the schedule to a sensor read once a period: when its reading arrives, set\n"
+                 f" * s->phase = {prefix.upper()}_PHASE_<NAME> before that step (one sensor; the others fall\n"
+                 " * where the period puts them).")
+    else:
+        text += "  No sensor is read once a period: none\n * can lock the whole schedule."
     if several:
-        text += ("  Read at several phases, so not a lock (setting s->phase at\n"
-                 " * each of their readings would repeat part of the period):\n" + "\n".join(several))
-    if not once:
-        text += "\n * No sensor is read once a period: no reading can lock the whole schedule."
+        text += ("\n * Read at several phases, so not a lock (setting s->phase at each of their\n"
+                 " * readings would repeat part of the period):\n" + "\n".join(several))
     return text + "\n */\n" + "\n".join(once) + ("\n" if once else "")
 
 
