@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from test_attitude_filter import imu, motion
 
+from cfdesign import rotations as rot
 from cfdesign.errors import AttitudeInputError
 from cfdesign.nav import AttitudeFilter, align_imu, estimate_attitude, hard_iron_offset
 
@@ -220,6 +221,19 @@ def test_no_hard_iron_is_told_from_a_field_that_did_not_turn_or_was_disturbed_fr
     assert hard_iron_offset(full["mag"]) is None
     place = 1.0 + 0.3 * np.sin(np.arange(6000) / 700.0)[:, None]                           # the norm 0.7-1.3 times
     assert hard_iron_offset(full["mag"] * place) is None
+
+
+def test_an_offset_of_three_times_the_field_is_found_after_full_turns():
+    """An uncalibrated phone's offset (150 µT beside a 50 µT field) puts the readings on a sphere so far from zero
+    that their directions from it hardly turn (a spread of 0.02): the check of that turn returned None after full
+    turns, and run said nothing.  The turn is now judged about the fitted centre: found within 2 µT, and warned of."""
+    t = np.arange(6000) / RATE
+    q = rot.normalize(rot.from_euler(np.column_stack((0.37 * t, 1.2 * np.sin(0.23 * t), 1.4 * np.sin(0.31 * t + 1)))))
+    gyr, acc, mag = imu(q, rate=RATE, field=np.tile([0.0, 22.4, -44.7], (len(q), 1)), noise=(0.003, 0.03, 0.5))
+    offset = 150.0 * np.array([0.6, -0.64, 0.48])
+    assert np.abs(hard_iron_offset(mag + offset) - offset).max() < 2.0
+    with pytest.warns(UserWarning, match=r"mag: the readings lie on a sphere centred at \(90, -96, 72\).*hard-iron"):
+        estimate_attitude(gyr, acc, mag + offset, RATE)
 
 
 def test_a_turn_about_one_axis_tells_no_offset():

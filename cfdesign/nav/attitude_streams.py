@@ -237,13 +237,14 @@ def _on_ticks(t, values, origin, spacing, n) -> tuple:
     return out, {"readings": len(t), "ticks": ticks, "shared": int(len(k) - ticks), "outside": int((~inside).sum())}
 
 
-#: the hard-iron check (:func:`hard_iron_offset`): the least turn of the readings' directions, from zero and about the
-#: fitted centre, that lets a sphere be told from their mean (the smallest principal spread of the unit directions: a
-#: turn about one axis only leaves the centre's component along it undetermined and spreads them about it by 0), the
-#: offset beyond which
-#: it matters (relative to the field's norm: 0.1, a heading error up to about 6 deg) and how much better than the raw
-#: norms the sphere must fit them (the norms' spread about it at most a third of theirs about their mean)
-HARD_IRON_SPREAD, HARD_IRON_SHARE, HARD_IRON_FIT = 0.1, 0.1, 1.0 / 3.0
+#: the hard-iron check (:func:`hard_iron_offset`): the least turn of the readings' directions about the fitted centre
+#: that lets a sphere be told from their mean (the smallest principal spread of the unit directions: a turn about one
+#: axis only leaves the centre's component along it undetermined and spreads them about it by 0), the offset beyond
+#: which it matters (relative to the field's norm: 0.1, a heading error up to about 6 deg), how much better than the
+#: raw norms the sphere must fit them (the norms' spread about it at most a third of theirs about their mean), and how
+#: round the readings must be (the RMS of their distances from the sphere at most 3 % of its radius: a sensor's noise
+#: is about 1 %, a field disturbed from outside for part of a log 4 % and more; a calibrated BROAD trial 2-3 %)
+HARD_IRON_SPREAD, HARD_IRON_SHARE, HARD_IRON_FIT, HARD_IRON_ROUND = 0.1, 0.1, 1.0 / 3.0, 0.03
 
 
 def hard_iron_offset(mag):
@@ -264,11 +265,13 @@ def hard_iron_offset(mag):
     -------
     ndarray (3,) or None
         The offset (the field's unit), or None when it cannot be told or does not matter: the readings did not turn
-        enough (the smallest spread of their directions from zero, and about the centre, below ``HARD_IRON_SPREAD``: at
-        rest, or turned about one axis only, which leaves the centre's component along it unknown), the sphere fits
-        their norms no
-        better than their mean does (``HARD_IRON_FIT``: a field disturbed from outside), or the offset is below
-        ``HARD_IRON_SHARE`` of the field.
+        enough about the fitted centre (the smallest spread of their directions from it below ``HARD_IRON_SPREAD``:
+        turned about one axis only, which leaves the centre's component along it unknown), they do not lie on the
+        sphere (their distances from it over ``HARD_IRON_ROUND`` of its radius, RMS: at rest, where the fit is to the
+        noise, or a field disturbed from outside), the sphere fits their norms no better than their mean does
+        (``HARD_IRON_FIT``), or the offset is below ``HARD_IRON_SHARE`` of the field.  An offset of several times
+        the field (an uncalibrated phone: 100-200 µT beside 50) is found too: the turn is judged from the centre,
+        not from zero, from which such readings' directions hardly turn.
 
     Examples
     --------
@@ -290,16 +293,15 @@ def hard_iron_offset(mag):
     scale = float(np.median(np.linalg.norm(m, axis=1)))
     m = m / scale
     norms = np.linalg.norm(m, axis=1)
-    if _spread(m) < HARD_IRON_SPREAD:       # hardly turned (at rest): no sphere to tell from the mean
-        return None
     a = np.column_stack((2.0 * m, np.ones(len(m))))
     sol = np.linalg.lstsq(a, norms * norms, rcond=None)[0]
     centre, radius2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
     if not (radius2 > 0.0 and _spread(m - centre) >= HARD_IRON_SPREAD):
         return None
-    fit = np.linalg.norm(m - centre, axis=1) - np.sqrt(radius2)
-    if (np.linalg.norm(centre) < HARD_IRON_SHARE * np.sqrt(radius2)
-            or np.sqrt(np.mean(fit * fit)) > HARD_IRON_FIT * np.std(norms)):
+    radius = np.sqrt(radius2)
+    misfit = np.sqrt(np.mean((np.linalg.norm(m - centre, axis=1) - radius) ** 2))
+    if (np.linalg.norm(centre) < HARD_IRON_SHARE * radius or misfit > HARD_IRON_ROUND * radius
+            or misfit > HARD_IRON_FIT * np.std(norms)):
         return None
     return centre * scale
 
