@@ -5,9 +5,10 @@ form; a continuous table is refused):
 
 * ``<prefix>_gains.h``: dimensions, period, sample time, wrap flag, sensor index macros
   (``<PREFIX>_U_<INPUT>``, ``<PREFIX>_Y_<MEASUREMENT>``), ``<PREFIX>_MISSING`` (a finite
-  reading beyond the limit: missing without NaN, so also under ``-ffast-math``), the phase each
-  slow sensor of a multirate schedule is read at (``<PREFIX>_PHASE_<MEASUREMENT>``: set
-  ``s->phase`` to it before the step of each of its readings) and the ``F, B, H, K`` arrays as
+  reading beyond the limit: missing without NaN, so also under ``-ffast-math``), the phase of
+  each sensor a multirate schedule reads once a period (``<PREFIX>_PHASE_<MEASUREMENT>``: set
+  ``s->phase`` to it before the step of each of its readings, to lock the schedule to that
+  sensor; one read at several phases is listed in a comment, without a macro) and the ``F, B, H, K`` arrays as
   ``static const`` with every value in full precision, under a do-not-edit comment with the
   table's provenance;
 
