@@ -112,6 +112,14 @@ def test_reproduce_help_lists_the_papers_by_name_not_the_aliases():
     assert "seed0" not in stdout
 
 
+def test_reproduce_unknown_paper_lists_the_papers_by_name_not_the_aliases():
+    """An unknown paper: one line, exit 2, the current names only (the aliases were listed)."""
+    code, _, stderr = run("reproduce", "nosuch")
+    assert code == 2 and len(stderr.strip().splitlines()) == 1, stderr
+    assert "'nosuch'" in stderr and all(name in stderr for name in ("carreira", "helicopter", "compare"))
+    assert "seed0" not in stderr
+
+
 def test_design_help_names_every_built_in_example():
     """``--example`` accepts every key of ``EXAMPLES``; its help says so (``dckf3`` was left out)."""
     from cfdesign.spec import EXAMPLES
