@@ -147,7 +147,7 @@ def test_reproduce_command_json_and_text(capsys):
     assert row["ratio"] == pytest.approx(row["mse"] / row["paper"]) and len(data["tables"]["I"]) == 6
     assert _cli("carreira", "--runs", "1", "--seed", "3") == 0
     out = capsys.readouterr().out
-    assert "Table I" in out and "Table II" in out and "ours/paper" in out and "seeds 3..3" in out
+    assert "Table I" in out and "Table II" in out and "ours/paper" in out and "1 run (seed 3;" in out
     with pytest.raises(SpecError, match="runs"):
         _cli("carreira", "--runs", "0")
 

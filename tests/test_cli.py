@@ -112,6 +112,22 @@ def test_reproduce_help_lists_the_papers_by_name_not_the_aliases():
     assert "seed0" not in stdout
 
 
+def test_reproduce_unknown_paper_lists_the_papers_by_name_not_the_aliases():
+    """An unknown paper: one line, exit 2, the current names only (the aliases were listed)."""
+    code, _, stderr = run("reproduce", "nosuch")
+    assert code == 2 and len(stderr.strip().splitlines()) == 1, stderr
+    assert "'nosuch'" in stderr and all(name in stderr for name in ("carreira", "helicopter", "compare"))
+    assert "seed0" not in stderr
+
+
+def test_reproduce_heading_counts_one_run_and_says_why_its_interval_is_missing():
+    """``--runs 1`` printed ``1 runs (seeds 0..0)`` beside an unexplained ``-`` interval."""
+    from cfdesign.reproduce.report import runs_text
+
+    assert runs_text((7,)) == "1 run (seed 7; no 95% interval from one run)"
+    assert runs_text(tuple(range(3, 23))) == "20 runs (seeds 3..22)"
+
+
 def test_design_help_names_every_built_in_example():
     """``--example`` accepts every key of ``EXAMPLES``; its help says so (``dckf3`` was left out)."""
     from cfdesign.spec import EXAMPLES

@@ -69,7 +69,16 @@ def add_parser(subparsers, load: bool = True):
         # no help= : argparse leaves the alias out of the list of papers (metavar hides the choices)
         q = papers.add_parser(alias, description=f"Alias of '{name}': {PAPERS[name]}")
         _load(q, name, load)
+    # argparse lists the choices in its "invalid choice" message: list the current names only
+    papers.choices = _Papers(papers.choices)
     return p
+
+
+class _Papers(dict):
+    """The ``PAPER`` choices: every name (former ones too) is accepted, only the current are listed."""
+
+    def __iter__(self):
+        return (name for name in super().__iter__() if name not in ALIASES)
 
 
 def _load(parser, name, load):

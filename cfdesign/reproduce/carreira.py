@@ -61,7 +61,7 @@ import numpy as np
 from ..sim.metrics import mse
 from ..sim.robot_heading import PAPER, READING, START_HEADING_DEG, Reading, scenario
 from ..sim.sensors import RateSensor
-from .report import RATIO_RANGE, Comparison, format_table, order_disagreements
+from .report import RATIO_RANGE, Comparison, format_table, order_disagreements, runs_text
 from .structures import banded_observer, design_observer
 
 __all__ = ["Row", "TABLE_I", "TABLE_II", "ROWS", "design_row", "dckf3_spec", "run_filter", "Reproduction",
@@ -417,7 +417,7 @@ class Reproduction:
             The report, lines separated by newlines.
         """
         head = [f"Carreira et al., three-band complementary filters, Sec. V-A: {_scenario_text(self.straight_s)}; "
-                f"{len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
+                f"{runs_text(self.seeds)}",
                 f"reading: {self.reading.describe()}",
                 "MSE of the accumulated heading error over the run [rad^2]; * = ratio outside "
                 f"[{RATIO_RANGE[0]:.3g}, {RATIO_RANGE[1]:g}], explained below the table"]

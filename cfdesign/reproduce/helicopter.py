@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..sim import helicopter as heli
-from .report import Comparison, json_text
+from .report import Comparison, json_text, runs_text
 
 __all__ = ["PAPER", "Tuning", "NOMINAL", "SMALL_BIAS_GAINS", "run_once", "Reproduction", "reproduce",
            "add_arguments", "run"]
@@ -219,7 +219,7 @@ class Reproduction:
         lines = [f"Vasconcelos et al., helicopter navigation, Table 2: {m.straight_s:g} s straight + "
                  f"{m.helix_s:g} s ascending "
                  f"helix at {m.speed_m_s:g} m/s, IMU {m.rate_hz:g} Hz, GPS 1 Hz; accelerometer bias on "
-                 f"{self.accel_bias}; {len(self.seeds)} runs (seeds {self.seeds[0]}..{self.seeds[-1]})",
+                 f"{self.accel_bias}; {runs_text(self.seeds)}",
                  "mean absolute error E|x - x_hat| over the run, averaged over the runs (95% CI)"]
         for row, title in (("nominal", "Table 2 (nominal bias gains)"),
                            ("small_bias_gains", "Sec. 4, small bias gains from calibrated biases")):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from ..sim.metrics import mean_ci
 
 __all__ = ["Comparison", "RATIO_RANGE", "MAX_RUNS", "MAX_SEED", "format_table", "order_disagreements", "json_text",
-           "check_runs"]
+           "check_runs", "runs_text"]
 
 #: ratios ours/paper outside this range are explained, not hidden
 RATIO_RANGE = (1 / 3, 3.0)
@@ -116,6 +116,24 @@ class Comparison:
                 "ci": [_finite(low), _finite(high)], "confidence": self.confidence,
                 "paper": self.paper, "ratio": self.ratio, "ratio_in_range": self.in_range,
                 "runs": list(self.values), "note": self.note}
+
+
+def runs_text(seeds) -> str:
+    """The runs of a report's heading: ``20 runs (seeds 0..19)``, ``1 run (seed 0; no interval)``.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        The seeds of the runs, in order (at least one).
+
+    Returns
+    -------
+    str
+        The count and the seeds; one run says why its interval column shows ``-``.
+    """
+    if len(seeds) == 1:
+        return f"1 run (seed {seeds[0]}; no 95% interval from one run)"
+    return f"{len(seeds)} runs (seeds {seeds[0]}..{seeds[-1]})"
 
 
 def _finite(x):
