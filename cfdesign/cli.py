@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import json
 import os
 import re
@@ -15,7 +16,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import CfdesignError, GainError, InternalError, SpecError
+from .errors import CfdesignError, GainError, InternalError, OutputError, SpecError
 from .files import check_distinct, is_dir, write_files
 
 __all__ = ["main", "parse_gains"]
@@ -705,27 +706,44 @@ def _main(argv, debug) -> int:
             raise CfdesignError(f"argument {nul + 1} ({_one_line(argv[nul], 60)!r}) contains a NUL character")
         args = build_parser(argv).parse_args(argv)
         with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
-            return args.run(args)
+            status = args.run(args)
+            sys.stdout.flush()  # a full disk under '> file' is told here, not at the interpreter's exit
+            return status
     except CfdesignError as exc:
         _error(exc)
         return exc.exit_code
     except BrokenPipeError:  # the reader went away (cfdesign design | head): not an error of ours
         _quiet_stdout()
         return 0
+    except OSError as exc:
+        if exc.errno not in _FULL or exc.filename is not None:
+            return _internal(exc, debug)
+        _quiet_stdout()  # what stdout still holds cannot be written either
+        _error(OutputError(f"cannot write to standard output: {exc.strerror}"))
+        return OutputError.exit_code
     except KeyboardInterrupt:
         print("cfdesign: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # a bug: one line, the traceback only on request
-        if debug:
-            raise
-        missing = _missing_dependency(exc)
-        if missing:  # not a bug: the installation lacks a package this command imports
-            print(f"cfdesign: error: this command needs {missing}, which is not installed: pip install "
-                  f"{_EXTRA_OF.get(missing, missing)}", file=sys.stderr)
-            return CfdesignError.exit_code
-        print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
-              "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
-        return InternalError.exit_code
+    except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback only on request
+        return _internal(exc, debug)
+
+
+#: the errors of a write to a full disk, over a quota or beyond the largest file (stdout redirected to one)
+_FULL = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+
+
+def _internal(exc, debug) -> int:
+    """A bug (one line, the traceback only with ``--debug``), or a package the installation lacks."""
+    if debug:
+        raise exc
+    missing = _missing_dependency(exc)
+    if missing:  # not a bug: the installation lacks a package this command imports
+        print(f"cfdesign: error: this command needs {missing}, which is not installed: pip install "
+              f"{_EXTRA_OF.get(missing, missing)}", file=sys.stderr)
+        return CfdesignError.exit_code
+    print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
+          "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
+    return InternalError.exit_code
 
 
 #: the extra that installs an optional dependency (the others: pip install NAME)

@@ -210,3 +210,28 @@ def test_discrete_help_names_the_structures_it_changes(capsys):
             out = capsys.readouterr().out
             variables.append(json.loads(out)["variable"] if code == 0 else None)
         assert (variables == ["s", "z"]) == (structure in named), (structure, variables, text)
+
+
+def test_standard_output_on_a_full_disk_is_an_error_of_the_output_not_a_bug(monkeypatch, capsys):
+    """``cfdesign prove cf2 > /dev/full`` said 'internal error ... please report it' (exit 3): a full
+    disk under stdout is told on one line as an output error (exit 2).  An OSError of another kind
+    is still a bug."""
+    import errno
+    import io
+
+    class Full(io.StringIO):
+        def flush(self):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(sys, "stdout", Full())
+    monkeypatch.setattr("cfdesign.cli._quiet_stdout", lambda: None)  # (pytest's capture has no real descriptor)
+    assert main(["prove", "cf2"]) == 2
+    assert capsys.readouterr().err == "cfdesign: error: cannot write to standard output: No space left on device\n"
+
+    class Broken(io.StringIO):
+        def flush(self):
+            raise OSError(errno.EBADF, "Bad file descriptor")
+
+    monkeypatch.setattr(sys, "stdout", Broken())
+    assert main(["prove", "cf2"]) == 3
+    assert "internal error (OSError" in capsys.readouterr().err
