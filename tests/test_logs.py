@@ -1292,6 +1292,32 @@ def test_an_unreachable_scheduler_is_a_user_error(heading, tmp_path, cli):
         assert not (tmp_path / "out").exists()  # (an empty folder was left behind)
 
 
+def test_an_unguarded_script_is_told_to_guard_its_call(heading, tmp_path, monkeypatch):
+    """A script calling run_logs at its top level: every spawned worker imported it again and started
+    a cluster of its own; Dask printed pages of tracebacks and "internal error (Nanny failed to start)".
+    A worker still importing the script exits with one line; the parent's start failure names the fix."""
+    import multiprocessing.process
+
+    import dask.distributed
+
+    heading_log(0, 0, n=200)[0].to_csv(tmp_path / "r0.csv", index=False)
+    me = multiprocessing.process.current_process()
+    monkeypatch.setattr(me, "_inheriting", True, raising=False)  # as spawn sets it while it imports __main__
+    with pytest.raises(SystemExit, match=r'^cfdesign: a script that calls run_logs must do so under '
+                                         r'if __name__ == "__main__":'):
+        run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=1)
+    monkeypatch.delattr(me, "_inheriting")
+
+    def dead(*args, **kwargs):  # what Dask raises once a worker process died while starting
+        raise RuntimeError("Nanny failed to start.")
+
+    monkeypatch.setattr(dask.distributed, "LocalCluster", dead)
+    with pytest.raises(CfdesignError, match=r"^the local Dask workers did not start \(Nanny failed to start\.\): "
+                                            r'a script that calls run_logs must do so under if __name__'):
+        run_logs(heading, [tmp_path / "r0.csv"], tmp_path / "out", workers=1)
+    assert not (tmp_path / "out").exists()
+
+
 def test_workers_and_scheduler_exclude_each_other(heading, tmp_path, cli):
     """Both given, the scheduler was used and --workers ignored in silence."""
     table = heading.save(tmp_path / "g.json")

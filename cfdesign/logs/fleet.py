@@ -91,9 +91,11 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         Dask is not installed, ``workers`` and ``scheduler`` are both given, the scheduler
-        cannot be reached, ``outdir`` cannot be created, or the table cannot run any log (a
-        continuous or unstable table, as :func:`run_log` and
-        :class:`~cfdesign.runtime.Runtime` refuse it), named before the workers start.
+        cannot be reached, ``outdir`` cannot be created, the local workers did not start (a
+        script that calls ``run_logs`` outside ``if __name__ == "__main__":``, which every
+        worker process imports again), or the table cannot run any log (a continuous or
+        unstable table, as :func:`run_log` and :class:`~cfdesign.runtime.Runtime` refuse it),
+        named before the workers start.
     DataError
         Two logs of the same name (their estimates would overwrite each other), or a log
         that cannot be run (as :func:`run_log`).
@@ -150,12 +152,17 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
         except (OSError, ValueError, TypeError) as exc:  # unreachable or not an address: the user's to fix
             raise CfdesignError(f"cannot connect to the Dask scheduler {scheduler}: {_first_line(exc)}") from None
     else:
+        _refuse_in_worker_start()
         # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
         # warned on stderr when another cluster (another fleet run at the same time) had that port
         with dask.config.set(_CLUSTER_CONFIG):
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                                   silence_logs=logging.ERROR)  # no shutdown warnings
+            try:
+                cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                       processes=True, dashboard_address=None,
+                                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                       silence_logs=logging.ERROR)  # no shutdown warnings
+            except RuntimeError as exc:  # Dask's "Nanny failed to start." once a worker process died starting
+                raise CfdesignError(f"the local Dask workers did not start ({_first_line(exc)}): {_GUARD}") from None
         client = Client(cluster)
     try:
         try:  # once connected: an unreachable scheduler leaves no empty folder
@@ -179,6 +186,27 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
         finally:
             dask_log.setLevel(level)
     return rows
+
+
+#: why local workers fail to start from a script, and what to do (Python's "safe importing of the main module")
+_GUARD = ('a script that calls run_logs must do so under if __name__ == "__main__": (each worker process '
+          "starts by importing the script again)")
+
+
+def _refuse_in_worker_start():
+    """Refuse to start a cluster inside a worker process that is still importing the user's script.
+
+    Dask starts its local workers with the ``spawn`` method: each imports the parent's main module
+    again before it runs.  A script that calls :func:`run_logs` at its top level, unguarded, would then
+    start a cluster inside every worker while that worker starts, and Dask failed with pages of
+    tracebacks from each process and "Nanny failed to start" in the parent.  Here the worker process
+    (doomed, never the user's own) exits at once with one line naming the fix; the parent then fails
+    to start its cluster and raises the same as a :class:`CfdesignError`.
+    """
+    import multiprocessing.process
+
+    if getattr(multiprocessing.process.current_process(), "_inheriting", False):  # spawn's bootstrap flag
+        raise SystemExit(f"cfdesign: {_GUARD}")  # printed as one line by the worker, without a traceback
 
 
 def _failure(future) -> str:
