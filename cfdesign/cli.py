@@ -28,6 +28,13 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise CfdesignError(f"{self.prog}: {message}")
 
+    def _print_message(self, message, file=None):
+        """Write ``--help`` and ``--version`` as argparse does, but let a failed write be told:
+        argparse drops its OSError, and ``cfdesign --version > /dev/full`` exited 0 with nothing
+        written (:func:`main` names a full disk under stdout on one line, exit 2)."""
+        if message:
+            (file or sys.stderr).write(message)
+
 
 def _named(text: str) -> str:
     """argparse ``type`` of every file, folder, example and scheduler name: an empty one is refused.
@@ -704,7 +711,11 @@ def _main(argv, debug) -> int:
         nul = next((i for i, a in enumerate(argv) if "\x00" in a), None)
         if nul is not None:  # no file name or value holds one (a shell cannot pass one; main() can)
             raise CfdesignError(f"argument {nul + 1} ({_one_line(argv[nul], 60)!r}) contains a NUL character")
-        args = build_parser(argv).parse_args(argv)
+        try:
+            args = build_parser(argv).parse_args(argv)
+        except SystemExit:  # --help, --version or a usage line printed: a full disk under '> file' is told too
+            sys.stdout.flush()
+            raise
         with _quiet_arithmetic(debug), _warnings_on_one_line(debug):
             status = args.run(args)
             sys.stdout.flush()  # a full disk under '> file' is told here, not at the interpreter's exit
