@@ -44,6 +44,7 @@ from .noise import van_loan, zoh
 from .riccati import kalman_continuous, kalman_discrete, periodic_dare
 from .spec import QUANTITY_ORDERS, FilterSpec, checked_spec, did_you_mean
 from .timing import nearest_tick
+from .units import check_sensor_figures
 
 #: structures stored for use without the symbolic engine (:meth:`Structure.load`)
 STRUCTURES_DIR = Path(__file__).resolve().parent / "structures"
@@ -626,6 +627,7 @@ def _check_sensors(spec, obs):
             if order != s.order:
                 raise SpecError(f"sensors.{s.name}.measures: {obs.name} uses {s.name} as a sensor of derivative "
                                 f"order {s.order}, not {given.measures!r}")
+        check_sensor_figures(s.name, given.units, s.order)  # figures given with a unit fit its quantity
 
 
 def _check_offsets(spec, obs):

@@ -44,12 +44,14 @@ import numbers
 import os
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 
 from .errors import SpecError
 from .files import path_of, read_limited, utf8_text
 from .noise import Bias, WhiteNoise
+from .units import Quantity, check_bases, check_sensor_figures, parse_quantity, parse_unit
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -123,6 +125,12 @@ class SensorSpec:
         Delay of the first reading after base tick 0 (s), less than the sensor's period.
     role : {'input', 'measurement'}, optional
         Structure ``chain`` only: inferred from ``measures`` when left out.
+    units : tuple
+        ``((key, cfdesign.units.Quantity), ...)``: the figures the file gave with a unit
+        (``noise.density``, ``noise.std``, ``bias.density``, ``bias.value``), already converted
+        to SI in ``noise`` and ``bias``; kept to check their dimensions against the sensor's
+        derivative order, and left out of comparisons (a figure with a unit and its SI number
+        make equal specs).
     """
 
     name: str
@@ -134,6 +142,8 @@ class SensorSpec:
     offset_s: float = 0.0
     #: ``input`` or ``measurement`` (structure ``chain``; inferred from ``measures`` when left out)
     role: str | None = None
+    #: ``((key, Quantity), ...)``: the figures given with a unit (see :mod:`cfdesign.units`)
+    units: tuple = field(default=(), compare=False, repr=False)
 
 
 @dataclass(frozen=True)
@@ -390,8 +400,19 @@ def _sensor_tables(sensors) -> dict:
         body = {"rate_hz": x.rate_hz, "noise": _figures(x.noise, WhiteNoise, ("density", "std")),
                 "bias": _figures(x.bias, Bias, ("model", "density", "value")), "measures": x.measures,
                 "port": x.port, "offset_s": x.offset_s, "role": x.role}
-        tables[x.name] = {key: value for key, value in body.items() if value is not None}
+        tables[x.name] = _with_units({key: value for key, value in body.items() if value is not None}, x.units)
     return tables
+
+
+def _with_units(body: dict, units) -> dict:
+    """A sensor's table with each figure it was given with a unit written as that text again
+    (its checks need the unit), unless the figure has been changed since."""
+    for key, q in units if isinstance(units, tuple) else ():
+        part, _, name = key.partition(".")
+        figures = body.get(part)
+        if isinstance(figures, dict) and isinstance(q, Quantity) and figures.get(name) == q.value:
+            body[part] = {**figures, name: q.text}
+    return body
 
 
 def _figures(value, kind, keys):
@@ -513,6 +534,10 @@ def parse_spec(data: dict, sha256: str = "") -> FilterSpec:
         raise SpecError(f"sensors: {len(sensors)} sensors is more than a design takes (limit {MAX_SENSORS})")
     parsed = tuple(_sensor(name, body) for name, body in sensors.items())
     _distinct_names(parsed)
+    check_bases((f"sensors.{x.name}.{key}", q, x.measures) for x in parsed for key, q in x.units)
+    for x in parsed:  # the order is known here from measures; else from the structure's port (designer)
+        if QUANTITY_ORDERS.get(x.measures) is not None:
+            check_sensor_figures(x.name, x.units, QUANTITY_ORDERS[x.measures])
     return FilterSpec(
         name=_text(data, "name") or structure,
         structure=structure,
@@ -616,21 +641,39 @@ def _sensor(name, body) -> SensorSpec:
     if not isinstance(noise, dict):
         raise SpecError(f"{field}.noise must be a table, got {_kind(noise)}: noise = {{ std = ... }} (u per sample) "
                         "or { density = ... } (u/sqrt(Hz))")
-    white = WhiteNoise(density=_number(noise, "density", f"{field}.noise.density"),
-                       std=_number(noise, "std", f"{field}.noise.std"), field=f"{field}.noise")
+    units = []  # the figures given with a unit
+    white = WhiteNoise(density=_figure(noise, "noise", "density", field, units),
+                       std=_figure(noise, "noise", "std", field, units), field=f"{field}.noise")
     if not isinstance(bias, dict):
         raise SpecError(f"{field}.bias must be a table, got {_kind(bias)}: bias = {{ model = \"random_walk\", "
                         "density = ... } or { model = \"constant\", value = ... }")
     bias_spec = Bias(model=_choice(bias, "model", ("constant", "random_walk"), "constant", f"{field}.bias.model"),
-                     density=_number(bias, "density", f"{field}.bias.density") or 0.0,
-                     value=_number(bias, "value", f"{field}.bias.value", signed=True) or 0.0,
+                     density=_figure(bias, "bias", "density", field, units) or 0.0,
+                     value=_figure(bias, "bias", "value", field, units, signed=True) or 0.0,
                      field=f"{field}.bias")
     offset = _number(body, "offset_s", f"{field}.offset_s") or 0.0
     if offset >= 1.0 / rate:
         raise SpecError(f"{field}.offset_s: {offset:g} s is not less than the sensor's period {1.0 / rate:g} s")
     return SensorSpec(name, rate, white, bias_spec, _text(body, "measures", field=f"{field}.measures"),
                       _text(body, "port", field=f"{field}.port"), offset,
-                      _choice(body, "role", ("input", "measurement", None), None, f"{field}.role"))
+                      _choice(body, "role", ("input", "measurement", None), None, f"{field}.role"), tuple(units))
+
+
+def _figure(table, part, key, field, units, signed=False):
+    """A noise or bias figure: an SI number, or text with a unit (``"0.3 deg/sqrt(h)"``, read by
+    :func:`cfdesign.units.parse_quantity` into SI and recorded in ``units`` as ``(key, Quantity)``
+    for the dimension checks)."""
+    value, name = table.get(key), f"{field}.{part}.{key}"
+    if not isinstance(value, str):
+        return _number(table, key, name, signed=signed)
+    try:
+        q = parse_quantity(value)
+    except SpecError as exc:
+        raise SpecError(f"{name}: {exc}") from None
+    if not signed and q.value < 0:
+        raise SpecError(f'{name} must not be negative, got "{value}"')
+    units.append((f"{part}.{key}", q))
+    return q.value
 
 
 def did_you_mean(word, choices) -> str:
@@ -718,12 +761,24 @@ def _integer(table, key):
 
 def _quoted_number_hint(key, value) -> str:
     """``'; write rate_hz = 100 (a TOML number: no quotes, no unit)'`` for ``"100 Hz"``, ``"100Hz"``
-    or ``"1e-3"``: a number written as text, perhaps with its unit."""
+    or ``"1e-3"``: a number written as text, perhaps with its unit.  A key named for its unit
+    (``rate_hz``, ``offset_s``) takes no unit in its value; one given in another unit of the
+    key's (``"0.1 kHz"``, ``"5 ms"``) is converted in the hint, never taken as it stands."""
     found = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", value) if isinstance(
         value, str) else None
     if found is None:
         return ""
-    return f"; write {key} = {found[1]} (a TOML number: no quotes" + (", no unit)" if found[2] else ")")
+    number, unit = found[1], found[2]
+    own = {"hz": ("Hz", 1), "rate_hz": ("Hz", 1), "sample_time_s": ("s", -1), "offset_s": ("s", -1)}.get(key)
+    if unit and own:
+        try:
+            scale, dim = parse_unit(unit)
+        except SpecError:
+            scale, dim = None, None
+        if dim != tuple(Fraction(-own[1] if i == 2 else 0) for i in range(4)):
+            return f"; {key} is a TOML number of {own[0]}, without quotes or unit"
+        number = number if scale == 1 else repr(float(number) * scale)
+    return f"; write {key} = {number} (a TOML number: no quotes" + (", no unit)" if unit else ")")
 
 
 def _number(table, key, field, positive=False, required=False, signed=False, span=None):
