@@ -1129,7 +1129,9 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
 
     ``[sensors.NAME]`` with ``rate_hz``, ``noise = { density = N }`` and
     ``bias = { model = "random_walk", density = K }`` where the recording shows them, the rest
-    as comments saying why not.
+    as comments saying why not.  Beside each SI figure, the comment gives it in the unit of a
+    datasheet where the column's unit tells which (``# rad/s/sqrt(Hz) = 0.29 deg/sqrt(h)`` for
+    a gyro, ``ug/sqrt(Hz)`` for an accelerometer in m/s^2; :mod:`cfdesign.units`).
 
     Parameters
     ----------
@@ -1166,13 +1168,13 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
             lines.append(f"# {_unresolved_text(fit.unresolved_from_s)}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
         if white is not None:
-            lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz); "
-                         + _ci_text(white))
+            lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz)"
+                         f"{_datasheet(white.value, unit, 'white')}; " + _ci_text(white))
         else:
             lines.append(f"# noise: not identified ({_comment(fit.missing['white'])})")
         if rw is not None:
-            lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s); "
-                         + _ci_text(rw))
+            lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s)"
+                         f"{_datasheet(rw.value, unit, 'random_walk')}; " + _ci_text(rw))
         else:
             lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); if this is "
                          "the rate sensor of a structure that estimates its bias (a cf2 of order 2's gyro, for one), "
@@ -1183,6 +1185,28 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
                          "models the bias as a random walk")
         lines.append("")
     return "\n".join(lines)
+
+
+#: the datasheet units of a figure, by the SI unit of the column and the figure
+_DATASHEET_UNITS = {("rad/s", "white"): "deg/sqrt(h)", ("rad/s", "random_walk"): "deg/h/sqrt(h)",
+                    ("m/s^2", "white"): "ug/sqrt(Hz)", ("m/s^2", "random_walk"): "ug/sqrt(s)",
+                    ("T", "white"): "nT/sqrt(Hz)", ("rad", "white"): "deg/sqrt(Hz)"}
+
+
+def _datasheet(value: float, unit: str, term: str) -> str:
+    """``' = 0.29 deg/sqrt(h)'``: a figure in the column's unit in the unit a datasheet gives it
+    (a gyro's angle random walk in deg/sqrt(h)), or ``''`` for a unit without one."""
+    from .errors import SpecError
+    from .units import parse_unit, si_unit
+
+    try:
+        scale, dim = parse_unit(unit)
+    except SpecError:
+        return ""
+    shown = _DATASHEET_UNITS.get((si_unit(dim), term))
+    if shown is None:
+        return ""
+    return f" = {value * scale / parse_unit(shown)[0]:.3g} {shown}"
 
 
 def _units(unit, count) -> list:

@@ -30,8 +30,16 @@ A design file names a structure and describes each of its sensors::
     # offset_s = 0.37              # optional: the first reading arrives this long after the base tick 0
     #                              # (a measurement of a discrete design)
 
-Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  Text from a
-design file is only ever read as TOML data: nothing in it is evaluated.
+Units are SI in the sensor's own quantity ``u`` (rad, rad/s, m, m/s^2).  A noise or bias
+figure may instead be text with a datasheet unit, converted to SI by :mod:`cfdesign.units` and
+checked against the field (a white-noise density is ``u/sqrt(Hz)``, a random walk
+``u/sqrt(s)``)::
+
+    noise = { density = "0.3 deg/sqrt(h)" }                  # a gyro's angle random walk
+    bias = { model = "random_walk", density = "10 deg/h/sqrt(h)" }
+    noise = { std = "3 mG" }                                   # a magnetometer, rms
+
+Text from a design file is only ever read as TOML data: nothing in it is evaluated.
 """
 
 from __future__ import annotations

@@ -480,7 +480,7 @@ def check_sensor_figures(name: str, figures, order: int) -> None:
     name : str
         The sensor's name (its field is ``sensors.NAME``).
     figures : iterable of tuple
-        ``(key, Quantity)``: :attr:`cfdesign.spec.SensorSpec.units`.
+        ``(key, Quantity)``: a sensor's ``SensorSpec.units``.
     order : int
         The sensor's derivative order (from ``measures`` or the structure's port).
 

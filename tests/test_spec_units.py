@@ -240,3 +240,32 @@ def test_a_constant_bias_takes_a_signed_unit():
             "rate": {"measures": "rate", "rate_hz": 100.0, "noise": {"std": 0.001},
                      "bias": {"model": "constant", "value": "0.5 deg"}},
             "angle": {"measures": "angle", "rate_hz": 100.0, "noise": {"std": 0.01}}}})
+
+
+# -- cfdesign noise -o: the datasheet figure beside the SI one ------------------------------------
+def _fit(white, random_walk):
+    from types import SimpleNamespace
+
+    term = lambda v: SimpleNamespace(value=v, ci=(0.9 * v, 1.1 * v), tau_range_s=(0.01, 10.0))  # noqa: E731
+    return SimpleNamespace(name="x", rate_hz=100.0, band_limit_s=None, unresolved_from_s=None,
+                           terms={"white": term(white), "random_walk": term(random_walk)}, missing={})
+
+
+@pytest.mark.parametrize("unit, white, rw, shown", [
+    ("rad/s", 0.29 * DEG / 60, 12 * DEG / 3600 / 60, ("= 0.29 deg/sqrt(h)", "= 12 deg/h/sqrt(h)")),
+    ("deg/s", 0.005, 1e-4, ("= 0.3 deg/sqrt(h)", "= 21.6 deg/h/sqrt(h)")),  # 0.005 deg/s/sqrt(Hz) * 60
+    ("m/s^2", 150e-6 * G, 2e-6 * G, ("= 150 ug/sqrt(Hz)", "= 2 ug/sqrt(s)")),
+])
+def test_noise_toml_gives_the_datasheet_figure(unit, white, rw, shown):
+    from cfdesign.allan import noise_toml
+
+    text = noise_toml([_fit(white, rw)], unit=unit)
+    noise, bias = (line for line in text.splitlines() if line.startswith(("noise =", "bias =")))
+    assert f"# {unit}/sqrt(Hz) {shown[0]}; " in noise and f"# {unit}/sqrt(s) {shown[1]}; " in bias
+
+
+def test_noise_toml_without_a_known_unit_gives_none():
+    from cfdesign.allan import noise_toml
+
+    text = noise_toml([_fit(1e-3, 1e-5)], unit="u")
+    assert "# u/sqrt(Hz); 95% CI" in text and "# u/sqrt(s); 95% CI" in text
