@@ -11,7 +11,10 @@ value and its dimension, which the design file then checks against the field (se
 
 A unit expression is a product or quotient of the known units (:data:`UNITS`), each with an
 optional power (``s^2``, ``s²``, ``Hz^-1/2``, ``Hz^(-1/2)``), square roots (``sqrt(Hz)``,
-``√Hz``, ``rtHz``) and parentheses; ``a/b/c`` is ``a/(b c)``.  A trailing ``rms`` is allowed
+``√Hz``, ``rtHz``) and parentheses; ``a/b/c`` is ``a/(b c)``, and units side by side
+multiply (``deg h^-1/2``, ``m s^-2``).  A copy from a PDF may bring the minus sign U+2212,
+read as ``-``; ``º`` and ``˚``, often typed for the degree sign, are degrees, and ``dph`` is
+degrees per hour.  A trailing ``rms`` is allowed
 and ignored.  Dimensions are exponents of four base quantities: angle (rad), length (m), time
 (s) and magnetic flux density (T).  The angle is a base of its own here (SI counts the radian
 as dimensionless), so that ``deg/s`` and ``1/s`` or ``m/s`` stay apart.  ``g`` is standard
@@ -56,8 +59,9 @@ _MICRO = ("u", "µ", "μ")  # ASCII u, the micro sign U+00B5, the Greek mu U+03B
 
 def _units() -> dict:
     table = {"rad": (1.0, _dim(angle=1)), "mrad": (1e-3, _dim(angle=1)), "deg": (_DEG, _dim(angle=1)),
-             "°": (_DEG, _dim(angle=1)), "mdeg": (_DEG * 1e-3, _dim(angle=1)), "arcmin": (_DEG / 60, _dim(angle=1)),
-             "arcsec": (_DEG / 3600, _dim(angle=1)),
+             "°": (_DEG, _dim(angle=1)), "º": (_DEG, _dim(angle=1)), "˚": (_DEG, _dim(angle=1)),
+             "dph": (_DEG / 3600, _dim(angle=1, time=-1)), "mdeg": (_DEG * 1e-3, _dim(angle=1)),
+             "arcmin": (_DEG / 60, _dim(angle=1)), "arcsec": (_DEG / 3600, _dim(angle=1)),
              "dps": (_DEG, _dim(angle=1, time=-1)), "mdps": (_DEG * 1e-3, _dim(angle=1, time=-1)),
              "m": (1.0, _dim(length=1)), "km": (1e3, _dim(length=1)), "cm": (1e-2, _dim(length=1)),
              "mm": (1e-3, _dim(length=1)),
@@ -105,9 +109,11 @@ class Quantity:
         return others[0] if len(others) == 1 and self.dimension[others[0]] == 1 else None
 
 
-_TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-zµμ°]+)|(?P<sup>[⁻⁺]?[⁰¹²³⁴⁵⁶⁷⁸⁹]+)|(?P<num>\d+(?:\.\d+)?)"
+_TOKEN = re.compile(r"\s*(?:(?P<name>[A-Za-zµμ°º˚]+)|(?P<sup>[⁻⁺]?[⁰¹²³⁴⁵⁶⁷⁸⁹]+)|(?P<num>\d+(?:\.\d+)?)"
                     r"|(?P<op>\*\*|[*·⋅/()^√+-]))")
 _SUPERSCRIPTS = str.maketrans("⁻⁺⁰¹²³⁴⁵⁶⁷⁸⁹", "-+0123456789")
+#: what a copy from a PDF datasheet brings: the minus sign U+2212 for '-'
+_PDF = str.maketrans({"\u2212": "-"})
 _NUMBER = re.compile(r"\s*([-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)")
 _NOT_FINITE = re.compile(r"\s*[-+]?(?:inf(?:inity)?|nan)(?![A-Za-z])", re.I)
 _RMS = re.compile(r"\s*(?:\brms|\(rms\))\s*$", re.I)
@@ -140,9 +146,10 @@ class _Parser:
 
     def parse(self) -> tuple:
         scale, dim = (1.0, _dim()) if self.peek("op", "/") else self.term()
-        while self.peek("op", ("*", "**", "·", "⋅", "/")):
-            op = self.tokens[self.i][1]
-            self.i += 1
+        while self.peek("op", ("*", "**", "·", "⋅", "/")) or self.peek("name") or self.peek("op", ("√", "(")):
+            explicit = self.peek("op", ("*", "**", "·", "⋅", "/"))
+            op = explicit[1] if explicit else "*"  # units side by side multiply, as SI writes them: deg h^-1/2
+            self.i += bool(explicit)
             s, d = self.term()
             sign = -1 if op == "/" else 1
             scale = scale / s if op == "/" else scale * s
@@ -228,7 +235,7 @@ def _power(scale: float, exponent: Fraction) -> float:
 
 
 #: the known units as a message lists them (ASCII micro only)
-_KNOWN = [name for name in UNITS if not name.startswith(("µ", "μ")) and name not in ("hz", "sec")]
+_KNOWN = [name for name in UNITS if not name.startswith(("µ", "μ")) and name not in ("hz", "sec", "º", "˚")]
 
 
 def _nearest(name: str) -> str:
@@ -298,7 +305,7 @@ def parse_quantity(text: str) -> Quantity:
     """
     if not isinstance(text, str):
         raise SpecError(f"a figure with a unit is text, got {text!r}")
-    quoted = f'"{text}"'
+    quoted, text = f'"{text}"', text.translate(_PDF)
     if _NOT_FINITE.match(text):
         raise SpecError(f"{quoted}: the number must be finite")
     number = _NUMBER.match(text)

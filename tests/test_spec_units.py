@@ -39,7 +39,13 @@ CONVERSIONS = [
     ("0.005 deg/s/sqrt(Hz)", 0.005 * math.pi / 180, RATE_DENSITY),
     ("0.005 °/s/√Hz", 0.005 * math.pi / 180, RATE_DENSITY),
     ("0.005 dps/rtHz", 0.005 * math.pi / 180, RATE_DENSITY),
-    ("0.005 deg/s Hz^-1/2", None, None),  # juxtaposed units: refused below
+    ("0.005 deg/s Hz^-1/2", 0.005 * math.pi / 180, RATE_DENSITY),  # units side by side multiply
+    ("0.3 deg h^-1/2", 0.3 * math.pi / 180 / 60, RATE_DENSITY),
+    ("0.01 m s^-2", 0.01, dim(length=1, time=-2)),
+    ("0.3 º/√h", 0.3 * math.pi / 180 / 60, RATE_DENSITY),  # the masculine ordinal, typed for a degree
+    ("0.3 ˚/√h", 0.3 * math.pi / 180 / 60, RATE_DENSITY),  # the ring above
+    ("0.01 dph", 0.01 * math.pi / 180 / 3600, dim(angle=1, time=-1)),  # degrees per hour
+    ("\u22120.5 deg/s", -0.5 * math.pi / 180, dim(angle=1, time=-1)),  # a PDF's minus sign
     ("0.005 deg/s*Hz^-1/2", 0.005 * math.pi / 180, RATE_DENSITY),
     ("0.005 deg/s*Hz^(-1/2)", 0.005 * math.pi / 180, RATE_DENSITY),
     ("3.8 mdps/sqrt(Hz)", 3.8e-3 * math.pi / 180, RATE_DENSITY),
@@ -83,9 +89,11 @@ def test_g_is_standard_gravity():
     assert STANDARD_GRAVITY == 9.80665
 
 
-def test_juxtaposed_units_are_refused():
-    with pytest.raises(SpecError, match=r"expected '\*' or '/' between units"):
-        parse_quantity("0.005 deg/s Hz^-1/2")
+@pytest.mark.parametrize("text, message", [("0.3 deg//h", r"expected a unit at '/h'"),
+                                           ("0.3 deg/s)", r"expected '\*' or '/' between units at '\)'")])
+def test_a_malformed_unit_is_refused_naming_where(text, message):
+    with pytest.raises(SpecError, match=message):
+        parse_quantity(text)
 
 
 # -- a design file in datasheet units is the design file in SI ------------------------------------
@@ -178,8 +186,8 @@ REFUSED = [
     ({"tilt": '"0.3 deg/sqrt(h)"'}, "sensors.inclinometer.noise.std: \"0.3 deg/sqrt(h)\" is rad/s/sqrt(Hz), but "
                                     "a per-sample noise std of an angle sensor is rad"),
     ({"tilt": '"0.002 deg/sqrt(Hz)"'}, "it fits a white-noise density: noise = { density = ... }"),
-    ({"gyro": '"0.3 dph"'}, "sensors.gyro.noise.density: \"0.3 dph\": unknown unit 'dph' (did you mean 'dps'?) "
-                            "(known: rad, mrad, deg,"),
+    ({"gyro": '"0.3 degs/sqrt(h)"'}, "sensors.gyro.noise.density: \"0.3 degs/sqrt(h)\": unknown unit 'degs' "
+                                     "(did you mean 'deg'?) (known: rad, mrad, deg, °, dph,"),
     ({"gyro": '"0.3deg//h"'}, "sensors.gyro.noise.density: \"0.3deg//h\": expected a unit at '/h'"),
     ({"gyro": '"0.3 deg/(s"'}, "unbalanced '('"),
     ({"gyro": '"-0.3 deg/sqrt(h)"'}, 'sensors.gyro.noise.density must not be negative, got "-0.3 deg/sqrt(h)"'),
