@@ -1,0 +1,85 @@
+"""A command stopped by a signal (Ctrl-C, SIGTERM, SIGHUP) leaves no temporary file, keeps the
+previous outputs, prints one line and exits 128 + the signal; a fleet's workers leave nothing."""
+
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from cfdesign.cli import main
+
+posix = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="SIGTERM/SIGHUP handlers need POSIX signals")
+
+#: the child: ``cfdesign export`` whose fsync of the staged table says 'ready' and waits to be signalled
+CHILD = """
+import os, sys, time
+sys.modules["rfc3987_syntax"] = None  # as cfdesign.cli.console: jsonschema without its 1 s IRI checker
+import cfdesign.files as files
+def fsync(fd):
+    print("ready", flush=True)
+    time.sleep(30)
+files.os = type("os", (), {**{k: getattr(os, k) for k in dir(os) if not k.startswith("__")}, "fsync": fsync})
+if len(sys.argv) > 3:
+    import signal
+    signal.signal(getattr(signal, sys.argv[3]), signal.SIG_IGN)
+from cfdesign.cli import main
+sys.exit(main(["export", sys.argv[1], "--format", "json", "-o", sys.argv[2]]))
+"""
+
+
+def _signalled(tmp_path, table_path, sig):
+    out = tmp_path / "out.json"
+    out.write_text("PREVIOUS")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    child = subprocess.Popen([sys.executable, "-c", CHILD, str(table_path), str(out)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, env=env)
+    assert child.stdout.readline() == "ready\n"  # the table staged in its temporary file
+    child.send_signal(sig)
+    _, err = child.communicate(timeout=60)
+    return child.returncode, err, out, sorted(p.name for p in tmp_path.iterdir())
+
+
+@posix
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGHUP"])
+def test_sigterm_and_sighup_remove_the_temporary_and_keep_the_previous_output(heading, tmp_path, sig):
+    """Python died of SIGTERM and SIGHUP at once (exit -15, -1, nothing said), leaving
+    ``.out.json.XXXX.tmp`` beside the output; now as Ctrl-C: cleaned up, one line, 128 + N."""
+    table = tmp_path / "g.json"
+    heading.save(table)
+    status, err, out, files = _signalled(tmp_path, table, getattr(signal, sig))
+    assert status == 128 + getattr(signal, sig)
+    assert err == f"cfdesign: interrupted ({sig})\n"
+    assert out.read_text() == "PREVIOUS"
+    assert files == ["g.json", "out.json"]
+
+
+@posix
+def test_a_signal_the_process_ignores_stays_ignored(heading, tmp_path):
+    """``nohup cfdesign ...``: SIGHUP ignored before the command starts must not stop it."""
+    table = tmp_path / "g.json"
+    heading.save(table)
+    child = CHILD.replace('    time.sleep(30)\n', '    time.sleep(0.5)\n    return os.fsync(fd)\n')
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    proc = subprocess.Popen([sys.executable, "-c", child, str(table), str(tmp_path / "o.json"), "SIGHUP"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout.readline() == "ready\n"
+    proc.send_signal(signal.SIGHUP)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    assert (tmp_path / "o.json").read_text() == table.read_text()
+
+
+@posix
+def test_main_puts_back_the_handlers_it_found():
+    """The handlers are the command's alone: a process calling main() keeps its own."""
+    mine = lambda signum, frame: None  # noqa: E731
+    before = signal.signal(signal.SIGTERM, mine), signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    try:
+        assert main(["prove", "cf2", "--json"]) == 0
+        assert signal.getsignal(signal.SIGTERM) is mine
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGTERM, before[0])
+        signal.signal(signal.SIGHUP, before[1])
