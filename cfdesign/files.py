@@ -252,7 +252,14 @@ def write_files(contents: dict) -> list:
     for path in contents:
         file_path(path)
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
-    staged, streams = [], []
+    _commit(contents, [])
+    return [Path(path) for path in contents]
+
+
+def _commit(contents: dict, staged: list):
+    """Stage ``contents`` ``{path: bytes or str}`` beside ``staged``, ``[(path, complete temporary)]``,
+    then put them all in place; every temporary left is removed, whatever stops it (an error, Ctrl-C)."""
+    streams = []
     try:
         for path, data in contents.items():
             path, data = Path(path), data.encode("utf-8") if isinstance(data, str) else data
@@ -270,7 +277,6 @@ def write_files(contents: dict) -> list:
     finally:
         for _, tmp in staged:
             Path(tmp).unlink(missing_ok=True)
-    return [Path(path) for path in contents]
 
 
 def _special(path: Path) -> bool:
@@ -327,11 +333,11 @@ def _temporary(path: Path, mode: str, **kwargs):
 
 
 @contextlib.contextmanager
-def open_atomic(path, mode: str = "w", **kwargs):
+def open_atomic(path, mode: str = "w", *, also=None, **kwargs):
     r"""Open a file for writing a stream (a large output), replacing it only on success.
 
     ``path`` is replaced only when the ``with`` block completes without error; else nothing
-    changes.
+    changes.  The files of ``also`` are written with it, all or nothing (:func:`write_files`).
 
     Parameters
     ----------
@@ -339,6 +345,10 @@ def open_atomic(path, mode: str = "w", **kwargs):
         The file to write; it replaces ``path`` only when the block exits without an error.
     mode : str
         ``'w'`` (text) or ``'wb'``.
+    also : dict, optional
+        ``{path: bytes or str}`` of files that belong with this one (a plot of the estimates),
+        read when the block ends, so it may be filled inside it; none replaces its file unless
+        every one, and ``path``, is complete.
     **kwargs
         Passed to :func:`open` (``newline``, ``encoding``).
 
@@ -358,6 +368,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     ...     fh.write("time,heading\n")
     """
     path = file_path(path)
+    also = {} if also is None else also
     if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
         try:
             with open(path, mode, **kwargs) as fh:
@@ -366,14 +377,19 @@ def open_atomic(path, mode: str = "w", **kwargs):
             raise
         except OSError as exc:
             raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        write_files(also)
         return
     with _temporary(path, mode, **kwargs) as (fh, tmp):
         yield fh
+    staged = [(path, tmp)]
     try:
-        os.replace(tmp, path)
-    except OSError as exc:
+        for other in also:
+            file_path(other)
+        check_distinct({"the file": path, **{f"output {i + 2}": p for i, p in enumerate(also)}})
+    except BaseException:
         Path(tmp).unlink(missing_ok=True)
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise
+    _commit(also, staged)
 
 
 def write_text(path, text: str) -> Path:

@@ -6,9 +6,13 @@ import signal
 import subprocess
 import sys
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from cfdesign.cli import main
+from cfdesign.logs import run_log
+from cfdesign.logs import write as write_mod
 
 posix = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="SIGTERM/SIGHUP handlers need POSIX signals")
 
@@ -27,6 +31,13 @@ if len(sys.argv) > 3:
 from cfdesign.cli import main
 sys.exit(main(["export", sys.argv[1], "--format", "json", "-o", sys.argv[2]]))
 """
+
+
+def _log(n=600):
+    t = np.arange(n) * 0.01
+    odo = np.where(np.arange(n) % 10 == 3, 0.3 * t, np.nan)
+    com = np.where(np.arange(n) % 100 == 37, 0.3 * t, np.nan)
+    return pd.DataFrame({"time": t, "gyro": np.full(n, 0.3), "odometry": odo, "compass": com})
 
 
 def _signalled(tmp_path, table_path, sig):
@@ -83,3 +94,53 @@ def test_main_puts_back_the_handlers_it_found():
     finally:
         signal.signal(signal.SIGTERM, before[0])
         signal.signal(signal.SIGHUP, before[1])
+
+
+def test_ctrl_c_as_a_compressed_estimates_file_closes_removes_its_temporary(heading, tmp_path, monkeypatch):
+    """The writer closed its compressor, then the file: a KeyboardInterrupt (or a full disk) in the
+    compressor's close left ``.e.csv.gz.XXXX.tmp`` and its descriptor open for as long as the
+    exception was kept (a notebook keeps the last one: ``sys.last_traceback``)."""
+    class Stopping:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def __getattr__(self, name):
+            return getattr(write_mod._gzip(self.fh), name) if name != "close" else self._close
+
+        def write(self, data):
+            return len(data)
+
+        def _close(self):
+            raise KeyboardInterrupt
+
+    monkeypatch.setitem(write_mod._PACK, ".gz", Stopping)
+    out = tmp_path / "e.csv.gz"
+    out.write_bytes(b"PREVIOUS")
+    with pytest.raises(KeyboardInterrupt) as kept:
+        run_log(heading, _log(), output=out)
+    assert out.read_bytes() == b"PREVIOUS"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv.gz"]
+    assert kept.value is not None  # (held until here: its frames hold the writer)
+
+
+def test_an_interrupted_run_replaces_its_plot_and_estimates_together_or_neither(heading, tmp_path, monkeypatch):
+    """The plot was put in place before the estimates' last flush: Ctrl-C then left a new plot
+    beside the previous estimates (the second fsync: the estimates' before, the plot's now)."""
+    pytest.importorskip("matplotlib")
+    import cfdesign.files as files
+
+    calls = []
+
+    def fsync(fd):
+        calls.append(fd)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(files.os, "fsync", fsync)
+    est, png = tmp_path / "e.csv", tmp_path / "p.png"
+    est.write_text("PREVIOUS")
+    png.write_text("PREVIOUS")
+    with pytest.raises(KeyboardInterrupt):
+        run_log(heading, _log(), output=est, plot=png)
+    assert est.read_bytes() == png.read_bytes() == b"PREVIOUS"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "p.png"]
