@@ -16,6 +16,7 @@ the owner-only mode of :func:`tempfile.mkstemp`.
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import stat
 import tempfile
@@ -24,7 +25,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path"]
+           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path", "temporaries"]
 
 
 def is_dir(path) -> bool:
@@ -305,6 +306,33 @@ def _stage(path: Path, data: bytes) -> str:
     with _temporary(path, "wb") as (fh, tmp):
         fh.write(data)
     return tmp
+
+
+def temporaries(path, since: float = 0.0) -> list:
+    """The temporary files of ``path`` (``.NAME.XXXXXXXX.tmp`` beside it) last written at or after ``since``.
+
+    A process stopped at once (``kill -9``, a Dask worker killed as its cluster closes) leaves the
+    one it was writing; the next write of ``path`` takes a new name and is not confused by it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file written.
+    since : float
+        Seconds since the epoch: older temporaries (another run's) are left out.
+
+    Returns
+    -------
+    list of Path
+        The temporaries.
+    """
+    path = Path(path)
+    found = []
+    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+        with contextlib.suppress(OSError):
+            if tmp.stat().st_mtime >= since:
+                found.append(tmp)
+    return found
 
 
 @contextlib.contextmanager

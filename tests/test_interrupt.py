@@ -5,13 +5,14 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from cfdesign.cli import main
-from cfdesign.logs import run_log
+from cfdesign.logs import fleet, run_log
 from cfdesign.logs import write as write_mod
 
 posix = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="SIGTERM/SIGHUP handlers need POSIX signals")
@@ -144,3 +145,35 @@ def test_an_interrupted_run_replaces_its_plot_and_estimates_together_or_neither(
         run_log(heading, _log(), output=est, plot=png)
     assert est.read_bytes() == png.read_bytes() == b"PREVIOUS"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["e.csv", "p.png"]
+
+
+def test_an_interrupted_fleet_removes_what_its_killed_workers_were_writing(heading, tmp_path, monkeypatch):
+    """A worker still writing as the cluster closes is killed (after Dask's wait): it left
+    ``.a.csv.XXXX.tmp`` of 60 MB beside a 2-million-row log's estimates.  Another run's older
+    temporary stays."""
+    pytest.importorskip("dask.distributed")
+    old = tmp_path / "out" / ".b.csv.older123.tmp"
+    old.parent.mkdir()
+    old.write_text("another run's")
+    os.utime(old, (time.time() - 60, time.time() - 60))
+
+    def killed(dask, Client, LocalCluster, table, paths, targets, *args):
+        (targets[0].parent / f".{targets[0].name}.abcd1234.tmp").write_text("half")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(fleet, "_run_on_dask", killed)
+    with pytest.raises(KeyboardInterrupt):
+        fleet.run_logs(heading, [tmp_path / "a.csv", tmp_path / "b.csv"], tmp_path / "out")
+    assert sorted(p.name for p in old.parent.iterdir()) == [old.name]
+
+
+@posix
+def test_a_fleet_s_worker_processes_ignore_ctrl_c_and_the_stops_its_parent_handles():
+    """Ctrl-C at a terminal signals every process of its group: each Dask worker printed a
+    traceback; SIGTERM or SIGHUP to all (systemd, Slurm, a closed terminal) killed them mid-file."""
+    probe = "import signal as s; print([s.getsignal(x) == s.SIG_IGN for x in (s.SIGINT, s.SIGTERM, s.SIGHUP)])"
+    before = {s: signal.getsignal(s) for s in fleet._STOPS}
+    with fleet._workers_ignore(fleet._STOPS):
+        seen = subprocess.run([sys.executable, "-S", "-c", probe], capture_output=True, text=True).stdout
+    assert seen == "[True, True, True]\n"
+    assert {s: signal.getsignal(s) for s in fleet._STOPS} == before
