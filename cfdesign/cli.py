@@ -1,7 +1,8 @@
 """The ``cfdesign`` command.
 
 User errors (unknown structure, bad gains, unreadable files) print one line on stderr and
-exit with status 2; a proof or check that fails exits with 1; tracebacks mean a bug.
+exit with status 2; a proof or check that fails exits with 1; tracebacks mean a bug.  Stopped by
+Ctrl-C, SIGTERM or SIGHUP, a command cleans up, prints one line and exits with 128 + the signal.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import errno
 import json
 import os
 import re
+import signal
 import sys
 from pathlib import Path
 
@@ -671,7 +673,8 @@ def main(argv=None) -> int:
     int
         The exit status: 0 success, 1 a proof or check failed, 2 a user error (one line on
         stderr), 3 an internal error (one line asking for a report; ``--debug`` shows the
-        traceback).
+        traceback), 128 + N stopped by signal N, its files cleaned up (130 Ctrl-C; 143 SIGTERM
+        and 129 SIGHUP, which raise as Ctrl-C does while the command runs).
 
     Examples
     --------
@@ -684,7 +687,8 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     stdout, sys.stdout = sys.stdout, _PipeSafe(sys.stdout)  # a closed pipe must not stop the writes
     try:
-        return _main(argv, "--debug" in argv)
+        with _stop_as_ctrl_c():
+            return _main(argv, "--debug" in argv)
     finally:
         sys.stdout = stdout
 
@@ -732,11 +736,61 @@ def _main(argv, debug) -> int:
         _quiet_stdout()  # what stdout still holds cannot be written either
         _error(OutputError(f"cannot write to standard output: {exc.strerror}"))
         return OutputError.exit_code
-    except KeyboardInterrupt:
-        print("cfdesign: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C, or a signal of _STOPS: the files were cleaned up on the way here
+        return _interrupted(getattr(exc, "signum", signal.SIGINT))
     except Exception as exc:  # noqa: BLE001 - a bug: one line, the traceback only on request
         return _internal(exc, debug)
+
+
+class _Stopped(KeyboardInterrupt):
+    """A signal of :data:`_STOPS` received: raised as Ctrl-C's KeyboardInterrupt is, so that every
+    ``finally`` and ``with`` on the way out runs (temporary files removed, a Dask cluster closed)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+#: the signals that stop a command as Ctrl-C does: SIGTERM (timeout, kill, docker stop, systemd,
+#: Slurm) and SIGHUP (its terminal closed); by default Python died of them at once, ``finally``
+#: blocks unrun, leaving ``.NAME.XXXX.tmp`` beside the output and Dask's semaphore warning
+_STOPS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def _stop_as_ctrl_c():
+    """SIGTERM and SIGHUP raise :class:`_Stopped` while the command runs; the previous handlers are
+    put back after it (:func:`main` called in a process of its own or another's).  Installed by the
+    command alone, never at import: a library user's process keeps its own handlers.  A signal the
+    process ignores stays ignored (``nohup cfdesign run ...`` outlives its terminal), and outside
+    the main thread, where Python takes no handler, nothing changes.
+    """
+    def stop(signum, frame):
+        raise _Stopped(signum)
+
+    previous = {}
+    try:
+        for signum in _STOPS:
+            if signal.getsignal(signum) == signal.SIG_DFL:
+                previous[signum] = signal.signal(signum, stop)
+    except ValueError:  # not the main thread
+        pass
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _interrupted(signum: int) -> int:
+    """The one line of a command stopped by signal ``signum``; its exit status, 128 + ``signum`` as a
+    shell reports a command killed by it (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP)."""
+    name = "" if signum == signal.SIGINT else f" ({signal.Signals(signum).name})"
+    try:
+        print(f"cfdesign: interrupted{name}", file=sys.stderr)
+    except (OSError, ValueError):  # its terminal is gone (SIGHUP): there is no one to tell
+        pass
+    return 128 + signum
 
 
 #: the errors of a write to a full disk, over a quota or beyond the largest file (stdout redirected to one)

@@ -16,6 +16,7 @@ the owner-only mode of :func:`tempfile.mkstemp`.
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import stat
 import tempfile
@@ -24,7 +25,7 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path"]
+           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path", "temporaries"]
 
 
 def is_dir(path) -> bool:
@@ -252,7 +253,14 @@ def write_files(contents: dict) -> list:
     for path in contents:
         file_path(path)
     check_distinct({f"output {i + 1}": path for i, path in enumerate(contents)})
-    staged, streams = [], []
+    _commit(contents, [])
+    return [Path(path) for path in contents]
+
+
+def _commit(contents: dict, staged: list):
+    """Stage ``contents`` ``{path: bytes or str}`` beside ``staged``, ``[(path, complete temporary)]``,
+    then put them all in place; every temporary left is removed, whatever stops it (an error, Ctrl-C)."""
+    streams = []
     try:
         for path, data in contents.items():
             path, data = Path(path), data.encode("utf-8") if isinstance(data, str) else data
@@ -270,7 +278,6 @@ def write_files(contents: dict) -> list:
     finally:
         for _, tmp in staged:
             Path(tmp).unlink(missing_ok=True)
-    return [Path(path) for path in contents]
 
 
 def _special(path: Path) -> bool:
@@ -301,6 +308,33 @@ def _stage(path: Path, data: bytes) -> str:
     return tmp
 
 
+def temporaries(path, since: float = 0.0) -> list:
+    """The temporary files of ``path`` (``.NAME.XXXXXXXX.tmp`` beside it) last written at or after ``since``.
+
+    A process stopped at once (``kill -9``, a Dask worker killed as its cluster closes) leaves the
+    one it was writing; the next write of ``path`` takes a new name and is not confused by it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file written.
+    since : float
+        Seconds since the epoch: older temporaries (another run's) are left out.
+
+    Returns
+    -------
+    list of Path
+        The temporaries.
+    """
+    path = Path(path)
+    found = []
+    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+        with contextlib.suppress(OSError):
+            if tmp.stat().st_mtime >= since:
+                found.append(tmp)
+    return found
+
+
 @contextlib.contextmanager
 def _temporary(path: Path, mode: str, **kwargs):
     """A temporary file beside ``path``, complete (flushed, synced, umask mode) on a clean exit
@@ -327,11 +361,11 @@ def _temporary(path: Path, mode: str, **kwargs):
 
 
 @contextlib.contextmanager
-def open_atomic(path, mode: str = "w", **kwargs):
+def open_atomic(path, mode: str = "w", *, also=None, **kwargs):
     r"""Open a file for writing a stream (a large output), replacing it only on success.
 
     ``path`` is replaced only when the ``with`` block completes without error; else nothing
-    changes.
+    changes.  The files of ``also`` are written with it, all or nothing (:func:`write_files`).
 
     Parameters
     ----------
@@ -339,6 +373,10 @@ def open_atomic(path, mode: str = "w", **kwargs):
         The file to write; it replaces ``path`` only when the block exits without an error.
     mode : str
         ``'w'`` (text) or ``'wb'``.
+    also : dict, optional
+        ``{path: bytes or str}`` of files that belong with this one (a plot of the estimates),
+        read when the block ends, so it may be filled inside it; none replaces its file unless
+        every one, and ``path``, is complete.
     **kwargs
         Passed to :func:`open` (``newline``, ``encoding``).
 
@@ -358,6 +396,7 @@ def open_atomic(path, mode: str = "w", **kwargs):
     ...     fh.write("time,heading\n")
     """
     path = file_path(path)
+    also = {} if also is None else also
     if _special(path):  # a device or a pipe (/dev/stdout): written into, not replaced
         try:
             with open(path, mode, **kwargs) as fh:
@@ -366,14 +405,19 @@ def open_atomic(path, mode: str = "w", **kwargs):
             raise
         except OSError as exc:
             raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        write_files(also)
         return
     with _temporary(path, mode, **kwargs) as (fh, tmp):
         yield fh
+    staged = [(path, tmp)]
     try:
-        os.replace(tmp, path)
-    except OSError as exc:
+        for other in also:
+            file_path(other)
+        check_distinct({"the file": path, **{f"output {i + 2}": p for i, p in enumerate(also)}})
+    except BaseException:
         Path(tmp).unlink(missing_ok=True)
-        raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
+        raise
+    _commit(also, staged)
 
 
 def write_text(path, text: str) -> Path:

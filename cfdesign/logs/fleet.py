@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import signal
+import time
 from pathlib import Path
 
 from ..errors import CfdesignError, DataError
-from ..files import write_text
+from ..files import temporaries, write_text
 from ..gains import require_table
 from .columns import _first_line
 from .run import _same_file, run_log
@@ -122,8 +125,14 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
                         "or with another --format)")
     environ = dict(os.environ)  # Dask's settings for its workers (one BLAS thread, ...) are left in it: put back
+    start = time.time()
     try:
         rows = _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options)
+    except BaseException:  # Ctrl-C, ...: the local workers, closed, may have been killed writing an estimate file
+        if not scheduler:
+            for tmp in (tmp for t in targets for tmp in temporaries(t, since=start - 1)):
+                tmp.unlink(missing_ok=True)
+        raise
     finally:
         _put_back(environ)
     write_text(outdir / "summary.csv", _summary_csv(rows))
@@ -155,7 +164,7 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
         _refuse_in_worker_start()
         # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
         # warned on stderr when another cluster (another fleet run at the same time) had that port
-        with dask.config.set(_CLUSTER_CONFIG):
+        with dask.config.set(_CLUSTER_CONFIG), _workers_ignore(_STOPS):
             try:
                 cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
                                        processes=True, dashboard_address=None,
@@ -207,6 +216,32 @@ def _refuse_in_worker_start():
 
     if getattr(multiprocessing.process.current_process(), "_inheriting", False):  # spawn's bootstrap flag
         raise SystemExit(f"cfdesign: {_GUARD}")  # printed as one line by the worker, without a traceback
+
+
+#: the signals a local cluster's worker processes ignore: Ctrl-C at a terminal (SIGINT to every process of
+#: the foreground group) printed a traceback of each worker, a closed terminal (SIGHUP) or SIGTERM to every
+#: process (systemd, Slurm) killed them mid-file; the process that started them stops as told and closes them
+_STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def _workers_ignore(signals):
+    """``signals`` ignored while the block starts processes, which keep ignoring them (a disposition to
+    ignore is inherited through ``exec``); this process's handlers are put back after.  Outside the main
+    thread, where Python sets no handler, nothing changes.  One of them sent while the block runs (the
+    cluster's start, a second or two) is lost.
+    """
+    previous = {}
+    try:
+        for signum in signals:
+            previous[signum] = signal.signal(signum, signal.SIG_IGN)
+    except ValueError:  # not the main thread
+        pass
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
 
 
 def _failure(future) -> str:

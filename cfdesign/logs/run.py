@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import CfdesignError, DataError, OutputError
-from ..files import check_distinct, is_dir, not_a_device, write_bytes
+from ..files import check_distinct, is_dir, not_a_device
 from ..gains import require_table
 from ..linear import wrap
 from .columns import _UNIT_NAMES, TIME_UNITS, _numeric, _pandas, _time_name, _unit
@@ -185,11 +185,11 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         if pending is not None:
             run_rows(*pending)
         est = writer.frame()
-        if plot is not None:  # inside the writer: a plot that cannot be written leaves the previous estimates
+        if plot is not None:  # inside the writer: written with the estimates, all or nothing
             from ..plot import figure_bytes
 
-            write_bytes(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit,
-                                                          restarts=runner.restarts), plot))
+            writer.attach(plot, figure_bytes(plot_log(table, est, cols.references, cols.time, cols.time_unit,
+                                                      restarts=runner.restarts), plot))
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import OutputError
-from ..files import open_atomic
+from ..files import open_atomic, write_bytes
 from ..linear import wrap
 from .columns import _first_line, _pandas
 
@@ -72,6 +73,7 @@ class _Writer:
         self._predicted = {}  # state -> (variances predicted, their count) over every compared row
         self.settled_rows = 0
         self._ctx = self._fh = self._parquet = self._packed = None
+        self.also = {}  # {path: bytes} written with the estimates, all or nothing (a plot of them)
         self._types = types  # Parquet types of the log's passed-through columns over the whole log
         self._blocks = 0  # CSV blocks written
 
@@ -80,7 +82,8 @@ class _Writer:
             parquet = self.path.suffix.lower() in (".parquet", ".pq")
             packed = _PACK.get(self.path.suffix.lower())  # estimates.csv.gz: a gzip-compressed CSV
             binary = parquet or packed
-            self._ctx = open_atomic(self.path, "wb" if binary else "w", **({} if binary else {"newline": ""}))
+            self._ctx = open_atomic(self.path, "wb" if binary else "w", also=self.also,
+                                    **({} if binary else {"newline": ""}))
             self._fh = self._ctx.__enter__()
             if packed:
                 import io
@@ -90,10 +93,15 @@ class _Writer:
         return self
 
     def __exit__(self, *exc):
-        if self._parquet is not None:
-            self._parquet.close()
-        if self._packed is not None:
-            self._packed.close()  # the compressed stream's end; the file under it stays open until moved into place
+        try:
+            if self._parquet is not None:
+                self._parquet.close()
+            if self._packed is not None:
+                self._packed.close()  # the compressed stream's end; the file under it stays open until moved
+        except BaseException:  # (Ctrl-C, a full disk): the temporary file is removed, not left or moved into place
+            if self._ctx is not None:
+                self._ctx.__exit__(*sys.exc_info())
+            raise
         if self._ctx is not None:
             self._ctx.__exit__(*exc)
         return False
@@ -181,6 +189,15 @@ class _Writer:
     def steady(self) -> tuple:
         """:meth:`settled` over the rows also after the start-up of every pause (restarted or carried)."""
         return self.settled(self._steady)
+
+    def attach(self, path, data: bytes):
+        """Write ``data`` to ``path`` with the estimates file, all or nothing, when the writer closes
+        (a plot of them: an interrupted run left a new plot beside the previous estimates); at once
+        without an estimates file."""
+        if self._ctx is None:
+            write_bytes(path, data)
+        else:
+            self.also[path] = data
 
     def frame(self):
         if not self.frames:
