@@ -1153,13 +1153,15 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
     InputError
         A unit that is not text, or a sequence of units whose length is not the number of fits.
     """
+    raw = [unit] * len(fits) if isinstance(unit, str) else unit
     units = _units(unit, len(fits))
     lines = [f"# Noise identified by cfdesign noise{' from ' + _comment(source) if source else ''}",
              "# (overlapping Allan deviation; 95% confidence intervals; units: the column's unit u,",
-             "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u).",
+             "#  e.g. rad/s for a gyro: N in u/sqrt(Hz), K in u/sqrt(s), B in u; in a known unit other than",
+             "#  SI, N and K are written with it, as text the design file converts to SI).",
              "# Add measures = \"...\" (and port = \"...\" where the structure calls the sensor otherwise,",
              "#  e.g. port = \"rate\" for a cf2's gyro) and copy the tables into your design file.", ""]
-    for fit, key, unit in zip(fits, _keys(fit.name for fit in fits), units, strict=True):
+    for fit, key, unit, given in zip(fits, _keys(fit.name for fit in fits), units, raw, strict=True):
         lines.append(f"[sensors.{key}]" + (f"   # column {_comment(fit.name)!r}" if key != fit.name else ""))
         lines.append(f"rate_hz = {fit.rate_hz!r}")
         if fit.band_limit_s is not None:
@@ -1168,13 +1170,14 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
             lines.append(f"# {_unresolved_text(fit.unresolved_from_s)}")
         white, rw, bi = (fit.terms.get(k) for k in ("white", "random_walk", "bias_instability"))
         if white is not None:
-            lines.append(f"noise = {{ density = {white.value:.6g} }}   # {unit}/sqrt(Hz)"
-                         f"{_datasheet(white.value, unit, 'white')}; " + _ci_text(white))
+            lines.append(f"noise = {{ density = {_figure(white.value, given, '/sqrt(Hz)')} }}   # {unit}/sqrt(Hz)"
+                         f"{_datasheet(white.value, given, 'white')}; " + _ci_text(white))
         else:
             lines.append(f"# noise: not identified ({_comment(fit.missing['white'])})")
         if rw is not None:
-            lines.append(f"bias = {{ model = \"random_walk\", density = {rw.value:.6g} }}   # {unit}/sqrt(s)"
-                         f"{_datasheet(rw.value, unit, 'random_walk')}; " + _ci_text(rw))
+            lines.append(f"bias = {{ model = \"random_walk\", density = {_figure(rw.value, given, '/sqrt(s)')} }}"
+                         f"   # {unit}/sqrt(s)"
+                         f"{_datasheet(rw.value, given, 'random_walk')}; " + _ci_text(rw))
         else:
             lines.append(f"# bias: no random walk identified ({_comment(fit.missing['random_walk'])}); if this is "
                          "the rate sensor of a structure that estimates its bias (a cf2 of order 2's gyro, for one), "
@@ -1185,6 +1188,22 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
                          "models the bias as a random walk")
         lines.append("")
     return "\n".join(lines)
+
+
+def _figure(value: float, unit: str, per: str) -> str:
+    """The TOML value of a figure ``value`` in ``unit`` ``per`` (``/sqrt(Hz)``): a number where the
+    unit is SI or unknown (``u``), else text with its unit (``"0.005 deg/s/sqrt(Hz)"``), which a
+    design file converts to SI and checks; a bare 0.005 of a deg/s column read as 0.005 rad/s/sqrt(Hz)."""
+    from .errors import SpecError
+    from .units import _RMS, parse_unit
+
+    try:
+        scale = parse_unit(unit)[0]
+    except SpecError:
+        return f"{value:.6g}"
+    if scale == 1.0:
+        return f"{value:.6g}"
+    return f'"{value:.6g} {" ".join(_RMS.sub("", unit).split())}{per}"'  # the unit's text: no quote, no backslash
 
 
 #: the datasheet units of a figure, by the SI unit of the column and the figure

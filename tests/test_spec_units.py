@@ -277,3 +277,20 @@ def test_noise_toml_without_a_known_unit_gives_none():
 
     text = noise_toml([_fit(1e-3, 1e-5)], unit="u")
     assert "# u/sqrt(Hz); 95% CI" in text and "# u/sqrt(s); 95% CI" in text
+
+
+@pytest.mark.parametrize("unit, scale", [("deg/s", DEG), ("°/s rms", DEG), ("mrad/s", 1e-3), ("rad/s", 1.0)])
+def test_noise_toml_of_a_column_not_in_si_loads_back_as_its_si_value(unit, scale):
+    """``cfdesign noise --unit deg/s -o``: its figures were bare numbers in deg/s, which a design file
+    reads as SI (57 times too large); a known unit other than SI now goes with the figure as text."""
+    from cfdesign.allan import noise_toml
+
+    text = noise_toml([_fit(0.005, 1e-4)], unit=unit)
+    tables = "\n".join(line for line in text.splitlines() if not line.startswith("[sensors."))
+    design = f'structure = "cf2"\norder = 2\n[sensors.rate]\nmeasures = "rate"\n{tables}\n' \
+             '[sensors.angle]\nmeasures = "angle"\nrate_hz = 100.0\nnoise = { std = 0.01 }\n'
+    from cfdesign.spec import tomllib
+
+    rate = parse_spec(tomllib.loads(design)).sensor("rate")
+    assert rate.noise.density == pytest.approx(0.005 * scale, rel=1e-15)
+    assert rate.bias.density == pytest.approx(1e-4 * scale, rel=1e-15)
