@@ -16,6 +16,7 @@ the owner-only mode of :func:`tempfile.mkstemp`.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import glob
 import os
 import stat
@@ -25,7 +26,8 @@ from pathlib import Path
 from .errors import OutputError
 
 __all__ = ["write_files", "write_into", "write_text", "write_bytes", "open_atomic", "check_distinct", "is_dir",
-           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path", "temporaries"]
+           "read_limited", "not_a_device", "utf8_text", "path_of", "file_path", "temporaries",
+           "run_tag"]
 
 
 def is_dir(path) -> bool:
@@ -308,18 +310,40 @@ def _stage(path: Path, data: bytes) -> str:
     return tmp
 
 
-def temporaries(path, since: float = 0.0) -> list:
-    """The temporary files of ``path`` (``.NAME.XXXXXXXX.tmp`` beside it) last written at or after ``since``.
+#: the run whose temporary files this context writes (a fleet's worker), in their names
+_RUN = contextvars.ContextVar("cfdesign_run", default="")
+
+
+@contextlib.contextmanager
+def run_tag(tag: str):
+    """Name the temporary files written in the block after the run ``tag`` (``.NAME.TAG.XXXXXXXX.tmp``),
+    for :func:`temporaries` to find that run's, and no other's, after its workers were killed.
+
+    Parameters
+    ----------
+    tag : str
+        Letters and digits naming the run.
+    """
+    token = _RUN.set(tag)
+    try:
+        yield
+    finally:
+        _RUN.reset(token)
+
+
+def temporaries(path, tag: str) -> list:
+    """The temporary files of ``path`` that the run ``tag`` wrote (:func:`run_tag`) and left.
 
     A process stopped at once (``kill -9``, a Dask worker killed as its cluster closes) leaves the
     one it was writing; the next write of ``path`` takes a new name and is not confused by it.
+    Another run's, perhaps being written at this moment into the same folder, are not listed.
 
     Parameters
     ----------
     path : str or Path
         The file written.
-    since : float
-        Seconds since the epoch: older temporaries (another run's) are left out.
+    tag : str
+        The run's tag.
 
     Returns
     -------
@@ -327,12 +351,7 @@ def temporaries(path, since: float = 0.0) -> list:
         The temporaries.
     """
     path = Path(path)
-    found = []
-    for tmp in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
-        with contextlib.suppress(OSError):
-            if tmp.stat().st_mtime >= since:
-                found.append(tmp)
-    return found
+    return list(path.parent.glob(f".{glob.escape(path.name)}.{glob.escape(tag)}.*.tmp"))
 
 
 @contextlib.contextmanager
@@ -342,8 +361,9 @@ def _temporary(path: Path, mode: str, **kwargs):
     if is_dir(path):
         raise OutputError(f"cannot write {path}: it is a directory")
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", prefix=f".{path.name}.",
-                                   suffix=".tmp")
+        run = _RUN.get()  # a fleet worker's: .NAME.RUN.XXXXXXXX.tmp
+        fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".",
+                                   prefix=f".{path.name}.{run}." if run else f".{path.name}.", suffix=".tmp")
     except (OSError, ValueError) as exc:  # ValueError: a NUL character in the path
         raise OutputError(f"cannot write {path}: {getattr(exc, 'strerror', None) or exc}") from None
     try:

@@ -6,12 +6,15 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from cfdesign import files
 from cfdesign.cli import main
+from cfdesign.errors import DataError
 from cfdesign.logs import fleet, run_log
 from cfdesign.logs import write as write_mod
 
@@ -157,14 +160,34 @@ def test_an_interrupted_fleet_removes_what_its_killed_workers_were_writing(headi
     old.write_text("another run's")
     os.utime(old, (time.time() - 60, time.time() - 60))
 
+    live = old.parent / ".b.csv.0123abcd4567.xyz98765.tmp"  # another run's, writing now into the same folder
+
     def killed(dask, Client, LocalCluster, table, paths, targets, *args):
-        (targets[0].parent / f".{targets[0].name}.abcd1234.tmp").write_text("half")
+        live.write_text("being written")
+        (targets[0].parent / f".{targets[0].name}.{args[-1]}.abcd1234.tmp").write_text("half")  # this run's
         raise KeyboardInterrupt
 
     monkeypatch.setattr(fleet, "_run_on_dask", killed)
     with pytest.raises(KeyboardInterrupt):
         fleet.run_logs(heading, [tmp_path / "a.csv", tmp_path / "b.csv"], tmp_path / "out")
-    assert sorted(p.name for p in old.parent.iterdir()) == [old.name]
+    assert sorted(p.name for p in old.parent.iterdir()) == sorted([old.name, live.name])
+
+
+def test_a_fleet_worker_writes_its_temporaries_under_its_run_s_tag(heading, tmp_path, monkeypatch):
+    """What the parent removes after an interruption is named by its run: two fleet runs at once into
+    one folder, the first interrupted removed the second's temporaries as they were being written."""
+    seen = []
+
+    def fake_run_log(table, path, output, **kwargs):
+        with files.open_atomic(output):
+            seen.extend(p.name for p in Path(output).parent.iterdir() if p.suffix == ".tmp")
+        raise DataError("stop")
+
+    monkeypatch.setattr(fleet, "run_log", fake_run_log)
+    row = fleet._run_one(heading, str(tmp_path / "a.csv"), tmp_path / "e.csv", {}, "feed0123beef")
+    assert row["error"] == "stop"
+    assert len(seen) == 1 and seen[0].startswith(".e.csv.feed0123beef.") and seen[0].endswith(".tmp")
+    assert files.temporaries(tmp_path / "e.csv", "feed0123beef") == []  # completed: moved into place
 
 
 @posix

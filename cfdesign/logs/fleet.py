@@ -5,12 +5,12 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import secrets
 import signal
-import time
 from pathlib import Path
 
 from ..errors import CfdesignError, DataError
-from ..files import temporaries, write_text
+from ..files import run_tag, temporaries, write_text
 from ..gains import require_table
 from .columns import _first_line
 from .run import _same_file, run_log
@@ -125,12 +125,13 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         raise DataError(f"{same[0]}: its estimates would replace the log itself (write them to another folder, "
                         "or with another --format)")
     environ = dict(os.environ)  # Dask's settings for its workers (one BLAS thread, ...) are left in it: put back
-    start = time.time()
+    run = secrets.token_hex(6)  # names this run's temporary files: another run's in outdir are not removed
     try:
-        rows = _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options)
+        rows = _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options,
+                            run)
     except BaseException:  # Ctrl-C, ...: the local workers, closed, may have been killed writing an estimate file
         if not scheduler:
-            for tmp in (tmp for t in targets for tmp in temporaries(t, since=start - 1)):
+            for tmp in (tmp for t in targets for tmp in temporaries(t, run)):
                 tmp.unlink(missing_ok=True)
         raise
     finally:
@@ -149,7 +150,8 @@ def _put_back(environ: dict):
             os.environ[k] = v
 
 
-def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options) -> list:
+def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, workers, scheduler, options,
+                 run) -> list:
     """The logs' summary rows, each log run by :func:`_run_one` on the scheduler's workers, or on a local cluster's."""
     from ..runtime.filter import Runtime
 
@@ -178,7 +180,7 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
             outdir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise CfdesignError(f"cannot create {outdir}: {exc.strerror or exc}") from None
-        futures = [client.submit(_run_one, table, str(p), str(t), options, pure=False)
+        futures = [client.submit(_run_one, table, str(p), str(t), options, run, pure=False)
                    for p, t in zip(paths, targets, strict=True)]
         rows = client.gather(futures, errors="skip")  # what still fails is an internal error of that log
         done = {r["log"]: r for r in rows}
@@ -252,12 +254,14 @@ def _failure(future) -> str:
     return str(exc).splitlines()[0] if exc else "failed"
 
 
-def _run_one(table, path, target, options):
-    """Run one log in a worker; the table arrives pickled, as checked by the parent (a worker that
-    validated it again against the JSON schema imported jsonschema, 1 s of its first log where
-    jsonschema's optional IRI checker, rfc3987_syntax, is installed)."""
+def _run_one(table, path, target, options, run=""):
+    """Run one log in a worker, its temporary files named after the ``run``; the table arrives
+    pickled, as checked by the parent (a worker that validated it again against the JSON schema
+    imported jsonschema, 1 s of its first log where jsonschema's optional IRI checker,
+    rfc3987_syntax, is installed)."""
     try:
-        return run_log(table, path, output=target, source=path, **options).summary()
+        with run_tag(run):
+            return run_log(table, path, output=target, source=path, **options).summary()
     except CfdesignError as exc:  # a bad log is a row of the summary, not a failed task (no worker traceback)
         return {"log": path, "samples": 0, "error": _first_line(exc)}
     except Exception as exc:  # noqa: BLE001 - a fault of cfdesign on one log: the others still run
