@@ -641,8 +641,9 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=_output, help="write the design-file entries (TOML) here")
     p.add_argument("--plot", metavar="FILE.png", type=_output,
                    help="write the Allan deviation with the fitted asymptotes")
-    p.add_argument("--unit", default="u", help="unit of the readings, for the report (e.g. rad/s), or one per "
-                   "column, comma-separated (rad/s,rad/s,rad/s,m/s^2)")
+    p.add_argument("--unit", default="u", help="unit of the readings (e.g. rad/s, deg/s), or one per column, "
+                   "comma-separated (rad/s,rad/s,rad/s,m/s^2); -o writes a figure in a known non-SI unit "
+                   "with it (\"0.005 deg/s/sqrt(Hz)\"), which the design file converts")
     p.set_defaults(run=cmd_noise)
 
     p = sub.add_parser("discretize", help="run a continuous gain table at a sample rate (ZOH model, held innovation)")
