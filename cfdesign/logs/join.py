@@ -1,0 +1,255 @@
+"""A log kept as one file per sensor (PX4's ``ulog2csv``, ROS's ``rostopic echo -p``): the rows of
+the joined files merged into the blocks of the main log by time (:func:`~cfdesign.logs.run_log`'s
+``join``, ``cfdesign run --join``).
+
+The main file streams in blocks as a log alone does; a joined file is read whole (the slow
+sensors: a 1 Hz topic beside a 100 Hz IMU), only the columns the run uses, each with its own time
+column and unit, checked as a log is (its cells, its times, naming that file).  Its rows go
+between the main file's by time, after the main file's rows at the same time and in the order the
+files are given: the log is then the one ``pandas.concat`` of the files sorted stably by time gives.
+"""
+
+from __future__ import annotations
+
+import bisect
+
+import numpy as np
+
+from ..errors import DataError
+from .columns import TIME_UNITS, _listed, _named_unit, _numeric, _pandas, _time_unit
+from .read import _header, _lines, _row_units, read_log, time_column
+
+
+def joined_header(table, header, source, paths, *, time=None, mapping=None, reference=None) -> tuple:
+    """``(header, used, listing)``: the main file's header with the columns each joined file gives
+    the run after it, ``{path: [column]}`` of those, and every file's columns for a message.
+
+    A column the run uses is a sensor's (its name, or the ``mapping`` one; the sensor's name in
+    another case when the file holds one such column) or a reference's; a joined file's other
+    columns are not read.  A joined file's time column is its own, never a used one.
+
+    Raises
+    ------
+    DataError
+        A used column is in two files (naming it and both files), or a joined file cannot be read.
+    """
+    headers = {p: _header(p) for p in paths}
+    times = {p: _time_of(p, h, time) for p, h in headers.items()}
+    files = [(source, [str(h).strip() for h in header], None), *((p, h, times[p]) for p, h in headers.items())]
+    mapping = mapping if isinstance(mapping, dict) else {}
+    items = [reference] if isinstance(reference, str) else reference if isinstance(reference, (list, tuple)) else []
+    wanted = [(mapping.get(s, s), s not in mapping) for s in table.sensor_names()]
+    wanted += [(str(r).partition("=")[2] or str(r), False) for r in items if isinstance(r, str)]
+    used = {p: [] for p in paths}
+    for name, any_case in dict.fromkeys(wanted):
+        found = [(f, c) for f, h, t in files for c in [_found(name, h, any_case, t)] if c is not None]
+        if len(found) > 1:
+            raise DataError(f"column {name!r} is in both {found[0][0]} and {found[1][0]}: each column a run uses "
+                            "must be in one file (rename one, or --map the sensor to a column of its own)")
+        if found and found[0][0] != source and found[0][1] not in used[found[0][0]]:
+            used[found[0][0]].append(found[0][1])
+    listing = "; ".join(f"{f}: {_listed(h, 200)}" for f, h, _ in files)
+    return [*header, *(c for cols in used.values() for c in cols)], used, listing
+
+
+def _found(name, header, any_case, time):
+    """The column of ``header`` that is ``name`` (or, with ``any_case``, its one column named so in
+    another case), not the file's ``time``; else None."""
+    if name in header and name != time:
+        return name
+    like = [h for h in header if h.lower() == name.lower() and h != time]
+    return like[0] if any_case and len(like) == 1 else None
+
+
+def _time_of(path, header, time):
+    """The time column of a joined file: ``time`` (given for every file) or the one its header names."""
+    if time is not None and time not in header:
+        raise DataError(f"{path}: no time column {time!r} (columns: {_listed(header)})")
+    found = time or time_column(header)
+    if found is None:
+        raise DataError(f"{path}: no time column ('time', 't', 'timestamp' in any case or with a unit, or a ROS "
+                        f"export's '%time'; columns: {_listed(header)}): a joined file's rows are placed by their "
+                        "times (--time COLUMN names the time column of every file)")
+    return found
+
+
+class _File:
+    """A joined file read whole: its used columns as numbers, its times raw and in seconds."""
+
+    def __init__(self, path, columns, table, time, time_unit):
+        from ..timing import place
+
+        header = _header(path)
+        self.path, self.columns = path, list(columns)
+        self.time = _time_of(path, header, time)
+        units = _row_units(path)  # the unit its name gives, else time_unit (a ROS %time beside PX4's us)
+        self.scale = TIME_UNITS[_named_unit(self.time, units) or _time_unit(path, self.time, time_unit, units)]
+        self.lines = _lines(path)
+        frame = read_log(path, [self.time, *self.columns])
+        if not len(frame):
+            raise DataError(f"{path}: the joined file has a header but no rows")
+        self.values = _numeric(frame, self.columns, path, self.lines.at)
+        self.raw = _numeric(frame, [self.time], path, self.lines.at, time=self.time)[self.time]
+        self.number = _is_number(frame[self.time])
+        self.seconds = self.raw * self.scale if self.number else self.raw
+        place(self.seconds, table.sample_time_s, source=str(path), rate=False, where=self.lines.at,
+              readings={c: ~np.isnan(v) for c, v in self.values.items()})
+
+    def keys(self, number, scale):
+        """The file's times in the main file's: its unit (``scale`` seconds; integer ratios of
+        units as a division or a product, as pandas would convert them) when ``number``, else seconds."""
+        if not number:
+            return self.seconds
+        if not self.number:
+            return self.seconds / scale
+        ratio = self.scale / scale
+        return self.raw * round(ratio) if ratio >= 1 else self.raw / round(1 / ratio)
+
+
+def _is_number(series) -> bool:
+    """Whether a time column holds numbers (not dates, durations or ISO 8601 text)."""
+    pd = _pandas()
+    if series.dtype.kind in "fiu":
+        return True
+    if series.dtype.kind in "Mmb" or isinstance(series.dtype, pd.DatetimeTZDtype):
+        return False
+    return bool(pd.to_numeric(series.astype("string").str.strip(), errors="coerce").notna().any())
+
+
+class _Join:
+    """The rows of the joined files merged into the main log's blocks by time; also the
+    ``cols.lines`` of the merged log (:meth:`at` names a row's file and line)."""
+
+    def __init__(self, table, cols, source, main_lines, paths, used, time=None, time_unit=None):
+        self.cols, self.source, self.main_lines = cols, source, main_lines
+        self.files = [_File(p, used[p], table, time, time_unit) for p in paths]
+        self.columns = [c for f in self.files for c in f.columns]
+        self.file = np.concatenate([np.full(len(f.raw), i) for i, f in enumerate(self.files)])
+        self.row = np.concatenate([np.arange(len(f.raw)) for f in self.files])
+        self.blocks_at = {}  # merged row of a block's first -> (main row, the block's joined rows and their ids)
+        self.starts = []
+        self._ready = None
+        self.order = None  # the joined rows (in the files' order) sorted by time
+
+    def _prepare(self, block):
+        """The joined rows as the main file would hold them, sorted stably by time (the files in
+        the order given), once the main file's time column is seen (numbers or dates)."""
+        pd = _pandas()
+        if self._ready is not None:
+            return self._ready
+        col = block[self.cols.time]
+        number = _is_number(col)
+        keys = np.concatenate([f.keys(number, self.cols.time_scale) for f in self.files])
+        seconds = np.concatenate([f.seconds for f in self.files])
+        order = np.argsort(keys, kind="stable")
+        times = keys[order] if number else _as_dates(seconds[order], col)
+        frame = pd.DataFrame({self.cols.time: times})
+        for f in self.files:
+            for c in f.columns:
+                mine = np.full(len(keys), np.nan)
+                mine[np.flatnonzero(self.file == self.files.index(f))] = f.values[c]
+                frame[c] = mine[order]
+        self.order = order
+        self._ready = (keys[order], frame, number)
+        return self._ready
+
+    def blocks(self, blocks):
+        """The merged blocks of the main file's ``blocks``, and after the last the joined rows
+        after its last time.
+
+        Raises
+        ------
+        DataError
+            The main file has no rows, or a joined file's times do not overlap the main file's.
+        """
+        merged, main, done, first, last = 0, 0, 0, None, None
+        for block in blocks:
+            if not len(block):
+                continue
+            keys, frame, number = self._prepare(block)
+            main_keys = _numeric(block, [self.cols.time], self.source, lambda i, at=main: self.main_lines.at(at + i),
+                                 time=self.cols.time)[self.cols.time]
+            finite = main_keys[np.isfinite(main_keys)]
+            if first is None and finite.size:
+                first = finite[0] * (self.cols.time_scale if number else 1.0)
+                self._overlap(first, None)
+            last = finite[-1] * (self.cols.time_scale if number else 1.0) if finite.size else last
+            upto = int(np.searchsorted(keys, main_keys[-1], side="left")) if np.isfinite(main_keys[-1]) else done
+            upto = max(upto, done)
+            out = self._merged(block, frame.iloc[done:upto], np.searchsorted(main_keys, keys[done:upto], side="right"),
+                               merged, main, np.arange(done, upto))
+            merged, main, done = merged + len(out), main + len(block), upto
+            yield out
+        if main == 0:
+            raise DataError(f"{self.source}: the log has a header but no rows")
+        self._overlap(first, last)
+        if done < len(keys):
+            yield self._merged(block.iloc[:0], frame.iloc[done:], np.zeros(len(keys) - done, np.int64), merged, main,
+                               np.arange(done, len(keys)))
+
+    def _overlap(self, first, last):
+        """A joined file whose times lie all before the main file's ``first`` (s) or, once its
+        ``last`` is known, all after it: the files' clocks differ."""
+        for f in self.files:
+            a, b = float(f.seconds.min()), float(f.seconds.max())
+            if b < first or (last is not None and a > last):
+                span = f"from {first:.10g} s" if last is None else f"{first:.10g} s to {last:.10g} s"
+                raise DataError(f"{f.path}: its times ({a:.10g} s to {b:.10g} s) do not overlap those of {self.source} "
+                                f"({span}): the files' clocks differ (a ROS %time is nanoseconds since 1970, a PX4 "
+                                "timestamp microseconds since boot); join files stamped by one clock")
+
+    def _merged(self, block, rows, at, merged, main, ids):
+        """``block`` with the joined ``rows`` inserted before its rows ``at``; recorded for :meth:`at`."""
+        pd = _pandas()
+        n, m = len(block), len(rows)
+        dest = at + np.arange(m)
+        take = np.empty(n + m, dtype=np.int64)
+        mask = np.zeros(n + m, dtype=bool)
+        mask[dest] = True
+        take[~mask], take[mask] = np.arange(n), n + np.arange(m)
+        block = block.astype({c: float for c in [self.cols.time, *self.cols.extra]
+                              if block[c].dtype.kind in "iu"})  # as pandas' concat with the joined rows' gaps
+        out = pd.concat([block, rows], ignore_index=True) if m else block.assign(
+            **{c: np.nan for c in self.columns}).reset_index(drop=True)
+        out = out.iloc[take] if m else out
+        out = out[self.cols.read].reset_index(drop=True)
+        out.index += merged
+        if merged not in self.blocks_at:
+            bisect.insort(self.starts, merged)
+        self.blocks_at[merged] = (main, dest, ids)
+        return out
+
+    def at(self, row) -> str:
+        """Where row ``row`` of the merged log is, for a message: the main file's line (or Parquet
+        row), or ``line N of FILE`` of a joined file."""
+        row = int(row)
+        start = self.starts[max(bisect.bisect_right(self.starts, row) - 1, 0)] if self.starts else 0
+        main, dest, ids = self.blocks_at.get(start, (0, np.zeros(0, np.int64), np.zeros(0, np.int64)))
+        local = row - start
+        k = int(np.searchsorted(dest, local))
+        if k < len(dest) and dest[k] == local:
+            j = int(self.order[ids[k]])
+            f = self.files[self.file[j]]
+            return f"{f.lines.at(self.row[j])} of {f.path}"
+        return self.main_lines.at(main + local - k)
+
+    def notes(self) -> list:
+        """The notes of the joined files (a row of units, a cut end), as a log's."""
+        from .read import _tail_note, _units_note
+
+        return [n for f in self.files for n in _units_note(f.path, str(f.path)) + _tail_note(f.path, str(f.path))]
+
+
+def _as_dates(seconds, like):
+    """``seconds`` since 1970 as the main file's time column holds dates: datetimes (in its zone),
+    durations, or ISO 8601 text."""
+    pd = _pandas()
+    ns = np.round(seconds * 1e9).astype(np.int64)
+    if like.dtype.kind == "m":
+        return pd.to_timedelta(ns, unit="ns")
+    when = pd.to_datetime(ns, unit="ns", utc=True)
+    if isinstance(like.dtype, pd.DatetimeTZDtype):
+        return when.tz_convert(like.dtype.tz)
+    if like.dtype.kind == "M":
+        return when.tz_localize(None)
+    return np.array([w.isoformat() for w in when], dtype=object)
