@@ -132,6 +132,10 @@ def _refusals(imu, odo, com):
                                r"com.csv line 3: time .* goes back from"),
         "a reading twice at one time": ({"com.csv": "".join([*lines[:3], lines[2], *lines[3:]])}, [], "est.csv",
                                         r"com.csv line 4: time .* repeats"),
+        "a file the run takes nothing from": ({"imu.csv": imu.assign(compass=1.0).to_csv(index=False),
+                                               "com.csv": com.rename(columns={"compass": "mag"}).to_csv(index=False)},
+                                              [], "est.csv", r"^cfdesign: error: com.csv: none of its columns "
+                                              r"\(time, mag\) is one the run uses"),
         "no time column": ({"com.csv": com.rename(columns={"time": "when"}).to_csv(index=False)}, [], "est.csv",
                            r"com.csv: no time column"),
         "several logs": ({"imu2.csv": imu.to_csv(index=False)}, ["imu2.csv"], "out/",

@@ -28,10 +28,33 @@ def joined_header(table, header, source, paths, *, time=None, mapping=None, refe
     another case when the file holds one such column) or a reference's; a joined file's other
     columns are not read.  A joined file's time column is its own, never a used one.
 
+    Parameters
+    ----------
+    table : GainTable
+        The table run: its sensors' names.
+    header : list of str
+        The main file's column names.
+    source : str
+        The main file's name, for messages.
+    paths : list of str or Path
+        The joined files.
+    time : str, optional
+        The time column of every file (``--time``); default each file's own (:func:`time_column`).
+    mapping : dict, optional
+        ``{sensor: column}``, as :func:`~cfdesign.logs.run_log` takes it.
+    reference : str or list of str, optional
+        ``COLUMN`` or ``STATE=COLUMN`` items, as :func:`~cfdesign.logs.run_log` takes them.
+
+    Returns
+    -------
+    tuple
+        ``(header, used, listing)``: list of str, dict of path to list of str, str.
+
     Raises
     ------
     DataError
-        A used column is in two files (naming it and both files), or a joined file cannot be read.
+        A used column is in two files (naming it and both files), a joined file cannot be read or
+        has no time column.
     """
     headers = {p: _header(p) for p in paths}
     times = {p: _time_of(p, h, time) for p, h in headers.items()}
@@ -40,15 +63,20 @@ def joined_header(table, header, source, paths, *, time=None, mapping=None, refe
     items = [reference] if isinstance(reference, str) else reference if isinstance(reference, (list, tuple)) else []
     wanted = [(mapping.get(s, s), s not in mapping) for s in table.sensor_names()]
     wanted += [(str(r).partition("=")[2] or str(r), False) for r in items if isinstance(r, str)]
-    used = {p: [] for p in paths}
+    used, missing = {p: [] for p in paths}, []
     for name, any_case in dict.fromkeys(wanted):
         found = [(f, c) for f, h, t in files for c in [_found(name, h, any_case, t)] if c is not None]
+        missing += [] if found else [name]
         if len(found) > 1:
             raise DataError(f"column {name!r} is in both {found[0][0]} and {found[1][0]}: each column a run uses "
                             "must be in one file (rename one, or --map the sensor to a column of its own)")
         if found and found[0][0] != source and found[0][1] not in used[found[0][0]]:
             used[found[0][0]].append(found[0][1])
     listing = "; ".join(f"{f}: {_listed(h, 200)}" for f, h, _ in files)
+    idle = next((p for p, cols in used.items() if not cols), None)
+    if idle is not None and not missing:  # else the message on the missing column, which lists every file's
+        raise DataError(f"{idle}: none of its columns ({_listed(headers[idle])}) is one the run uses (a sensor's, by "
+                        "the table's name or --map, or a --reference): a file joined by mistake?")
     return [*header, *(c for cols in used.values() for c in cols)], used, listing
 
 
@@ -167,25 +195,38 @@ class _Join:
             if not len(block):
                 continue
             keys, frame, number = self._prepare(block)
-            main_keys = _numeric(block, [self.cols.time], self.source, lambda i, at=main: self.main_lines.at(at + i),
-                                 time=self.cols.time)[self.cols.time]
-            finite = main_keys[np.isfinite(main_keys)]
-            if first is None and finite.size:
-                first = finite[0] * (self.cols.time_scale if number else 1.0)
+            main_keys = self._keys(block, main)
+            finite = np.isfinite(main_keys)
+            scale = self.cols.time_scale if number else 1.0
+            if first is None and finite.any():
+                first = main_keys[np.argmax(finite)] * scale
                 self._overlap(first, None)
-            last = finite[-1] * (self.cols.time_scale if number else 1.0) if finite.size else last
+            last = main_keys[len(finite) - 1 - np.argmax(finite[::-1])] * scale if finite.any() else last
+            finite = None
             upto = int(np.searchsorted(keys, main_keys[-1], side="left")) if np.isfinite(main_keys[-1]) else done
             upto = max(upto, done)
-            out = self._merged(block, frame.iloc[done:upto], np.searchsorted(main_keys, keys[done:upto], side="right"),
-                               merged, main, np.arange(done, upto))
-            merged, main, done = merged + len(out), main + len(block), upto
-            yield out
+            box = [self._merged(block, frame.iloc[done:upto], np.searchsorted(main_keys, keys[done:upto], side="right"),
+                                merged, main, np.arange(done, upto))]
+            merged, main, done, empty = merged + len(box[0]), main + len(block), upto, block.iloc[:0].copy()
+            block = main_keys = None
+            # no reference to the merged block is kept while it runs: run_log's copy of it with the rows of the
+            # block before (a tick split between blocks) had been a second copy (36 MB more at the peak)
+            yield box.pop()
         if main == 0:
             raise DataError(f"{self.source}: the log has a header but no rows")
         self._overlap(first, last)
         if done < len(keys):
-            yield self._merged(block.iloc[:0], frame.iloc[done:], np.zeros(len(keys) - done, np.int64), merged, main,
+            yield self._merged(empty, frame.iloc[done:], np.zeros(len(keys) - done, np.int64), merged, main,
                                np.arange(done, len(keys)))
+
+    def _keys(self, block, main):
+        """The times of the main file's ``block`` (its rows from ``main`` on) as numbers: in its unit,
+        or dates as seconds; a float column as it is (no copy of a million rows)."""
+        col = block[self.cols.time]
+        if col.dtype.kind == "f":
+            return col.to_numpy(dtype=float)
+        return _numeric(block, [self.cols.time], self.source, lambda i: self.main_lines.at(main + i),
+                        time=self.cols.time)[self.cols.time]
 
     def _overlap(self, first, last):
         """A joined file whose times lie all before the main file's ``first`` (s) or, once its
@@ -199,21 +240,33 @@ class _Join:
                                 "timestamp microseconds since boot); join files stamped by one clock")
 
     def _merged(self, block, rows, at, merged, main, ids):
-        """``block`` with the joined ``rows`` inserted before its rows ``at``; recorded for :meth:`at`."""
+        """``block`` with the joined ``rows`` inserted before its rows ``at``; recorded for :meth:`at`.
+
+        Built column by column, the columns of numbers in one array as ``read_csv`` gives them:
+        a frame concatenated and reordered held four copies of a block of a million rows, and
+        separate arrays left the heap 50 MB larger on 10 million rows (glibc's malloc raises its
+        mmap threshold as arrays of 8 MB are freed, so later ones fragment the heap)."""
         pd = _pandas()
         n, m = len(block), len(rows)
         dest = at + np.arange(m)
-        take = np.empty(n + m, dtype=np.int64)
-        mask = np.zeros(n + m, dtype=bool)
-        mask[dest] = True
-        take[~mask], take[mask] = np.arange(n), n + np.arange(m)
-        block = block.astype({c: float for c in [self.cols.time, *self.cols.extra]
-                              if block[c].dtype.kind in "iu"})  # as pandas' concat with the joined rows' gaps
-        out = pd.concat([block, rows], ignore_index=True) if m else block.assign(
-            **{c: np.nan for c in self.columns}).reset_index(drop=True)
-        out = out.iloc[take] if m else out
-        out = out[self.cols.read].reset_index(drop=True)
-        out.index += merged
+        mine = np.ones(n + m, dtype=bool)
+        mine[dest] = False
+        pairs = {c: (block[c] if c in block.columns else pd.Series(np.full(n, np.nan)),
+                     rows[c] if c in rows.columns else pd.Series(np.full(m, np.nan))) for c in self.cols.read}
+        numbers = [c for c, (a, b) in pairs.items() if a.dtype.kind in "fiu" and b.dtype.kind in "fiu"]
+        values = np.empty((len(numbers), n + m))  # numbers as pandas' concat gives them, with the gaps: floats
+        for i, c in enumerate(numbers):
+            values[i, mine], values[i, ~mine] = pairs[c][0].to_numpy(), pairs[c][1].to_numpy()
+        out = pd.DataFrame(values.T, columns=numbers, index=pd.RangeIndex(merged, merged + n + m), copy=False)
+        take = None
+        for i, c in enumerate(self.cols.read):  # text, dates, booleans: pandas' own concat
+            if c not in numbers:
+                if take is None:
+                    take = np.empty(n + m, dtype=np.int64)
+                    take[mine], take[~mine] = np.arange(n), n + np.arange(m)
+                both = pd.concat([pairs[c][0].reset_index(drop=True), pairs[c][1].reset_index(drop=True)],
+                                 ignore_index=True)
+                out.insert(i, c, both.iloc[take].array)
         if merged not in self.blocks_at:
             bisect.insort(self.starts, merged)
         self.blocks_at[merged] = (main, dest, ids)
