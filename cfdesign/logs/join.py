@@ -11,8 +11,6 @@ files are given: the log is then the one ``pandas.concat`` of the files sorted s
 
 from __future__ import annotations
 
-import bisect
-
 import numpy as np
 
 from ..errors import DataError
@@ -154,8 +152,9 @@ class _Join:
         self.columns = [c for f in self.files for c in f.columns]
         self.file = np.concatenate([np.full(len(f.raw), i) for i, f in enumerate(self.files)])
         self.row = np.concatenate([np.arange(len(f.raw)) for f in self.files])
-        self.blocks_at = {}  # merged row of a block's first -> (main row, the block's joined rows and their ids)
-        self.starts = []
+        # the merged row of each joined row by time (-1: not merged yet), set once for the whole log: an array
+        # of them kept per block lay between the blocks' memory (60 MB more peak memory on 10 million rows)
+        self.position = None
         self._ready = None
         self.order = None  # the joined rows (in the files' order) sorted by time
 
@@ -178,46 +177,63 @@ class _Join:
                 mine[np.flatnonzero(self.file == self.files.index(f))] = f.values[c]
                 frame[c] = mine[order]
         self.order = order
+        self.position = np.full(len(keys), -1, dtype=np.int64)
         self._ready = (keys[order], frame, number)
         return self._ready
 
-    def blocks(self, blocks):
-        """The merged blocks of the main file's ``blocks``, and after the last the joined rows
-        after its last time.
+    def blocks(self, chunks, rows):
+        """The merged blocks of the main file read in ``chunks`` (a fraction of a block each): the
+        joined rows merged into each chunk, gathered into blocks of ``rows`` rows of the main file
+        (:class:`_Gather`: the main file's chunk and the block it goes into, not a whole block read
+        beside its merged copy), and after the last the joined rows after the main file's last time.
 
         Raises
         ------
         DataError
             The main file has no rows, or a joined file's times do not overlap the main file's.
         """
-        merged, main, done, first, last = 0, 0, 0, None, None
-        for block in blocks:
-            if not len(block):
+        merged, main, done, first, last, gather = 0, 0, 0, None, None, None
+        for chunk in chunks:
+            if not len(chunk):
                 continue
-            keys, frame, number = self._prepare(block)
-            main_keys = self._keys(block, main)
+            keys, frame, number = self._prepare(chunk)
+            main_keys = self._keys(chunk, main)
             finite = np.isfinite(main_keys)
             scale = self.cols.time_scale if number else 1.0
             if first is None and finite.any():
                 first = main_keys[np.argmax(finite)] * scale
                 self._overlap(first, None)
             last = main_keys[len(finite) - 1 - np.argmax(finite[::-1])] * scale if finite.any() else last
-            finite = None
             upto = int(np.searchsorted(keys, main_keys[-1], side="left")) if np.isfinite(main_keys[-1]) else done
             upto = max(upto, done)
-            box = [self._merged(block, frame.iloc[done:upto], np.searchsorted(main_keys, keys[done:upto], side="right"),
-                                merged, main, np.arange(done, upto))]
-            merged, main, done, empty = merged + len(box[0]), main + len(block), upto, block.iloc[:0].copy()
-            block = main_keys = None
-            # no reference to the merged block is kept while it runs: run_log's copy of it with the rows of the
-            # block before (a tick split between blocks) had been a second copy (36 MB more at the peak)
-            yield box.pop()
+            joined, at = frame.iloc[done:upto], np.searchsorted(main_keys, keys[done:upto], side="right")
+            if gather is not None and not gather.fits(chunk, joined):  # a column of text in this chunk only
+                box, gather = [gather.frame()], None
+                yield box.pop()
+            if gather is None:
+                more = min(len(keys) - done, int(rows * (upto - done) / len(chunk) * 1.5) + 1024)
+                gather = _Gather(self.cols.read, chunk, joined, rows + more, merged)
+            gather.add(chunk, joined, at)
+            self.position[done:upto] = merged + at + np.arange(upto - done)
+            merged, main, done = merged + len(chunk) + upto - done, main + len(chunk), upto
+            empty = chunk.iloc[:0].copy()
+            chunk = main_keys = finite = joined = None
+            if gather.main >= rows:
+                # no reference to the block is kept while it runs: run_log's copy of it with the rows of the
+                # block before (a tick split between blocks) had been a second copy (36 MB more at the peak)
+                box, gather = [gather.frame()], None
+                yield box.pop()
         if main == 0:
             raise DataError(f"{self.source}: the log has a header but no rows")
         self._overlap(first, last)
         if done < len(keys):
-            yield self._merged(empty, frame.iloc[done:], np.zeros(len(keys) - done, np.int64), merged, main,
-                               np.arange(done, len(keys)))
+            joined = frame.iloc[done:]
+            gather = gather if gather is not None and gather.fits(empty, joined) else _Gather(
+                self.cols.read, empty, joined, len(joined), merged)
+            gather.add(empty, joined, np.zeros(len(joined), np.int64))
+            self.position[done:] = merged + np.arange(len(joined))
+        if gather is not None:
+            yield gather.frame()
 
     def _keys(self, block, main):
         """The times of the main file's ``block`` (its rows from ``main`` on) as numbers: in its unit,
@@ -239,58 +255,79 @@ class _Join:
                                 f"({span}): the files' clocks differ (a ROS %time is nanoseconds since 1970, a PX4 "
                                 "timestamp microseconds since boot); join files stamped by one clock")
 
-    def _merged(self, block, rows, at, merged, main, ids):
-        """``block`` with the joined ``rows`` inserted before its rows ``at``; recorded for :meth:`at`.
-
-        Built column by column, the columns of numbers in one array as ``read_csv`` gives them:
-        a frame concatenated and reordered held four copies of a block of a million rows, and
-        separate arrays left the heap 50 MB larger on 10 million rows (glibc's malloc raises its
-        mmap threshold as arrays of 8 MB are freed, so later ones fragment the heap)."""
-        pd = _pandas()
-        n, m = len(block), len(rows)
-        dest = at + np.arange(m)
-        mine = np.ones(n + m, dtype=bool)
-        mine[dest] = False
-        pairs = {c: (block[c] if c in block.columns else pd.Series(np.full(n, np.nan)),
-                     rows[c] if c in rows.columns else pd.Series(np.full(m, np.nan))) for c in self.cols.read}
-        numbers = [c for c, (a, b) in pairs.items() if a.dtype.kind in "fiu" and b.dtype.kind in "fiu"]
-        values = np.empty((len(numbers), n + m))  # numbers as pandas' concat gives them, with the gaps: floats
-        for i, c in enumerate(numbers):
-            values[i, mine], values[i, ~mine] = pairs[c][0].to_numpy(), pairs[c][1].to_numpy()
-        out = pd.DataFrame(values.T, columns=numbers, index=pd.RangeIndex(merged, merged + n + m), copy=False)
-        take = None
-        for i, c in enumerate(self.cols.read):  # text, dates, booleans: pandas' own concat
-            if c not in numbers:
-                if take is None:
-                    take = np.empty(n + m, dtype=np.int64)
-                    take[mine], take[~mine] = np.arange(n), n + np.arange(m)
-                both = pd.concat([pairs[c][0].reset_index(drop=True), pairs[c][1].reset_index(drop=True)],
-                                 ignore_index=True)
-                out.insert(i, c, both.iloc[take].array)
-        if merged not in self.blocks_at:
-            bisect.insort(self.starts, merged)
-        self.blocks_at[merged] = (main, dest, ids)
-        return out
-
     def at(self, row) -> str:
         """Where row ``row`` of the merged log is, for a message: the main file's line (or Parquet
         row), or ``line N of FILE`` of a joined file."""
         row = int(row)
-        start = self.starts[max(bisect.bisect_right(self.starts, row) - 1, 0)] if self.starts else 0
-        main, dest, ids = self.blocks_at.get(start, (0, np.zeros(0, np.int64), np.zeros(0, np.int64)))
-        local = row - start
-        k = int(np.searchsorted(dest, local))
-        if k < len(dest) and dest[k] == local:
-            j = int(self.order[ids[k]])
+        placed = self.position[:int(np.sum(self.position >= 0))] if self.position is not None else np.zeros(0)
+        k = int(np.searchsorted(placed, row))  # the joined rows before it
+        if k < len(placed) and placed[k] == row:
+            j = int(self.order[k])
             f = self.files[self.file[j]]
             return f"{f.lines.at(self.row[j])} of {f.path}"
-        return self.main_lines.at(main + local - k)
+        return self.main_lines.at(row - k)
 
     def notes(self) -> list:
         """The notes of the joined files (a row of units, a cut end), as a log's."""
         from .read import _tail_note, _units_note
 
         return [n for f in self.files for n in _units_note(f.path, str(f.path)) + _tail_note(f.path, str(f.path))]
+
+
+class _Gather:
+    """The merged rows of the main file's chunks gathered into one block: the columns of numbers
+    written into one array of floats (as ``read_csv`` gives a block, and as ``pandas.concat`` gives
+    them with the joined rows' gaps), grown if the joined rows outnumber its room; other columns
+    (text, dates, booleans) concatenated by pandas.  A block merged as a whole beside the chunk
+    read for it held both (and a frame concatenated and reordered four copies): 60 MB more peak
+    memory on 10 million rows."""
+
+    def __init__(self, columns, chunk, joined, room, start):
+        self.columns, self.start = list(columns), start
+        self.numbers = self._numbers(chunk, joined)
+        self.values = np.empty((len(self.numbers), room))
+        self.others = {c: [] for c in self.columns if c not in self.numbers}
+        self.size = self.main = 0  # rows, and rows of the main file, so far
+
+    def _numbers(self, chunk, joined) -> list:
+        return [c for c in self.columns if all(c not in f.columns or f[c].dtype.kind in "fiu" for f in (chunk, joined))]
+
+    def fits(self, chunk, joined) -> bool:
+        """Whether the columns of numbers of ``chunk`` and ``joined`` are this block's."""
+        return self._numbers(chunk, joined) == self.numbers
+
+    def add(self, chunk, joined, at):
+        """``chunk`` of the main file with the ``joined`` rows before its rows ``at``."""
+        pd = _pandas()
+        n, m = len(chunk), len(joined)
+        if self.size + n + m > self.values.shape[1]:
+            grown = np.empty((len(self.numbers), max(2 * self.values.shape[1], self.size + n + m)))
+            grown[:, :self.size] = self.values[:, :self.size]
+            self.values = grown
+        mine = np.ones(n + m, dtype=bool)
+        mine[at + np.arange(m)] = False
+        part = self.values[:, self.size:self.size + n + m]
+        for i, c in enumerate(self.numbers):
+            part[i, mine] = chunk[c].to_numpy() if c in chunk.columns else np.nan
+            part[i, ~mine] = joined[c].to_numpy() if c in joined.columns else np.nan
+        if self.others:
+            take = np.empty(n + m, dtype=np.int64)
+            take[mine], take[~mine] = np.arange(n), n + np.arange(m)
+            for c, parts in self.others.items():
+                both = pd.concat([(f[c] if c in f.columns else pd.Series(np.full(len(f), np.nan)))
+                                  .reset_index(drop=True) for f in (chunk, joined)], ignore_index=True)
+                parts.append(both.iloc[take].reset_index(drop=True))
+        self.size, self.main = self.size + n + m, self.main + n
+
+    def frame(self):
+        """The block: its rows numbered on from the rows of the blocks before it."""
+        pd = _pandas()
+        out = pd.DataFrame(self.values[:, :self.size].T, columns=self.numbers, copy=False,
+                           index=pd.RangeIndex(self.start, self.start + self.size))
+        for i, c in enumerate(self.columns):
+            if c in self.others:
+                out.insert(i, c, pd.concat(self.others[c], ignore_index=True).array)
+        return out
 
 
 def _as_dates(seconds, like):

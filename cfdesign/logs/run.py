@@ -377,12 +377,12 @@ def _blocks(data, frame, cols, rows, joined=None):
         path = Path(data)
         packed = 10 if _kind(path) in COMPRESSIONS.values() else 1  # a compressed CSV unpacks to several times its size
         if packed * os.path.getsize(path) >= ONE_PASS_BYTES:
-            if joined is not None:
-                return (lambda: joined.blocks(read_log(path, read, chunksize=rows))), None
+            if joined is not None:  # read in eighths of a block, gathered into blocks with the joined rows
+                return (lambda: joined.blocks(read_log(path, read, chunksize=max(rows // 8, 1)), rows)), None
             return (lambda: read_log(path, cols.read, chunksize=rows)), None
         whole = read_log(path, read)
     if joined is not None:
-        whole = _pandas().concat(list(joined.blocks([whole])))
+        whole = _pandas().concat(list(joined.blocks([whole], len(whole))))
     return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
 
 
