@@ -332,8 +332,10 @@ def cmd_run(args) -> int:
     from .logs import INTERNAL, run_log, run_logs
 
     check_distinct({"the gain table": args.table, "-o": args.output, "--plot": args.plot})
-    if args.table == STDIN and "-" in args.data:
-        raise CfdesignError("cfdesign run: the gain table and a log cannot both be standard input ('-')")
+    stdin = ["-" in args.data, args.table == STDIN, STDIN in (args.join or [])]
+    if sum(stdin) > 1 or (args.join or []).count(STDIN) > 1:
+        raise CfdesignError("cfdesign run: standard input ('-') can be one file only (the gain table, a log or a "
+                            "--join file)")
     table = load_gains(args.table)
     logs, fleet = _log_paths(args.data)
     options = {"time": args.time, "time_unit": args.time_unit, "mapping": _pairs(args.map, "--map", "SENSOR=COLUMN"),
@@ -343,6 +345,9 @@ def cmd_run(args) -> int:
     # a folder (named so, or existing) or logs named as a folder or a glob run as a fleet, however many match
     folder = is_dir(args.output) or args.output.endswith(("/", os.sep))
     if fleet or args.workers or args.scheduler or folder:
+        if args.join:
+            raise CfdesignError("--join merges files into one log; several logs (a folder or a glob of logs, "
+                                "--workers or --scheduler) are not joined: run each log with its --join files")
         if args.plot:
             raise CfdesignError("--plot draws one log; run the logs one by one to plot them")
         if not folder and Path(args.output).suffix.lower() in (".csv", ".parquet", ".pq"):
@@ -360,7 +365,7 @@ def cmd_run(args) -> int:
         print(f"wrote {len(rows) - len(failed)} estimate files and {Path(args.output) / 'summary.csv'}"
               + (f" ({noted} log{'s' if noted > 1 else ''} with notes: its notes column)" if noted else ""))
         return 3 if any(r["error"].startswith(INTERNAL) for r in failed) else 2 if failed else 0
-    result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, **options)
+    result = run_log(table, logs[0], output=args.output, plot=args.plot, progress=True, join=args.join, **options)
     for note in result.notes:
         print(f"cfdesign: {note}", file=sys.stderr)
     if result.without_gain:
@@ -610,6 +615,12 @@ def build_parser(argv=None) -> argparse.ArgumentParser:
     p.add_argument("--time-unit", choices=["s", "ms", "us", "ns"],
                    help="unit of a numeric time column, over the one its name gives (default: that one, "
                         "'time [ms]', else s; ns for the %%time of a ROS rostopic echo -p export)")
+    p.add_argument("--join", action="append", metavar="FILE", type=_input,
+                   help="a file of the same log's other sensors (one file per sensor or topic: PX4's ulog2csv, "
+                        "ROS's rostopic echo -p), its rows merged in by time, each file with its own time column and "
+                        "unit (--time-unit: of files whose time's name gives none); only the columns the run uses are "
+                        "taken; read whole, so join the slow sensors to the fast one's log (repeatable; one log, not "
+                        "several)")
     p.add_argument("--map", action="append", metavar="SENSOR=COLUMN", help="the log column of a sensor (repeatable)")
     p.add_argument("--reference", action="append", metavar="[STATE=]COLUMN",
                    help="a true value to compare with: prints the RMS error over all rows and after the filter's "

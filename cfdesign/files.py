@@ -323,6 +323,11 @@ def run_tag(tag: str):
     ----------
     tag : str
         Letters and digits naming the run.
+
+    Yields
+    ------
+    None
+        The block runs with the temporaries it writes named after ``tag``.
     """
     token = _RUN.set(tag)
     try:

@@ -30,6 +30,7 @@ messages that name the field of the design file.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass
@@ -305,7 +306,7 @@ def parse_quantity(text: str) -> Quantity:
     """
     if not isinstance(text, str):
         raise SpecError(f"a figure with a unit is text, got {text!r}")
-    quoted, text = f'"{text}"', text.translate(_PDF)
+    quoted, text = json.dumps(text, ensure_ascii=False), text.translate(_PDF)  # one line: a newline as \n
     if _NOT_FINITE.match(text):
         raise SpecError(f"{quoted}: the number must be finite")
     number = _NUMBER.match(text)

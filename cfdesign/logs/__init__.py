@@ -15,7 +15,8 @@ Reading and writing use pandas (CSV; Parquet through pyarrow), an optional depen
 
 The parts, each looking only at those below it: :mod:`~cfdesign.logs.fleet` (many logs on Dask)
 uses :mod:`~cfdesign.logs.run` (one log: the run block by block, restarts), which uses
-:mod:`~cfdesign.logs.plot`, :mod:`~cfdesign.logs.ticks` (the first pass: rows on ticks, the
+:mod:`~cfdesign.logs.join` (a log in one file per sensor, merged by time), :mod:`~cfdesign.logs.plot`,
+:mod:`~cfdesign.logs.ticks` (the first pass: rows on ticks, the
 schedule locked to the arrivals), :mod:`~cfdesign.logs.read` (CSV, compressed or not, Parquet,
 a pipe), :mod:`~cfdesign.logs.write` (the estimate files) and :mod:`~cfdesign.logs.result`; all
 use :mod:`~cfdesign.logs.columns` (column names, time units, cells to numbers).

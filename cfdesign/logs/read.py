@@ -67,7 +67,9 @@ def time_column(header):
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             lines=None, units=None) -> _Columns:
+             lines=None, units=None, listing=None) -> _Columns:
+    """Which of ``header``'s columns feeds what; ``listing``: the columns a message on a missing one
+    lists (every file's, of a log joined from several: ``cfdesign.logs.join.joined_header``)."""
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
@@ -94,7 +96,7 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
             raise DataError(f"{source}: the header holds numbers ({_listed(header)}), not column names: the log "
                             f"has no header; add a first line naming its columns ("
                             f"{', '.join(['time', *sensors.values()])})")
-        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {_listed(header)}); "
+        raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {listing or _listed(header)}); "
                         + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
                            "the header is one column: cells are separated by commas, semicolons or tabs, or by "
                            "spaces where the first row has as many cells"

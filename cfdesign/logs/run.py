@@ -3,6 +3,8 @@ run block by block (``_Runner``: segments, pauses, restarts)."""
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import itertools
 import math
 import numbers
@@ -15,7 +17,8 @@ from ..errors import CfdesignError, DataError, OutputError
 from ..files import check_distinct, is_dir, not_a_device
 from ..gains import require_table
 from ..linear import wrap
-from .columns import _UNIT_NAMES, TIME_UNITS, _numeric, _pandas, _time_name, _unit
+from .columns import _UNIT_NAMES, TIME_UNITS, _named_unit, _numeric, _pandas, _time_name, _time_unit, _unit
+from .join import _Join, joined_header
 from .plot import plot_log
 from .read import (
     COMPRESSIONS,
@@ -30,6 +33,7 @@ from .read import (
     _tail_note,
     _units_note,
     read_log,
+    time_column,
 )
 from .result import LogResult
 from .ticks import _arrow_types, _first_direct, _lock, _Pass, _startup_ticks, _unique
@@ -43,7 +47,7 @@ ONE_PASS_BYTES = 200_000_000
 
 def run_log(table, data, *, output=None, time=None, mapping=None, reference=None, std=False,
             prediction=False, plot=None, start="reading", block_rows=None, progress=False,
-            source=None, time_unit=None) -> LogResult:
+            source=None, time_unit=None, join=None) -> LogResult:
     """Run a discrete gain table on a timestamped log (module docstring).
 
     Parameters
@@ -85,7 +89,15 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         The unit of a numeric time column (:data:`TIME_UNITS`): ``'ns'`` for the integer
         nanoseconds of a ROS ``rostopic echo -p`` export (``%time``).  Default: the unit the
         column's name gives (``time [ms]``, ``t (us)``), else seconds.  Dates and durations are
-        read as they are.
+        read as they are.  It applies to every file of ``join`` (each file's unit is else its own).
+    join : str, Path or list of them, optional
+        Files of the same log's other sensors (one file per sensor or topic: PX4's ``ulog2csv``,
+        ROS's ``rostopic echo -p``): the log is the union of the rows of ``data`` and of these by
+        time, as ``pandas.concat`` sorted stably by time gives it (on equal times the rows of
+        ``data`` first, then the files in this order).  Each has its own time column (found as
+        ``data``'s, with ``time``) and unit; only the columns the run uses (the sensors', also by
+        ``mapping``, and the references') are taken from them.  They are read whole (the slow
+        sensors); ``data`` streams in blocks as alone.
 
     Returns
     -------
@@ -104,7 +116,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         text or a list of it.
     DataError
         A missing or non-numeric column or bad times (naming the line; a Parquet log's row), a
-        base rate more than 1 % off the table's, an empty log.
+        base rate more than 1 % off the table's, an empty log; of a joined file as well (naming
+        it), a column the run uses in two files, times that do not overlap the log's.
     OutputError
         The output cannot be written; nothing is left half-written.
     """
@@ -118,25 +131,48 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"block_rows must be a positive whole number of rows, got {block_rows!r}")
     block_rows = int(block_rows or BLOCK_ROWS)
     frame, source = _source(data, source, time)
+    join = _join_paths(join)
+    spooled = [p for p in join if _pipe(p)]
+    if spooled:  # a pipe is read more than once (its header, then its rows): into a file first
+        with contextlib.ExitStack() as stack:
+            join = [stack.enter_context(_spooled(p, str(p))) if p in spooled else p for p in join]
+            return run_log(table, data, output=output, time=time, mapping=mapping, reference=reference, std=std,
+                           prediction=prediction, plot=plot, start=start, block_rows=block_rows, progress=progress,
+                           source=source, time_unit=time_unit, join=join)
     if frame is None and not_a_device(data):  # /dev/zero: an endless line
         raise DataError(f"cannot read {source}: {not_a_device(data)}")
     if frame is None and _pipe(data):  # read once into a file: a log is read more than once
         with _spooled(data, source) as path:
             return run_log(table, path, output=output, time=time, mapping=mapping, reference=reference, std=std,
                            prediction=prediction, plot=plot, start=start, block_rows=block_rows, progress=progress,
-                           source=source, time_unit=time_unit)
+                           source=source, time_unit=time_unit, join=join)
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
-    check_distinct({"the log": data if frame is None else None, "the output": output, "the plot": plot})
+    joins = {f"joined file {i + 1}": p for i, p in enumerate(join)}
+    check_distinct({"the log": data if frame is None else None, **joins, "the output": output, "the plot": plot})
     _pandas(output is not None and Path(output).suffix.lower() in (".parquet", ".pq"))  # before the log is read
     if output is not None and Path(output).suffix.lower() == ".zip":
         raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
                           ".csv.bz2, .csv.xz) or Parquet, not a zip archive")
     header = list(frame.columns) if frame is not None else _header(data)
-    cols = _columns(table, header, source, time, mapping, reference, time_unit,
-                    _Lines() if frame is not None else _lines(data), None if frame is not None else _row_units(data))
+    header, used, listing = joined_header(table, header, source, join, time=time, mapping=mapping,
+                                          reference=reference) if join else (header, {}, None)
+    lines = _Lines() if frame is not None else _lines(data)
+    units = None if frame is not None else _row_units(data)
+    # of several files, the option is the unit of those whose time's name gives none (a ROS %time in ns
+    # beside PX4's timestamp in us)
+    named = join and _time_unit(source, None, time_unit) and _named_unit(time or time_column(header), units)
+    cols = _columns(table, header, source, time, mapping, reference, None if named else time_unit, lines, units,
+                    listing)
     _check_output_names(table, cols, std, source)
-    blocks, whole = _blocks(data, frame, cols, block_rows)
+    joined = None
+    if join:
+        if cols.time is None:
+            raise DataError(f"{source}: no time column ('time', 't' or 'timestamp', --time COLUMN): the rows of "
+                            "--join files are placed among the log's by their times")
+        joined = _Join(table, cols, source, lines, join, used, time, time_unit)
+        cols = dataclasses.replace(cols, lines=joined)
+    blocks, whole = _blocks(data, frame, cols, block_rows, joined)
     parquet = output is not None and Path(output).suffix.lower() in (".parquet", ".pq")
     lock, n_rows, types, (grid, rephased, first) = _lock(table, blocks, cols, source, types=parquet and whole is None)
     if n_rows == 0:
@@ -193,6 +229,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if place.early:
         _merge(runner.counts, {"before_start": place.early})
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(cols)
+    notes += joined.notes() if joined is not None else []
     notes += lock.notes + _far_note(far) + [n for n in [runner.start_note(table.sample_time_s),
                                                         runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
@@ -329,18 +366,37 @@ def _time_note(cols) -> list:
                + (f" --time-unit {unit})" if unit not in (None, "s") else ")") if like else " (--time COLUMN)")]
 
 
-def _blocks(data, frame, cols, rows):
+def _blocks(data, frame, cols, rows, joined=None):
     """``(blocks, whole)``: a function giving the log's blocks each time it is called (two passes
-    need two), and the whole log when it is in memory (a DataFrame, or a file read once), else None."""
+    need two), and the whole log when it is in memory (a DataFrame, or a file read once), else None.
+    With ``joined`` (a :class:`~cfdesign.logs.join._Join`), its files' rows merged in by time."""
+    read = [c for c in cols.read if joined is None or c not in joined.columns]
     if frame is not None:
-        whole = frame
+        whole = frame if joined is None else frame[read]
     else:
         path = Path(data)
         packed = 10 if _kind(path) in COMPRESSIONS.values() else 1  # a compressed CSV unpacks to several times its size
         if packed * os.path.getsize(path) >= ONE_PASS_BYTES:
+            if joined is not None:  # read in eighths of a block, gathered into blocks with the joined rows
+                return (lambda: joined.blocks(read_log(path, read, chunksize=max(rows // 8, 1)), rows)), None
             return (lambda: read_log(path, cols.read, chunksize=rows)), None
-        whole = read_log(path, cols.read)
+        whole = read_log(path, read)
+    if joined is not None:
+        whole = _pandas().concat(list(joined.blocks([whole], len(whole))))
     return (lambda: (whole.iloc[i:i + rows] for i in range(0, max(len(whole), 1), rows))), whole
+
+
+def _join_paths(join) -> list:
+    """The files of ``run_log``'s ``join`` as a list."""
+    if join is None:
+        return []
+    items = [join] if isinstance(join, (str, os.PathLike)) else join
+    if not isinstance(items, (list, tuple)) or not all(isinstance(p, (str, os.PathLike)) for p in items):
+        raise CfdesignError(f"join must be a file or a list of files (str or Path), got {join!r:.80}")
+    for p in items:
+        if not_a_device(p):
+            raise DataError(f"cannot read {p}: {not_a_device(p)}")
+    return list(items)
 
 
 def _check_output_names(table, cols, std, source):

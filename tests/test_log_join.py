@@ -1,0 +1,165 @@
+"""A log kept as one file per sensor (``--join``, ``run_log(join=...)``): the estimates are those
+of the files merged with pandas first, each joined file checked as a log is, naming it."""
+
+import gzip
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from cfdesign.linear import wrap
+from cfdesign.logs import run_log
+
+
+def heading_files(n=1500, seed=4):
+    """A turning robot: a 100 Hz gyro file (``time`` in s, a reference and a text column), a 10 Hz
+    odometry file with its own stamps (``t``, 3 ms after the gyro's rows it follows) and a 1 Hz
+    compass file stamped at the time of gyro rows (equal times: the gyro's row first)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01 + 0.0005 * rng.standard_normal(n)
+    psi = 2.0 + 3.0 * np.sin(0.2 * t) + 0.3 * t
+    imu = pd.DataFrame({"time": t, "gyro": np.gradient(psi, t) + 0.01 * rng.standard_normal(n),
+                        "truth": wrap(psi), "lap": np.arange(n) // 100,
+                        "tag": np.where(np.arange(n) < 300, None, "a")})  # text from row 300 on
+    k = np.arange(3, n, 10)
+    odo = pd.DataFrame({"t": t[k] + 0.003, "odometry": wrap(psi[k] + 0.005 * rng.standard_normal(k.size)),
+                        "device_id": 7})
+    c = np.arange(37, n, 100)
+    com = pd.DataFrame({"time": t[c], "compass": wrap(psi[c] + 0.05 * rng.standard_normal(c.size))})
+    return imu, odo, com
+
+
+def pre_merged(main, others, time="time"):
+    """The files merged as a user would with pandas: the columns the run uses, concatenated and
+    sorted stably by time."""
+    return pd.concat([main, *others], ignore_index=True).sort_values(time, kind="stable", ignore_index=True)
+
+
+def test_joined_files_give_the_estimates_of_the_pre_merged_log(heading, tmp_path, cli, monkeypatch):
+    """Through the CLI, odometry and compass in files of their own (the compass a spreadsheet's
+    export: BOM, CRLF) give the pre-merged log's estimates to the last bit, with one row per row of
+    the union, the main file's columns passed through; also read in blocks (a big log) of 700 rows,
+    a column of text empty in the first ones."""
+    imu, odo, com = heading_files()
+    imu.to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    (tmp_path / "com.csv").write_bytes(b"\xef\xbb\xbf" + com.to_csv(index=False, lineterminator="\r\n").encode())
+    merged = pre_merged(imu, [odo.drop(columns="device_id").rename(columns={"t": "time"}), com])
+    expected = run_log(heading, merged, reference="truth", std=True).estimates
+    table = heading.save(tmp_path / "g.json")
+    code, out, err = cli("run", table, tmp_path / "imu.csv", "--join", tmp_path / "odo.csv", "--join",
+                         tmp_path / "com.csv", "--reference", "truth", "--std", "-o", tmp_path / "est.csv")
+    assert code == 0, err
+    est = pd.read_csv(tmp_path / "est.csv")
+    assert list(est.columns) == ["time", "heading", "gyro_correction", "heading_std", "gyro_correction_std",
+                                 "truth", "lap", "tag"]  # device_id of the odometry file is not taken
+    assert len(est) == len(imu) + len(odo) + len(com)
+    for c in ("heading", "gyro_correction", "heading_std"):
+        np.testing.assert_array_equal(est[c].to_numpy(), expected[c].to_numpy())
+    np.testing.assert_array_equal(est["time"].to_numpy(), merged["time"].to_numpy())
+    assert "compass 37 ticks, odometry 3 ticks" in err and "RMS error of heading" in out
+    monkeypatch.setattr("cfdesign.logs.run.ONE_PASS_BYTES", 0)  # the main file streamed in blocks
+    blocks = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"],
+                     block_rows=700, reference="truth").estimates
+    # to rounding: a log's blocks split the batch run (the pre-merged log's blocks of 700 rows differ by 1e-14 too)
+    np.testing.assert_allclose(blocks["heading"].to_numpy(), expected["heading"].to_numpy(), rtol=0, atol=1e-12)
+    assert blocks["tag"].fillna("").tolist() == merged["tag"].fillna("").tolist()
+
+
+def test_a_ros_file_in_nanoseconds_beside_a_px4_file_in_microseconds(heading, tmp_path):
+    """PX4's ``sensor_combined.csv`` (``timestamp`` in us, ``--time-unit us``; the gyro as
+    ``gyro_rad[2]``) joined with ROS ``rostopic echo -p`` files (``%time`` in ns, on the same clock):
+    each file's unit is its own, and the estimates are the pre-merged log's to the last bit."""
+    imu, odo, com = heading_files(n=1200, seed=5)
+    start = 1_700_000_000_000_000  # us since 1970
+    px4 = pd.DataFrame({"timestamp": start + np.round(imu["time"] * 1e6).astype(np.int64),
+                        "gyro_rad[2]": imu["gyro"], "device_id": 3})
+    ros = [pd.DataFrame({"%time": start * 1000 + np.round(f[c] * 1e9).astype(np.int64), "field.data": f[s]})
+           for f, c, s in ((odo, "t", "odometry"), (com, "time", "compass"))]
+    px4.to_csv(tmp_path / "sensor_combined.csv", index=False)
+    for name, f in zip(("odometry.csv", "compass.csv"), ros, strict=True):
+        f.rename(columns={"field.data": name[:-4]}).to_csv(tmp_path / name, index=False)
+    merged = pre_merged(px4.drop(columns="device_id").rename(columns={"gyro_rad[2]": "gyro"}),
+                        [pd.DataFrame({"timestamp": f["%time"] / 1000, s: f["field.data"]})
+                         for f, s in zip(ros, ("odometry", "compass"), strict=True)], "timestamp")
+    expected = run_log(heading, merged, time_unit="us").estimates
+    got = run_log(heading, tmp_path / "sensor_combined.csv", join=[tmp_path / "odometry.csv", tmp_path / "compass.csv"],
+                  mapping={"gyro": "gyro_rad[2]"}, time_unit="us").estimates
+    np.testing.assert_array_equal(got["heading"].to_numpy(), expected["heading"].to_numpy())
+    np.testing.assert_array_equal(got["timestamp"].to_numpy(), merged["timestamp"].to_numpy())
+    assert list(got.columns) == ["timestamp", "heading", "gyro_correction", "device_id"]
+
+
+def test_a_gzip_log_joined_with_a_parquet_file(heading, tmp_path):
+    """The main file gzip-compressed, the compass in Parquet: the estimates file is the one of the
+    pre-merged log, cell for cell."""
+    pytest.importorskip("pyarrow")
+    imu, odo, com = heading_files(n=800, seed=6)
+    main = imu.assign(odometry=np.nan)
+    for k, row in zip(np.searchsorted(imu["time"], odo["t"]) - 1, odo.itertuples(), strict=True):
+        main.loc[k, "odometry"] = row.odometry  # the odometry in the main file, the compass joined
+    with gzip.open(tmp_path / "imu.csv.gz", "wt") as fh:
+        main.to_csv(fh, index=False)
+    com.to_parquet(tmp_path / "compass.parquet", index=False)
+    pre_merged(main, [com]).to_csv(tmp_path / "merged.csv", index=False)
+    run_log(heading, tmp_path / "merged.csv", output=tmp_path / "expected.csv", reference="truth")
+    run_log(heading, tmp_path / "imu.csv.gz", join=tmp_path / "compass.parquet", output=tmp_path / "est.csv",
+            reference="truth")
+    assert (tmp_path / "est.csv").read_text() == (tmp_path / "expected.csv").read_text()
+
+
+def _refusals(imu, odo, com):
+    """``{case: (files {name: text}, more logs, the output, message)}``: each a one-line refusal naming the file."""
+    com_csv = com.to_csv(index=False)
+    lines = com_csv.splitlines(keepends=True)
+    return {
+        "a column in two files": ({"imu.csv": imu.assign(compass=1.0).to_csv(index=False)}, [], "est.csv",
+                                  "column 'compass' is in both imu.csv and com.csv"),
+        "a sensor in no file": ({"com.csv": com.rename(columns={"compass": "mag"}).to_csv(index=False)}, [],
+                                "est.csv",
+                                r"missing column\(s\) compass \(columns: .*imu.csv: time, gyro.*com.csv: time, mag"),
+        "clocks that differ": ({"com.csv": com.assign(time=com["time"] + 1e9).to_csv(index=False)}, [], "est.csv",
+                               r"com.csv: its times \(1000000000 s to .* do not overlap those of imu.csv "
+                               r"\(.* s to .* s\): the files' clocks"),
+        "a garbage cell": ({"com.csv": com_csv.replace(lines[3].split(",")[1], "#DIV/0!\n", 1)}, [], "est.csv",
+                           r"com.csv line 4: column 'compass' is not a number: '#DIV/0!' \(a spreadsheet's error"),
+        "a garbage cell of the main file, after joined rows": (
+            {"imu.csv": imu.astype({"gyro": object}).assign(gyro=lambda f: f["gyro"].where(f.index != 300, "x"))
+             .to_csv(index=False)}, [], "est.csv",
+            r"^cfdesign: error: imu.csv line 302: column 'gyro' is not a number"),
+        "an empty file": ({"com.csv": ""}, [], "est.csv", r"com.csv: empty file"),
+        "a header only": ({"com.csv": lines[0]}, [], "est.csv", r"com.csv: the joined file has a header but no rows"),
+        "times that go back": ({"com.csv": "".join([lines[0], lines[2], lines[1], *lines[3:]])}, [], "est.csv",
+                               r"com.csv line 3: time .* goes back from"),
+        "a reading twice at one time": ({"com.csv": "".join([*lines[:3], lines[2], *lines[3:]])}, [], "est.csv",
+                                        r"com.csv line 4: time .* repeats"),
+        "a file the run takes nothing from": ({"imu.csv": imu.assign(compass=1.0).to_csv(index=False),
+                                               "com.csv": com.rename(columns={"compass": "mag"}).to_csv(index=False)},
+                                              [], "est.csv", r"^cfdesign: error: com.csv: none of its columns "
+                                              r"\(time, mag\) is one the run uses"),
+        "no time column": ({"com.csv": com.rename(columns={"time": "when"}).to_csv(index=False)}, [], "est.csv",
+                           r"com.csv: no time column"),
+        "several logs": ({"imu2.csv": imu.to_csv(index=False)}, ["imu2.csv"], "out/",
+                         "--join merges files into one log"),
+        "the output joined": ({}, [], "odo.csv", "the output odo.csv is joined file 1"),
+    }
+
+
+@pytest.mark.parametrize("case", list(_refusals(*heading_files(n=300))))
+
+def test_bad_joined_files_are_refused_on_one_line_naming_the_file(case, heading, tmp_path, cli, monkeypatch):
+    imu, odo, com = heading_files(n=400)
+    odo = odo.rename(columns={"t": "time"}).drop(columns="device_id")
+    files, logs, output, message = _refusals(imu[["time", "gyro"]], odo, com)[case]
+    monkeypatch.chdir(tmp_path)
+    heading.save(tmp_path / "g.json")
+    written = {"imu.csv": imu[["time", "gyro"]].to_csv(index=False), "odo.csv": odo.to_csv(index=False),
+               "com.csv": com.to_csv(index=False), **files}
+    for name, text in written.items():
+        (tmp_path / name).write_text(text)
+    code, _, err = cli("run", "g.json", "imu.csv", *logs, "--join", "odo.csv", "--join", "com.csv", "-o", output)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert re.search(message, err), err
+    assert not (tmp_path / "est.csv").exists() and not (tmp_path / "out").exists()
+    assert (tmp_path / "odo.csv").read_text() == written["odo.csv"]
