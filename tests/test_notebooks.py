@@ -1,4 +1,9 @@
-"""Every notebook in notebooks/ runs top to bottom without a failing cell."""
+"""Every notebook in notebooks/ runs top to bottom without a failing cell.
+
+``python -m pytest -m notebooks`` runs it: the default run leaves it out (35 s of CPU, a sixth of
+the suite, which must stay under three minutes on two cores with its installation), as the
+documentation build of ``.ci/run`` executes every notebook and fails on a failing cell.
+"""
 
 from pathlib import Path
 
@@ -17,6 +22,7 @@ del _os, _plt
 """
 
 
+@pytest.mark.notebooks
 def test_every_notebook_runs(tmp_path, monkeypatch):
     """One kernel runs the notebooks one after the other, each from a reset namespace in a folder of
     its own: a kernel of its own cost each notebook 2-3 s of start-up and imports (numpy, matplotlib,
