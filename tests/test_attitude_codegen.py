@@ -212,6 +212,8 @@ EXTREMES = [np.nan, np.inf, -np.inf, 0.0, 1e308, -1e308, 1e200, 1e-320, 5e-324, 
 
 
 @needs_cc
+# readings at every extreme look like g and deg/s: the filter says so, as it should, and runs on
+@pytest.mark.filterwarnings("ignore::UserWarning")
 @pytest.mark.parametrize(("rate", "magnetometer"), [(1e-3, True), (1e6, False)])
 def test_c_agrees_with_python_on_readings_at_every_extreme(tmp_path, rate, magnetometer):
     """Readings at and around every limit (the ranges 100 rad/s and 1000 m/s^2, squares that

@@ -169,6 +169,9 @@ def test_c_agrees_with_python_with_an_accelerometer_at_a_lower_rate(tmp_path):
 
 
 # ---------------------------------------------------------------------- rates
+# imu() draws a per-sample std fixed for 100 Hz: at 25 Hz that is 3 times the density the filter
+# assumes, which it rightly notes; the test is of the tracking
+@pytest.mark.filterwarnings("ignore:gyr. at rest the gyro is about:UserWarning")
 @pytest.mark.parametrize("rate", [25.0, 50.0, 400.0, 1000.0])
 def test_the_same_motion_at_any_sample_rate_is_tracked_alike(rate):
     """Tables, thresholds and start-up derive from the densities per sample: at 25 to 1000 Hz the
