@@ -163,3 +163,44 @@ def test_bad_joined_files_are_refused_on_one_line_naming_the_file(case, heading,
     assert re.search(message, err), err
     assert not (tmp_path / "est.csv").exists() and not (tmp_path / "out").exists()
     assert (tmp_path / "odo.csv").read_text() == written["odo.csv"]
+
+
+def px4_files(tmp_path, seed=8):
+    """PX4 ``ulog2csv`` topics of a turning robot: ``sensor_combined.csv`` (the gyro as ``gyro_rad[2]``,
+    its ``timestamp`` in microseconds since boot jittered by +-0.2 tick, as a logger stamps them;
+    the 10 Hz odometry, and a 1 Hz ``vehicle_magnetometer.csv`` (``compass``), each with its own ``timestamp``."""
+    imu, odo, com = heading_files(n=1000, seed=seed)
+    rng = np.random.default_rng(seed)
+    boot = 23_456_789 + np.round((np.arange(len(imu)) + rng.uniform(-0.2, 0.2, len(imu))) * 10_000)
+    odometry = np.full(len(imu), np.nan)
+    odometry[np.arange(3, len(imu), 10)] = odo["odometry"]
+    pd.DataFrame({"timestamp": boot.astype(np.int64), "gyro_rad[2]": imu["gyro"], "odometry": odometry}).to_csv(
+        tmp_path / "sensor_combined.csv", index=False)
+    rows = np.searchsorted(imu["time"], com["time"])
+    pd.DataFrame({"timestamp": boot[rows].astype(np.int64) + 1_300, "compass": com["compass"]}).to_csv(
+        tmp_path / "vehicle_magnetometer.csv", index=False)
+
+
+@pytest.mark.parametrize("given, named", [
+    ((), "times in microseconds? They are read as seconds unless --time-unit us is given"),
+    (("--time-unit", "ms"), "(times in microseconds? they are read as milliseconds: give --time-unit us)"),
+    (("--time-unit", "ns"), "(times in microseconds? they are read as nanoseconds: give --time-unit us)")])
+def test_px4_microseconds_read_in_another_unit_name_us(given, named, heading, tmp_path, cli):
+    """PX4's jittered ``timestamp`` in microseconds read as seconds, milliseconds or nanoseconds: the
+    one-line error names microseconds and ``--time-unit us``, for the main file and for a joined
+    one (read as seconds, a step of 1.14 ticks had been called a gap to split the log at; with
+    ``--time-unit ms`` given, the message had named milliseconds, the unit given)."""
+    px4_files(tmp_path)
+    table = heading.save(tmp_path / "g.json")
+    run = ("run", table, tmp_path / "sensor_combined.csv", "--join", tmp_path / "vehicle_magnetometer.csv",
+           "--map", "gyro=gyro_rad[2]", "-o", tmp_path / "e.csv")
+    code, _, err = cli(*run, *given)
+    assert code == 2 and named in err and err.count("\n") == 1, err
+    code, _, err = cli(*run, "--time-unit", "us")
+    assert code == 0, err
+    if not given:  # the joined file alone in another unit: the main file's time named in microseconds
+        main = pd.read_csv(tmp_path / "sensor_combined.csv").rename(columns={"timestamp": "timestamp_us"})
+        main.to_csv(tmp_path / "sensor_combined.csv", index=False)
+        code, _, err = cli(*run)
+        assert code == 2 and err.startswith("cfdesign: error: " + str(tmp_path / "vehicle_magnetometer.csv"))
+        assert named in err, err

@@ -119,6 +119,7 @@ class _File:
         self.number = _is_number(frame[self.time])
         self.seconds = self.raw * self.scale if self.number else self.raw
         place(self.seconds, table.sample_time_s, source=str(path), rate=False, where=self.lines.at,
+              time_scale=self.scale if self.number else 1.0,
               readings={c: ~np.isnan(v) for c, v in self.values.items()})
 
     def keys(self, number, scale):
