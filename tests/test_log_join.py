@@ -204,3 +204,34 @@ def test_px4_microseconds_read_in_another_unit_name_us(given, named, heading, tm
         code, _, err = cli(*run)
         assert code == 2 and err.startswith("cfdesign: error: " + str(tmp_path / "vehicle_magnetometer.csv"))
         assert named in err, err
+
+
+def test_a_reference_in_a_joined_file_is_drawn(heading, tmp_path):
+    """``--reference`` from a file of its own (PX4's ``vehicle_attitude.csv``): on the rows of the
+    union it is a number on every other row, and the plot draws it and its error as lines through
+    those rows (drawn row by row, the NaN between them had left both panels empty)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cfdesign.logs.plot import plot_log
+
+    imu, odo, com = heading_files(n=600, seed=9)
+    imu.drop(columns="truth").to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.to_csv(tmp_path / "com.csv", index=False)
+    att = pd.DataFrame({"time": imu["time"] + 0.004, "truth": imu["truth"]})  # stamped apart from the gyro's
+    att.to_csv(tmp_path / "att.csv", index=False)
+    est = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / f for f in ("odo.csv", "com.csv", "att.csv")],
+                  reference="truth", std=True).estimates
+    assert est["heading_reference"].notna().sum() == len(att) < len(est)
+    fig = plot_log(heading, est, {"heading": "truth"}, "time")
+    lines = {ln.get_label(): ln.get_ydata() for ax in fig.axes for ln in ax.get_lines()}
+    plt.close(fig)
+    for label in ("reference", "error"):
+        y = np.asarray(lines[label], dtype=float)
+        segments = np.isfinite(y[1:]) & np.isfinite(y[:-1])  # what a line draws: finite neighbours
+        assert segments.sum() >= len(att) - 5, label  # a few breaks at the heading's +-pi wraps
+    ref = np.asarray(lines["reference"], dtype=float)
+    np.testing.assert_array_equal(ref[np.isfinite(ref)], att["truth"].to_numpy()[np.isfinite(ref)])
