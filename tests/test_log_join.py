@@ -235,3 +235,27 @@ def test_a_reference_in_a_joined_file_is_drawn(heading, tmp_path):
         assert segments.sum() >= len(att) - 5, label  # a few breaks at the heading's +-pi wraps
     ref = np.asarray(lines["reference"], dtype=float)
     np.testing.assert_array_equal(ref[np.isfinite(ref)], att["truth"].to_numpy()[np.isfinite(ref)])
+
+
+def test_integer_times_are_written_whole(heading, tmp_path):
+    """ROS ``rostopic echo -p`` files joined (``%time``: integer nanoseconds since 1970, to the
+    nanosecond): the union's ``%time`` is written as the files had it, as ``pandas.concat`` keeps it,
+    not as floats (1.700000000000662e+18, up to 128 ns off); PX4 files in microseconds the same
+    (``23457451``, not ``23457451.0``)."""
+    imu, odo, com = heading_files(n=600, seed=10)
+    start = 1_700_000_000_000_000_017  # ns since 1970, not a multiple of a float's step there (256 ns)
+    files = [pd.DataFrame({"%time": start + np.round(f[c] * 1e9).astype(np.int64) + odd, s: f[s]})
+             for f, c, s, odd in ((imu, "time", "gyro", 0), (odo, "t", "odometry", 3), (com, "time", "compass", 5))]
+    for name, f in zip(("imu", "odo", "com"), files, strict=True):
+        f.to_csv(tmp_path / f"{name}.csv", index=False)
+    run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"],
+            output=tmp_path / "est.csv")
+    merged = pre_merged(files[0], files[1:], "%time")
+    est = pd.read_csv(tmp_path / "est.csv")
+    assert est["%time"].dtype == np.int64
+    np.testing.assert_array_equal(est["%time"].to_numpy(), merged["%time"].to_numpy())
+    px4_files(tmp_path)
+    run_log(heading, tmp_path / "sensor_combined.csv", join=tmp_path / "vehicle_magnetometer.csv",
+            mapping={"gyro": "gyro_rad[2]"}, time_unit="us", output=tmp_path / "px4.csv")
+    times = [line.split(",")[0] for line in (tmp_path / "px4.csv").read_text().splitlines()[1:]]
+    assert all(re.fullmatch(r"\d+", t) for t in times), times[:3]
