@@ -319,7 +319,7 @@ def _written_to(t):
 
 
 def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: int = 2, rate: bool = True,
-          readings=None, where=None):
+          readings=None, where=None, time_scale: float = 1.0):
     """Base ticks of the rows of a log: ``round((t - t0) / dt)``.
 
     Parameters
@@ -347,6 +347,9 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
         ``where(i)``: where row ``i`` is, for a message: ``'line N'`` where the rows are not one a
         line (a CSV with blank lines between them), ``'row N'`` in a Parquet log, which has no
         lines (``cfdesign.logs.read._Lines.at``); default ``line first_line + i``.
+    time_scale : float
+        Seconds per unit of the times as the log wrote them (``1e-6`` for ``--time-unit us``): the
+        message of a gap or a rate that another unit explains names that unit's ``--time-unit``.
 
     Returns
     -------
@@ -393,16 +396,18 @@ def place(time, dt: float, *, base_rows=None, source: str = "log", first_line: i
     gap = np.flatnonzero(d > MAX_GAP_TICKS * dt)
     if gap.size:
         i = gap[0] + 1
-        step = float(d[gap[0]])  # one to ten ticks in micro- or nanoseconds (ROS's %time), not a gap
-        unit = next((f"times in {name}? They are read as seconds unless --time-unit {short} is given"
-                     for name, short, scale in _TIME_UNITS[1:]
-                     if 1 <= round(step / (dt * scale)) <= 10 and abs(step / (dt * scale) % 1 - 0.5) >= 0.45),
-                    "are the times in seconds? Split the log at the gap")
+        step = float(d[gap[0]])
+        # the log's usual step half a tick to 10,000 ticks in a finer unit (PX4's microseconds, ROS's
+        # %time), not a gap: the median step, as a jittered step (1.14 ticks of a 200 Hz PX4 log) and a
+        # slow sensor's file (a 1 Hz compass: 100 ticks) had missed the hint asking for one to ten
+        usual = float(np.median(d[d > 0]))
+        unit = _unit_hint(usual, dt, time_scale, lambda ticks: 0.5 <= ticks <= 10_000) or (
+            "are the times in seconds? Split the log at the gap")
         raise DataError(f"{source} {where(i)}: time {float(t[i])!r} is {step:.6g} s after the "
                         f"{_noun(where, i)} before, a gap of more than {MAX_GAP_TICKS} ticks of {dt:g} s (the filter "
                         f"runs every tick): {unit}")
     if rate:
-        check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source)
+        check_rate(t if base_rows is None else t[np.asarray(base_rows, dtype=bool)], dt, source, time_scale)
     return nearest_tick((t - t[0]) / dt).astype(np.int64)
 
 
@@ -510,7 +515,7 @@ def _tick_spacing(t):
     return spacing
 
 
-def check_rate(t, dt, source):
+def check_rate(t, dt, source, time_scale=1.0):
     """The base spacing of the times ``t`` is ``dt`` within :data:`RATE_RTOL` (DataError naming both rates).
 
     Where the rows of the longest stretch between pauses (:data:`PAUSE_TICKS`) lie one a tick on a grid (that of
@@ -543,6 +548,9 @@ def check_rate(t, dt, source):
         The table's base tick (s).
     source : str
         Name of the log, for the message.
+    time_scale : float
+        Seconds per unit of the times as the log wrote them: a rate that another unit explains
+        names that unit's ``--time-unit`` (microseconds read as milliseconds name ``us``).
 
     Raises
     ------
@@ -579,14 +587,46 @@ def check_rate(t, dt, source):
                             + f", and the table runs at {1.0 / dt:.6g} Hz: the rate cannot be told from the times "
                             "(time-stamp jitter of a third of a tick or more with rows missing blurs one tick into "
                             "two); stamp the rows with the sensor's sample time, or log every row")
-        unit = next((f" (times in {name}? they are read as seconds unless --time-unit {short} is given)"
-                     for name, short, scale in _TIME_UNITS if abs(spacing / (dt * scale) - 1) <= RATE_RTOL), "")
+        unit = _unit_hint(spacing, dt, time_scale, lambda ticks: abs(ticks - 1) <= RATE_RTOL)
+        unit = f" ({unit.replace('? They', '? they')})" if unit else ""
         raise DataError(f"{source}: the log's base rate is {1.0 / spacing:.6g} Hz (mean spacing {spacing:.6g} s) "
                         f"but the table runs at {1.0 / dt:.6g} Hz; a gain table is designed for one rate{unit}")
 
 
 #: time units a log may have written instead of seconds, named in the message of a rate that is off by their scale
 _TIME_UNITS = (("milliseconds", "ms", 1e3), ("microseconds", "us", 1e6), ("nanoseconds", "ns", 1e9))
+
+
+def _unit_hint(step: float, dt: float, time_scale: float, fits) -> str | None:
+    """The sentence naming the time unit a log's times are likely in, or None.
+
+    Parameters
+    ----------
+    step : float
+        The log's step as read (s).
+    dt : float
+        The table's base tick (s).
+    time_scale : float
+        Seconds per unit of the times as they were read (1e-6 for ``--time-unit us``).
+    fits : callable
+        ``fits(ticks)``: whether the step, were the times in another unit, is the log's step in
+        ticks of ``dt``.
+
+    Returns
+    -------
+    str or None
+        ``'times in microseconds? ...'`` with the ``--time-unit`` that reads them, for the finest
+        unit other than the one read whose step fits; None when none does.
+    """
+    units = (*((name, short, 1.0 / per) for name, short, per in reversed(_TIME_UNITS)), ("seconds", "s", 1.0))
+    read = next((u for u in units if abs(u[2] / time_scale - 1) < 1e-9), None)
+    for name, short, seconds in units:
+        if (read is not None and short == read[1]) or not fits(step * seconds / time_scale / dt):
+            continue
+        if time_scale == 1.0:
+            return f"times in {name}? They are read as seconds unless --time-unit {short} is given"
+        return f"times in {name}? They are read as {read[0] if read else 'another unit'}: give --time-unit {short}"
+    return None
 
 
 @dataclass(frozen=True)

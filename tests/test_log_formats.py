@@ -340,3 +340,15 @@ def test_a_ros_export_runs_on_its_nanosecond_time_without_options(heading, refer
     got = run_log(heading, ros).estimates
     assert np.allclose(got["heading"], expected, rtol=0, atol=1e-9) and got["%time"].tolist() == ns.tolist()
 
+
+
+def test_a_time_named_in_camel_case_with_its_unit_gets_both_options(heading, reference):
+    """ArduPilot's ``TimeUS`` (microseconds since boot) is no time column by its name: the note names
+    ``--time TimeUS --time-unit us``, which run it (it named ``--time TimeUS`` alone, which read
+    microseconds as seconds and stopped)."""
+    log, expected = reference
+    us = log.rename(columns={"time": "TimeUS"}).assign(TimeUS=23_456_789 + np.arange(len(log)) * 10_000)
+    notes = run_log(heading, us).notes
+    assert any("column 'TimeUS' looks like a time: --time TimeUS --time-unit us)" in n for n in notes), notes
+    got = run_log(heading, us, time="TimeUS", time_unit="us").estimates["heading"]
+    assert np.allclose(got, expected, rtol=0, atol=1e-12)

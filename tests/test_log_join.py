@@ -163,3 +163,99 @@ def test_bad_joined_files_are_refused_on_one_line_naming_the_file(case, heading,
     assert re.search(message, err), err
     assert not (tmp_path / "est.csv").exists() and not (tmp_path / "out").exists()
     assert (tmp_path / "odo.csv").read_text() == written["odo.csv"]
+
+
+def px4_files(tmp_path, seed=8):
+    """PX4 ``ulog2csv`` topics of a turning robot: ``sensor_combined.csv`` (the gyro as ``gyro_rad[2]``,
+    its ``timestamp`` in microseconds since boot jittered by +-0.2 tick, as a logger stamps them;
+    the 10 Hz odometry, and a 1 Hz ``vehicle_magnetometer.csv`` (``compass``), each with its own ``timestamp``."""
+    imu, odo, com = heading_files(n=1000, seed=seed)
+    rng = np.random.default_rng(seed)
+    boot = 23_456_789 + np.round((np.arange(len(imu)) + rng.uniform(-0.2, 0.2, len(imu))) * 10_000)
+    odometry = np.full(len(imu), np.nan)
+    odometry[np.arange(3, len(imu), 10)] = odo["odometry"]
+    pd.DataFrame({"timestamp": boot.astype(np.int64), "gyro_rad[2]": imu["gyro"], "odometry": odometry}).to_csv(
+        tmp_path / "sensor_combined.csv", index=False)
+    rows = np.searchsorted(imu["time"], com["time"])
+    pd.DataFrame({"timestamp": boot[rows].astype(np.int64) + 1_300, "compass": com["compass"]}).to_csv(
+        tmp_path / "vehicle_magnetometer.csv", index=False)
+
+
+@pytest.mark.parametrize("given, named", [
+    ((), "times in microseconds? They are read as seconds unless --time-unit us is given"),
+    (("--time-unit", "ms"), "(times in microseconds? they are read as milliseconds: give --time-unit us)"),
+    (("--time-unit", "ns"), "(times in microseconds? they are read as nanoseconds: give --time-unit us)")])
+def test_px4_microseconds_read_in_another_unit_name_us(given, named, heading, tmp_path, cli):
+    """PX4's jittered ``timestamp`` in microseconds read as seconds, milliseconds or nanoseconds: the
+    one-line error names microseconds and ``--time-unit us``, for the main file and for a joined
+    one (read as seconds, a step of 1.14 ticks had been called a gap to split the log at; with
+    ``--time-unit ms`` given, the message had named milliseconds, the unit given)."""
+    px4_files(tmp_path)
+    table = heading.save(tmp_path / "g.json")
+    run = ("run", table, tmp_path / "sensor_combined.csv", "--join", tmp_path / "vehicle_magnetometer.csv",
+           "--map", "gyro=gyro_rad[2]", "-o", tmp_path / "e.csv")
+    code, _, err = cli(*run, *given)
+    assert code == 2 and named in err and err.count("\n") == 1, err
+    code, _, err = cli(*run, "--time-unit", "us")
+    assert code == 0, err
+    if not given:  # the joined file alone in another unit: the main file's time named in microseconds
+        main = pd.read_csv(tmp_path / "sensor_combined.csv").rename(columns={"timestamp": "timestamp_us"})
+        main.to_csv(tmp_path / "sensor_combined.csv", index=False)
+        code, _, err = cli(*run)
+        assert code == 2 and err.startswith("cfdesign: error: " + str(tmp_path / "vehicle_magnetometer.csv"))
+        assert named in err, err
+
+
+def test_a_reference_in_a_joined_file_is_drawn(heading, tmp_path):
+    """``--reference`` from a file of its own (PX4's ``vehicle_attitude.csv``): on the rows of the
+    union it is a number on every other row, and the plot draws it and its error as lines through
+    those rows (drawn row by row, the NaN between them had left both panels empty)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from cfdesign.logs.plot import plot_log
+
+    imu, odo, com = heading_files(n=600, seed=9)
+    imu.drop(columns="truth").to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.to_csv(tmp_path / "com.csv", index=False)
+    att = pd.DataFrame({"time": imu["time"] + 0.004, "truth": imu["truth"]})  # stamped apart from the gyro's
+    att.to_csv(tmp_path / "att.csv", index=False)
+    est = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / f for f in ("odo.csv", "com.csv", "att.csv")],
+                  reference="truth", std=True).estimates
+    assert est["heading_reference"].notna().sum() == len(att) < len(est)
+    fig = plot_log(heading, est, {"heading": "truth"}, "time")
+    lines = {ln.get_label(): ln.get_ydata() for ax in fig.axes for ln in ax.get_lines()}
+    plt.close(fig)
+    for label in ("reference", "error"):
+        y = np.asarray(lines[label], dtype=float)
+        segments = np.isfinite(y[1:]) & np.isfinite(y[:-1])  # what a line draws: finite neighbours
+        assert segments.sum() >= len(att) - 5, label  # a few breaks at the heading's +-pi wraps
+    ref = np.asarray(lines["reference"], dtype=float)
+    np.testing.assert_array_equal(ref[np.isfinite(ref)], att["truth"].to_numpy()[np.isfinite(ref)])
+
+
+def test_integer_times_are_written_whole(heading, tmp_path):
+    """ROS ``rostopic echo -p`` files joined (``%time``: integer nanoseconds since 1970, to the
+    nanosecond): the union's ``%time`` is written as the files had it, as ``pandas.concat`` keeps it,
+    not as floats (1.700000000000662e+18, up to 128 ns off); PX4 files in microseconds the same
+    (``23457451``, not ``23457451.0``)."""
+    imu, odo, com = heading_files(n=600, seed=10)
+    start = 1_700_000_000_000_000_017  # ns since 1970, not a multiple of a float's step there (256 ns)
+    files = [pd.DataFrame({"%time": start + np.round(f[c] * 1e9).astype(np.int64) + odd, s: f[s]})
+             for f, c, s, odd in ((imu, "time", "gyro", 0), (odo, "t", "odometry", 3), (com, "time", "compass", 5))]
+    for name, f in zip(("imu", "odo", "com"), files, strict=True):
+        f.to_csv(tmp_path / f"{name}.csv", index=False)
+    run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"],
+            output=tmp_path / "est.csv")
+    merged = pre_merged(files[0], files[1:], "%time")
+    est = pd.read_csv(tmp_path / "est.csv")
+    assert est["%time"].dtype == np.int64
+    np.testing.assert_array_equal(est["%time"].to_numpy(), merged["%time"].to_numpy())
+    px4_files(tmp_path)
+    run_log(heading, tmp_path / "sensor_combined.csv", join=tmp_path / "vehicle_magnetometer.csv",
+            mapping={"gyro": "gyro_rad[2]"}, time_unit="us", output=tmp_path / "px4.csv")
+    times = [line.split(",")[0] for line in (tmp_path / "px4.csv").read_text().splitlines()[1:]]
+    assert all(re.fullmatch(r"\d+", t) for t in times), times[:3]

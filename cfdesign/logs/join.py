@@ -116,9 +116,12 @@ class _File:
             raise DataError(f"{path}: the joined file has a header but no rows")
         self.values = _numeric(frame, self.columns, path, self.lines.at)
         self.raw = _numeric(frame, [self.time], path, self.lines.at, time=self.time)[self.time]
+        # integer times kept whole (a ROS %time: nanoseconds since 1970 lose up to 128 ns as floats)
+        self.whole = frame[self.time].to_numpy(dtype=np.int64) if frame[self.time].dtype.kind in "iu" else None
         self.number = _is_number(frame[self.time])
         self.seconds = self.raw * self.scale if self.number else self.raw
         place(self.seconds, table.sample_time_s, source=str(path), rate=False, where=self.lines.at,
+              time_scale=self.scale if self.number else 1.0,
               readings={c: ~np.isnan(v) for c, v in self.values.items()})
 
     def keys(self, number, scale):
@@ -129,7 +132,9 @@ class _File:
         if not self.number:
             return self.seconds / scale
         ratio = self.scale / scale
-        return self.raw * round(ratio) if ratio >= 1 else self.raw / round(1 / ratio)
+        if ratio >= 1:  # integers stay integers, as pandas multiplies them
+            return (self.whole if self.whole is not None else self.raw) * round(ratio)
+        return self.raw / round(1 / ratio)
 
 
 def _is_number(series) -> bool:
@@ -241,6 +246,8 @@ class _Join:
         col = block[self.cols.time]
         if col.dtype.kind == "f":
             return col.to_numpy(dtype=float)
+        if col.dtype.kind in "iu":  # whole, as the joined files' integer times are compared with them
+            return col.to_numpy(dtype=np.int64)
         return _numeric(block, [self.cols.time], self.source, lambda i: self.main_lines.at(main + i),
                         time=self.cols.time)[self.cols.time]
 
@@ -290,7 +297,13 @@ class _Gather:
         self.size = self.main = 0  # rows, and rows of the main file, so far
 
     def _numbers(self, chunk, joined) -> list:
-        return [c for c in self.columns if all(c not in f.columns or f[c].dtype.kind in "fiu" for f in (chunk, joined))]
+        """The columns written as floats: numbers, but not integers in both frames (a time column of
+        integers, as pandas.concat keeps it: a ROS %time written as a float had lost its last digits)."""
+        def number(c):
+            kinds = [f[c].dtype.kind for f in (chunk, joined) if c in f.columns]
+            return all(k in "fiu" for k in kinds) and not (len(kinds) == 2 and all(k in "iu" for k in kinds))
+
+        return [c for c in self.columns if number(c)]
 
     def fits(self, chunk, joined) -> bool:
         """Whether the columns of numbers of ``chunk`` and ``joined`` are this block's."""

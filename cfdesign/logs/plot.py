@@ -67,7 +67,7 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s", restar
         ax.plot(x, cut(_broken(est) if name == wrapped else est), lw=0.8, label=f"{name} (estimate)")
         if name in refs:
             ref = estimates[f"{name}_reference"].to_numpy()
-            ax.plot(x, cut(_broken(ref) if name == wrapped else ref), lw=0.8, ls="--", label="reference")
+            ax.plot(*_sparse(x, ref, gaps, name == wrapped), lw=0.8, ls="--", label="reference")
             ax2 = next(ax_iter)
             err = est - estimates[f"{name}_reference"].to_numpy()
             err = wrap(err) if table.wrap_angle and name == table.states[0] else err
@@ -79,7 +79,7 @@ def plot_log(table, estimates, references=None, time=None, time_unit="s", restar
                 for e in restarts:  # and the start-up after each pause
                     at = x[0] + e * (table.sample_time_s if time else 1)
                     ax2.axvspan(at, min(at + end - x[0], x[-1]), color="#fde9b5", lw=0, zorder=0)
-            ax2.plot(x, cut(err), lw=0.6, color="C3", label="error")
+            ax2.plot(*_sparse(x, err, gaps), lw=0.6, color="C3", label="error")
             if band is not None:
                 ax2.fill_between(x, -band, band, color="0.85", label="predicted ±2σ")
             ok = np.isfinite(err)
@@ -127,6 +127,34 @@ def _gaps(x):
         step = np.diff(np.asarray(x, dtype=float))
         out[1:] = step > 10 * np.median(step)
     return out
+
+
+def _sparse(x, values, gaps, angle=False):
+    """``(x, y)`` of a line through the rows of ``values`` that hold a number, broken at the log's
+    gaps (and, for an ``angle``, at its +-pi wraps): a reference from a joined file, a number on
+    every other row of the union, had been drawn as NaN-separated points, which show nothing.
+
+    Parameters
+    ----------
+    x : ndarray
+        The x axis (s, or rows).
+    values : ndarray
+        One value a row, NaN where the row has none.
+    gaps : ndarray of bool
+        The rows that follow a pause of the log (:func:`_gaps`).
+    angle : bool
+        Break the line where the angle wraps (:func:`_broken`).
+
+    Returns
+    -------
+    tuple of ndarray
+        The x and y of the rows drawn, y NaN where the line breaks.
+    """
+    keep = np.isfinite(values) | gaps
+    y = np.array(values[keep], dtype=float)
+    y = _broken(y) if angle else y
+    y[gaps[keep]] = np.nan
+    return np.asarray(x)[keep], y
 
 
 def _broken(angle):

@@ -9,6 +9,7 @@ import itertools
 import math
 import numbers
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -360,10 +361,19 @@ def _time_note(cols) -> list:
             or _unit(c)[1] in TIME_UNITS or c.lower() in _UNIT_NAMES]  # 'elapsed_ms', an Arduino's 'millis'
     import shlex
 
-    unit = _UNIT_NAMES.get(like[0].lower()) if like else None  # a name that is only a unit: it is not read from it
+    # a name that is only a unit, or ends in one written in CamelCase (ArduPilot's 'TimeUS'): not read from it
+    unit = (_UNIT_NAMES.get(like[0].lower()) or _camel_unit(like[0])) if like else None
     return ["the log has no time column ('time', 't' or 'timestamp'): every row is taken as one base tick"
             + (f" (column {like[0]!r} looks like a time: --time {shlex.quote(like[0])}"
                + (f" --time-unit {unit})" if unit not in (None, "s") else ")") if like else " (--time COLUMN)")]
+
+
+def _camel_unit(name):
+    """The unit of time a CamelCase name ends in (``TimeUS``, ``timeMs``: ``'us'``, ``'ms'``), else None;
+    ``timeS`` is not taken (a plural)."""
+    m = re.search(r"[a-z0-9]([A-Z][A-Za-z]*)$", str(name))
+    unit = _UNIT_NAMES.get(m.group(1).lower()) if m else None
+    return unit if unit != "s" else None
 
 
 def _blocks(data, frame, cols, rows, joined=None):

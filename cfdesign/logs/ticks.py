@@ -84,7 +84,7 @@ class _Pass:
             tail_t, tail_read = self.tail or (t[:0], {s: r[:0] for s, r in read.items()})
             start = self.rows - len(tail_t)
             place(np.concatenate([tail_t, t]), self.table.sample_time_s, source=self.source, rate=False,
-                  where=lambda i: self.cols.lines.at(start + i),
+                  where=lambda i: self.cols.lines.at(start + i), time_scale=self.cols.time_scale,
                   readings={s: np.concatenate([tail_read[s], r]) for s, r in read.items()})
             rows, pauses = self._pauses(t[base], np.flatnonzero(base))
             if self.t0 is None and n:  # tick 0: the first row where the inputs read (the base clock), on
@@ -203,7 +203,8 @@ class _Pass:
         if self.cols.time is not None and self.base_times:
             from ..timing import check_rate
 
-            check_rate(np.concatenate(self.base_times), self.table.sample_time_s, self.source)
+            check_rate(np.concatenate(self.base_times), self.table.sample_time_s, self.source,
+                       self.cols.time_scale)
 
 
 def _startup_ticks(table) -> float:
