@@ -527,17 +527,18 @@ def check_bases(figures) -> None:
                             "time")
         base = MEASURES_BASE.get(measures)
         if base is not None and base != q.base:
-            raise SpecError(f'{field}: "{q.text}" is in units of {_a(BASES[q.base])}, but the sensor measures '
-                            f"{measures}, {_a(BASES[base])}{_convert(q.base, base)}")
+            raise SpecError(f'{field}: "{q.text}" is in {_FAMILY[q.base]}, but the sensor measures '
+                            f"{measures}: give it in {_FAMILY[base]}{_convert(q.base, base)}")
         if first is not None and first[1].base != q.base:
-            raise SpecError(f'{field}: "{q.text}" is in units of {_a(BASES[q.base])}, beside {first[0]}: '
-                            f'"{first[1].text}" in units of {_a(BASES[first[1].base])}; a design estimates one '
+            raise SpecError(f'{field}: "{q.text}" is in {_FAMILY[q.base]}, beside {first[0]}: '
+                            f'"{first[1].text}" in {_FAMILY[first[1].base]}; a design estimates one '
                             f"quantity: give every figure in units of it{_convert(q.base, first[1].base)}")
         first = first or (field, q)
 
 
-def _a(word: str) -> str:
-    return f"{'an' if word[0] in 'aeiou' else 'a'} {word}"
+#: a base quantity's family of units, as a message names it ("150 ug/sqrt(Hz)" is in length units)
+_FAMILY = {_ANGLE: "angle units (rad, deg, rad/s, ...)", _LENGTH: "length units (m, m/s, m/s^2, g, ...)",
+           _FIELD: "magnetic-field units (T, uT, G, ...)"}
 
 
 def _convert(one: int, other: int) -> str:

@@ -197,8 +197,9 @@ REFUSED = [
     ({"gyro": '"8.7e-5"'}, 'sensors.gyro.noise.density: "8.7e-5" has no unit: an SI figure is a TOML number'),
     ({"gyro": '"deg/sqrt(h)"'}, "must be a number, or a number and then its unit"),
     ({"gyro": '"0.3 Hz^-1/2"'}, "not a figure of one quantity"),
-    ({"tilt": '"2 mm"'}, 'sensors.inclinometer.noise.std: "2 mm" is in units of a length, beside '
-                         'sensors.gyro.noise.density: "0.005 deg/s/sqrt(Hz)" in units of an angle; a design '
+    ({"tilt": '"2 mm"'}, 'sensors.inclinometer.noise.std: "2 mm" is in length units (m, m/s, m/s^2, g, ...), '
+                         'beside sensors.gyro.noise.density: "0.005 deg/s/sqrt(Hz)" in angle units (rad, deg, '
+                         'rad/s, ...); a design '
                          "estimates one quantity"),
     ({"tilt": '"3 mG"'}, "a magnetometer's heading noise in rad is about its field noise over the horizontal field"),
     ({"tilt": '"1 mg"'}, "an accelerometer's tilt noise in rad is about its acceleration noise over g"),
@@ -221,7 +222,8 @@ def test_a_unit_beside_what_the_sensor_measures_is_refused(tmp_path, cli):
     path.write_text(text, encoding="utf-8")
     code, _, err = cli("design", path)
     assert code == 2 and err.count("\n") == 1
-    assert 'sensors.gps.noise.std: "2.5 m" is in units of a length, but the sensor measures angle, an angle' in err
+    assert ('sensors.gps.noise.std: "2.5 m" is in length units (m, m/s, m/s^2, g, ...), but the sensor measures '
+            "angle: give it in angle units (rad, deg, rad/s, ...)") in err
 
 
 def test_a_unit_on_a_rate_is_refused_with_the_number_in_hz(tmp_path, cli):
