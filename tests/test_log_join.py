@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from cfdesign.errors import DataError
 from cfdesign.linear import wrap
 from cfdesign.logs import run_log
 
@@ -259,3 +260,15 @@ def test_integer_times_are_written_whole(heading, tmp_path):
             mapping={"gyro": "gyro_rad[2]"}, time_unit="us", output=tmp_path / "px4.csv")
     times = [line.split(",")[0] for line in (tmp_path / "px4.csv").read_text().splitlines()[1:]]
     assert all(re.fullmatch(r"\d+", t) for t in times), times[:3]
+
+
+def test_a_log_without_times_beside_joined_files_names_its_first_row(heading, tmp_path):
+    """A main file whose time cells are all empty, read whole: its first line is named as having no
+    time, as alone (the joined files' overlap check compared with no first time: a TypeError)."""
+    imu, odo, com = heading_files(n=200)
+    imu[["time", "gyro"]].assign(time=np.nan).to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.to_csv(tmp_path / "com.csv", index=False)
+    with pytest.raises(DataError, match=r"imu.csv line 2: no time \(an empty cell"):
+        run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"])
+

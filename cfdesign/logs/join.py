@@ -254,6 +254,8 @@ class _Join:
     def _overlap(self, first, last):
         """A joined file whose times lie all before the main file's ``first`` (s) or, once its
         ``last`` is known, all after it: the files' clocks differ."""
+        if first is None:  # no time in the main file: its first row is named so (timing.place)
+            return
         for f in self.files:
             a, b = float(f.seconds.min()), float(f.seconds.max())
             if b < first or (last is not None and a > last):
