@@ -272,3 +272,13 @@ def test_a_log_without_times_beside_joined_files_names_its_first_row(heading, tm
     with pytest.raises(DataError, match=r"imu.csv line 2: no time \(an empty cell"):
         run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"])
 
+
+def test_a_column_name_twice_in_a_joined_file_is_refused(heading, tmp_path):
+    """A joined file naming a column twice is refused naming it, as the main file is (it had been
+    read in silence, one of the two taken)."""
+    imu, odo, com = heading_files(n=200)
+    imu[["time", "gyro"]].to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.assign(again=0.0).rename(columns={"again": "compass"}).to_csv(tmp_path / "com.csv", index=False)
+    with pytest.raises(DataError, match=r"com.csv: duplicate column\(s\) compass"):
+        run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"])

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import DataError
 from .columns import TIME_UNITS, _listed, _named_unit, _numeric, _pandas, _time_unit
-from .read import _header, _lines, _row_units, read_log, time_column
+from .read import _header, _lines, _row_units, _unique, read_log, time_column
 
 
 def joined_header(table, header, source, paths, *, time=None, mapping=None, reference=None) -> tuple:
@@ -54,7 +54,7 @@ def joined_header(table, header, source, paths, *, time=None, mapping=None, refe
         A used column is in two files (naming it and both files), a joined file cannot be read or
         has no time column.
     """
-    headers = {p: _header(p) for p in paths}
+    headers = {p: _unique(_header(p), p) for p in paths}
     times = {p: _time_of(p, h, time) for p, h in headers.items()}
     files = [(source, [str(h).strip() for h in header], None), *((p, h, times[p]) for p, h in headers.items())]
     mapping = mapping if isinstance(mapping, dict) else {}

@@ -66,14 +66,21 @@ def time_column(header):
         ROS_TIME if ROS_TIME in header else None)
 
 
-def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             lines=None, units=None, listing=None) -> _Columns:
-    """Which of ``header``'s columns feeds what; ``listing``: the columns a message on a missing one
-    lists (every file's, of a log joined from several: ``cfdesign.logs.join.joined_header``)."""
+def _unique(header, source) -> list:
+    """``header``'s names stripped of spaces; DataError naming a name written twice (of the log
+    ``source``, or of a joined file: one would be read in silence)."""
     header = [str(h).strip() for h in header]
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise DataError(f"{source}: duplicate column(s) {', '.join(dup)}")
+    return header
+
+
+def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
+             lines=None, units=None, listing=None) -> _Columns:
+    """Which of ``header``'s columns feeds what; ``listing``: the columns a message on a missing one
+    lists (every file's, of a log joined from several: ``cfdesign.logs.join.joined_header``)."""
+    header = _unique(header, source)
     if mapping is not None and not isinstance(mapping, dict):  # a list of pairs gave dict()'s raw ValueError
         raise CfdesignError(f"mapping must be a dict {{sensor: column}}, got {type(mapping).__name__} {mapping!r:.80}")
     mapping = dict(mapping or {})
