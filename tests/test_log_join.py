@@ -282,3 +282,33 @@ def test_a_column_name_twice_in_a_joined_file_is_refused(heading, tmp_path):
     com.assign(again=0.0).rename(columns={"again": "compass"}).to_csv(tmp_path / "com.csv", index=False)
     with pytest.raises(DataError, match=r"com.csv: duplicate column\(s\) compass"):
         run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"])
+
+
+def test_each_row_of_the_union_is_named_at_its_file_and_line(heading, tmp_path, monkeypatch):
+    """Where each row of the union is, for a message, read in blocks of 50 rows: the main file's line,
+    or ``line N of FILE`` of a joined one, as the rows of the files sorted stably by time with pandas
+    say (its rows kept as one array, the joined files' own copies let go once merged)."""
+    import cfdesign.logs.run as run
+    from cfdesign.logs.join import _Join
+
+    imu, odo, com = heading_files(n=400)
+    files = {"imu.csv": imu[["time", "gyro"]], "odo.csv": odo.rename(columns={"t": "time"})[["time", "odometry"]],
+             "com.csv": com}
+    for name, f in files.items():
+        f.to_csv(tmp_path / name, index=False)
+    made = []
+
+    class Kept(_Join):
+        def __init__(self, *args):
+            super().__init__(*args)
+            made.append(self)
+
+    monkeypatch.setattr(run, "_Join", Kept)
+    monkeypatch.setattr(run, "ONE_PASS_BYTES", 0)
+    run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "com.csv"], block_rows=50)
+    union = pd.concat([f.assign(name=n, line=np.arange(len(f)) + 2) for n, f in files.items()]).sort_values(
+        "time", kind="stable", ignore_index=True)
+    expected = [f"line {k}" + ("" if n == "imu.csv" else f" of {tmp_path / n}") for n, k in zip(
+        union["name"], union["line"], strict=True)]
+    assert [made[0].at(i) for i in range(len(union))] == expected
+    assert all(f.values is None for f in made[0].files)
