@@ -1,6 +1,7 @@
 """Every notebook in notebooks/ runs top to bottom without a failing cell.
 
-``python -m pytest -m notebooks`` runs it: the default run leaves it out (35 s of CPU, a sixth of
+``pip install -e ".[test,notebooks]" && python -m pytest -m notebooks`` runs it (skipped, saying
+which, without nbclient and nbformat): the default run leaves it out (35 s of CPU, a sixth of
 the suite, which must stay under three minutes on two cores with its installation), as the
 documentation build of ``.ci/run`` executes every notebook and fails on a failing cell.
 """
