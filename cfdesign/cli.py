@@ -20,6 +20,7 @@ from pathlib import Path
 from . import __version__
 from .errors import CfdesignError, GainError, InternalError, OutputError, SpecError
 from .files import check_distinct, is_dir, write_files
+from .signals import disposed
 
 __all__ = ["main", "parse_gains"]
 
@@ -769,29 +770,16 @@ class _Stopped(KeyboardInterrupt):
 _STOPS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
 
-@contextlib.contextmanager
 def _stop_as_ctrl_c():
     """SIGTERM and SIGHUP raise :class:`_Stopped` while the command runs; the previous handlers are
     put back after it (:func:`main` called in a process of its own or another's).  Installed by the
     command alone, never at import: a library user's process keeps its own handlers.  A signal the
-    process ignores stays ignored (``nohup cfdesign run ...`` outlives its terminal), and outside
-    the main thread, where Python takes no handler, nothing changes.
+    process ignores stays ignored (``nohup cfdesign run ...`` outlives its terminal).
     """
     def stop(signum, frame):
         raise _Stopped(signum)
 
-    previous = {}
-    try:
-        for signum in _STOPS:
-            if signal.getsignal(signum) == signal.SIG_DFL:
-                previous[signum] = signal.signal(signum, stop)
-    except ValueError:  # not the main thread
-        pass
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+    return disposed(_STOPS, stop, only_default=True)
 
 
 def _interrupted(signum: int) -> int:

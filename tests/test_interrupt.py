@@ -17,6 +17,7 @@ from cfdesign.cli import main
 from cfdesign.errors import DataError
 from cfdesign.logs import fleet, run_log
 from cfdesign.logs import write as write_mod
+from cfdesign.signals import disposed
 
 posix = pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="SIGTERM/SIGHUP handlers need POSIX signals")
 
@@ -196,7 +197,7 @@ def test_a_fleet_s_worker_processes_ignore_ctrl_c_and_the_stops_its_parent_handl
     traceback; SIGTERM or SIGHUP to all (systemd, Slurm, a closed terminal) killed them mid-file."""
     probe = "import signal as s; print([s.getsignal(x) == s.SIG_IGN for x in (s.SIGINT, s.SIGTERM, s.SIGHUP)])"
     before = {s: signal.getsignal(s) for s in fleet._STOPS}
-    with fleet._workers_ignore(fleet._STOPS):
+    with disposed(fleet._STOPS, signal.SIG_IGN):
         seen = subprocess.run([sys.executable, "-S", "-c", probe], capture_output=True, text=True).stdout
     assert seen == "[True, True, True]\n"
     assert {s: signal.getsignal(s) for s in fleet._STOPS} == before

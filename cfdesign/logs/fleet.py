@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import secrets
@@ -12,6 +11,7 @@ from pathlib import Path
 from ..errors import CfdesignError, DataError
 from ..files import run_tag, temporaries, write_text
 from ..gains import require_table
+from ..signals import disposed
 from .columns import _first_line
 from .run import _same_file, run_log
 
@@ -165,8 +165,9 @@ def _run_on_dask(dask, Client, LocalCluster, table, paths, targets, outdir, work
     else:
         _refuse_in_worker_start()
         # no dashboard; the scheduler's HTTP server on a free port of this machine: on 8787, its default, it
-        # warned on stderr when another cluster (another fleet run at the same time) had that port
-        with dask.config.set(_CLUSTER_CONFIG), _workers_ignore(_STOPS):
+        # warned on stderr when another cluster (another fleet run at the same time) had that port; the
+        # workers start ignoring _STOPS (inherited through exec): one sent during the start (a second or two) is lost
+        with dask.config.set(_CLUSTER_CONFIG), disposed(_STOPS, signal.SIG_IGN):
             try:
                 cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
                                        processes=True, dashboard_address=None,
@@ -224,26 +225,6 @@ def _refuse_in_worker_start():
 #: the foreground group) printed a traceback of each worker, a closed terminal (SIGHUP) or SIGTERM to every
 #: process (systemd, Slurm) killed them mid-file; the process that started them stops as told and closes them
 _STOPS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
-
-
-@contextlib.contextmanager
-def _workers_ignore(signals):
-    """``signals`` ignored while the block starts processes, which keep ignoring them (a disposition to
-    ignore is inherited through ``exec``); this process's handlers are put back after.  Outside the main
-    thread, where Python sets no handler, nothing changes.  One of them sent while the block runs (the
-    cluster's start, a second or two) is lost.
-    """
-    previous = {}
-    try:
-        for signum in signals:
-            previous[signum] = signal.signal(signum, signal.SIG_IGN)
-    except ValueError:  # not the main thread
-        pass
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
 
 
 def _failure(future) -> str:
