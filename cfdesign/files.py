@@ -167,15 +167,18 @@ def not_a_device(path) -> str | None:
     return "it is a device, not a file" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else None
 
 
-def check_distinct(named: dict):
+def check_distinct(named: dict, inputs=()):
     """Refuse a command whose files name one file twice (an output that is an input or another
-    output would replace it: ``-o x.png --bode x.png`` lost the gain table).
+    output would replace it: ``-o x.png --bode x.png`` lost the gain table; two inputs that are one
+    file would be read twice: ``--join com.csv --join com.csv``).
 
     Parameters
     ----------
     named : dict
         ``{role: path}`` (``'-o'``, ``'--plot'``, ``'the gain table'``); ``None`` paths are skipped.
         Paths are the same when they resolve to one path or name one existing file (links).
+    inputs : collection of str
+        The roles that are read, not written: two of them that are one file are "given twice".
 
     Raises
     ------
@@ -186,8 +189,9 @@ def check_distinct(named: dict):
     for i, (role, path) in enumerate(items):
         for other, earlier in items[:i]:
             if _same(path, earlier):
-                raise OutputError(f"{role} {path} is {other} {earlier}: one file for both, one would replace the "
-                                  "other")
+                why = "the same file given twice" if role in inputs and other in inputs else \
+                    "one file for both, one would replace the other"
+                raise OutputError(f"{role} {path} is {other} {earlier}: {why}")
 
 
 def _same(a: Path, b: Path) -> bool:

@@ -312,3 +312,20 @@ def test_each_row_of_the_union_is_named_at_its_file_and_line(heading, tmp_path, 
         union["name"], union["line"], strict=True)]
     assert [made[0].at(i) for i in range(len(union))] == expected
     assert all(f.values is None for f in made[0].files)
+
+
+def test_one_file_given_twice_is_named_as_such(heading, tmp_path, cli, monkeypatch):
+    """A file joined twice, or joined as well as given as the log, was refused with the message of an
+    output ("one would replace the other"): nothing is written there, it would be read twice."""
+    imu, _, com = heading_files(n=300)
+    monkeypatch.chdir(tmp_path)
+    heading.save(tmp_path / "g.json")
+    imu[["time", "gyro"]].to_csv("imu.csv", index=False)
+    com.to_csv("com.csv", index=False)
+    for joins, message in ((["com.csv", "com.csv"], "joined file 2 com.csv is joined file 1 com.csv"),
+                           (["imu.csv"], "joined file 1 imu.csv is the log imu.csv")):
+        code, _, err = cli("run", "g.json", "imu.csv", *[a for j in joins for a in ("--join", j)], "-o", "est.csv")
+        assert code == 2 and err == f"cfdesign: error: {message}: the same file given twice\n", err
+    code, _, err = cli("run", "g.json", "imu.csv", "--join", "com.csv", "-o", "com.csv")
+    assert code == 2 and "the output com.csv is joined file 1 com.csv: one file for both, one would replace" in err
+    assert not (tmp_path / "est.csv").exists()

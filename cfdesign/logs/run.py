@@ -150,7 +150,8 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     if frame is None and output is not None and _same_file(data, output):
         raise DataError(f"{source}: the output {output} is the log itself; it would be replaced by the estimates")
     joins = {f"joined file {i + 1}": p for i, p in enumerate(join)}
-    check_distinct({"the log": data if frame is None else None, **joins, "the output": output, "the plot": plot})
+    check_distinct({"the log": data if frame is None else None, **joins, "the output": output, "the plot": plot},
+                   inputs=("the log", *joins))
     _pandas(output is not None and Path(output).suffix.lower() in (".parquet", ".pq"))  # before the log is read
     if output is not None and Path(output).suffix.lower() == ".zip":
         raise OutputError(f"cannot write {output}: estimates are written as CSV (.csv, or compressed: .csv.gz, "
