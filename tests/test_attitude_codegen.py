@@ -269,3 +269,85 @@ def test_c_agrees_through_a_rest_that_relearns_a_stepped_bias(tmp_path):
     q_c, state_c = run_c(tmp_path, f, gyr, acc, mag)
     assert np.abs(q_c - out.quaternion).max() <= 1e-9
     assert abs(state_c["r11"] - f.state()["r11"]) <= 1e-9 * abs(f.state()["r11"])
+
+
+#: one translation unit with two attitude filters (6D and 9D) and a table filter, after the
+#: program's own macros PI and T (Arduino.h defines PI): each filter's names carry its prefix
+UNITY = r"""
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#define PI 3.14159
+#define T 0.01
+#include "att6.c"
+#include "att9.c"
+#include "heading_filter.c"
+
+int main(void)
+{
+    const double gyr[3] = {0.01, -0.02, 0.3}, acc[3] = {0.5, -0.3, 9.7}, mag[3] = {3.0, 19.0, -41.0};
+    const heading_real u[HEADING_NU_ALLOC] = {0.1}, y[HEADING_NY_ALLOC] = {0.2, 0.25};
+    double q6[4], q9[4];
+    att6_state a;
+    att9_state b;
+    heading_state h;
+    heading_real est = 0;
+    int k;
+
+    att6_init(&a);
+    att9_init(&b);
+    heading_init(&h);
+    for (k = 0; k < 50; ++k) {
+        att6_step(&a, gyr, acc, NULL, q6);
+        att9_step(&b, gyr, acc, mag, q9);
+        est = heading_step(&h, u, y);
+    }
+    printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", q6[0], q6[1], q6[2], q6[3],
+           q9[0], q9[1], q9[2], q9[3], (double)est);
+    return 0;
+}
+"""
+#: the libm functions the attitude step may call (sincos: GCC's fusion of sin and cos)
+LIBM = {"sqrt", "sin", "cos", "sincos", "asin", "atan2", "log2", "exp", "floor", "ceil", "fabs"}
+
+
+@needs_cc
+def test_attitude_filters_and_a_table_filter_build_as_one_unit_under_the_promised_warnings(tmp_path):
+    """A 6D and a 9D attitude filter and a heading filter in one translation unit (a unity build)
+    after ``#define PI`` and ``#define T``, under the promised warnings as C99 and as C++11: every
+    file-scope name carries its prefix (the attitude C's static T, PI, REST[...] and clamp() were
+    bare, so two filters redefined them and a program's PI macro broke them), no float == (under
+    -Wfloat-equal), decimal literals (C++11 has no hexadecimal floating ones).  The results equal
+    Python's; the object calls only libm and defines only the prefix's init and step."""
+    import cfdesign
+    from cfdesign.codegen import STRICT_CFLAGS, STRICT_CXXFLAGS, write_c
+    from cfdesign.runtime import Runtime
+
+    write_attitude_c(AttitudeFilter(100.0, magnetometer=False), tmp_path, prefix="att6")
+    write_attitude_c(AttitudeFilter(100.0, magnetometer=True), tmp_path, prefix="att9")
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3")))
+    write_c(table, tmp_path, prefix="heading")
+    (tmp_path / "unity.c").write_text(UNITY)
+    f6, f9, rt = AttitudeFilter(100.0, magnetometer=False), AttitudeFilter(100.0, magnetometer=True), Runtime(table)
+    for _ in range(50):
+        q6 = f6.step([0.01, -0.02, 0.3], [0.5, -0.3, 9.7])
+        q9 = f9.step([0.01, -0.02, 0.3], [0.5, -0.3, 9.7], [3.0, 19.0, -41.0])
+        est = rt.step(gyro=0.1, compass=0.2, odometry=0.25)
+    cxx = shutil.which("c++")
+    for compiler, flags in [(CC, STRICT_CFLAGS), *([(cxx, STRICT_CXXFLAGS)] if cxx else [])]:
+        exe = tmp_path / "unity"
+        build = subprocess.run([compiler, *flags, "-O1", "-o", str(exe), str(tmp_path / "unity.c"), "-lm"],
+                               capture_output=True, text=True)
+        assert build.returncode == 0, f"{compiler} {' '.join(flags)}:\n{build.stderr}"
+        got = [float(v) for v in subprocess.run([str(exe)], capture_output=True, text=True, check=True).stdout.split()]
+        assert np.abs(np.array(got) - [*q6, *q9, est]).max() <= 1e-12
+    nm = shutil.which("nm")
+    if nm:
+        obj = tmp_path / "att9.o"
+        subprocess.run([CC, *STRICT_CFLAGS, "-O2", "-c", "-o", str(obj), str(tmp_path / "att9.c")], check=True)
+        symbols = [line.split() for line in subprocess.run([nm, str(obj)], capture_output=True, text=True,
+                                                           check=True).stdout.splitlines()]
+        assert {s[-1] for s in symbols if s[0] == "U"} <= LIBM
+        defined = {s[-1]: s[-2] for s in symbols if len(s) == 3}
+        assert {name for name, kind in defined.items() if kind in "TDBCG"} == {"att9_init", "att9_step"}
+        assert not set(defined.values()) & set("DdBbCGgSs")      # no writable data: state is the caller's

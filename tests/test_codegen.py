@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import cfdesign
-from cfdesign.codegen import render_c, write_c
+from cfdesign.codegen import STRICT_CFLAGS, STRICT_CXXFLAGS, render_c, write_c
 from cfdesign.errors import CfdesignError
 from cfdesign.gains import Schedule
 from cfdesign.runtime import Runtime, wrap
@@ -332,6 +332,21 @@ def test_every_file_states_rate_output_and_schedule(output, tmp_path):
         assert f" * filter sha256: {Runtime(table).state()['filter_sha256']} " in text
 
 
+def test_headers_give_the_unit_of_every_reading_and_state(tables):
+    """The sensor macros and the state's comment carry the SI units the step expects (the
+    header said 'order 2 (acceleration)' but not m/s^2, and nothing of the state's entries)."""
+    files = render_c(tables["position"], prefix="pos")
+    assert "#define POS_U_ACCELEROMETER 0  /* accelerometer: input, order 2 (acceleration, m/s^2), 50 Hz */" \
+        in files["pos_gains.h"]
+    assert "#define POS_Y_GPS 0  /* gps: measurement, order 0 (angle/position, m), 1 Hz */" in files["pos_gains.h"]
+    header = files["pos_filter.h"]
+    assert " *     x[0] position (m)\n *     x[1] velocity (m/s)\n *     x[2] accelerometer_bias (m/s^2)\n" in header
+    assert "(x[0], m)" in header
+    heading = render_c(tables["dckf3"])
+    assert "gyro: input, order 1 (rate, rad/s), 5 Hz" in heading["dckf3_gains.h"]
+    assert "x[1] gyro_correction (rad/s)" in heading["dckf3_filter.h"]
+
+
 def test_prefix_and_files(tables, tmp_path):
     paths = write_c(tables["position"], tmp_path / "out", prefix="imu_gps", precision="float")
     assert [p.name for p in paths] == ["imu_gps_gains.h", "imu_gps_filter.h", "imu_gps_filter.c"]
@@ -402,8 +417,7 @@ def test_c_treats_inf_and_huge_readings_as_missing_like_python(tables, tmp_path)
 
 # ---------------------------------------------------------------------- firmware use
 #: the warnings a firmware build turns on; the generated C and a program using it compile clean
-STRICT = ["-std=c99", "-pedantic", "-O2", "-Wall", "-Wextra", "-Werror", "-Wconversion", "-Wdouble-promotion",
-          "-Wshadow", "-Wcast-qual", "-Wstrict-prototypes", "-Wmissing-prototypes"]
+STRICT = [*STRICT_CFLAGS, "-O2"]
 CXX = shutil.which("c++")
 NM = shutil.which("nm")
 
@@ -484,8 +498,8 @@ def test_two_filters_in_one_program_compile_clean_under_strict_warnings(tables, 
     rt.x = [5000.0, 0.0, 0.0]
     assert heading == Runtime(tables["dckf3"]).step(gyro=0.1, odometry=0.2) and abs(pos - rt.step(gps=5001.0)) < 1e-3
     if CXX:
-        build = subprocess.run([CXX, "-x", "c++", "-Wall", "-Wextra", "-Werror", "-o", str(tmp_path / "main_cc"),
-                                *sources, "-lm"], capture_output=True, text=True)
+        build = subprocess.run([CXX, *STRICT_CXXFLAGS, "-o", str(tmp_path / "main_cc"), *sources, "-lm"],
+                               capture_output=True, text=True)
         assert build.returncode == 0, build.stderr
     if NM:
         for prefix in ("heading", "pos"):

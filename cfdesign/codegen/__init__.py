@@ -55,6 +55,16 @@ The step costs about 7 ns for the DCKF3 in double on a 2.6 GHz x86-64 (see
 ``benchmarks/bench_runtime.py``).
 """
 
-from .c99 import C99_KEYWORDS, check_c_identifier, check_c_names, check_c_prefix, render_c, write_c
+from .c99 import (
+    C99_KEYWORDS,
+    STRICT_CFLAGS,
+    STRICT_CXXFLAGS,
+    check_c_identifier,
+    check_c_names,
+    check_c_prefix,
+    render_c,
+    write_c,
+)
 
-__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS"]
+__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS",
+           "STRICT_CFLAGS", "STRICT_CXXFLAGS"]

@@ -16,7 +16,19 @@ from ..files import write_into
 from ..gains import require_table
 from ..runtime.filter import READING_LIMIT, filter_sha256, require_stable
 
-__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS"]
+__all__ = ["write_c", "render_c", "check_c_identifier", "check_c_prefix", "check_c_names", "C99_KEYWORDS",
+           "STRICT_CFLAGS", "STRICT_CXXFLAGS"]
+
+#: the warning options every generated file (filter and attitude, double and float) compiles clean
+#: under, as C99 with GCC and Clang (the tests build with them); for a program's own files too
+STRICT_CFLAGS = ("-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wconversion", "-Wshadow",
+                 "-Wdouble-promotion", "-Wcast-qual", "-Wstrict-prototypes", "-Wmissing-prototypes", "-Wundef",
+                 "-Wfloat-equal")
+#: the same promise compiled as C++ (the C-only -Wstrict-prototypes and -Wmissing-prototypes dropped,
+#: -Wmissing-declarations their C++ counterpart; not -Wold-style-cast, which C source cannot meet)
+STRICT_CXXFLAGS = ("-x", "c++", "-std=c++11", "-pedantic", "-Wall", "-Wextra", "-Werror", "-Wconversion",
+                   "-Wshadow", "-Wdouble-promotion", "-Wcast-qual", "-Wmissing-declarations", "-Wundef",
+                   "-Wfloat-equal")
 
 #: the reserved words of ISO C99 (6.4.1)
 C99_KEYWORDS = frozenset("""
@@ -347,7 +359,8 @@ def _fields(table, prefix, precision, output) -> dict:
         "posterior": int(output == "posterior"), "output": output, "wrap_angle": int(bool(table.wrap_angle)),
         "active": _initializer(_padded(active, (table.period, max(m, 1)), "schedule").astype(int), ""),
         "measured": _initializer(active.any(axis=1).astype(int), ""),
-        "sensor_macros": _sensor_macros(sensors, prefix), "phase_macros": _phase_macros(table, prefix),
+        "sensor_macros": _sensor_macros(sensors, prefix, _units(table)[0]),
+        "phase_macros": _phase_macros(table, prefix), **_state_text(table),
         "missing": _literal(MISSING, suffix, "missing marker"),
         "pi": _literal(math.pi, suffix, "pi"), "two_pi": _literal(2 * math.pi, suffix, "2 pi"),
     }
@@ -477,11 +490,36 @@ def _comment_text(value) -> str:
     return text
 
 
-def _sensor_macros(sensors, prefix) -> str:
+def _units(table) -> tuple:
+    """The unit of every state in ASCII (``m/s^2``; ``''`` where the table does not tell it):
+    :meth:`~cfdesign.gains.GainTable.state_units` with its superscripts spelled out."""
+    ascii_powers = str.maketrans({"²": "^2", "³": "^3", "⁴": "^4", "⁵": "^5", "⁶": "^6"})
+    return tuple(unit.translate(ascii_powers) for unit in table.state_units())
+
+
+def _unit(base, order) -> str:
+    """The unit of the ``order``-th derivative of a quantity in ``base`` (``rad``, 2: ``rad/s^2``)."""
+    return "" if not base else base + ("" if order == 0 else "/s" if order == 1 else f"/s^{order}")
+
+
+def _state_text(table) -> dict:
+    """The state's entries with their units and the estimate's unit, for ``filter.h``."""
+    units = _units(table)
+    shown = [f"x[{i}] {name}" + (f" ({unit})" if unit else "")
+             for i, (name, unit) in enumerate(zip(table.states, units, strict=True))]
+    return {"state_list": "\n *     ".join(_comment_text(line) for line in shown),
+            "estimate_unit": f", {units[0]}" if units[0] else ""}
+
+
+def _sensor_macros(sensors, prefix, base) -> str:
+    """``#define <PREFIX>_U_<NAME> i`` and ``<PREFIX>_Y_<NAME> i``, each with its role, order, unit
+    (from the unit ``base`` of the quantity, ``''`` if unknown) and rate."""
     lines = []
     for s in sensors:
         kind = "U" if s.role == "input" else "Y"
-        note = f"{s.role}, order {s.order} ({_ORDER_NAMES.get(s.order, '?')}), {s.rate_hz:g} Hz"
+        unit = _unit(base, s.order)
+        note = (f"{s.role}, order {s.order} ({_ORDER_NAMES.get(s.order, '?')}{', ' + unit if unit else ''}), "
+                f"{s.rate_hz:g} Hz")
         lines.append(f"#define {prefix.upper()}_{kind}_{s.name.upper()} {s.index}  /* {s.name}: {note} */")
     return "\n".join(lines)
 
