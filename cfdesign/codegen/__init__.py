@@ -37,7 +37,8 @@ heading crossing +-pi, compared modulo 2 pi; the multirate position table, perio
   (robot heading) and 0, bit-identical (position), with gcc -O2 on x86-64.  This assumes
   IEEE double arithmetic without extended precision or contraction into fused
   multiply-adds (the default with ``-std=c99``); with ``-ffast-math`` or on x87 the agreement is
-  to rounding (measured 2e-14 relative), and missing readings must be ``<PREFIX>_MISSING``.
+  to rounding (measured 2e-14 relative), and missing readings must be ``<PREFIX>_MISSING``, not NaN
+  or inf (Clang 14 ``-O3 -ffast-math`` let a NaN reading into the state).
 * ``precision='float'``: single-precision rounding; the documented bound is
   ``max |C - Python| <= 2e-6 x max |estimate|`` for the robot heading (measured 3.3e-7 x,
   1.05e-6 rad) and ``<= 1e-4 x max |estimate|`` for the position (measured 2.0e-5 x,
@@ -50,6 +51,9 @@ heading crossing +-pi, compared modulo 2 pi; the multirate position table, perio
   ||h||_2`` (``||h||_2`` 4.7 for the robot heading, 300 for a 50 Hz gyro with 10 Hz and 5 Hz
   compasses, measured ``3.3e-6 x max |estimate|`` there); a 200 Hz CKF3 whose position drifts to
   5e4 m exceeds that figure 2 to 4 times (``||h||_2`` 22, ``||h||_1`` 1000).
+
+Every generated file compiles clean under :data:`STRICT_CFLAGS` (C99) and :data:`STRICT_CXXFLAGS`
+(C++11), the warning sets the C export promises; every name with file scope starts with the prefix.
 
 The step costs about 7 ns for the DCKF3 in double on a 2.6 GHz x86-64 (see
 ``benchmarks/bench_runtime.py``).
