@@ -340,3 +340,10 @@ def test_bad_matrices_and_sensors_are_named(build, message):
     sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
     with pytest.raises(cfdesign.StructureError, match=message):
         build(sensors)
+
+
+def test_repr_gives_the_sample_time_in_seconds():
+    """The repr read 'T=1/5' (no unit) for a numeric sample time and 'T=T' for a symbolic one."""
+    assert "T = 0.2 s," in repr(cfdesign.dckf3().subs(T=0.2))
+    assert "T = T (symbolic)" in repr(cfdesign.dckf3())
+    assert "continuous;" in repr(cfdesign.cf3())

@@ -1289,7 +1289,12 @@ class Observer:
         return _coefficients(self.proof().total, self.variable)
 
     def __repr__(self):
-        kind = "continuous" if not self.discrete else f"discrete, T={self.sample_time}, {self.gain_form} gains"
+        if self.discrete:  # the sample time with its unit ('T=1/5' read as a bare number), or symbolic
+            T = self.sample_time
+            when = f"T = {T} (symbolic)" if isinstance(T, sp.Symbol) else f"T = {float(T):.12g} s"
+            kind = f"discrete, {when}, {self.gain_form} gains"
+        else:
+            kind = "continuous"
         sensors = ", ".join(f"{x.name}({x.role}, order {x.order})" for x in self.sensors)
         return f"<Observer {self.name}: {kind}; sensors {sensors}>"
 
