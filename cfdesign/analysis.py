@@ -246,6 +246,9 @@ class FrequencyResponse:
         discrete table a band of a rate or acceleration sensor grows without bound towards the
         Nyquist frequency (the held input's zero at z = -1 divided out), where a band-pass and a
         high-pass band then both peaked, and the crossovers were drawn between the wrong bands.
+        Bands that rise at the same frequency come larger first there: two heading sensors both
+        in the low-pass band (a 0.95 and a 0.05 share from DC) had been taken in name order, the
+        weak one first, and the crossover drawn from it rather than from the band that carries DC.
 
         Returns
         -------
@@ -254,19 +257,21 @@ class FrequencyResponse:
         """
         def rise(v):
             m = np.abs(v)
-            reach = m >= (0.5 if m.max() >= 0.5 else m.max() / 2)
-            return self.omega[np.argmax(reach)]
+            i = np.argmax(m >= (0.5 if m.max() >= 0.5 else m.max() / 2))
+            return self.omega[i], -m[i]
 
         first = {k: rise(v) for k, v in self.bands.items()}
-        return sorted(first, key=lambda k: (first[k], k))
+        return sorted(first, key=lambda k: (*first[k], k))
 
     def crossovers(self) -> list:
         """Where adjacent bands have equal magnitude.
 
-        Bands are taken in :meth:`dominant_order`; each hands over to the next band that ever
-        reaches its magnitude (a band that stays below, e.g. a weak band-pass, is skipped).  The
-        first sign change of ``log|T_a| - log|T_b|`` on the grid is refined with Brent's method on
-        the responses the grid was computed with (``evaluate``; by default the band polynomials).
+        Bands are taken in :meth:`dominant_order`; each hands over to the next band that reaches
+        its magnitude where the two are the largest of all bands (a band that stays below, e.g. a
+        weak band-pass, is skipped: where it meets another band a third one is larger, so no
+        hand-over happens there).  The first such sign change of ``log|T_a| - log|T_b|`` on the
+        grid is refined with Brent's method on the responses the grid was computed with
+        (``evaluate``; by default the band polynomials).
 
         Returns
         -------
@@ -304,7 +309,13 @@ class FrequencyResponse:
 
         with np.errstate(divide="ignore"):
             d = np.log(np.abs(self.bands[a])) - np.log(np.abs(self.bands[b]))
-        idx = np.flatnonzero(np.isfinite(d[:-1]) & np.isfinite(d[1:]) & (np.sign(d[:-1]) != np.sign(d[1:])))
+        pair = np.maximum(np.abs(self.bands[a]), np.abs(self.bands[b]))
+        others = [np.abs(v) for k, v in self.bands.items() if k not in (a, b)]
+        # on the upper envelope: a weak band meeting a band where a third one dominates is no hand-over
+        # (a 0.05-share compass 'crossed' the gyro band at 0.34 rad/s, under the 0.95-share odometry)
+        top = pair >= np.max(others, axis=0) if others else np.ones(pair.shape, dtype=bool)
+        idx = np.flatnonzero(np.isfinite(d[:-1]) & np.isfinite(d[1:]) & (np.sign(d[:-1]) != np.sign(d[1:]))
+                             & top[:-1] & top[1:])
         if not idx.size:
             return None
         i = idx[0]

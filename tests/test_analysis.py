@@ -66,3 +66,37 @@ def test_bode_plot_draws_bands_sum_and_crossovers(tmp_path):
     path = tmp_path / "bode.png"
     fig.savefig(path)
     assert path.stat().st_size > 10_000
+
+
+def _dckf3_bands_by_hand(K, T, w):
+    """Prior bands of the DCKF3 from its matrices: T_i = C (zI - F + K H)^-1 [B | K] times the
+    sensor's relation ((z - 1)/T for the gyro rate), independent of the symbolic engine."""
+    F, B, H, C = np.array([[1, T], [0, 1.0]]), np.array([[T], [0.0]]), np.array([[1, 0], [1, 0.0]]), np.eye(1, 2)
+    z = np.exp(1j * np.asarray(w) * T)
+    G = np.array([(C @ np.linalg.solve(x * np.eye(2) - F + K @ H, np.hstack([B, K])))[0] for x in z])
+    return {"gyro": G[:, 0] * (z - 1) / T, "compass": G[:, 1], "odometry": G[:, 2]}
+
+
+@pytest.mark.parametrize("K", [[[0.0280736, 0.560937], [0.000140127, 0.00279986]],
+                               [[0.00190725, 0.953626], [9.52153e-06, 0.00476076]]])
+def test_crossover_is_drawn_from_the_band_that_carries_dc(K):
+    """Compass and odometry both low-pass (the Kalman gains of getting-started's heading.toml:
+    shares 0.05 and 0.95 from DC; of the dckf3 example: 0.002 and 0.998): the plot marked
+    'compass/gyro: 0.14 rad/s' (and 0.0105), where the weak compass band meets the gyro's under
+    the odometry band; the hand-over is odometry/gyro, where those two are equal."""
+    from scipy.optimize import brentq
+
+    K, T = np.array(K), 0.2
+    g = cfdesign.dckf3().with_gains(k11=K[0, 0], k12=K[0, 1], k21=K[1, 0], k22=K[1, 1], T=T)
+    grid = np.logspace(-4, np.log10(np.pi / T), 400)
+    by_hand = _dckf3_bands_by_hand(K, T, grid)
+    assert np.all(np.abs(by_hand["odometry"]) > np.abs(by_hand["compass"]))  # the compass never leads
+
+    def ratio(w):
+        b = _dckf3_bands_by_hand(K, T, [w])
+        return np.log(abs(b["odometry"][0])) - np.log(abs(b["gyro"][0]))
+
+    i = np.flatnonzero(np.abs(by_hand["gyro"]) > np.abs(by_hand["odometry"]))[0]
+    (a, b, w), = cfdesign.frequency_response(g).crossovers()
+    assert (a, b) == ("odometry", "gyro")
+    assert w == pytest.approx(brentq(ratio, grid[i - 1], grid[i], xtol=1e-14), rel=1e-9)

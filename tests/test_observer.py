@@ -321,3 +321,29 @@ def test_gain_matrix_and_model_shapes_are_told():
     for bad in (0, -0.1):
         with pytest.raises(cfdesign.GainError, match="sample time must be positive"):
             cfdesign.dckf3().numeric_model(bad)
+
+
+@pytest.mark.parametrize("build, message", [
+    (lambda S: Observer(np.zeros((1, 1, 1)), [[1]], [[1]], [[1]], S), r"F must be a matrix \(2-D\), got an array"),
+    (lambda S: Observer(np.array([[True]]), [[1]], [[1]], [[1]], S), "F holds a bool"),
+    (lambda S: Observer([[0]], [[1]], [[1]], [[True]], S), "K holds a bool"),
+    (lambda S: Observer({"a": 1}, [[1]], [[1]], [[1]], S), "F is a dict, not a matrix"),
+    (lambda S: Observer([[0]], [[1], [2]], [[1]], [[1]], S), r"B must be 1x\(inputs\): one row per state, got 2x1"),
+    (lambda S: Observer([[0]], [[1]], [[1]], [[1]], S, name=3), "name must be text"),
+    (lambda S: Sensor.input("gyro", "rate", bias_state="x"), "bias_state must be a state index"),
+    (lambda S: Sensor.input("gyro", "rate", bias_state=-1), "bias_state must be a state index"),
+])
+def test_bad_matrices_and_sensors_are_named(build, message):
+    """A 3-D array raised sympy's NotImplementedError, a bool entry sympy's 'BooleanAtom not allowed'
+    at the bands (after a deprecation warning), bias_state='x' a raw TypeError and bias_state=-1
+    put the bias on the last state; B's wrong height read 'B must be 1xNone'."""
+    sensors = [Sensor.input("gyro", "rate"), Sensor.measurement("compass", "angle", 0)]
+    with pytest.raises(cfdesign.StructureError, match=message):
+        build(sensors)
+
+
+def test_repr_gives_the_sample_time_in_seconds():
+    """The repr read 'T=1/5' (no unit) for a numeric sample time and 'T=T' for a symbolic one."""
+    assert "T = 0.2 s," in repr(cfdesign.dckf3().subs(T=0.2))
+    assert "T = T (symbolic)" in repr(cfdesign.dckf3())
+    assert "continuous;" in repr(cfdesign.cf3())

@@ -103,7 +103,7 @@ class Sensor:
     ------
     StructureError
         A name that is not an identifier, an unknown role or order, a negative index, a bias
-        state on a measurement.
+        state that is not a non-negative integer or is given to a measurement.
 
     Examples
     --------
@@ -127,6 +127,11 @@ class Sensor:
         object.__setattr__(self, "order", _order_of(self.order))
         if not isinstance(self.index, numbers.Integral) or self.index < 0:
             raise StructureError(f"sensor {self.name!r}: index must be a non-negative integer, got {self.index!r}")
+        # bias_state='x' gave a raw TypeError, -1 put the bias random walk on the last state
+        if self.bias_state is not None and (isinstance(self.bias_state, bool) or not isinstance(
+                self.bias_state, numbers.Integral) or self.bias_state < 0):
+            raise StructureError(f"sensor {self.name!r}: bias_state must be a state index (an integer >= 0), "
+                                 f"got {self.bias_state!r}")
         if self.bias_state is not None and self.role != "input":
             raise StructureError(f"sensor {self.name!r}: only input sensors have a bias state")
 
@@ -354,7 +359,12 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     if hasattr(value, "dt") and hasattr(value, "ninputs"):  # a python-control system, not a matrix
         raise StructureError(f"{name} is a python-control {type(value).__name__}, not a matrix; build the observer "
                              "with Observer.from_statespace(sys, K, sensors)")
+    if isinstance(value, Mapping):  # its keys were read as the entries ('F is text')
+        raise StructureError(f"{name} is a {type(value).__name__}, not a matrix (nested lists or an array)")
     _no_text(name, value)
+    _no_bool(name, value)
+    if _ndim(value) > 2:  # sympy's raw NotImplementedError 'SymPy supports just 1D and 2D matrices'
+        raise StructureError(f"{name} must be a matrix (2-D), got an array of shape {np.shape(value)}")
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:  # ragged or non-numeric input
@@ -374,7 +384,8 @@ def _matrix(name: str, value, rows=None, cols=None) -> sp.Matrix:
     if M.shape == (0, 0) and rows:
         M = sp.zeros(rows, cols or 0)
     if (rows is not None and M.shape[0] != rows) or (cols is not None and M.shape[1] != cols):
-        want = f"{rows}x{cols}" if rows is not None else f"(measurements)x{cols}: one column per state"
+        want = (f"{rows}x{cols}" if cols is not None else f"{rows}x(inputs): one row per state") if rows is not None \
+            else f"(measurements)x{cols}: one column per state"
         raise StructureError(f"{name} must be {want}, got {M.shape[0]}x{M.shape[1]}")
     return M
 
@@ -390,6 +401,29 @@ def _no_text(name, value):
     if isinstance(value, Iterable):
         for item in (value.flat if isinstance(value, np.ndarray) else value):
             _no_text(name, item)
+
+
+def _ndim(value) -> int:
+    """Dimensions of an array-like (0 for a sympy matrix, or nested lists numpy cannot shape: a
+    ragged matrix, told by sympy)."""
+    if isinstance(value, sp.MatrixBase):
+        return 0
+    try:
+        return np.ndim(value)
+    except ValueError:
+        return 0
+
+
+def _no_bool(name, value):
+    """A bool in a matrix is refused: sympy keeps it as a logical ``true`` (a deprecation warning),
+    and the bands then failed with sympy's raw 'BooleanAtom not allowed in this context'."""
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, np.ndarray) and value.dtype.kind == "b"):
+        raise StructureError(f"{name} holds a bool ({value if np.ndim(value) == 0 else 'dtype bool'}), not a "
+                             "number: write 1 or 0")
+    if isinstance(value, (sp.Basic, sp.MatrixBase, np.ndarray, str, bytes)) or not isinstance(value, Iterable):
+        return
+    for item in value:
+        _no_bool(name, item)
 
 
 def exact_number(value, name: str = "value"):
@@ -523,7 +557,8 @@ class Observer:
     Raises
     ------
     StructureError
-        Shapes that do not fit, a complex entry, an unknown domain or gain form, a sample time or
+        Shapes that do not fit (or an array of more than 2 dimensions), a complex or bool entry, a
+        name that is not text, an unknown domain or gain form, a sample time or
         the ``filter`` gain form for a continuous observer, sensors that do not cover every column of ``B`` and row of
         ``H`` exactly once, two different symbols with the sample time's name (a sympy symbol
         is its name and its assumptions: they would print alike and never cancel).
@@ -552,6 +587,8 @@ class Observer:
 
     def __init__(self, F, B, H, K, sensors, *, domain="s", sample_time=None,
                  gain_form="predictor", name="observer", output=None, continuous=None):
+        if not isinstance(name, str):  # name=3 printed 'Complementarity proof for 3'
+            raise StructureError(f"name must be text (the observer's label in reports), got {type(name).__name__}")
         F = _matrix("F", F)
         n = F.shape[0]
         if F.shape != (n, n) or n == 0:
@@ -1252,7 +1289,12 @@ class Observer:
         return _coefficients(self.proof().total, self.variable)
 
     def __repr__(self):
-        kind = "continuous" if not self.discrete else f"discrete, T={self.sample_time}, {self.gain_form} gains"
+        if self.discrete:  # the sample time with its unit ('T=1/5' read as a bare number), or symbolic
+            T = self.sample_time
+            when = f"T = {T} (symbolic)" if isinstance(T, sp.Symbol) else f"T = {float(T):.12g} s"
+            kind = f"discrete, {when}, {self.gain_form} gains"
+        else:
+            kind = "continuous"
         sensors = ", ".join(f"{x.name}({x.role}, order {x.order})" for x in self.sensors)
         return f"<Observer {self.name}: {kind}; sensors {sensors}>"
 
