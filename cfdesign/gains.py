@@ -678,6 +678,24 @@ class GainTable:
                                                              for s in names):
             raise GainTableError(f"{self.name}: states must be {n} distinct ASCII identifiers, got {list(names)}")
 
+    def __repr__(self) -> str:
+        """What the table is, in one line, without its matrices: the dataclass repr printed every phase's
+        gain and covariances (22 kB for the 50 phases of the position example).
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+        >>> table  # doctest: +ELLIPSIS
+        <GainTable 'IMU + GPS position (...)': position, discrete T = 0.02 s, filter form, period 50, ...>
+        >>> repr(table).split("; ")[2]
+        'sensors accelerometer (input, order 2, 50 Hz), gps (measurement, order 0, 1 Hz)>'
+        """
+        timing = "continuous" if self.sample_time_s is None else f"discrete T = {self.sample_time_s:g} s"
+        ports = ", ".join(f"{s.name} ({s.role}, order {s.order}, {s.rate_hz:g} Hz)" for s in self.sensors)
+        return (f"<GainTable {self.name!r}: {self.structure}, {timing}, {self.gain_form} form, period {self.period}, "
+                f"output {self.output}; states {', '.join(self.states)}; sensors {ports}>")
+
     def state_units(self) -> tuple:
         """The unit of every state, where the state names tell it (``''`` where they do not).
 

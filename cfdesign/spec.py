@@ -245,7 +245,7 @@ def example_path(name: str = "robot-heading") -> Path:
     Parameters
     ----------
     name : str
-        ``robot-heading`` (default), ``dckf3``, ``cf3``, ``ckf3`` or ``position``
+        ``robot-heading`` (default), ``dckf3``, ``cf3``, ``ckf3``, ``position`` or ``tilt``
         (:data:`EXAMPLES`).
 
     Returns

@@ -442,3 +442,14 @@ def test_batch_follows_a_position_that_drifts_far_within_the_log(crossover4):
     stepped = np.array([rt.step_values(*row) for row in zip(*[data[n] for n in names], strict=True)])
     std = float(np.sqrt(crossover4.P_filtered[0][0, 0]))
     assert np.max(np.abs(est - stepped)) <= 1e-2 * std
+
+
+def test_reprs_name_the_table_and_stay_short_whatever_the_period(position):
+    """A notebook shows a table or a runtime by its repr: one line naming what runs, not the 50 phases'
+    matrices (the dataclass repr of the position table was 22 kB)."""
+    text = repr(position)
+    assert len(text) < 400 and "\n" not in text
+    assert "period 50" in text and "gps (measurement, order 0, 1 Hz)" in text and position.name in text
+    rt = Runtime(position)
+    rt.step(accelerometer=0.0)
+    assert repr(rt).startswith(f"<Runtime of {position.name!r}: output posterior, phase 1 of 50")

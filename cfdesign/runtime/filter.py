@@ -327,6 +327,11 @@ class Runtime:
         raise CfdesignError(f"unknown sensor(s) {', '.join(sorted(readings))}; {self.table.name} reads "
                             f"{', '.join(self.inputs + self.measurements)}")
 
+    def __repr__(self) -> str:
+        """The table run, the output returned and where the filter stands (its phase), in one line."""
+        return (f"<Runtime of {self.table.name!r}: output {self.output}, phase {int(self.phase)} of {self.period}, "
+                f"inputs {', '.join(self.inputs) or 'none'}; measurements {', '.join(self.measurements)}>")
+
     # ------------------------------------------------------------------ state
     def reset(self):
         """Back to the initial state, phase 0, no input received, counts cleared."""
