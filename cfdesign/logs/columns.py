@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CfdesignError, DataError
+from ..errors import CfdesignError, DataError, require_extra
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t", "timestamp")
@@ -23,18 +23,17 @@ _SHEET_ERRORS = re.compile(r"#(?:DIV/0!|VALUE!|REF!|NAME\?|NUM!|NULL!|SPILL!|CAL
                            re.IGNORECASE)
 
 
+#: what reading or writing Parquet needs, the start of the one-line error without pyarrow
+NEEDS_PYARROW = "Parquet logs and estimates need pyarrow"
+
+
 def _pandas(parquet=False):
     """pandas, and with ``parquet`` pyarrow (pandas reads and writes Parquet through it); a
-    missing one is a one-line error naming the extra that installs it."""
-    try:
-        import pandas as pd
-    except ImportError:  # pragma: no cover - depends on the installation
-        raise CfdesignError('reading logs needs pandas: pip install "cfdesign[logs]"') from None
+    missing one is a one-line error naming the extra that installs it
+    (:func:`cfdesign.errors.require_extra`)."""
+    pd = require_extra("pandas", "reading logs needs pandas")
     if parquet:
-        try:
-            import pyarrow.parquet  # noqa: F401
-        except ImportError:
-            raise CfdesignError('Parquet logs and estimates need pyarrow: pip install "cfdesign[logs]"') from None
+        require_extra("pyarrow.parquet", NEEDS_PYARROW)
     return pd
 
 

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CfdesignError, DataError
+from ..errors import CfdesignError, DataError, require_extra
 from .columns import (
     MISSING,
+    NEEDS_PYARROW,
     ROS_TIME,
     TIME_COLUMNS,
     TIME_UNITS,
@@ -711,7 +712,7 @@ def _parquet_names(schema) -> dict:
     DataFrames, :func:`~cfdesign.logs.columns._time_name`: ``time``, ``t [ms]``, ``time_ms``; a frame
     indexed by a DatetimeIndex, as :func:`run_log` takes the index of a DataFrame), and is left out
     otherwise (row labels).  It was asked for by its field name and not found: an internal error."""
-    import pyarrow as pa
+    pa = require_extra("pyarrow", NEEDS_PYARROW)
 
     index = {c for c in (schema.pandas_metadata or {}).get("index_columns", []) if isinstance(c, str)}
     unnamed = {f.name for f in schema if f.name in index and re.fullmatch(r"__index_level_\d+__", f.name)}
@@ -728,7 +729,7 @@ def _parquet_names(schema) -> dict:
 def _parquet_blocks(path, columns, rows=None):
     """A Parquet log's blocks of ``rows`` rows (all of it in one when None), columns named as
     :func:`_parquet_names` names them."""
-    import pyarrow.parquet as pq
+    pq = require_extra("pyarrow.parquet", NEEDS_PYARROW)
 
     with pq.ParquetFile(path) as f:
         names = _parquet_names(f.schema_arrow)
@@ -846,7 +847,7 @@ def _header(path) -> list:
     kind = _kind(path)
     pd = _pandas(kind == "parquet")
     if kind == "parquet":
-        import pyarrow.parquet as pq
+        pq = require_extra("pyarrow.parquet", NEEDS_PYARROW)
 
         try:
             return list(_parquet_names(pq.read_schema(path)).values())
