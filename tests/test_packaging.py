@@ -141,3 +141,33 @@ def test_a_function_of_a_missing_extra_raises_its_install_line(hidden, call, ext
     with pytest.raises(CfdesignError, match=re.escape(f'pip install "cfdesign[{extra}]"')):
         call(table, tmp_path)
 
+
+# Python 3.10 (requires-python): its datetime.fromisoformat reads only the layout isoformat() writes
+
+_LAYOUT_310 = re.compile(r"\d{4}-\d{2}-\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{3}|\.\d{6})?)?)?(?:[+-]\d{2}:\d{2})?")
+
+
+@pytest.mark.parametrize("text", ["1970-01-01T00:01:00.5Z", "2024-05-01 12:00:00,5+01:00", "2024-05-01T12:00:00.010",
+                                  "2024-05-01T12:00:00.1234567+0100", "2024-05-01T12:00:00,25-0330", "2024-05-01"])
+def test_dates_read_under_python_310_as_under_311(text, monkeypatch):
+    """:func:`cfdesign.timing.date_seconds` (time columns of dates) under a ``fromisoformat`` that
+    refuses what 3.10's refuses gives the seconds 3.11's gives (the docstring's own example,
+    ``...00:01:00.5Z``, had been a ValueError on 3.10)."""
+    import datetime
+
+    from cfdesign.timing import date_seconds
+
+    real = datetime.datetime
+
+    class Py310(real):
+        @classmethod
+        def fromisoformat(cls, s):
+            if not _LAYOUT_310.fullmatch(s):
+                raise ValueError(f"Invalid isoformat string: {s!r}")
+            return real.fromisoformat(s)
+
+    want = date_seconds(text)
+    monkeypatch.setattr(datetime, "datetime", Py310)
+    assert date_seconds(text) == want
+    with pytest.raises(ValueError):
+        date_seconds("2024-05-01T12:00:00 UTC")
