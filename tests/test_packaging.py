@@ -118,7 +118,8 @@ def test_the_noise_extra_runs_cfdesign_noise():
 
 
 def test_require_extra_names_the_extra_on_one_line(monkeypatch):
-    monkeypatch.setitem(sys.modules, "pyarrow", None)
+    for name in ["pyarrow", *(m for m in sys.modules if m.startswith("pyarrow."))]:  # as if not installed
+        monkeypatch.setitem(sys.modules, name, None)
     with pytest.raises(CfdesignError) as info:
         require_extra("pyarrow.parquet", "Parquet needs pyarrow")
     assert str(info.value) == 'Parquet needs pyarrow: pip install "cfdesign[logs]"'
@@ -137,7 +138,8 @@ def test_a_function_of_a_missing_extra_raises_its_install_line(hidden, call, ext
 
     table = cfdesign.design(cfdesign.load_spec(cfdesign.spec.example_path("dckf3")))
     (tmp_path / "log.csv").write_text("time,gyro,compass,odometry\n0,0,0.1,0.1\n0.2,0,0.1,0.1\n")
-    monkeypatch.setitem(sys.modules, hidden, None)
+    for name in [hidden, *(m for m in sys.modules if m.startswith(hidden + "."))]:
+        monkeypatch.setitem(sys.modules, name, None)
     with pytest.raises(CfdesignError, match=re.escape(f'pip install "cfdesign[{extra}]"')):
         call(table, tmp_path)
 

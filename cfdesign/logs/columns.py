@@ -151,7 +151,7 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
         if s.dtype.kind == "b":  # text True/False in an object column is named as not a number, below
             _refuse_booleans(s, c, source, where)
         if s.dtype.kind in "fiu":
-            out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+            out[c] = _floats(s, pd) * (time_scale if c == time else 1.0)
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
             out[c] = _epoch_seconds(s)
@@ -176,8 +176,16 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
             cell = str(text.iloc[bad[0]])
             raise DataError(f"{source} {where(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
                             + _cell_hint(cell, c))
-        out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+        out[c] = _floats(values, pd) * (time_scale if c == time else 1.0)
     return out
+
+
+def _floats(s, pd):
+    """A column of numbers as float64, a missing value NaN: pandas 2.0 refused ``to_numpy(dtype=float)``
+    of a nullable column (``to_numeric`` of text gives one) holding ``<NA>``, which later pandas turn into NaN."""
+    if isinstance(s.dtype, pd.api.extensions.ExtensionDtype):
+        return s.to_numpy(dtype=float, na_value=np.nan)
+    return s.to_numpy(dtype=float)
 
 
 def _cell_hint(cell, column) -> str:
