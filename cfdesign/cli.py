@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from . import __version__
-from .errors import CfdesignError, GainError, InternalError, OutputError, SpecError
+from .errors import CfdesignError, GainError, InternalError, OutputError, SpecError, install_hint
 from .files import check_distinct, is_dir, write_files
 from .signals import disposed
 
@@ -803,17 +803,12 @@ def _internal(exc, debug) -> int:
         raise exc
     missing = _missing_dependency(exc)
     if missing:  # not a bug: the installation lacks a package this command imports
-        print(f"cfdesign: error: this command needs {missing}, which is not installed: pip install "
-              f"{_EXTRA_OF.get(missing, missing)}", file=sys.stderr)
+        print(f"cfdesign: error: this command needs {missing}, which is not installed: "
+              f"{install_hint(missing) or 'pip install ' + missing}", file=sys.stderr)
         return CfdesignError.exit_code
     print(f"cfdesign: internal error ({type(exc).__name__}: {_one_line(str(exc))}); please report it with "
           "the command you ran, and rerun with --debug for the traceback", file=sys.stderr)
     return InternalError.exit_code
-
-
-#: the extra that installs an optional dependency (the others: pip install NAME)
-_EXTRA_OF = {"pandas": '"cfdesign[logs]"', "pyarrow": '"cfdesign[logs]"', "dask": '"cfdesign[fleet]"',
-             "distributed": '"cfdesign[fleet]"'}
 
 
 def _missing_dependency(exc):

@@ -104,3 +104,57 @@ class InternalError(CfdesignError):
     """A bug: cfdesign reached a state it should not.  The CLI asks for a report (exit 3)."""
 
     exit_code = 3
+
+
+#: the extra of pyproject.toml that installs each optional package cfdesign imports (by the top-level
+#: module's name); every import of one goes through :func:`require_extra` (tests/test_packaging.py)
+EXTRAS = {"pandas": "logs", "pyarrow": "logs", "dask": "fleet", "distributed": "fleet"}
+
+
+def install_hint(module: str):
+    """The install command of a missing module's extra, or None when no extra installs it.
+
+    Parameters
+    ----------
+    module : str
+        A module name, dotted or not (``"pyarrow.parquet"``).
+
+    Returns
+    -------
+    str or None
+        ``pip install "cfdesign[EXTRA]"``, or None for a module of no extra.
+    """
+    extra = EXTRAS.get(module.split(".")[0])
+    return f'pip install "cfdesign[{extra}]"' if extra else None
+
+
+def require_extra(module: str, needed_for: str):
+    """Import an optional package's module, or raise one line naming the extra that installs it.
+
+    Parameters
+    ----------
+    module : str
+        The module, dotted or not (``"pyarrow.parquet"``); its top-level name is a key of
+        :data:`EXTRAS`.
+    needed_for : str
+        What needs it, the start of the message (``"reading logs needs pandas"``).
+
+    Returns
+    -------
+    module
+        The imported module.
+
+    Raises
+    ------
+    CfdesignError
+        The module cannot be imported: ``"{needed_for}: pip install "cfdesign[EXTRA]""``.
+    """
+    from importlib import import_module
+
+    hint = install_hint(module)
+    if hint is None:  # a programming error: every optional package has its extra
+        raise InternalError(f"{module} is not an optional package of cfdesign (cfdesign.errors.EXTRAS)")
+    try:
+        return import_module(module)
+    except ImportError:
+        raise CfdesignError(f"{needed_for}: {hint}") from None

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import bisect
 import itertools
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -91,8 +92,38 @@ def date_seconds(text: str) -> float:
     from datetime import datetime, timezone
 
     text = text.strip()
-    when = datetime.fromisoformat(text[:-1] + "+00:00" if text.endswith(("Z", "z")) else text)
+    text = text[:-1] + "+00:00" if text.endswith(("Z", "z")) else text
+    try:
+        when = datetime.fromisoformat(text)
+    except ValueError:  # Python 3.10 reads only the layout isoformat() writes
+        when = datetime.fromisoformat(_iso_as_written(text))
     return (when if when.tzinfo else when.replace(tzinfo=timezone.utc)).timestamp()
+
+
+#: a date and time Python 3.11's ``fromisoformat`` reads and 3.10's does not: a comma before the
+#: fraction of a second, a fraction of other than 3 or 6 digits, an offset without its colon
+_ISO_311 = re.compile(r"(\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2})(?:[.,](\d+))?(?:([+-]\d{2}):?(\d{2}))?")
+
+
+def _iso_as_written(text: str) -> str:
+    """``text`` in the layout of :meth:`datetime.datetime.isoformat` (which Python 3.10 reads), the
+    fraction cut to microseconds as Python 3.11 cuts it; ``text`` itself when it is not such a date.
+
+    Parameters
+    ----------
+    text : str
+        A date and time (``2024-05-01 12:00:00,5+0100``).
+
+    Returns
+    -------
+    str
+        ``2024-05-01 12:00:00.500000+01:00``.
+    """
+    m = _ISO_311.fullmatch(text)
+    if m is None:
+        return text
+    when, fraction, hours, minutes = m.groups()
+    return when + (f".{fraction[:6]:0<6}" if fraction else "") + (f"{hours}:{minutes}" if hours else "")
 
 
 def nearest_tick(x):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import CfdesignError, DataError
+from ..errors import CfdesignError, DataError, require_extra
 
 #: column names taken as the time (seconds) when none is given
 TIME_COLUMNS = ("time", "t", "timestamp")
@@ -23,18 +23,17 @@ _SHEET_ERRORS = re.compile(r"#(?:DIV/0!|VALUE!|REF!|NAME\?|NUM!|NULL!|SPILL!|CAL
                            re.IGNORECASE)
 
 
+#: what reading or writing Parquet needs, the start of the one-line error without pyarrow
+NEEDS_PYARROW = "Parquet logs and estimates need pyarrow"
+
+
 def _pandas(parquet=False):
     """pandas, and with ``parquet`` pyarrow (pandas reads and writes Parquet through it); a
-    missing one is a one-line error naming the extra that installs it."""
-    try:
-        import pandas as pd
-    except ImportError:  # pragma: no cover - depends on the installation
-        raise CfdesignError('reading logs needs pandas: pip install "cfdesign[logs]"') from None
+    missing one is a one-line error naming the extra that installs it
+    (:func:`cfdesign.errors.require_extra`)."""
+    pd = require_extra("pandas", "reading logs needs pandas")
     if parquet:
-        try:
-            import pyarrow.parquet  # noqa: F401
-        except ImportError:
-            raise CfdesignError('Parquet logs and estimates need pyarrow: pip install "cfdesign[logs]"') from None
+        require_extra("pyarrow.parquet", NEEDS_PYARROW)
     return pd
 
 
@@ -152,7 +151,7 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
         if s.dtype.kind == "b":  # text True/False in an object column is named as not a number, below
             _refuse_booleans(s, c, source, where)
         if s.dtype.kind in "fiu":
-            out[c] = s.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+            out[c] = _floats(s, pd) * (time_scale if c == time else 1.0)
             continue
         if c == time and (s.dtype.kind == "M" or isinstance(s.dtype, pd.DatetimeTZDtype)):
             out[c] = _epoch_seconds(s)
@@ -177,8 +176,16 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
             cell = str(text.iloc[bad[0]])
             raise DataError(f"{source} {where(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
                             + _cell_hint(cell, c))
-        out[c] = values.to_numpy(dtype=float) * (time_scale if c == time else 1.0)
+        out[c] = _floats(values, pd) * (time_scale if c == time else 1.0)
     return out
+
+
+def _floats(s, pd):
+    """A column of numbers as float64, a missing value NaN: pandas 2.0 refused ``to_numpy(dtype=float)``
+    of a nullable column (``to_numeric`` of text gives one) holding ``<NA>``, which later pandas turn into NaN."""
+    if isinstance(s.dtype, pd.api.extensions.ExtensionDtype):
+        return s.to_numpy(dtype=float, na_value=np.nan)
+    return s.to_numpy(dtype=float)
 
 
 def _cell_hint(cell, column) -> str:

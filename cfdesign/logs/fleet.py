@@ -8,7 +8,7 @@ import secrets
 import signal
 from pathlib import Path
 
-from ..errors import CfdesignError, DataError
+from ..errors import CfdesignError, DataError, require_extra
 from ..files import run_tag, temporaries, write_text
 from ..gains import require_table
 from ..signals import disposed
@@ -108,11 +108,9 @@ def run_logs(table, paths, outdir, *, workers=None, scheduler=None, suffix=".csv
         raise CfdesignError(f"workers must be a positive number of processes, got {workers!r}")  # (-1 hangs Dask)
     if workers is not None and scheduler:
         raise CfdesignError("workers and scheduler exclude each other: an existing scheduler has its own workers")
-    try:
-        import dask
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        raise CfdesignError('running many logs needs Dask: pip install "cfdesign[fleet]"') from None
+    dask = require_extra("dask", "running many logs needs Dask")
+    distributed = require_extra("dask.distributed", "running many logs needs Dask")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
     outdir = Path(outdir)
     targets = [outdir / (_log_stem(p) + suffix) for p in paths]
     first = {}

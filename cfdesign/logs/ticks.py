@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 
-from ..errors import DataError
-from .columns import _numeric
+from ..errors import DataError, require_extra
+from .columns import NEEDS_PYARROW, _numeric
 
 #: rows where the inputs read over which the log's base rate is measured (the first ones)
 RATE_SAMPLE = 1_000_000
@@ -221,7 +221,7 @@ def _arrow_types(frame):
     """The Parquet types of the log's passed-through columns over all its blocks (a column of
     integers with a gap in a later block is a column of floats; one empty in the first block
     takes the type of its first value)."""
-    import pyarrow as pa
+    pa = require_extra("pyarrow", NEEDS_PYARROW)
 
     schema = pa.Schema.from_pandas(frame, preserve_index=False).remove_metadata()
     empty = frame.isna().all(axis=0) if len(frame) else None  # no value: any type (CSV chunks read floats)
@@ -258,7 +258,7 @@ def _lock(table, blocks, cols, source, types=False):
     place.check_rate()
     arrivals = {k: _unique(np.concatenate(v)) if v else np.zeros(0, np.int64) for k, v in arrivals.items()}
     if schemas:
-        import pyarrow as pa
+        pa = require_extra("pyarrow", NEEDS_PYARROW)
 
         schemas = pa.unify_schemas(schemas, promote_options="permissive")
     lock = lock_schedule(table, arrivals, last + 1, recompute=table.has_kalman_gains)

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import OutputError
+from ..errors import CfdesignError, OutputError, require_extra
 from ..files import open_atomic, write_bytes
 from ..linear import wrap
-from .columns import _first_line, _pandas
+from .columns import NEEDS_PYARROW, _first_line, _pandas
 
 
 def _estimates(table, block, cols, values, states, stds, std):
@@ -116,8 +116,8 @@ class _Writer:
         if self._fh is None:
             return
         if self._is_parquet:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
+            pa = require_extra("pyarrow", NEEDS_PYARROW)
+            pq = require_extra("pyarrow.parquet", NEEDS_PYARROW)
 
             tab = pa.Table.from_pandas(shown, preserve_index=False)
             if self._parquet is None:
@@ -247,8 +247,8 @@ def _fast_pieces(frame):
     """:func:`_fast_csv` in pieces of :data:`_FAST_CELLS` cells: an iterator of text, or None."""
     if not _arrow_agrees():
         return None
-    import pyarrow as pa
-    import pyarrow.compute as pc
+    pa = require_extra("pyarrow", NEEDS_PYARROW)
+    pc = require_extra("pyarrow.compute", NEEDS_PYARROW)
 
     # numpy's own dtypes only: pandas writes a nullable column's <NA> and a text column's quotes itself
     if not len(frame.dtypes) or not all(isinstance(d, np.dtype) and (d == np.float64 or d.kind in "iu")
@@ -280,9 +280,9 @@ def _arrow_agrees() -> bool:
     """Whether pyarrow is installed and its text of :data:`_PROBE`, mended, is numpy's (another
     version of Arrow may lay its numbers out otherwise: pandas writes them then)."""
     try:
-        import pyarrow as pa
-        import pyarrow.compute as pc
-    except ImportError:
+        pa = require_extra("pyarrow", NEEDS_PYARROW)
+        pc = require_extra("pyarrow.compute", NEEDS_PYARROW)
+    except CfdesignError:  # a speed-up here, not a need: pandas writes the CSV without it
         return False
     probe = np.array(_PROBE)
     want = np.where(np.isnan(probe), None, probe.astype(str).astype(object))
@@ -338,7 +338,7 @@ def _mend(strings, where, pa, pc, mend):
 
 def _small(strings):
     """Arrow's positional text of 1e-6 <= |x| < 1e-4 in pandas' notation ('0.0000123' -> '1.23e-05')."""
-    import pyarrow.compute as pc
+    pc = require_extra("pyarrow.compute", NEEDS_PYARROW)
 
     for zeros, exp in (("0000", "05"), ("00000", "06")):
         strings = pc.replace_substring_regex(strings, rf"^(-?)0\.{zeros}([1-9])(\d+)$", rf"\1\2.\3e-{exp}")
