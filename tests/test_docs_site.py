@@ -271,6 +271,19 @@ def _resolves(dotted: str) -> bool:
     return False
 
 
+def test_the_readme_layout_names_every_module_and_package():
+    """The README's Layout section names each module and package directly under cfdesign/
+    (``blas.py`` and ``units.py`` had been left out)."""
+    readme = (DOCS.parent / "README.md").read_text()
+    layout = readme[readme.index("## Layout"):readme.index("## References")]
+    root = DOCS.parent / "cfdesign"
+    parts = [p.name + ("/" if p.is_dir() else "") for p in sorted(root.iterdir())
+             if not p.name.startswith(("__", ".")) and (p.suffix == ".py" or (p / "__init__.py").is_file())]
+    assert len(parts) > 20
+    missing = [p for p in parts if f"`{p}`" not in layout and f"`cfdesign/{p}`" not in layout]
+    assert not missing, f"not in the README's Layout: {missing}"
+
+
 def test_every_dotted_name_the_pages_give_exists():
     """A name written out in prose (``cfdesign.nav.strapdown_ekf``, ``cfdesign.timing.grid_fit``)
     is not a Sphinx cross-reference, so ``-W`` does not check it: it must still be a module or
