@@ -53,8 +53,8 @@ heading crossing +-pi, compared modulo 2 pi; the multirate position table, perio
   5e4 m exceeds that figure 2 to 4 times (``||h||_2`` 22, ``||h||_1`` 1000).
 
 Every generated file compiles clean under :data:`~cfdesign.codegen.c99.STRICT_CFLAGS` (C99) and
-:data:`~cfdesign.codegen.c99.STRICT_CXXFLAGS` (C++11), the warning sets the C export promises;
-every name with file scope starts with the prefix.
+:data:`~cfdesign.codegen.c99.STRICT_CXXFLAGS` (C++11), the warning sets the C export promises; every name
+with file scope starts with the prefix.
 
 The step costs about 7 ns for the DCKF3 in double on a 2.6 GHz x86-64 (see
 ``benchmarks/bench_runtime.py``).
