@@ -10,6 +10,7 @@ runs in CI after the tests (``.ci/run``).
 
 from __future__ import annotations
 
+import ast
 import importlib
 import pkgutil
 import re
@@ -88,6 +89,57 @@ def test_the_build_is_nitpicky():
     ignored = re.search(r"^nitpick_ignore_regex = \[(.*?)^\]", conf, re.M | re.S)
     assert ignored and "cfdesign" not in ignored.group(1)
     assert "sphinx.ext.intersphinx" not in conf
+
+
+DATA_ROLE = re.compile(r":data:`~?(?P<target>[\w.]+)`")
+
+
+def _module_sources() -> dict:
+    """``{module name: source path}`` of every module of cfdesign."""
+    root = DOCS.parent / "cfdesign"
+    out = {}
+    for path in root.rglob("*.py"):
+        parts = path.relative_to(root.parent).with_suffix("").parts
+        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return out
+
+
+def _assigned(path: Path) -> set:
+    """The names a module's source binds at its top level by assignment (not by import)."""
+    names = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+        else:
+            targets = []
+        names |= {n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name)}
+    return names
+
+
+def test_every_data_cross_reference_names_the_module_that_assigns_the_value():
+    """autodoc documents a module's value (a ``#:`` constant) on the page of the module that
+    assigns it, not on that of a package re-exporting it, so ``sphinx -W`` fails on a
+    :data: reference that resolves only to the re-export (``cfdesign.codegen``'s
+    ``STRICT_CFLAGS``, assigned in ``cfdesign.codegen.c99``).  Each target must resolve as Sphinx
+    resolves it - in the docstring's own module or a package above it (which documents what it
+    re-exports), then as written - to a module that assigns it."""
+    sources = _module_sources()
+    assigned = {}
+    unresolved = []
+    for module, path in sorted(sources.items()):
+        for m in DATA_ROLE.finditer(path.read_text()):
+            found = False
+            # the module, then each package above it (a package's page documents what it re-exports)
+            scopes = [module.rsplit(".", i)[0] for i in range(module.count(".") + 1)]
+            for full in [f"{scope}.{m['target']}" for scope in scopes] + [m["target"]]:
+                owner, _, name = full.rpartition(".")
+                if owner in sources:
+                    assigned.setdefault(owner, _assigned(sources[owner]))
+                    found = found or name in assigned[owner]
+            if not found:
+                unresolved.append(f"{path.relative_to(DOCS.parent)}: {m[0]}")
+    assert len(assigned) > 10  # the check found the references it is about
+    assert not unresolved, unresolved
 
 
 def _command_options(command: str, paper: str | None = None) -> dict:
@@ -217,6 +269,19 @@ def _resolves(dotted: str) -> bool:
             obj = getattr(obj, name)
         return True
     return False
+
+
+def test_the_readme_layout_names_every_module_and_package():
+    """The README's Layout section names each module and package directly under cfdesign/
+    (``blas.py`` and ``units.py`` had been left out)."""
+    readme = (DOCS.parent / "README.md").read_text()
+    layout = readme[readme.index("## Layout"):readme.index("## References")]
+    root = DOCS.parent / "cfdesign"
+    parts = [p.name + ("/" if p.is_dir() else "") for p in sorted(root.iterdir())
+             if not p.name.startswith(("__", ".")) and (p.suffix == ".py" or (p / "__init__.py").is_file())]
+    assert len(parts) > 20
+    missing = [p for p in parts if f"`{p}`" not in layout and f"`cfdesign/{p}`" not in layout]
+    assert not missing, f"not in the README's Layout: {missing}"
 
 
 def test_every_dotted_name_the_pages_give_exists():

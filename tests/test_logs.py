@@ -2115,3 +2115,24 @@ def test_missed_readings_default_to_the_tables_output(gps3):
                                  for o in ((), ("posterior",), ("prior",)))
     np.testing.assert_array_equal(default, posterior)
     assert not np.allclose(default, prior)
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_the_progress_bar_is_drawn_on_a_terminal_only(heading, monkeypatch, terminal):
+    """``cfdesign run``'s bar (a log longer than a block) goes to a terminal; stderr redirected
+    to a file or CI's log gets none of its carriage-return lines, only the notes."""
+    import io
+    import sys
+
+    import cfdesign.logs.run as log_run
+
+    class Stderr(io.StringIO):
+        def isatty(self):
+            return terminal
+
+    log, _ = heading_log(0, 0, n=400)
+    monkeypatch.setattr(log_run, "BLOCK_ROWS", 100)
+    monkeypatch.setattr(sys, "stderr", Stderr())
+    run_log(heading, log, progress=True)
+    drawn = sys.stderr.getvalue()
+    assert ("400/400" in drawn and "row" in drawn) if terminal else "\r" not in drawn and "row/s" not in drawn

@@ -83,7 +83,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     block_rows : int, optional
         Rows per block (default :data:`BLOCK_ROWS`).
     progress : bool
-        A progress bar on stderr for long logs.
+        A progress bar on stderr for logs longer than a block, when stderr is a terminal.
     source : str, optional
         The log's name in messages.
     time_unit : {'s', 'ms', 'us', 'ns'}, optional
@@ -884,10 +884,12 @@ class _NoBar:
 
 
 def _progress(total, show):
+    """A tqdm bar of ``total`` rows on stderr when ``show`` and the log spans more than a block;
+    silent when stderr is not a terminal (a redirected log or CI gets no carriage-return lines)."""
     if not show or total < BLOCK_ROWS:
         return _NoBar()
     import sys
 
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="row", file=sys.stderr)
+    return tqdm(total=total, unit="row", file=sys.stderr, disable=None)
