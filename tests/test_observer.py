@@ -347,3 +347,13 @@ def test_repr_gives_the_sample_time_in_seconds():
     assert "T = 0.2 s," in repr(cfdesign.dckf3().subs(T=0.2))
     assert "T = T (symbolic)" in repr(cfdesign.dckf3())
     assert "continuous;" in repr(cfdesign.cf3())
+
+
+def test_a_list_of_sympy_rows_is_a_matrix():
+    """sympy stacks a list of row matrices into one matrix; the check for arrays of more than 2
+    dimensions took numpy's view of it (shape 2x1x2) and refused it."""
+    k1, k2 = sp.symbols("k1 k2")
+    rows = [sp.Matrix([[k1, 0]]), sp.Matrix([[k2, 1]])]
+    obs = cfdesign.dckf3()
+    built = Observer(obs.F, obs.B, obs.H, rows, obs.sensors, domain="z", sample_time=obs.sample_time)
+    assert built.K == sp.Matrix([[k1, 0], [k2, 1]])

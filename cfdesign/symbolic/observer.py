@@ -404,9 +404,10 @@ def _no_text(name, value):
 
 
 def _ndim(value) -> int:
-    """Dimensions of an array-like (0 for a sympy matrix, or nested lists numpy cannot shape: a
-    ragged matrix, told by sympy)."""
-    if isinstance(value, sp.MatrixBase):
+    """Dimensions of an array-like (0 for a sympy matrix, a list of them, which sympy stacks into
+    one, or nested lists numpy cannot shape: a ragged matrix, told by sympy)."""
+    if isinstance(value, sp.MatrixBase) or (isinstance(value, (list, tuple))
+                                            and any(isinstance(v, sp.MatrixBase) for v in value)):
         return 0
     try:
         return np.ndim(value)
