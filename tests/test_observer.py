@@ -327,6 +327,8 @@ def test_gain_matrix_and_model_shapes_are_told():
     (lambda S: Observer(np.zeros((1, 1, 1)), [[1]], [[1]], [[1]], S), r"F must be a matrix \(2-D\), got an array"),
     (lambda S: Observer(np.array([[True]]), [[1]], [[1]], [[1]], S), "F holds a bool"),
     (lambda S: Observer([[0]], [[1]], [[1]], [[True]], S), "K holds a bool"),
+    (lambda S: Observer([[0]], [[1]], [[1]], np.array([[True]], dtype=object), S), "K holds a bool"),
+    (lambda S: Observer([[0]], [[1]], [[sp.true]], [[1]], S), "H holds a bool"),
     (lambda S: Observer({"a": 1}, [[1]], [[1]], [[1]], S), "F is a dict, not a matrix"),
     (lambda S: Observer([[0]], [[1], [2]], [[1]], [[1]], S), r"B must be 1x\(inputs\): one row per state, got 2x1"),
     (lambda S: Observer([[0]], [[1]], [[1]], [[1]], S, name=3), "name must be text"),
