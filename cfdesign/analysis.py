@@ -270,7 +270,8 @@ class FrequencyResponse:
         its magnitude where the two are the largest of all bands (a band that stays below, e.g. a
         weak band-pass, is skipped: where it meets another band a third one is larger, so no
         hand-over happens there).  The first such sign change of ``log|T_a| - log|T_b|`` on the
-        grid is refined with Brent's method on the responses the grid was computed with
+        grid, from one strict sign to the other (a band that only touches another is no
+        hand-over), is refined with Brent's method on the responses the grid was computed with
         (``evaluate``; by default the band polynomials).
 
         Returns
@@ -314,12 +315,18 @@ class FrequencyResponse:
         # on the upper envelope: a weak band meeting a band where a third one dominates is no hand-over
         # (a 0.05-share compass 'crossed' the gyro band at 0.34 rad/s, under the 0.95-share odometry)
         top = pair >= np.max(others, axis=0) if others else np.ones(pair.shape, dtype=bool)
-        idx = np.flatnonzero(np.isfinite(d[:-1]) & np.isfinite(d[1:]) & (np.sign(d[:-1]) != np.sign(d[1:]))
-                             & top[:-1] & top[1:])
-        if not idx.size:
+        # a change of strict sign: a band that touches another (equal on a grid point, below on both sides)
+        # had been a hand-over to it there, and the real one after it was lost
+        finite = np.isfinite(d)
+        signed = np.flatnonzero(finite & (d != 0))
+        lo, hi = signed[:-1], signed[1:]
+        gaps = np.cumsum(~finite)  # no non-finite point between lo and hi: only equal magnitudes (d = 0)
+        cross = (np.sign(d[lo]) != np.sign(d[hi])) & (gaps[hi - 1] == gaps[lo])
+        on_top = np.array([top[i:j + 1].all() for i, j in zip(lo[cross], hi[cross], strict=True)], dtype=bool)
+        if not on_top.any():
             return None
-        i = idx[0]
-        return float(brentq(lambda w: self._log_ratio(a, b, w), self.omega[i], self.omega[i + 1], xtol=1e-14))
+        i, j = lo[cross][on_top][0], hi[cross][on_top][0]
+        return float(brentq(lambda w: self._log_ratio(a, b, w), self.omega[i], self.omega[j], xtol=1e-14))
 
 
 def frequency_response(observer, omega=None, points: int = 800) -> FrequencyResponse:

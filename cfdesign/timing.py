@@ -67,7 +67,9 @@ def date_seconds(text: str) -> float:
     The one reading of dates in time columns (:func:`cfdesign.logs.run_log`,
     ``cfdesign noise --time``): Python's :meth:`datetime.datetime.fromisoformat`
     (``2024-05-01T12:00:00.010``, ``2024-05-01 12:00:00,5+01:00``, a trailing ``Z``); a date
-    without a time zone is taken as UTC (only differences between rows matter).
+    without a time zone is taken as UTC (only differences between rows matter).  Python 3.10, whose
+    ``fromisoformat`` reads fewer layouts, reads the same dates but for week
+    dates (``2024-W18-3``).
 
     Parameters
     ----------
@@ -100,30 +102,45 @@ def date_seconds(text: str) -> float:
     return (when if when.tzinfo else when.replace(tzinfo=timezone.utc)).timestamp()
 
 
-#: a date and time Python 3.11's ``fromisoformat`` reads and 3.10's does not: a comma before the
-#: fraction of a second, a fraction of other than 3 or 6 digits, an offset without its colon
-_ISO_311 = re.compile(r"(\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}:\d{2})(?:[.,](\d+))?(?:([+-]\d{2}):?(\d{2}))?")
+#: a date and time as Python 3.11's ``fromisoformat`` reads it and 3.10's may not: the date with or
+#: without hyphens, any one character before the time, the time with or without colons (hours,
+#: minutes, seconds), a fraction of the seconds of any length after a dot or a comma, and an offset
+#: of hours (``+01``), hours and minutes (``+0100``, ``+01:00``) or more (``+01:00:30.5``)
+_ISO_311 = re.compile(r"(\d{4})(-?)(\d{2})\2(\d{2})"
+                      r"(?:(.)(\d{2})(?:(:?)(\d{2})(?:\7(\d{2})(?:[.,](\d+))?)?)?"
+                      r"(?:([+-])(\d{2})(?:(:?)(\d{2})(?:\13(\d{2})(?:[.,](\d+))?)?)?)?)?")
 
 
 def _iso_as_written(text: str) -> str:
     """``text`` in the layout of :meth:`datetime.datetime.isoformat` (which Python 3.10 reads), the
-    fraction cut to microseconds as Python 3.11 cuts it; ``text`` itself when it is not such a date.
+    fractions cut to microseconds as Python 3.11 cuts them; ``text`` itself when it is not such a date.
 
     Parameters
     ----------
     text : str
-        A date and time (``2024-05-01 12:00:00,5+0100``).
+        A date and time (``2024-05-01 12:00:00,5+0100``, ``20240501T1200+01``).
 
     Returns
     -------
     str
-        ``2024-05-01 12:00:00.500000+01:00``.
+        ``2024-05-01 12:00:00.500000+01:00``, ``2024-05-01T12:00+01:00``.
     """
     m = _ISO_311.fullmatch(text)
     if m is None:
         return text
-    when, fraction, hours, minutes = m.groups()
-    return when + (f".{fraction[:6]:0<6}" if fraction else "") + (f"{hours}:{minutes}" if hours else "")
+    (year, _, month, day, sep, hour, _, minute, second, fraction,
+     sign, off_h, _, off_m, off_s, off_f) = m.groups()
+    out = f"{year}-{month}-{day}"
+    if sep is not None:
+        out += sep + ":".join(v for v in (hour, minute, second) if v) + _micro(fraction)
+    if sign is not None:  # 3.10 needs the offset's minutes
+        out += sign + ":".join(v for v in (off_h, off_m or "00", off_s) if v) + _micro(off_f)
+    return out
+
+
+def _micro(fraction) -> str:
+    """A fraction of a second's digits as ``.ffffff`` (cut, not rounded, to microseconds), or ''."""
+    return f".{fraction[:6]:0<6}" if fraction else ""
 
 
 def nearest_tick(x):

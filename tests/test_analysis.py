@@ -100,3 +100,37 @@ def test_crossover_is_drawn_from_the_band_that_carries_dc(K):
     (a, b, w), = cfdesign.frequency_response(g).crossovers()
     assert (a, b) == ("odometry", "gyro")
     assert w == pytest.approx(brentq(ratio, grid[i - 1], grid[i], xtol=1e-14), rel=1e-9)
+
+
+def _bands(w):
+    """A low-pass and a high-pass band, and a band that touches the low-pass at 1 rad/s (equal
+    there, below it on both sides) and never leads."""
+    w = np.asarray(w, dtype=float)
+    s = 1j * w
+    low = 1 / (s + 1)
+    return {"low": low, "touch": low * (2 * w / (1 + w * w)), "high": s**4 / (s + 1) ** 4}
+
+
+def test_a_band_that_touches_another_takes_no_hand_over():
+    """On a grid holding 1 rad/s the touching band's log ratio to the low-pass is 0 there, + on both
+    sides: that zero was a sign change, 'low/touch: 1.0' was marked and the real hand-over, low to
+    high where |s + 1|^3 = w^4, lost.  A crossing on a grid point (low/high of a first-order pair
+    at 1 rad/s) is still one."""
+    from scipy.optimize import brentq
+
+    from cfdesign.analysis import FrequencyResponse
+
+    grid = np.logspace(-3, 3, 801)
+    assert grid[400] == 1.0
+    resp = FrequencyResponse(omega=grid, bands=_bands(grid), dt=None, coefficients={}, evaluate=_bands)
+    want = brentq(lambda w: 1.5 * np.log1p(w * w) - 4 * np.log(w), 1.0, 3.0, xtol=1e-14)
+    (a, b, w), = resp.crossovers()
+    assert (a, b) == ("low", "high") and w == pytest.approx(want, rel=1e-9)
+
+    def pair(w):
+        s = 1j * np.asarray(w, dtype=float)
+        return {"low": 1 / (s + 1), "high": s / (s + 1)}
+
+    (a, b, w), = FrequencyResponse(omega=grid, bands=pair(grid), dt=None, coefficients={},
+                                   evaluate=pair).crossovers()
+    assert (a, b) == ("low", "high") and w == pytest.approx(1.0, rel=1e-12)

@@ -351,3 +351,12 @@ def test_attitude_filters_and_a_table_filter_build_as_one_unit_under_the_promise
         defined = {s[-1]: s[-2] for s in symbols if len(s) == 3}
         assert {name for name, kind in defined.items() if kind in "TDBCG"} == {"att9_init", "att9_step"}
         assert not set(defined.values()) & set("DdBbCGgSs")      # no writable data: state is the caller's
+
+
+def test_a_prefix_whose_names_are_posix_math_macros_is_refused():
+    """Prefix M made ``static const double M_PI``, which <math.h> defines as a macro under g++ and
+    -std=gnu99 ('expected unqualified-id before numeric constant'); m makes m_PI, which is free."""
+    with pytest.raises(CfdesignError, match=r"C name 'M_PI' is a macro of <math.h> in POSIX"):
+        render_attitude_c(AttitudeFilter(100.0), prefix="M")
+    files = render_attitude_c(AttitudeFilter(100.0), prefix="m")
+    assert "static const double m_PI = 3.141592653589793;" in files["m.c"]

@@ -327,6 +327,8 @@ def test_gain_matrix_and_model_shapes_are_told():
     (lambda S: Observer(np.zeros((1, 1, 1)), [[1]], [[1]], [[1]], S), r"F must be a matrix \(2-D\), got an array"),
     (lambda S: Observer(np.array([[True]]), [[1]], [[1]], [[1]], S), "F holds a bool"),
     (lambda S: Observer([[0]], [[1]], [[1]], [[True]], S), "K holds a bool"),
+    (lambda S: Observer([[0]], [[1]], [[1]], np.array([[True]], dtype=object), S), "K holds a bool"),
+    (lambda S: Observer([[0]], [[1]], [[sp.true]], [[1]], S), "H holds a bool"),
     (lambda S: Observer({"a": 1}, [[1]], [[1]], [[1]], S), "F is a dict, not a matrix"),
     (lambda S: Observer([[0]], [[1], [2]], [[1]], [[1]], S), r"B must be 1x\(inputs\): one row per state, got 2x1"),
     (lambda S: Observer([[0]], [[1]], [[1]], [[1]], S, name=3), "name must be text"),
@@ -347,3 +349,13 @@ def test_repr_gives_the_sample_time_in_seconds():
     assert "T = 0.2 s," in repr(cfdesign.dckf3().subs(T=0.2))
     assert "T = T (symbolic)" in repr(cfdesign.dckf3())
     assert "continuous;" in repr(cfdesign.cf3())
+
+
+def test_a_list_of_sympy_rows_is_a_matrix():
+    """sympy stacks a list of row matrices into one matrix; the check for arrays of more than 2
+    dimensions took numpy's view of it (shape 2x1x2) and refused it."""
+    k1, k2 = sp.symbols("k1 k2")
+    rows = [sp.Matrix([[k1, 0]]), sp.Matrix([[k2, 1]])]
+    obs = cfdesign.dckf3()
+    built = Observer(obs.F, obs.B, obs.H, rows, obs.sensors, domain="z", sample_time=obs.sample_time)
+    assert built.K == sp.Matrix([[k1, 0], [k2, 1]])

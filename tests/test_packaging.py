@@ -146,15 +146,20 @@ def test_a_function_of_a_missing_extra_raises_its_install_line(hidden, call, ext
 
 # Python 3.10 (requires-python): its datetime.fromisoformat reads only the layout isoformat() writes
 
-_LAYOUT_310 = re.compile(r"\d{4}-\d{2}-\d{2}(?:[T ]\d{2}:\d{2}(?::\d{2}(?:\.\d{3}|\.\d{6})?)?)?(?:[+-]\d{2}:\d{2})?")
+#: (any one character before the time; an offset of hours and minutes, perhaps seconds and microseconds)
+_LAYOUT_310 = re.compile(r"\d{4}-\d{2}-\d{2}(?:.\d{2}(?::\d{2}(?::\d{2}(?:\.\d{3}|\.\d{6})?)?)?"
+                         r"(?:[+-]\d{2}:\d{2}(?::\d{2}(?:\.\d{6})?)?)?)?")
 
 
 @pytest.mark.parametrize("text", ["1970-01-01T00:01:00.5Z", "2024-05-01 12:00:00,5+01:00", "2024-05-01T12:00:00.010",
-                                  "2024-05-01T12:00:00.1234567+0100", "2024-05-01T12:00:00,25-0330", "2024-05-01"])
+                                  "2024-05-01T12:00:00.1234567+0100", "2024-05-01T12:00:00,25-0330", "2024-05-01",
+                                  "2024-05-01T12:00:00+01", "2024-05-01T12:00+0100", "2024-05-01t12:00:00.5",
+                                  "2024-05-01T12:00:00.5+01:00:30", "20240501T120000.25Z"])
 def test_dates_read_under_python_310_as_under_311(text, monkeypatch):
     """:func:`cfdesign.timing.date_seconds` (time columns of dates) under a ``fromisoformat`` that
     refuses what 3.10's refuses gives the seconds 3.11's gives (the docstring's own example,
-    ``...00:01:00.5Z``, had been a ValueError on 3.10)."""
+    ``...00:01:00.5Z``, had been a ValueError on 3.10; so had an offset of hours only, ``+0100`` after
+    a time without seconds, a lower-case ``t``, an offset with seconds and a date without hyphens)."""
     import datetime
 
     from cfdesign.timing import date_seconds

@@ -51,6 +51,9 @@ _RESERVED = (
     (r"U?INT\w*(_MAX|_MIN|_C)\Z", "names starting with INT or UINT and ending in _MAX, _MIN or _C (<stdint.h>)"),
     (r"F[EP]_[A-Z]", "names starting with FE_ or FP_ and a capital letter (<fenv.h>, <math.h>)"),
 )
+#: the constants POSIX adds to <math.h> (glibc's with their l, f and fN suffixes): macros wherever a
+#: program is built as C++ (g++ defines _GNU_SOURCE) or as GNU C (-std=gnu99, the default)
+_POSIX_MATH = re.compile(r"M_(E|LOG2E|LOG10E|LN2|LN10|PI|PI_2|PI_4|1_PI|2_PI|2_SQRTPI|SQRT2|SQRT1_2)(l|f\d*x?)?\Z")
 #: significant initial characters C99 guarantees (5.2.4.1): external names, the others
 _SIGNIFICANT = {"external": 31, "internal": 63}
 #: precision -> (C type, ceil function, literal suffix)
@@ -154,7 +157,8 @@ def check_c_names(files: dict, prefix: str) -> dict:
     name is refused when C99 keeps it for itself, by keyword or by spelling (7.1.3 and the
     future library directions of 7.26: ``str``, ``mem``, ``wcs``, ``is`` or ``to`` and a
     lowercase letter; macros of ``<errno.h>``, ``<locale.h>``, ``<signal.h>``, ``<inttypes.h>``,
-    ``<stdint.h>``, ``<fenv.h>``, ``<math.h>``), or when it is longer than the characters C99
+    ``<stdint.h>``, ``<fenv.h>``, ``<math.h>``) or POSIX ``<math.h>`` defines (``M_PI``, ``M_E``: macros
+    under g++ and ``-std=gnu99``), or when it is longer than the characters C99
     guarantees significant (5.2.4.1): 31 for the external functions ``<prefix>_init`` and
     ``<prefix>_step``, 63 for the other names.
 
@@ -200,6 +204,9 @@ def check_c_names(files: dict, prefix: str) -> dict:
         if rule is not None:
             raise CfdesignError(f"C name {_shown(name)!r} is reserved in C99: {rule}; C code needs another prefix or "
                                 "sensor name")
+        if _POSIX_MATH.match(name):  # prefix M: the attitude C's M_PI
+            raise CfdesignError(f"C name {name!r} is a macro of <math.h> in POSIX (defined under g++ and "
+                                "-std=gnu99); C code needs another prefix")
     return files
 
 

@@ -404,9 +404,10 @@ def _no_text(name, value):
 
 
 def _ndim(value) -> int:
-    """Dimensions of an array-like (0 for a sympy matrix, or nested lists numpy cannot shape: a
-    ragged matrix, told by sympy)."""
-    if isinstance(value, sp.MatrixBase):
+    """Dimensions of an array-like (0 for a sympy matrix, a list of them, which sympy stacks into
+    one, or nested lists numpy cannot shape: a ragged matrix, told by sympy)."""
+    if isinstance(value, sp.MatrixBase) or (isinstance(value, (list, tuple))
+                                            and any(isinstance(v, sp.MatrixBase) for v in value)):
         return 0
     try:
         return np.ndim(value)
@@ -417,10 +418,13 @@ def _ndim(value) -> int:
 def _no_bool(name, value):
     """A bool in a matrix is refused: sympy keeps it as a logical ``true`` (a deprecation warning),
     and the bands then failed with sympy's raw 'BooleanAtom not allowed in this context'."""
-    if isinstance(value, (bool, np.bool_)) or (isinstance(value, np.ndarray) and value.dtype.kind == "b"):
+    if isinstance(value, (bool, np.bool_, sp.logic.boolalg.BooleanAtom)) or (isinstance(value, np.ndarray)
+                                                                            and value.dtype.kind == "b"):
         raise StructureError(f"{name} holds a bool ({value if np.ndim(value) == 0 else 'dtype bool'}), not a "
                              "number: write 1 or 0")
-    if isinstance(value, (sp.Basic, sp.MatrixBase, np.ndarray, str, bytes)) or not isinstance(value, Iterable):
+    if isinstance(value, np.ndarray) and value.dtype == object:  # entries of any type: a bool among them
+        value = value.flat
+    elif isinstance(value, (sp.Basic, sp.MatrixBase, np.ndarray, str, bytes)) or not isinstance(value, Iterable):
         return
     for item in value:
         _no_bool(name, item)
