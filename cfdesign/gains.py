@@ -691,9 +691,10 @@ class GainTable:
         >>> repr(table).split("; ")[2]
         'sensors accelerometer (input, order 2, 50 Hz), gps (measurement, order 0, 1 Hz)>'
         """
-        timing = "continuous" if self.sample_time_s is None else f"discrete T = {self.sample_time_s:g} s"
+        timing = ("continuous" if self.sample_time_s is None
+                  else f"discrete T = {self.sample_time_s:g} s, {self.gain_form} form")
         ports = ", ".join(f"{s.name} ({s.role}, order {s.order}, {s.rate_hz:g} Hz)" for s in self.sensors)
-        return (f"<GainTable {self.name!r}: {self.structure}, {timing}, {self.gain_form} form, period {self.period}, "
+        return (f"<GainTable {self.name!r}: {self.structure}, {timing}, period {self.period}, "
                 f"output {self.output}; states {', '.join(self.states)}; sensors {ports}>")
 
     def state_units(self) -> tuple:

@@ -462,3 +462,5 @@ def test_reprs_name_the_table_and_stay_short_whatever_the_period(position):
     rt = Runtime(position)
     rt.step(accelerometer=0.0)
     assert repr(rt).startswith(f"<Runtime of {position.name!r}: output posterior, phase 1 of 50")
+    continuous = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3")))
+    assert ", continuous, period 1, output prior;" in repr(continuous)   # no gain form: it has none

@@ -330,7 +330,7 @@ class Runtime:
     def __repr__(self) -> str:
         """The table run, the output returned and where the filter stands (its phase), in one line."""
         return (f"<Runtime of {self.table.name!r}: output {self.output}, phase {int(self.phase)} of {self.period}, "
-                f"inputs {', '.join(self.inputs) or 'none'}; measurements {', '.join(self.measurements)}>")
+                f"inputs {', '.join(self.inputs) or 'none'}; measurements {', '.join(self.measurements) or 'none'}>")
 
     # ------------------------------------------------------------------ state
     def reset(self):
