@@ -161,8 +161,8 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
             continue
         text = s.astype("string").str.strip()
         text = text.where(~text.str.lower().isin(MISSING))  # 'NaN ' padded by a fixed-width export: missing too
-        values = pd.to_numeric(text, errors="coerce")
-        bad = np.flatnonzero(values.isna().to_numpy() & text.notna().to_numpy())
+        values = _numbers(text, pd)
+        bad = np.flatnonzero(np.isnan(values) & text.notna().to_numpy())
         if bad.size and c == time and len(bad) == int(text.notna().sum()):  # no number: dates?
             dates, not_date = _dates(text)
             if not_date is None:
@@ -176,8 +176,34 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
             cell = str(text.iloc[bad[0]])
             raise DataError(f"{source} {where(bad[0])}: column {c!r} is {what}: {_cell_text(s.iloc[bad[0]])}"
                             + _cell_hint(cell, c))
-        out[c] = _floats(values, pd) * (time_scale if c == time else 1.0)
+        out[c] = values * (time_scale if c == time else 1.0)
     return out
+
+
+#: a decimal number (``1e999`` as well: pandas before 3.0 read no number that overflows a double)
+_DECIMAL = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
+
+
+def before_pandas_3(pd) -> bool:
+    """Whether ``pd`` is pandas 2.x, whose parsers read numbers inexactly by default (the logs extra
+    allows pandas>=2.0; pandas 3 needs Python 3.11)."""
+    return int(pd.__version__.split(".")[0]) < 3
+
+
+def _numbers(text, pd):
+    """The cells of a column of stripped text (missing ones NA) as float64, NaN where a cell is no
+    number: the nearest double to each, and +-inf for one beyond the doubles (``1e999``), as
+    pandas 3 reads them.  ``pandas.to_numeric`` before 3.0 read a third of the shortest reprs of doubles
+    of any exponent an ulp off, and ``1e999`` as no number (a log writing it for no reading stopped):
+    its numbers, and the decimal numbers it refused, are read again with numpy's exact parser."""
+    values = _floats(pd.to_numeric(text, errors="coerce"), pd)
+    if not before_pandas_3(pd):
+        return values
+    numbers = text.notna().to_numpy() & (~np.isnan(values) | text.str.fullmatch(_DECIMAL.pattern).fillna(False)
+                                         .to_numpy(dtype=bool))
+    values = values.copy()  # not a view of the column's own buffer
+    values[numbers] = text[numbers].to_numpy(dtype=str).astype(float)
+    return values
 
 
 def _floats(s, pd):

@@ -326,12 +326,13 @@ class _Gather:
         for i, c in enumerate(self.numbers):
             part[i, mine] = chunk[c].to_numpy() if c in chunk.columns else np.nan
             part[i, ~mine] = joined[c].to_numpy() if c in joined.columns else np.nan
-        if self.others:
+        if self.others and n + m:
             take = np.empty(n + m, dtype=np.int64)
             take[mine], take[~mine] = np.arange(n), n + np.arange(m)
-            for c, parts in self.others.items():
+            for c, parts in self.others.items():  # an empty side left out: its dtype was the column's on
+                # pandas 3 (int64 cells became objects) and not on pandas 2, which warned that it would be
                 both = pd.concat([(f[c] if c in f.columns else pd.Series(np.full(len(f), np.nan)))
-                                  .reset_index(drop=True) for f in (chunk, joined)], ignore_index=True)
+                                  .reset_index(drop=True) for f in (chunk, joined) if len(f)], ignore_index=True)
                 parts.append(both.iloc[take].reset_index(drop=True))
         self.size, self.main = self.size + n + m, self.main + n
 

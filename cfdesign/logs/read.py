@@ -30,6 +30,7 @@ from .columns import (
     _time_unit,
     _time_with_unit,
     _unit,
+    before_pandas_3,
 )
 
 
@@ -707,7 +708,7 @@ def _exact(pd) -> dict:
     """The option of ``read_csv`` that reads every number as the nearest double: pandas before 3.0
     read one in six of the shortest round-trip texts of random doubles an ulp off by default (its
     ``round_trip`` parser is exact; pandas 3 reads them exactly and deprecates the option)."""
-    return {"float_precision": "round_trip"} if int(pd.__version__.split(".")[0]) < 3 else {}
+    return {"float_precision": "round_trip"} if before_pandas_3(pd) else {}
 
 
 def _parquet_names(schema) -> dict:
