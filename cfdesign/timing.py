@@ -885,17 +885,46 @@ def _current(runs, starts, tick):
     return runs[max(i, 0)][1]
 
 
+def rotation(offsets: dict, steps: dict, period: int):
+    """The one shift of the whole schedule that puts every sensor on its offset, if there is one.
+
+    The lock rule of :func:`lock_schedule` (per stretch of a log) and of
+    :meth:`cfdesign.runtime.Runtime.step` (per reading, as they arrive).
+
+    Parameters
+    ----------
+    offsets : dict
+        ``{sensor: ticks late}``, each in ``range(steps[sensor])``; not empty.
+    steps : dict
+        ``{sensor: its own period in ticks}`` (``_pattern``: 10 for a 10-tick sensor in a
+        100-tick schedule, the period for a sensor read once a period).
+    period : int
+        The schedule's period (ticks).
+
+    Returns
+    -------
+    int or None
+        ``c`` in ``range(period)`` with ``(offsets[s] - c) % steps[s] == 0`` for every sensor
+        (the table's schedule runs exactly with its phase 0 at tick ``c``), the smallest such;
+        None when the sensors are at offsets no one shift gives (their own offsets).
+    """
+    slowest = max(offsets, key=steps.get)
+    step = steps[slowest]  # a divisor of the period; every rotation is offsets[slowest] mod step
+    for c in range(offsets[slowest], period, step):  # (a 2 Hz sensor 10 ticks late, a 5 Hz one on time: 60)
+        if all((o - c) % steps[n] == 0 for n, o in offsets.items()):
+            return c
+    return None
+
+
 def _segment(a, b, offs, patterns, P, recompute):
     """A rotation of the table when every sensor's offset is one shift of the whole schedule."""
     if not offs:
         return Segment(a, b)
-    slowest = max(offs, key=lambda n: patterns[n][2])
-    step = patterns[slowest][2]  # a divisor of the period; every rotation is offs[slowest] mod step
-    for c in range(offs[slowest], P, step):  # (a 2 Hz sensor 10 ticks late, a 5 Hz one on time: 60)
-        if all((o - c) % patterns[n][2] == 0 for n, o in offs.items()):
-            return Segment(a, b, rotation=c)
+    c = rotation(offs, {n: patterns[n][2] for n in offs}, P)
+    if c is not None:
+        return Segment(a, b, rotation=c)
     if not recompute:
-        return Segment(a, b, rotation=offs[slowest])
+        return Segment(a, b, rotation=offs[max(offs, key=lambda n: patterns[n][2])])
     return Segment(a, b, offsets=tuple(sorted(offs.items())))
 
 

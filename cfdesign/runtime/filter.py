@@ -16,7 +16,9 @@ for, whatever the gain form.  At phases where nothing is read the two are equal.
 Missing readings (a NaN, or a sensor left out of ``step``): a missing measurement
 contributes nothing at that step (its innovation is zero); a missing input holds the last
 input received (zero before the first).  A measurement the table's schedule does not read
-at this phase has no gain there and no effect.  Angle tables (``wrap_angle``) wrap every
+at this phase has no gain there: :meth:`Runtime.step` first locks the phase to it when one
+shift of the whole schedule places it (:mod:`cfdesign.runtime.lock`); one still without a gain
+has no effect, and is counted and warned of.  Angle tables (``wrap_angle``) wrap every
 innovation of an angle sensor and the estimate to (-pi, pi] with
 :func:`cfdesign.linear.wrap`, so a compass crossing +-180 deg does not jolt the estimate.
 """
@@ -254,6 +256,22 @@ class Runtime:
         The estimate returned: the one-step prediction or the estimate after this step's
         readings.  Default: the table's declared ``output``
         (the posterior for tables designed by cfdesign).
+    lock : bool, optional
+        Lock the phase of :meth:`step` to the readings as they arrive (default True): a usable
+        reading of a multirate table's slow sensor at a phase where the table has no gain for it
+        moves the phase so that it has one, when one shift of the whole schedule puts it on its
+        phases and keeps every sensor whose last reading had a gain on theirs
+        (:func:`cfdesign.timing.rotation`, the rule :func:`cfdesign.logs.run_log` applies per
+        stretch of a log).  A 1 Hz GPS first seen at tick 17 of a table that reads it at phase 0
+        moves the phase to 0 there.  A reading no shift places (sensors at offsets of their own, a
+        sensor faster than designed) is counted in :attr:`counts` and warned of once per runtime
+        and sensor (a :class:`UserWarning` naming
+        :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, which uses every reading as it
+        arrives).  ``lock=False`` keeps the fixed schedule, as the generated C does (its
+        manual lock is ``st.phase = <PREFIX>_PHASE_<NAME>``); readings off it are still counted
+        and warned of.  Phase-aligned readings run alike either way.  :meth:`run` always runs
+        the table's schedule from the current phase (a log with arrivals of its own:
+        :func:`cfdesign.logs.run_log`).
 
     Raises
     ------
@@ -280,7 +298,7 @@ class Runtime:
     ((50,), 0.1)
     """
 
-    def __init__(self, table, x0=None, output=None):
+    def __init__(self, table, x0=None, output=None, lock=True):
         from ..gains import require_table  # numpy only, as this module
 
         require_table(table, "Runtime")
@@ -313,14 +331,21 @@ class Runtime:
             self._x0 = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n)
         except CfdesignError as exc:
             raise CfdesignError(f"{table.name}: {exc}") from None
+        if not isinstance(lock, bool):
+            raise CfdesignError(f"lock must be True or False, got {lock!r}")
+        from .lock import PhaseLock
         from .step import compile_step
 
-        self._S = [0.0] * self.n + [0]                        # the state floats, then the phase
+        self._S = [0.0] * self.n + [0, 0]                     # the state floats, the phase, the periods run
         self._U = [0.0] * len(self.inputs)                    # the last inputs received
         self._rej = [0] * (len(self.inputs) + len(self.measurements))  # rejected: inputs, measurements
         self._uns = [0] * len(self.measurements)              # readings at unscheduled phases
+        self._on = [None] * len(self.measurements)            # tick of the last reading if it had a gain
+        self._lock = PhaseLock(table, self._S, self._uns, self._on, lock)
+        self.lock = self._lock.enabled
         self.step, self._step_values, self.step_source = compile_step(
-            table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown)
+            table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown,
+            self._on, self._lock.unscheduled)
         self.reset()
 
     def _unknown(self, readings):
@@ -334,8 +359,10 @@ class Runtime:
 
     # ------------------------------------------------------------------ state
     def reset(self):
-        """Back to the initial state, phase 0, no input received, counts cleared."""
-        self._S[:] = [*map(float, self._x0), 0]
+        """Back to the initial state, phase 0, no input received, counts cleared, no arrival seen
+        by the lock (its warnings are still given once per runtime)."""
+        self._S[:] = [*map(float, self._x0), 0, 0]
+        self._lock.reset()
         self._U[:] = [0.0] * len(self.inputs)
         self._rej[:] = [0] * len(self._rej)
         self._uns[:] = [0] * len(self._uns)
@@ -361,7 +388,9 @@ class Runtime:
     def phase(self, value):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             raise CfdesignError(f"phase must be an integer, got {value!r}")
-        self._S[self.n] = int(value) % self.period
+        new = int(value) % self.period
+        self._lock.moved(self._S[self.n], new)
+        self._S[self.n] = new
 
     @property
     def u_last(self) -> np.ndarray:
@@ -401,13 +430,16 @@ class Runtime:
         Returns
         -------
         dict
-            ``{"x": list of float, "phase": int, "u_last": list of float, "table": str,
-            "filter_sha256": str}``: the state before the next step, the phase of the next step,
-            the inputs held, and the table it belongs to (its name, and
+            ``{"x": list of float, "phase": int, "u_last": list of float, "lock": dict,
+            "table": str, "filter_sha256": str}``: the state before the next step, the phase of the
+            next step, the inputs held, what the phase lock has seen (``{"on": {sensor: ticks since
+            its last reading, which had a gain}, "off": {sensor: ticks since its last reading,
+            which had none}}``),
+            and the table it belongs to (its name, and
             :func:`~cfdesign.runtime.filter.filter_sha256`, which :meth:`restore` checks).
         """
         return {"x": self.x.tolist(), "phase": int(self.phase), "u_last": self.u_last.tolist(),
-                "table": self.table.name, "filter_sha256": self._sha256}
+                "lock": self._lock.state(), "table": self.table.name, "filter_sha256": self._sha256}
 
     def restore(self, state: dict):
         """Continue from a snapshot taken with :meth:`state`.
@@ -420,7 +452,7 @@ class Runtime:
             A snapshot of :meth:`state` (of a runtime of a table that runs the same filter:
             the same :func:`~cfdesign.runtime.filter.filter_sha256`, whatever its name or
             output).  A snapshot without ``filter_sha256`` (written by an earlier cfdesign) is
-            checked by its sizes only.
+            checked by its sizes only; one without ``lock`` restarts the lock (no arrival seen).
 
         Raises
         ------
@@ -431,7 +463,14 @@ class Runtime:
             :data:`~cfdesign.runtime.filter.STATE_LIMIT`); the runtime is left unchanged.
         """
         x, phase, u_last = _snapshot(state, self.n, self.period, len(self.inputs), self.table.name, self._sha256)
-        self.x, self.phase, self.u_last = x, phase, u_last
+        before = (self._S[self.n:], list(self._on), list(self._lock.last))
+        self._S[self.n] = phase
+        try:
+            self._lock.restore(state.get("lock"), f"state does not fit {self.table.name}")
+        except CfdesignError:
+            self._S[self.n:], self._on[:], self._lock.last[:] = before
+            raise
+        self.x, self.u_last = x, u_last
 
     # ------------------------------------------------------------------ streaming
     def step(self, **readings) -> float:
@@ -458,11 +497,21 @@ class Runtime:
             that is not a real number (text, None, a complex number, an array); raised before
             the step changes anything.
 
+        Warns
+        -----
+        UserWarning
+            Once per runtime and sensor, at its first usable reading that has no gain at the
+            phase reached (after the lock, see ``lock``): the reading is not used; the message
+            names the sensor, the phase and :class:`~cfdesign.runtime.arrivals.ArrivalKalman`.
+
         Notes
         -----
         Straight-line Python specialised to the table when the runtime is built
         (:mod:`cfdesign.runtime.step`, source in ``step_source``): about a microsecond a
-        step for the three-sensor heading filter.
+        step for the three-sensor heading filter.  A reading at a phase without a gain calls
+        the lock (:class:`~cfdesign.runtime.lock.PhaseLock`), which may move :attr:`phase` and run
+        the step again there; phase-aligned readings never do, so they cost and give what
+        ``lock=False`` and the generated C do.
         """
         raise NotImplementedError  # replaced per table in __init__ (cfdesign.runtime.step)
 
@@ -517,6 +566,9 @@ class Runtime:
     def run(self, readings: dict, *, states: bool = False):
         """Run on whole arrays; the state carries over between calls.
 
+        The table's schedule runs from the current phase: no lock (``lock`` is :meth:`step`'s);
+        readings off it are counted and warned of once per sensor, as :meth:`step` does them.
+
         The work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
         single-rate table) over every stretch where each scheduled measurement is present; the
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
@@ -548,7 +600,19 @@ class Runtime:
         CfdesignError
             ``readings`` is not a dict (or a DataFrame), a sensor is missing from it, an array is
             not one real number per step, or the arrays differ in length.
+
+        Warns
+        -----
+        UserWarning
+            A usable reading at a phase without a gain (once per runtime and sensor; counted).
         """
+        before, self._read = self._lock.state(), {}
+        out = self._run(readings, states)
+        self._lock.ran(before, len(out[0] if states else out), self._read)  # the lock's ticks went on
+        return out
+
+    def _run(self, readings, states):
+        """:meth:`run`, its tick count left to it."""
         cols = self._columns(readings)
         if not states and self.period == 1 and self.n <= _SMALL and len(cols[0]) and all(map(_clean, cols)):
             out = self._run_clean(cols)  # the common case: every reading present, single rate
@@ -562,7 +626,7 @@ class Runtime:
         active = self._active[(self.phase + np.arange(N)) % self.period]
         finite = usable(y)
         self._count("rejected", ~finite & ~np.isnan(y))
-        self._count("unscheduled", finite & ~active)
+        self._unscheduled(finite, active)
         y = np.where(active & finite, y, np.nan)  # NaN: not read at this tick
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
         if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
@@ -638,6 +702,20 @@ class Runtime:
             return u
         self._count("rejected_inputs", bad & ~np.isnan(u))
         return held(u, bad, self.u_last)
+
+    def _unscheduled(self, finite, active):
+        """Count and warn of the usable readings ``finite`` where ``active`` has no gain; note for
+        the lock whether each sensor's last reading had one."""
+        off = finite & ~active
+        self._count("unscheduled", off)
+        phase = self.phase
+        for i in np.flatnonzero(off.any(axis=0)):
+            k = int(np.argmax(off[:, i]))
+            self._lock.warn(i, (phase + k) % self.period, "Runtime.run runs the table's schedule from the "
+                            "current phase; Runtime.step locks the phase to the arrivals", stacklevel=5)
+        for i in np.flatnonzero(finite.any(axis=0)):  # its last reading: ticks before the end, had a gain
+            age = int(np.argmax(finite[::-1, i]))
+            self._read[int(i)] = (age + 1, bool(active[len(finite) - 1 - age, i]))
 
     def _count(self, what, mask):
         if mask.any():

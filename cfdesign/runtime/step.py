@@ -119,7 +119,7 @@ def _compiled(source: str, filename: str):
     return compile(source, filename, "exec")
 
 
-def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
+def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, lock):
     """The streaming step of one table as straight-line Python, bound to the state lists given.
 
     ``step(sensor=value, ...)`` takes the readings by the sensors' names (a sensor left out has
@@ -138,16 +138,25 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     limit : float
         Readings beyond this magnitude (SI) are rejected like inf.
     S : list
-        The state floats, then the phase (last).
+        The state floats, then the phase, then (multirate tables) the periods completed.
     U : list
         The last inputs received (held when one is missing).
     REJ : list of int
         Per-sensor counters of rejected readings (inf, or beyond ``limit``; NaN is simply
         missing), inputs then measurements.
     UNS : list of int
-        Per-measurement counters of readings at a phase the schedule does not read.
+        Per-measurement counters of readings at a phase the schedule does not read (``lock``
+        counts them).
     unknown : callable
         Called with the unknown keyword readings; it raises.
+    ON : list
+        Per measurement, set to the tick of a reading of it that has a gain (multirate tables:
+        ``S[n + 1] * period + phase``).
+    lock : callable
+        ``lock(i, phase)`` for a usable reading of measurement ``i`` at a phase without a gain
+        for it (:meth:`cfdesign.runtime.lock.PhaseLock.unscheduled`): the phase to run the step at
+        instead (it has set it; the step runs again there with the readings as received), or -1
+        (it has counted the reading).
 
     Returns
     -------
@@ -196,7 +205,8 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         taken.add(name)
         return name
 
-    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "WRAP", "NAN", "UNKNOWN", "KP", "LP",
+    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "ON", "LOCK", "ph2", "step_values", "WRAP", "NAN",
+                                     "UNKNOWN", "KP", "LP",
                                      "AC", "K", "A", "L", "ph", "est", "unknown", "make", "AS_FLOAT", "REALS",
                                      "type", "float", "OverflowError")}
     xs, us = [fresh(f"x{i}") for i in range(n)], [fresh(f"u{j}") for j in range(p)]
@@ -249,7 +259,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
         add(f"    {es[i]} = 0.0")
         add(f"    if {oks[p + i]}:")
         if single and not active[0, i]:
-            add(f"        {UNS_}[{i}] += 1")
+            add(f"        {N['LOCK']}({i}, 0)")
         else:
             pad = "        " if single else "            "
             if not single:
@@ -258,9 +268,14 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
             if wrap_rows[i]:
                 add(f"{pad}if {es[i]} > {PI} or {es[i]} <= -{PI}:")
                 add(f"{pad}    {es[i]} = {WRAP}({es[i]})")
-            if not single:
+            if not single:  # no gain at this phase: the lock moves the phase and steps again, or counts it
+                add(f"            {N['ON']}[{i}] = {S_}[{n + 1}] * {P} + {ph}")  # the tick of its reading
                 add("        else:")
-                add(f"            {UNS_}[{i}] += 1")
+                add(f"            {N['ph2']} = {N['LOCK']}({i}, {ph})")
+                add(f"            if {N['ph2']} >= 0:")
+                # the readings as received: those before row i rejected here (counted) as NaN
+                again = us + [f"({ys[j]} if {oks[p + j]} else {N['NAN']})" for j in range(i)] + ys[i:]
+                add(f"                return {N['step_values']}({', '.join(again)})")
         add(f"    elif {ys[i]} == {ys[i]}:")
         add(f"        {REJ_}[{p + i}] += 1")
     if posterior:
@@ -291,18 +306,22 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     else:
         for i in range(n):
             add(f"    {S_}[{i}] = {nx[i]}")
-    if P > 1:
-        add(f"    {S_}[{n}] = ({ph} + 1) % {P}")
+    if P > 1:  # the phase, and the periods completed (the lock's tick count)
+        add(f"    if {ph} == {P - 1}:")
+        add(f"        {S_}[{n}] = 0")
+        add(f"        {S_}[{n + 1}] += 1")
+        add("    else:")
+        add(f"        {S_}[{n}] = {ph} + 1")
     add(f"    return {est}")
     body = "\n".join("    " + line for line in lines)
     keywords = ", ".join(f"{name}={N['NAN']}" for name in names)
     rename = "".join(f"        {v} = {name}\n" for v, name in zip(us + ys, names, strict=True))
     unknown_ = N["unknown"]
-    source = (f"def {N['make']}({S_}, {U_}, {REJ_}, {UNS_}):\n"
+    source = (f"def {N['make']}({S_}, {U_}, {REJ_}, {UNS_}, {N['ON']}, {N['LOCK']}):\n"
               f"    def step({keywords + ', ' if names else ''}**{unknown_}):\n"
               f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
-              f"    def step_values({', '.join(us + ys)}):\n{body}\n"
-              f"    return step, step_values\n")
+              f"    def {N['step_values']}({', '.join(us + ys)}):\n{body}\n"
+              f"    return step, {N['step_values']}\n")
     def as_float(value, j):
         out = _as_float(value)
         if out is None:
@@ -320,5 +339,5 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown):
     filename = f"<cfdesign step of a {n}-state table>"
     code = _compiled(source, filename) if len(source) <= _CACHED_SOURCE else compile(source, filename, "exec")
     exec(code, namespace)
-    step, step_values = namespace[N["make"]](S, U, REJ, UNS)
+    step, step_values = namespace[N["make"]](S, U, REJ, UNS, ON, lock)
     return step, step_values, source

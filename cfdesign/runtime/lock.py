@@ -1,0 +1,235 @@
+"""The streaming runtime's phase locked to the readings as they arrive.
+
+A multirate table reads each slow sensor at its phases of the period.  A robot loop that steps
+:class:`~cfdesign.runtime.Runtime` once per base tick from its own start sees a 1 Hz GPS at
+whatever tick its clock puts it: at phase 17 of a table that reads it at phase 0 every reading had
+no gain and was lost.  :meth:`PhaseLock.unscheduled` is called by the compiled step
+(:mod:`cfdesign.runtime.step`) for such a reading and moves the phase when that is exact: when one
+shift of the whole schedule (:func:`cfdesign.timing.rotation`, the rule the log path uses per
+stretch) puts this sensor on its phases and keeps every other sensor whose last reading had a gain
+on its own.  The step then runs again at the new phase.  A reading no shift can place (sensors at
+offsets of their own, a sensor faster than the table reads it, ``lock=False``) is counted in
+:attr:`Runtime.counts <cfdesign.runtime.Runtime.counts>` and warned of once per runtime and
+sensor, naming :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, the filter that uses every
+reading as it arrives.
+
+Steps of phase-aligned readings never call it: their cost and numbers are those of the fixed
+schedule (and of the generated C, which has no lock: ``docs/guide/c-export.md``).
+"""
+
+from __future__ import annotations
+
+import numbers
+import warnings
+
+from ..errors import CfdesignError
+from ..timing import _pattern, rotation
+
+__all__ = ["PhaseLock"]
+
+
+class PhaseLock:
+    """Where a runtime's slow sensors stand against its schedule, and the lock rule.
+
+    Ticks are counted as ``S[n + 1] * period + S[n]`` (periods completed, phase); a move of the
+    phase (a relock, ``Runtime.phase = k``) moves the ticks held by as much, so that their
+    differences stay the ticks between readings.
+
+    Parameters
+    ----------
+    table : GainTable
+        The runtime's discrete table.
+    S : list
+        The runtime's state list: ``S[n]`` the phase, ``S[n + 1]`` the periods completed.
+    UNS : list of int
+        Per-measurement counts of readings without a gain (``Runtime.counts['unscheduled']``).
+    ON : list
+        Per measurement, the tick of its last reading if that had a gain, else None (the
+        compiled step sets it).
+    enabled : bool
+        Move the phase (``Runtime(lock=True)``); False: count and warn only.
+    """
+
+    def __init__(self, table, S, UNS, ON, enabled=True):
+        self.table, self.S, self.UNS, self.ON = table, S, UNS, ON
+        self.n, self.period = table.F.shape[0], table.period
+        self.names = [s.name for s in table.measurements]
+        patterns = [_pattern(table.schedule, name) for name in self.names]
+        self.phases = [set(ph.tolist()) for ph, _ in patterns]
+        self.steps = {name: step for name, (_, step) in zip(self.names, patterns, strict=True)}
+        self.spacing = [self.period / max(len(ph), 1) for ph, _ in patterns]  # ticks between readings
+        self.enabled = bool(enabled) and self.period > 1
+        self.warned = set()
+        self.last = [None] * len(self.names)
+        self.reset()
+
+    def reset(self):
+        """No reading seen: every sensor free to be placed."""
+        self.ON[:] = [None] * len(self.ON)
+        self.last[:] = [None] * len(self.names)  # tick of each sensor's last reading without a gain
+
+    def tick(self) -> int:
+        """The tick of the next step.
+
+        Returns
+        -------
+        int
+            ``S[n + 1] * period + S[n]`` (ticks; only differences mean anything).
+        """
+        return self.S[self.n + 1] * self.period + self.S[self.n]
+
+    def moved(self, old: int, new: int):
+        """The phase was set from ``old`` to ``new``: the ticks held move with it.
+
+        Parameters
+        ----------
+        old, new : int
+            The phase before and after.
+        """
+        for held in (self.ON, self.last):
+            held[:] = [None if t is None else t + new - old for t in held]
+
+    # ------------------------------------------------------------------ the rule
+    def unscheduled(self, i: int, phase: int) -> int:
+        """A usable reading of measurement ``i`` at ``phase``, where the table has no gain for it.
+
+        Parameters
+        ----------
+        i : int
+            The measurement's row of ``H``.
+        phase : int
+            The phase of this step.
+
+        Returns
+        -------
+        int
+            The phase to run this step at (the phase is set to it; the step runs again), or -1:
+            no shift places it, the reading is counted and (once per sensor) warned of.
+        """
+        tick = self.tick()
+        why, new = self._placed(i, phase, tick) if self.enabled else (
+            "Runtime(lock=False) keeps the schedule fixed" if self.period > 1 else "the table never reads it", None)
+        if new is None:
+            self.ON[i], self.last[i] = None, tick
+            self.UNS[i] += 1
+            self.warn(i, phase, why)
+            return -1
+        self.moved(phase, new)
+        self.S[self.n] = new
+        self.ON[i] = tick + new - phase  # placed: a later sensor's relock in this step must keep it
+        return new
+
+    def _placed(self, i, phase, tick):
+        """``(why not, None)`` or ``('', new phase)``: the shift of the whole schedule that puts
+        reading ``i`` at ``phase`` on its phases and keeps the sensors read on schedule on theirs."""
+        name = self.names[i]
+        before = max((t for t in (self.ON[i], self.last[i]) if t is not None), default=None)
+        if before is not None and tick - before < self.spacing[i] / 2:
+            return (f"it came {tick - before} ticks after its last reading, where the table reads it every "
+                    f"{self.spacing[i]:g}: faster than designed", None)
+        on = {self.names[j]: 0 for j, t in enumerate(self.ON) if t is not None and j != i}
+        step = self.steps[name]
+        # its offset: ticks late against one of its phases (several for a pattern such as 0, 33, 67)
+        for offset in sorted({(phase - p) % step for p in self.phases[i]}):
+            c = rotation({**on, name: offset}, self.steps, self.period)
+            if c is not None:
+                return "", (phase - c) % self.period
+        return (f"no shift of the whole schedule puts it on its phases and keeps {', '.join(on)} on theirs: "
+                f"the sensors arrive at offsets of their own", None)
+
+    def warn(self, i, phase, why, stacklevel=4):
+        """Warn once per sensor that a reading had no gain and was not used.
+
+        Parameters
+        ----------
+        i : int
+            The measurement's row of ``H``.
+        phase : int
+            The phase of its reading.
+        why : str
+            Why it has no gain there.
+        stacklevel : int
+            Points the warning at the user's call (``step``, ``run``).
+
+        Warns
+        -----
+        UserWarning
+            At the sensor's first such reading of this runtime.
+        """
+        name = self.names[i]
+        if name in self.warned:
+            return
+        self.warned.add(name)
+        warnings.warn(
+            f"{name}: a reading at phase {phase} of {self.table.name!r} (period {self.period}) has no gain ({why}); "
+            f"it is not used and is counted in Runtime.counts['unscheduled'] (this warning is given once per "
+            f"runtime and sensor). To use every reading as it arrives, step "
+            f"cfdesign.runtime.arrivals.ArrivalKalman(table) instead (ArrivalKalman.step(**readings)), or run a "
+            f"whole log with cfdesign.logs.run_log", UserWarning, stacklevel=stacklevel)
+
+    # ------------------------------------------------------------------ snapshots
+    def state(self) -> dict:
+        """What the rule has seen, for ``Runtime.state``.
+
+        Returns
+        -------
+        dict
+            ``{"on": {sensor: ticks since its last reading, which had a gain}, "off": {sensor:
+            ticks since its last reading, which had none}}`` (sensors without a reading left out).
+        """
+        now = self.tick()
+        return {key: {n: now - t for n, t in zip(self.names, held, strict=True) if t is not None}
+                for key, held in (("on", self.ON), ("off", self.last))}
+
+    def restore(self, state, where="state"):
+        """Continue from :meth:`state`, the ticks counted from the phase.
+
+        Parameters
+        ----------
+        state : dict or None
+            :meth:`state`'s dict; None: nothing seen (a snapshot of an earlier cfdesign).
+        where : str
+            What the snapshot is, for the message.
+
+        Raises
+        ------
+        CfdesignError
+            Not such a dict (unknown sensors, a negative or non-integer count); ``where`` names
+            the snapshot.
+        """
+        state = {"on": {}, "off": {}} if state is None else state
+        ok = isinstance(state, dict) and set(state) == {"on", "off"} and all(
+            isinstance(d, dict) and set(d) <= set(self.names)
+            and all(isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= 0 for v in d.values())
+            for d in state.values())
+        if not ok:
+            raise CfdesignError(f"{where}: lock must be {{'on': {{sensor: ticks}}, 'off': {{sensor: ticks}}}} (ticks "
+                                f"whole numbers >= 0) of {', '.join(self.names) or 'no sensor'}, got {state!r:.80}")
+        self.S[self.n + 1] = 0
+        self._aged(state)
+
+    def _aged(self, ages):
+        """The ticks held set from ``ages`` (:meth:`state`'s form) before the next step."""
+        now = self.tick()
+        for key, held in (("on", self.ON), ("off", self.last)):
+            held[:] = [now - int(ages[key][n]) if n in ages[key] else None for n in self.names]
+
+    def ran(self, before: dict, ticks: int, read: dict):
+        """Go on after steps of the batch path (``Runtime.run``, which sets the phase as it goes).
+
+        Parameters
+        ----------
+        before : dict
+            :meth:`state` before them.
+        ticks : int
+            The steps run.
+        read : dict
+            ``{i: (ticks before the next step, had a gain)}`` of each sensor's last reading in them.
+        """
+        aged = {key: {n: t + ticks for n, t in d.items()} for key, d in before.items()}
+        for i, (age, gained) in read.items():
+            name = self.names[i]
+            for d in aged.values():
+                d.pop(name, None)
+            aged["on" if gained else "off"][name] = age
+        self._aged(aged)

@@ -1,0 +1,125 @@
+"""The streaming runtime locked to the readings as they arrive: slow sensors at a phase the
+schedule has no gain for are used when one shift places them, warned of otherwise, and
+ArrivalKalman.step streams the filter that uses every reading."""
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import HEADING
+
+import cfdesign
+from cfdesign.linear import wrap
+from cfdesign.runtime import Runtime
+from cfdesign.runtime.arrivals import ArrivalKalman
+from cfdesign.spec import parse_spec
+
+N = 8000
+
+
+@pytest.fixture(scope="module")
+def heading():
+    return cfdesign.design(parse_spec(HEADING))
+
+
+def heading_rows(odometry_row, compass_row, n=N, seed=0):
+    """A turning robot at 100 Hz (as tests/test_logs.py): gyro every row, odometry every 10th row
+    from ``odometry_row``, compass every 100th from ``compass_row`` (NaN between), true heading."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.01
+    psi = 2.0 + 6.0 * np.sin(0.05 * t) + 0.3 * t
+    gyro = np.gradient(psi, 0.01) + 0.01 * rng.standard_normal(n) + 0.002
+    odo, com = np.full(n, np.nan), np.full(n, np.nan)
+    odo[odometry_row::10] = wrap(psi[odometry_row::10] + 0.005 * rng.standard_normal(len(odo[odometry_row::10])))
+    com[compass_row::100] = wrap(psi[compass_row::100] + 0.05 * rng.standard_normal(len(com[compass_row::100])))
+    return {"gyro": gyro, "odometry": odo, "compass": com}, psi
+
+
+def rms(est, psi, start=2000):
+    return float(np.sqrt(np.mean(wrap(np.asarray(est)[start:] - psi[start:]) ** 2)))
+
+
+def stepped(rt, data):
+    rows = [dict(zip(data, r, strict=True)) for r in zip(*data.values(), strict=True)]
+    return [rt.step(**{k: v for k, v in r.items() if not np.isnan(v)}) for r in rows]
+
+
+def test_one_common_offset_is_locked_to(heading):
+    """Odometry at rows 7, 17, ... and compass at 37, 137, ... (the whole schedule 37 ticks late)
+    stepped with the defaults: every reading used, no warning, RMS within 1.25x of the aligned run;
+    with lock=False the readings are lost and counted (the failure of the issue)."""
+    aligned, psi = heading_rows(0, 0)
+    late, _ = heading_rows(7, 37)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ref = rms(stepped(Runtime(heading), aligned), psi)
+        rt = Runtime(heading)
+        got = rms(stepped(rt, late), psi)
+    assert rt.counts == {} and got <= 1.25 * ref, (got, ref)
+    fixed = Runtime(heading, lock=False)
+    with pytest.warns(UserWarning, match="lock=False"):
+        stepped(fixed, late)
+    assert fixed.counts["unscheduled"] == {"odometry": 800, "compass": 80}
+
+
+def test_own_offsets_are_warned_of_and_arrival_kalman_uses_them(heading):
+    """Odometry at rows 3, 13, ..., compass at 37, 137, ...: no one shift places both, so the
+    compass is counted and warned of (naming ArrivalKalman), the odometry kept on schedule;
+    ArrivalKalman.step uses both, within 1.25x of the aligned run."""
+    aligned, psi = heading_rows(0, 0)
+    own, _ = heading_rows(3, 37)
+    rt = Runtime(heading)
+    with pytest.warns(UserWarning, match=r"compass: a reading at phase 34 .*ArrivalKalman") as caught:
+        stepped(rt, own)
+    assert len(caught) == 1 and rt.counts == {"unscheduled": {"compass": 80}}
+    ref = rms(stepped(Runtime(heading), aligned), psi)
+    kf = ArrivalKalman(heading)
+    got = rms(stepped(kf, own), psi)
+    assert got <= 1.25 * ref, (got, ref)
+
+
+def test_arrival_kalman_step_is_its_run(heading):
+    """ArrivalKalman.step over whole arrays equals ArrivalKalman.run to 1e-12 (either output),
+    with an inf counted and a missing input held alike."""
+    data, _ = heading_rows(3, 37, n=600, seed=2)
+    data["gyro"][[40, 41]] = [np.nan, np.inf]
+    data["odometry"][53] = np.inf
+    for output in ("posterior", "prior"):
+        a, b = ArrivalKalman(heading, output), ArrivalKalman(heading, output)
+        est = stepped(a, data)
+        states, _ = b.run(data["gyro"][:, None], np.column_stack([data[s.name] for s in heading.measurements]))
+        assert np.max(np.abs(wrap(np.array(est) - states[:, 0]))) <= 1e-12
+        assert np.allclose(a.x, b.x, rtol=0, atol=1e-12) and a.counts == b.counts == {
+            "rejected": {"odometry": 1, "gyro": 1}}
+    with pytest.raises(cfdesign.CfdesignError, match=r"unknown sensor.*gps.*gyro"):
+        a.step(gps=1.0)
+    with pytest.raises(cfdesign.CfdesignError, match=r"compass: reading 'x'"):
+        a.step(compass="x")
+
+
+def test_the_issue_gps_is_used():
+    """The issue's loop: a 1 Hz GPS at phase 17 of a table that reads it at phase 0 moves the
+    estimate to the fix with the defaults (it stayed 0.0, every fix unscheduled)."""
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    rt = Runtime(table)
+    for k in range(200):
+        x = rt.step(accelerometer=0.0, **({"gps": 1.0} if k % 50 == 17 else {}))
+    assert rt.counts == {} and 0.2 < x <= 1.0
+    snap = rt.state()  # the lock's view is carried: a restored runtime goes on alike
+    other = Runtime(table)
+    other.restore(snap)
+    for k in range(200, 400):
+        kw = {"gps": 1.0} if k % 50 == 18 else {}  # the fixes slip a tick: relocked
+        assert rt.step(accelerometer=0.0, **kw) == other.step(accelerometer=0.0, **kw)
+    assert rt.counts == other.counts == {} and rt.state() == other.state()
+
+
+def test_a_faster_sensor_is_warned_of_not_locked_to(heading):
+    """A 10 Hz compass into the 1 Hz compass table: its readings off phase come faster than the
+    table reads it, so none moves the phase (the odometry keeps its gains); counted and warned."""
+    data, _ = heading_rows(0, 0, n=1000)
+    data["compass"][::10] = data["odometry"][::10]
+    rt = Runtime(heading)
+    with pytest.warns(UserWarning, match="compass.*faster than designed"):
+        stepped(rt, data)
+    assert rt.counts == {"unscheduled": {"compass": 90}} and rt.phase == 0
