@@ -46,7 +46,8 @@ from .errors import DataError
 
 __all__ = ["RATE_RTOL", "JITTER_TICKS", "STEADY_PERIODS", "PHASE_ROWS", "ARC_ROWS", "DRIFT_LAG", "FIT_ROWS",
            "FIT_START", "MAX_GAP_TICKS", "PAUSE_TICKS", "SWAP_ROWS", "BLURRED_TICKS", "rephase", "date_seconds",
-           "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule"]
+           "nearest_tick", "grid_origin", "grid_fit", "place", "check_rate", "Segment", "Lock", "lock_schedule",
+           "rotation"]
 
 #: largest relative difference between a log's base rate and the table's
 RATE_RTOL = 0.01

@@ -104,7 +104,7 @@ class ArrivalKalman:
             ``sensor=value`` in the sensor's units (rad, rad/s, m, m/s^2, ...); a sensor left out
             or given as NaN has no reading this tick (a missing input holds its last value), an inf
             or a value beyond :data:`~cfdesign.runtime.filter.READING_LIMIT` is treated as missing
-            and counted in :attr:`counts`.
+            and counted in ``counts``.
 
         Returns
         -------
