@@ -88,6 +88,7 @@ def difference(table, c, py):
 
 
 # ---------------------------------------------------------------------- agreement
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 @needs_cc
 @pytest.mark.parametrize("name", ["dckf3", "position"])
 @pytest.mark.parametrize("precision", ["double", "float"])
@@ -172,6 +173,7 @@ noise = { std = 0.05 }
 """
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 @needs_cc
 def test_float_error_is_within_the_rounding_bound_of_a_long_memory_heading_table(tmp_path):
     """float C against double Python: a rounding of eps_f |x| per operation (about 8 a step)

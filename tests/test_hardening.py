@@ -556,6 +556,7 @@ def test_cli_prints_a_warning_on_one_line_and_only_when_it_succeeds(monkeypatch,
     assert code == (2 if fails else 0)
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # a GPS reading every step, on purpose
 @FUZZ
 @given(value=st.sampled_from([np.float16(0.5), np.float32(0.1), np.array(0.25), 10 ** 400, -(10 ** 400),
                               np.int64(2)]) | st.fractions(max_denominator=1000),
@@ -1326,6 +1327,7 @@ STATE_VALUES = [[np.inf, 0.0, 0.0], [np.nan, 0.0, 0.0], [1e308, 1e308, 0.0], [1e
 @FUZZ
 @given(where=st.sampled_from(["x0", "x", "u_last", "phase", "arrivals x0", "arrivals output"]),
        value=st.sampled_from(STATE_VALUES))
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 def test_every_way_into_a_runtime_state_is_checked(position, where, value):
     """The ``x`` and ``u_last`` setters stored inf, NaN and 1e308 as they came (u_last = None became
     NaN), the phase setter took 1.5 and True, and ``x0 = [1e308, ...]`` overflowed in a few steps

@@ -50,6 +50,7 @@ def test_runtime_does_not_import_sympy_or_scipy(heading, tmp_path):
     assert done.returncode == 0, done.stderr
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 @pytest.mark.parametrize("name", ["heading", "position"])
 def test_batch_equals_streaming(name, request):
     table = request.getfixturevalue(name)
@@ -92,6 +93,7 @@ def test_both_gain_forms_run_their_recursion_and_output_both_estimates(form):
     assert Runtime(table).output == "posterior"
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 def test_split_run_with_restore_equals_one_run(position):
     data = readings(position, 2000)
     whole = Runtime(position).run(data)
@@ -141,6 +143,7 @@ def test_missing_readings_skip_the_update_and_hold_the_input(heading):
     assert np.allclose(rt2.x, heading.F @ [0.2, 0.01] + heading.B[:, 0] * 0.5)
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 def test_multirate_readings_between_fixes_have_no_effect(position):
     data = readings(position, 200)
     a = Runtime(position).run(data)

@@ -2,6 +2,7 @@
 schedule has no gain for are used when one shift places them, warned of otherwise, and
 ArrivalKalman.step streams the filter that uses every reading."""
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -123,3 +124,41 @@ def test_a_faster_sensor_is_warned_of_not_locked_to(heading):
     with pytest.warns(UserWarning, match="compass.*faster than designed"):
         stepped(rt, data)
     assert rt.counts == {"unscheduled": {"compass": 90}} and rt.phase == 0
+
+
+def test_warn_false_counts_without_warning_and_cfdesign_run_speaks_once(heading):
+    """A caller that reports the counts itself (run_log: its notes, LogResult.unused) builds its
+    runtimes with warn=False: the readings are counted as before, and the runtime's warning (which
+    names Runtime.counts and ArrivalKalman, not what a log's user can do) is not given as well."""
+    from cfdesign.logs import run_log
+
+    own, _ = heading_rows(3, 37, n=2000)
+    rt = Runtime(heading, warn=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stepped(rt, own)
+    assert rt.counts == {"unscheduled": {"compass": 20}}
+    with pytest.raises(cfdesign.errors.CfdesignError, match="warn must be True or False"):
+        Runtime(heading, warn="no")
+    fixed = dataclasses.replace(heading, provenance={})    # hand-typed gains: no recomputed pattern
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result = run_log(fixed, {**own, "time": np.arange(2000) * 0.01})
+    assert result.unused                                     # the log path's own report
+
+
+def test_run_log_takes_a_dict_of_columns_as_runtime_run_does(heading):
+    """run_log(table, {name: array}) ran into os.stat's TypeError; it is the frame of those columns,
+    and a dict of ragged columns or a list is refused naming the problem."""
+    from cfdesign.errors import CfdesignError, DataError
+    from cfdesign.logs import run_log
+
+    pd = pytest.importorskip("pandas")
+    data, _ = heading_rows(0, 0, n=600)
+    data["time"] = np.arange(600) * 0.01
+    a, b = run_log(heading, data), run_log(heading, pd.DataFrame(data))
+    np.testing.assert_array_equal(a.estimates["heading"], b.estimates["heading"])
+    with pytest.raises(DataError, match="a log given as a dict needs columns of one length"):
+        run_log(heading, {**data, "gyro": data["gyro"][:10]})
+    with pytest.raises(CfdesignError, match="a log is a path, a pandas DataFrame or a dict of columns, got list"):
+        run_log(heading, [1, 2, 3])

@@ -60,6 +60,7 @@ def _first_below(errors, decay=100.0) -> int:
     return int(np.flatnonzero(norms <= norms[0] / decay)[0])
 
 
+@pytest.mark.filterwarnings("ignore:.*has no gain:UserWarning")  # readings off the schedule on purpose
 @pytest.mark.parametrize("spec", [HAND, HEADING], ids=["single-rate", "multirate"])
 def test_startup_steps_is_when_a_noise_free_transient_has_shrunk_a_hundred_times(spec):
     """The filter run on noise-free readings of a zero truth from an initial error along its

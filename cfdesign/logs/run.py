@@ -10,6 +10,7 @@ import math
 import numbers
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,17 @@ from ..errors import CfdesignError, DataError, OutputError
 from ..files import check_distinct, is_dir, not_a_device
 from ..gains import require_table
 from ..linear import wrap
-from .columns import _UNIT_NAMES, TIME_UNITS, _named_unit, _numeric, _pandas, _time_name, _time_unit, _unit
+from .columns import (
+    _UNIT_NAMES,
+    TIME_UNITS,
+    _first_line,
+    _named_unit,
+    _numeric,
+    _pandas,
+    _time_name,
+    _time_unit,
+    _unit,
+)
 from .join import _Join, joined_header
 from .plot import plot_log
 from .read import (
@@ -55,8 +66,9 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     ----------
     table : GainTable
         The gain table the log is run through.
-    data : str, Path or pandas.DataFrame
-        A CSV or Parquet file, or a DataFrame.
+    data : str, Path, pandas.DataFrame or dict
+        A CSV or Parquet file, a DataFrame, or a dict of columns (``{name: array}``, as
+        :meth:`Runtime.run <cfdesign.runtime.Runtime.run>` takes).
     output : str or Path, optional
         Write the estimates here (``.csv``, or ``.parquet``), atomically; the result then holds
         no DataFrame (bounded memory for big logs).
@@ -113,10 +125,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         ``table`` is not a GainTable (a path: read it with :func:`~cfdesign.gains.load_gains`).
     CfdesignError
         A continuous-time table (logs run discrete tables), a ``block_rows`` that is not a
-        positive whole number, a ``mapping`` that is not a dict or a ``reference`` that is not
-        text or a list of it.
+        positive whole number, a ``mapping`` that is not a dict, a ``reference`` that is not
+        text or a list of it, or ``data`` of another type.
     DataError
-        A missing or non-numeric column or bad times (naming the line; a Parquet log's row), a
+        A dict's columns of different lengths, a missing or non-numeric column or bad times (naming the line; a Parquet log's row), a
         base rate more than 1 % off the table's, an empty log; of a joined file as well (naming
         it), a column the run uses in two files, times that do not overlap the log's.
     OutputError
@@ -342,8 +354,17 @@ def _check_plot_target(plot):
 def _source(data, source, time=None):
     """``(frame or None, name)``; a DataFrame whose time is its index (a DatetimeIndex, or an
     index named as a time column is, :func:`_time_name`: ``time``, ``t``, ``timestamp``, ``time_ms``)
-    and not a column has it made its first column."""
+    and not a column has it made its first column; a dict of columns (what ``Runtime.run`` takes)
+    is made a DataFrame; anything else but a path is refused naming its type."""
     pd = _pandas()
+    if isinstance(data, Mapping):
+        try:
+            data = pd.DataFrame({str(k): v for k, v in data.items()})
+        except (ValueError, TypeError) as exc:  # columns of different lengths, a scalar column
+            raise DataError(f"{source or 'log'}: a log given as a dict needs columns of one length "
+                            f"({_first_line(exc)})") from None
+    elif not isinstance(data, (str, bytes, os.PathLike, pd.DataFrame)):
+        raise CfdesignError(f"a log is a path, a pandas DataFrame or a dict of columns, got {type(data).__name__}")
     if isinstance(data, pd.DataFrame):
         index = data.index
         named = index.name is not None and _time_name(index.name)
@@ -463,7 +484,7 @@ class _Runner:
                 from ..designer import gains_for_schedule
 
                 table = gains_for_schedule(self.table, self.table.schedule.shifted(dict(seg.offsets)))
-            self.runtimes[key] = self._Runtime(table, output=self.output)
+            self.runtimes[key] = self._Runtime(table, output=self.output, warn=False)  # counts: our notes
         return self.runtimes[key]
 
     def _phase(self, seg, tick):

@@ -272,6 +272,10 @@ class Runtime:
         and warned of.  Phase-aligned readings run alike either way.  :meth:`run` always runs
         the table's schedule from the current phase (a log with arrivals of its own:
         :func:`cfdesign.logs.run_log`).
+    warn : bool, optional
+        Warn of readings without a gain as above (default True); False for a caller that reports
+        :attr:`counts` itself (:func:`cfdesign.logs.run_log` names them in its notes and
+        ``LogResult.unused``).  They are counted either way.
 
     Raises
     ------
@@ -298,7 +302,7 @@ class Runtime:
     ((50,), 0.1)
     """
 
-    def __init__(self, table, x0=None, output=None, lock=True):
+    def __init__(self, table, x0=None, output=None, lock=True, warn=True):
         from ..gains import require_table  # numpy only, as this module
 
         require_table(table, "Runtime")
@@ -331,8 +335,9 @@ class Runtime:
             self._x0 = np.zeros(self.n) if x0 is None else state_vector(x0, "x0", self.n)
         except CfdesignError as exc:
             raise CfdesignError(f"{table.name}: {exc}") from None
-        if not isinstance(lock, bool):
-            raise CfdesignError(f"lock must be True or False, got {lock!r}")
+        for name, flag in (("lock", lock), ("warn", warn)):
+            if not isinstance(flag, bool):
+                raise CfdesignError(f"{name} must be True or False, got {flag!r}")
         from .lock import PhaseLock
         from .step import compile_step
 
@@ -341,7 +346,7 @@ class Runtime:
         self._rej = [0] * (len(self.inputs) + len(self.measurements))  # rejected: inputs, measurements
         self._uns = [0] * len(self.measurements)              # readings at unscheduled phases
         self._on = [None] * len(self.measurements)            # tick of the last reading if it had a gain
-        self._lock = PhaseLock(table, self._S, self._uns, self._on, lock)
+        self._lock = PhaseLock(table, self._S, self._uns, self._on, lock, warn)
         self.lock = self._lock.enabled
         self.step, self._step_values, self.step_source = compile_step(
             table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown,

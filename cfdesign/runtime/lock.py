@@ -48,9 +48,11 @@ class PhaseLock:
         compiled step sets it).
     enabled : bool
         Move the phase (``Runtime(lock=True)``); False: count and warn only.
+    warn : bool
+        Warn of a reading without a gain (``Runtime(warn=True)``); False: count only.
     """
 
-    def __init__(self, table, S, UNS, ON, enabled=True):
+    def __init__(self, table, S, UNS, ON, enabled=True, warn=True):
         self.table, self.S, self.UNS, self.ON = table, S, UNS, ON
         self.n, self.period = table.F.shape[0], table.period
         self.names = [s.name for s in table.measurements]
@@ -59,7 +61,7 @@ class PhaseLock:
         self.steps = {name: step for name, (_, step) in zip(self.names, patterns, strict=True)}
         self.spacing = [self.period / max(len(ph), 1) for ph, _ in patterns]  # ticks between readings
         self.enabled = bool(enabled) and self.period > 1
-        self.warned = set()
+        self.warned = set() if warn else set(self.names)  # no warning: as if each sensor had had its one
         self.last = [None] * len(self.names)
         self.reset()
 
