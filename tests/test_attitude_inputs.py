@@ -339,6 +339,18 @@ def test_a_gyro_in_rad_s_is_never_warned_of(rate, amplitude):
         unit_check(np.degrees(gyr), acc, rate)
 
 
+@pytest.mark.parametrize("axes", [[1, 1, -1], [-1, 1, 1], [-1, -1, -1], "yx"], ids=["z", "x", "xyz", "x-y"])
+def test_a_gyro_whose_axes_are_not_the_accelerometer_s_is_warned_of_as_such(axes):
+    """A gyro axis flipped (z too, which the former ratio bound of 5 let through: 55 deg RMS off in inclination) or x
+    and y swapped against the accelerometer: warned of as axes, not as deg/s (which these readings are not)."""
+    q = motion(int(60 * RATE), still_s=3.0)
+    gyr, acc, _ = imu(q)
+    gyr = gyr[:, [1, 0, 2]] if axes == "yx" else gyr * axes
+    with pytest.warns(UserWarning, match=r"^gyr: the gyro turns gravity another way .*NED against ENU") as caught:
+        unit_check(gyr, acc, RATE)
+    assert len(caught) == 1
+
+
 def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
     """Every BROAD development trial as logged (rad/s) runs without a warning; the slow-rotation trial with
     its gyro in deg/s warns."""
