@@ -489,6 +489,8 @@ class NoiseFit:
                 lines.append(f"  {_LABELS[key]}: {self.terms[key].line(unit)}")
             elif key in _REPORTED:
                 lines.append(f"  {_LABELS[key]}: not identified ({self.missing[key]})")
+        if "rate_ramp" in self.terms:
+            lines.append(f"  {_ramp_text()}")
         return "\n".join(lines)
 
     def plot(self, ax=None, unit: str = "u"):
@@ -512,6 +514,15 @@ class NoiseFit:
 def _band_limit_text(tau_s):
     return (f"octaves below tau {tau_s:.3g} s left out of the fit: the Allan deviation there lies below the white "
             "noise of the octaves after them (a low-pass filter in the sensor, or readings held over several rows)")
+
+
+def _ramp_text():
+    """What a rate ramp in a recording at rest usually is, and what it leaves out: its slope +1 (a reading that
+    drifts steadily over minutes: a sensor warming up, a platform that moved slowly) takes the last octaves, where
+    a rate random walk would show (a gyro with K = 2e-4 turning 0.02 rad/s over 10 min read K not identified)."""
+    return ("a rate ramp over a recording at rest is most often a drift or a motion (the sensor warming up, the "
+            "platform moving slowly), which hides the rate random walk K of its octaves: record still, after the "
+            "warm-up, or cut the recording to a still stretch")
 
 
 def _unresolved_text(tau_s):
@@ -1186,6 +1197,8 @@ def noise_toml(fits, source: str = "", unit: str = "u") -> str:
         if bi is not None:
             lines.append(f"# bias instability B = {bi.value:.4g} {unit} ({_ci_text(bi)}); the design "
                          "models the bias as a random walk")
+        if "rate_ramp" in fit.terms:
+            lines.append(f"# {_ramp_text()}")
         lines.append("")
     return "\n".join(lines)
 

@@ -689,3 +689,20 @@ def test_the_octave_named_unresolved_is_the_first_one_left_out_when_the_refit_le
     _, terms, _, edf, stop = _identify(tau, adev, m, n, rate)
     assert tau[stop] == pytest.approx(2.56) and len(edf) == len(tau)
     assert set(terms) == {"white"} and terms["white"].tau_range_s[1] < tau[stop]
+
+
+def test_a_recording_that_moved_says_its_rate_ramp_hides_k():
+    """A still gyro (N = 0.002, K = 2e-4) that turned 0.02 rad/s over ten minutes read a rate ramp and K not
+    identified, exit 0: a design then took no bias density.  The summary and the design-file text now say a ramp
+    at rest is a drift or motion hiding K; the same recording still says nothing of it (and finds K)."""
+    rng = np.random.default_rng(3)
+    rate, n = 50.0, 50 * 1800
+    t = np.arange(n) / rate
+    walk = np.cumsum(2e-4 / math.sqrt(rate) * rng.standard_normal(n))
+    still = 0.002 * math.sqrt(rate) * rng.standard_normal(n) + walk
+    fit = identify_noise(still, rate, name="gyro")
+    assert "rate_ramp" not in fit.terms and fit.random_walk_density == pytest.approx(2e-4, rel=0.35)
+    assert "drift or a motion" not in fit.summary() + noise_toml([fit])
+    moved = identify_noise(still + 0.02 * np.sin(2 * np.pi * t / 600.0), rate, name="gyro")
+    assert "rate_ramp" in moved.terms and moved.random_walk_density is None
+    assert "drift or a motion" in moved.summary() and "# a rate ramp over a recording at rest" in noise_toml([moved])

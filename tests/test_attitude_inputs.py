@@ -11,7 +11,7 @@ from test_attitude_codegen import needs_cc, run_c
 from test_attitude_filter import BIAS, FIELD, RATE, errors, imu, motion
 
 from cfdesign.nav import AttitudeFilter, hard_iron_offset
-from cfdesign.nav.attitude_filter import STATE_FIELDS
+from cfdesign.nav.attitude_filter import STATE_FIELDS, _check_field_frame
 
 
 def total(est, q):
@@ -339,6 +339,36 @@ def test_a_gyro_in_rad_s_is_never_warned_of(rate, amplitude):
         unit_check(np.degrees(gyr), acc, rate)
 
 
+@pytest.mark.parametrize("axes", [[1, 1, -1], [-1, 1, 1], [-1, -1, -1], "yx"], ids=["z", "x", "xyz", "x-y"])
+def test_a_gyro_whose_axes_are_not_the_accelerometer_s_is_warned_of_as_such(axes):
+    """A gyro axis flipped (z too, which the former ratio bound of 5 let through: 55 deg RMS off in inclination) or x
+    and y swapped against the accelerometer: warned of as axes, not as deg/s (which these readings are not)."""
+    q = motion(int(60 * RATE), still_s=3.0)
+    gyr, acc, _ = imu(q)
+    gyr = gyr[:, [1, 0, 2]] if axes == "yx" else gyr * axes
+    with pytest.warns(UserWarning, match=r"^gyr: the gyro turns gravity another way .*NED against ENU") as caught:
+        unit_check(gyr, acc, RATE)
+    assert len(caught) == 1
+
+
+@pytest.mark.parametrize("axes", [[1, 1, -1], "yx", "NED"])
+def test_a_magnetometer_whose_axes_are_not_the_accelerometer_s_is_warned_of(axes):
+    """A field axis flipped, x and y swapped, or the field in NED axes beside an accelerometer in ENU ones ran silently
+    28 to 144 deg RMS off in heading: the dip wanders as the sensor turns, and run warns; the field as logged does
+    not (nor in other units: the check reads an angle)."""
+    import warnings
+
+    q = motion(int(30 * RATE), still_s=3.0)
+    gyr, acc, mag = imu(q)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        AttitudeFilter(RATE).run(gyr, acc, mag / 100.0)      # in gauss
+    wrong = mag * axes if axes == [1, 1, -1] else mag[:, [1, 0, 2]] * ([1, 1, -1] if axes == "NED" else 1)
+    with pytest.warns(UserWarning, match=r"^mag: the angle between the field and gravity varies by 1\d deg|"
+                                         r"^mag: the angle between the field and gravity varies by 2\d deg"):
+        AttitudeFilter(RATE).run(gyr, acc, wrong)
+
+
 def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
     """Every BROAD development trial as logged (rad/s) runs without a warning; the slow-rotation trial with
     its gyro in deg/s warns."""
@@ -355,6 +385,9 @@ def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
             warnings.simplefilter("error")
             unit_check(d["gyr"], d["acc"], d["rate"])
         assert hard_iron_offset(d["mag"]) is None          # calibrated: run's hard-iron check says nothing either
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            _check_field_frame(d["acc"], d["mag"])          # and the field's axes are the accelerometer's
     d = load_trial(BROAD / "01_undisturbed_slow_rotation_A.mat")
     with pytest.warns(UserWarning, match="deg/s"):
         unit_check(np.degrees(d["gyr"]), d["acc"], d["rate"])

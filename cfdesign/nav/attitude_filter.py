@@ -141,8 +141,12 @@ Every threshold is in physical units, derived from the noise figures where it ca
   it the tilt error a gap leaves is read as a sustained acceleration and the dip it skews as a
   magnetic disturbance, which held it for tens of seconds;
 * units: readings in g or deg/s are warned of (the filter runs on): a median specific force far
-  from gravity, and a gyro that turns gravity, over short quiet windows, more than 5 times faster
-  than the accelerometer shows it turning (57 times in deg/s, slow motion too; ``_GyroUnits``).
+  from gravity, and a gyro that turns gravity, over short quiet windows, more than 2.5 times faster
+  than the accelerometer shows it turning (57 times in deg/s, slow motion too; ``_GyroUnits``); turning
+  it as far but another way, the gyro's axes are warned of as not the accelerometer's (an axis flipped, x and
+  y swapped, NED against ENU: 51 to 82 deg RMS off in heading, warned of as deg/s before, a flipped z not at all).
+  A field whose angle to gravity wanders as the sensor turns is warned of as in other axes than the
+  accelerometer's (``_check_field_frame``).
 
 The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
 ``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
@@ -1030,7 +1034,7 @@ class AttitudeFilter:
         UserWarning
             The specific force the filter starts from (the first usable one) is below 3 or above
             30 (``acc`` in g?).  The filter runs anyway; :meth:`run` checks the median of its
-            arrays instead.  Once: the gyro turns gravity more than 5 times faster than the
+            arrays instead.  Once: the gyro turns gravity more than 2.5 times faster than the
             accelerometer shows it turning (``gyr`` in deg/s?; checked in blocks of about 4096
             samples, ``_GyroUnits``).  Once: at rest the gyro or the accelerometer is more than twice as noisy
             (in std) as its density (``gyro_noise_density``, ``accel_noise_density``).
@@ -1093,7 +1097,7 @@ class AttitudeFilter:
         -----
         UserWarning
             The arrays look like other units: a median specific force outside 3 to 30 (``acc``
-            in g?); a median rate above 20 or a gyro that turns gravity more than 5 times faster
+            in g?); a median rate above 20 or a gyro that turns gravity more than 2.5 times faster
             than the accelerometer shows it turning (``gyr`` in deg/s?, once per filter, as
             :meth:`step` checks it: ``_GyroUnits``); once per filter, at rest the gyro or the accelerometer more
             than twice as noisy (in std) as its density (``gyro_noise_density``, ``accel_noise_density``;
@@ -1218,14 +1222,15 @@ def _arrays(gyr, acc, mag, nine):
                                      "the gyro's clock with cfdesign.nav.align_imu first")
     _check_units(gyr, acc)
     _check_merged(gyr, acc, mag)
-    if mag is not None:
-        _check_hard_iron(mag)
+    if mag is not None and not _check_hard_iron(mag):
+        _check_field_frame(acc, mag)
     return gyr, acc, mag
 
 
-def _check_hard_iron(mag):
+def _check_hard_iron(mag) -> bool:
     """Warn when the field readings lie on a sphere away from zero (:func:`~cfdesign.nav.hard_iron_offset`): a
-    hard-iron offset, which the filter does not remove (30 µT beside a 50 µT field: 23 deg RMS in heading)."""
+    hard-iron offset, which the filter does not remove (30 µT beside a 50 µT field: 23 deg RMS in heading).
+    Returns whether it warned."""
     import warnings
 
     from .attitude_streams import hard_iron_offset
@@ -1238,6 +1243,37 @@ def _check_hard_iron(mag):
                       "hard-iron offset (an uncalibrated magnetometer, a magnet fixed to the device), which the filter "
                       "does not remove and which turns the heading; subtract cfdesign.nav.hard_iron_offset(mag) from "
                       "mag, or log the calibrated field", UserWarning, stacklevel=4)
+    return offset is not None
+
+
+#: the field-frame check (``_check_field_frame``): rows whose specific force is within this of gravity (m/s²) are
+#: quiet; at least this many of them; a median absolute deviation of their dip angle beyond this (rad) warns
+FRAME_NORM_TOL, FRAME_MIN_ROWS, FRAME_DIP_MAD = 0.5, 100, math.radians(5.0)
+
+
+def _check_field_frame(acc, mag):
+    """Warn when the angle between the specific force and the field (the dip, fixed in a homogeneous field while the
+    specific force is gravity) wanders as the sensor turns: the magnetometer's axes are not the accelerometer's (an
+    axis flipped, x and y swapped, NED against ENU), which no disturbance rejection tells from a disturbed field
+    (28 to 144 deg RMS off in heading, silent).  Its median absolute deviation over the quiet rows is 0.3 deg on
+    synthetic tracks and 0.7 to 1.3 deg on every BROAD development trial (those beside magnets too), 14 to 24 deg with
+    a field axis flipped or swapped; above :data:`FRAME_DIP_MAD` (5 deg) warns.  A sensor that hardly turns shows
+    no spread, and is not warned of (its heading is then off by a constant)."""
+    import warnings
+
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        na, nm = np.linalg.norm(acc, axis=1), np.linalg.norm(mag, axis=1)
+        quiet = (np.abs(na - GRAVITY) < FRAME_NORM_TOL) & (nm > 0.0) & np.isfinite(nm)
+        if quiet.sum() < FRAME_MIN_ROWS:
+            return
+        dip = np.arcsin(np.clip(np.einsum("ij,ij->i", acc[quiet], mag[quiet]) / (na[quiet] * nm[quiet]), -1.0, 1.0))
+    mad = float(np.median(np.abs(dip - np.median(dip))))
+    if mad > FRAME_DIP_MAD:
+        warnings.warn(f"mag: the angle between the field and gravity varies by {math.degrees(mad):.2g} deg (median "
+                      f"absolute deviation; under {math.degrees(FRAME_DIP_MAD):g} in a field that only turns with the "
+                      "sensor): the magnetometer's axes may not be the accelerometer's (an axis flipped, x and y "
+                      "swapped, NED against ENU; both sensors take one body frame), or the field is disturbed most "
+                      "of the time", UserWarning, stacklevel=4)
 
 
 #: the share of the rows of :meth:`AttitudeFilter.run` without a rate but with another sensor's reading, next to a row
@@ -1297,7 +1333,12 @@ def _warn_accel_unit(what, value, stacklevel=4):
 #: of the counted windows before it judges (rad); the ratio of the gyro's turn to the accelerometer's beyond
 #: which the gyro is in deg/s (57.3 times rad/s); the samples ``step`` gathers before checking them at once
 UNIT_WINDOW_S, UNIT_NORM_TOL, UNIT_NORM_STD, UNIT_MIN_TURN, UNIT_TURN, UNIT_RATIO, UNIT_CHUNK = (
-    0.1, 0.3, 0.5, 0.02, 5.0, 5.0, 4096)
+    0.1, 0.3, 0.5, 0.02, 5.0, 2.5, 4096)
+#: a gyro the check warns of whose turns' RMS is at most this many times the accelerometer's turns' is warned of as
+#: of other axes or signs than the accelerometer (turns of one size, in other directions: 0.93 to 1.9 with an axis
+#: flipped, x and y swapped or all three negated, at 25 to 1000 Hz), above it as in deg/s (5.8 to 45 on synthetic
+#: tracks and BROAD trials in deg/s, 2.3 on trial 28, whose few quiet windows barely turn)
+UNIT_AXES_SIZE = 3.0
 
 
 class _GyroUnits:
@@ -1313,7 +1354,10 @@ class _GyroUnits:
     about the vertical gravity does not turn, so those windows count for nothing).  Once the counted
     windows have turned by ``UNIT_TURN`` (rad, by the gyro) the check judges, once: a ratio above
     ``UNIT_RATIO`` warns, one at or below it is rad/s (0.77 to 1.01 there; 23 to infinite in deg/s), and
-    the check ends either way.
+    the check ends either way.  The warning says deg/s when the gyro's turns are larger than the
+    accelerometer's (their RMS above ``UNIT_AXES_SIZE`` times), else that the two sensors' axes differ: turns
+    of one size in other directions (a ratio of -15 to 15 with an axis flipped or x and y swapped; 3.5 to 4.3 with
+    z flipped, which the former bound of 5 let through, 55 deg RMS off in inclination).
 
     A median rate above 20 (rad/s: far beyond an ordinary motion, an ordinary one in deg/s) warns at
     once in :meth:`AttitudeFilter.run` (it needs no quiet windows: a vibrating sensor has none); either
@@ -1377,8 +1421,12 @@ class _GyroUnits:
         if not len(judged):
             self.sums = sums[-1]
         elif sums[judged[0], 0] > UNIT_RATIO * sums[judged[0], 1]:
-            self.warn(f"the gyro turns gravity {_times(*sums[judged[0], [0, 1, 2, 4]])} faster than the "
-                      "accelerometer shows it turning", stacklevel + 1)
+            gg, ga, aa, n = sums[judged[0], [0, 1, 2, 4]]
+            if gg > UNIT_AXES_SIZE**2 * aa:
+                self.warn(f"the gyro turns gravity {_times(gg, ga, aa, n)} faster than the accelerometer shows it "
+                          "turning", stacklevel + 1)
+            else:  # turns of one size, in other directions
+                self.warn_axes(ga / math.sqrt(gg * aa), stacklevel + 1)
         else:
             self.buffer = None                          # rad/s: the check is over
 
@@ -1397,6 +1445,19 @@ class _GyroUnits:
                     & (np.abs(f.mean(axis=1) - GRAVITY) < UNIT_NORM_TOL) & (f.std(axis=1) < UNIT_NORM_STD)
                     & ((dg * dg).sum(axis=1) >= UNIT_MIN_TURN * UNIT_MIN_TURN))
         return dg[keep], u[keep, -1] - u[keep, 0]
+
+    def warn_axes(self, correlation, stacklevel):
+        """Warn that the gyro turns gravity otherwise than the accelerometer shows it turning (``correlation``: of
+        their turns over the counted windows, about 1 when the frames agree; ``stacklevel``: as :func:`warnings.warn`
+        would take it here), and end the check: a gyro axis of another sign or order than the accelerometer's."""
+        import warnings
+
+        self.buffer = None
+        warnings.warn(f"gyr: the gyro turns gravity another way than the accelerometer shows it turning (their turns' "
+                      f"correlation {correlation:.2g}, about 1 when their axes agree): an axis of the gyro or of the "
+                      "accelerometer of another sign or order than the other's (an axis flipped, x and y swapped, "
+                      "NED against ENU; both sensors take one body frame), or readings in deg/s", UserWarning,
+                      stacklevel=stacklevel)
 
     def warn(self, what, stacklevel):
         """Warn that the gyro looks like deg/s (``what``: why; ``stacklevel``: as :func:`warnings.warn` would take
