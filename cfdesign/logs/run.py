@@ -128,9 +128,10 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         positive whole number, a ``mapping`` that is not a dict, a ``reference`` that is not
         text or a list of it, or ``data`` of another type.
     DataError
-        A dict's columns of different lengths, a missing or non-numeric column or bad times (naming the line; a Parquet log's row), a
-        base rate more than 1 % off the table's, an empty log; of a joined file as well (naming
-        it), a column the run uses in two files, times that do not overlap the log's.
+        A dict's columns of different lengths, a missing or non-numeric column or bad times
+        (naming the line; a Parquet log's row), a base rate more than 1 % off the table's, an
+        empty log; of a joined file as well (naming it), a column the run uses in two files, times
+        that do not overlap the log's.
     OutputError
         The output cannot be written; nothing is left half-written.
     """
