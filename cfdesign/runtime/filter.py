@@ -260,7 +260,8 @@ class Runtime:
         Lock the phase of :meth:`step` to the readings as they arrive (default True): a usable
         reading of a multirate table's slow sensor at a phase where the table has no gain for it
         moves the phase so that it has one, when one shift of the whole schedule puts it on its
-        phases and keeps every sensor whose last reading had a gain on theirs
+        phases and keeps every sensor whose last reading had a gain on theirs (one not read for
+        :data:`~cfdesign.runtime.lock.LOCK_STALE_READINGS` of its spacings no longer counts)
         (:func:`cfdesign.timing.rotation`, the rule :func:`cfdesign.logs.run_log` applies per
         stretch of a log).  A 1 Hz GPS first seen at tick 17 of a table that reads it at phase 0
         moves the phase to 0 there.  A reading no shift places (sensors at offsets of their own, a

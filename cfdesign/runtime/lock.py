@@ -7,8 +7,9 @@ no gain and was lost.  :meth:`PhaseLock.unscheduled` is called by the compiled s
 (:mod:`cfdesign.runtime.step`) for such a reading and moves the phase when that is exact: when one
 shift of the whole schedule (:func:`cfdesign.timing.rotation`, the rule the log path uses per
 stretch) puts this sensor on its phases and keeps every other sensor whose last reading had a gain
-on its own.  The step then runs again at the new phase.  A reading no shift can place (sensors at
-offsets of their own, a sensor faster than the table reads it, ``lock=False``) is counted in
+(within :data:`LOCK_STALE_READINGS` of its spacings) on its own, the nearest such shift first.  The
+step then runs again at the new phase.  A reading no shift can place (sensors at offsets of their own,
+a sensor faster than the table reads it, ``lock=False``) is counted in
 :attr:`Runtime.counts <cfdesign.runtime.Runtime.counts>` and warned of once per runtime and
 sensor, naming :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, the filter that uses every
 reading as it arrives.
@@ -25,7 +26,12 @@ import warnings
 from ..errors import CfdesignError
 from ..timing import _pattern, rotation
 
-__all__ = ["PhaseLock"]
+__all__ = ["PhaseLock", "LOCK_STALE_READINGS"]
+
+#: a sensor whose last reading with a gain is more than this many of its designed spacings old no longer holds
+#: the schedule: a compass gone for good kept the odometry that came back 3 ticks later off its gains (4500 of
+#: 4500 readings lost, 0.18 rad RMS against 0.0014 with it), so a relock keeps only the sensors still read
+LOCK_STALE_READINGS = 3
 
 
 class PhaseLock:
@@ -129,10 +135,12 @@ class PhaseLock:
         if before is not None and tick - before < self.spacing[i] / 2:
             return (f"it came {tick - before} ticks after its last reading, where the table reads it every "
                     f"{self.spacing[i]:g}: faster than designed", None)
-        on = {self.names[j]: 0 for j, t in enumerate(self.ON) if t is not None and j != i}
+        on = {self.names[j]: 0 for j, t in enumerate(self.ON)
+              if t is not None and j != i and tick - t <= LOCK_STALE_READINGS * self.spacing[j]}
         step = self.steps[name]
-        # its offset: ticks late against one of its phases (several for a pattern such as 0, 33, 67)
-        for offset in sorted({(phase - p) % step for p in self.phases[i]}):
+        # its offset against one of its phases (several for a pattern such as 0, 33, 67): the nearest
+        # first, a reading a tick early before one 32 late (ties: the later)
+        for offset in sorted({(phase - p) % step for p in self.phases[i]}, key=lambda o: (min(o, step - o), o)):
             c = rotation({**on, name: offset}, self.steps, self.period)
             if c is not None:
                 return "", (phase - c) % self.period
