@@ -11,7 +11,7 @@ from test_attitude_codegen import needs_cc, run_c
 from test_attitude_filter import BIAS, FIELD, RATE, errors, imu, motion
 
 from cfdesign.nav import AttitudeFilter, hard_iron_offset
-from cfdesign.nav.attitude_filter import STATE_FIELDS, _check_field_frame
+from cfdesign.nav.attitude_filter import STATE_FIELDS, _check_field_frame, _check_field_turn
 
 
 def total(est, q):
@@ -369,6 +369,31 @@ def test_a_magnetometer_whose_axes_are_not_the_accelerometer_s_is_warned_of(axes
         AttitudeFilter(RATE).run(gyr, acc, wrong)
 
 
+@pytest.mark.parametrize("wrong", ["mag x-y", "mag x", "gyr z"])
+def test_axes_that_differ_while_turning_about_gravity_alone_are_warned_of(wrong):
+    """A ground robot's yaw alone never turns gravity nor changes the dip, so the gyro-gravity and dip checks saw
+    nothing of a field with x and y swapped or x flipped, or a gyro with z flipped (22 to 113 deg RMS off in
+    heading at 25 to 1000 Hz): the field then turns against the gyro's turn, and run warns once; the right axes,
+    the same track in deg/s (directions, not sizes) and one impossible rate among them (a median) do not."""
+    import warnings
+
+    q = motion(int(30 * RATE), still_s=3.0, amplitude=(2.5, 0.0, 0.0))
+    gyr, acc, mag = imu(q)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert not _check_field_turn(gyr, mag, RATE) and not _check_field_turn(np.degrees(gyr), mag, RATE)
+        spiked = gyr.copy()
+        spiked[1300] = [5e3, 0.0, 0.0]                      # swayed the energy-weighted correlation to -0.01
+        assert not _check_field_turn(spiked, mag, RATE)
+    if wrong == "gyr z":
+        gyr = gyr * [1, 1, -1]
+    else:
+        mag = mag[:, [1, 0, 2]] if wrong == "mag x-y" else mag * [-1, 1, 1]
+    with pytest.warns(UserWarning, match=r"^mag: the field turns .*median cosine of their turns -0\.9") as caught:
+        AttitudeFilter(RATE).run(gyr, acc, mag)
+    assert len(caught) == 1
+
+
 def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
     """Every BROAD development trial as logged (rad/s) runs without a warning; the slow-rotation trial with
     its gyro in deg/s warns."""
@@ -388,6 +413,7 @@ def test_broad_trials_in_rad_s_are_not_warned_of_and_in_deg_s_are():
         with warnings.catch_warnings():
             warnings.simplefilter("error")
             _check_field_frame(d["acc"], d["mag"])          # and the field's axes are the accelerometer's
+            _check_field_turn(d["gyr"], d["mag"], d["rate"])  # and turn as the gyro's (median cosine 0.75 to 0.998)
     d = load_trial(BROAD / "01_undisturbed_slow_rotation_A.mat")
     with pytest.warns(UserWarning, match="deg/s"):
         unit_check(np.degrees(d["gyr"]), d["acc"], d["rate"])

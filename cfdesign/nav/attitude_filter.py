@@ -146,7 +146,8 @@ Every threshold is in physical units, derived from the noise figures where it ca
   it as far but another way, the gyro's axes are warned of as not the accelerometer's (an axis flipped, x and
   y swapped, NED against ENU: 51 to 82 deg RMS off in heading, warned of as deg/s before, a flipped z not at all).
   A field whose angle to gravity wanders as the sensor turns is warned of as in other axes than the
-  accelerometer's (``_check_field_frame``).
+  accelerometer's (``_check_field_frame``), and so is one that turns against the gyro's turn
+  (``_check_field_turn``: a ground robot turning about gravity alone, which the two checks above do not see).
 
 The gyro turns the attitude by ``(w - b) T`` plus the two-sample coning term
 ``(u_prev x u) / 12`` of strapdown attitude algorithms, so that rates averaged over their interval
@@ -1104,9 +1105,10 @@ class AttitudeFilter:
             rest is then detected against the noise measured); more than 5 % of the rows without a rate but with
             a specific force or a field (streams merged by time stamp: put them on the gyro's clock with
             :func:`~cfdesign.nav.align_imu`); in 9D, field readings on a sphere away from zero (a hard-iron
-            offset: :func:`~cfdesign.nav.hard_iron_offset`).  The filter runs anyway.
+            offset: :func:`~cfdesign.nav.hard_iron_offset`), else a field whose angle to gravity wanders or that
+            turns against the gyro's turn (the sensors' axes differ).  The filter runs anyway.
         """
-        gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer)
+        gyr, acc, mag = _arrays(gyr, acc, mag, self.magnetometer, self.rate_hz)
         self._units.check_median(gyr, stacklevel=3)
         self._units.feed(gyr, acc, stacklevel=3)
         n = len(gyr)
@@ -1205,8 +1207,8 @@ def _initial_quaternion(initial) -> list:
     return [v / n for v in q]
 
 
-def _arrays(gyr, acc, mag, nine):
-    """(N, 3) float arrays; mag required in 9D (None in 6D)."""
+def _arrays(gyr, acc, mag, nine, rate_hz):
+    """(N, 3) float arrays; mag required in 9D (None in 6D); ``rate_hz`` for the field-turn check."""
     from .attitude_inputs import vectors
 
     gyr = vectors("gyr", gyr)
@@ -1222,8 +1224,8 @@ def _arrays(gyr, acc, mag, nine):
                                      "the gyro's clock with cfdesign.nav.align_imu first")
     _check_units(gyr, acc)
     _check_merged(gyr, acc, mag)
-    if mag is not None and not _check_hard_iron(mag):
-        _check_field_frame(acc, mag)
+    if mag is not None and not _check_hard_iron(mag) and not _check_field_frame(acc, mag):
+        _check_field_turn(gyr, mag, rate_hz)
     return gyr, acc, mag
 
 
@@ -1258,14 +1260,15 @@ def _check_field_frame(acc, mag):
     (28 to 144 deg RMS off in heading, silent).  Its median absolute deviation over the quiet rows is 0.3 deg on
     synthetic tracks and 0.7 to 1.3 deg on every BROAD development trial (those beside magnets too), 14 to 24 deg with
     a field axis flipped or swapped; above :data:`FRAME_DIP_MAD` (5 deg) warns.  A sensor that hardly turns shows
-    no spread, and is not warned of (its heading is then off by a constant)."""
+    no spread, and is not warned of (its heading is then off by a constant); one turning about gravity alone (a
+    ground robot) shows none either: :func:`_check_field_turn`.  Returns whether it warned."""
     import warnings
 
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
         na, nm = np.linalg.norm(acc, axis=1), np.linalg.norm(mag, axis=1)
         quiet = (np.abs(na - GRAVITY) < FRAME_NORM_TOL) & (nm > 0.0) & np.isfinite(nm)
         if quiet.sum() < FRAME_MIN_ROWS:
-            return
+            return False
         dip = np.arcsin(np.clip(np.einsum("ij,ij->i", acc[quiet], mag[quiet]) / (na[quiet] * nm[quiet]), -1.0, 1.0))
     mad = float(np.median(np.abs(dip - np.median(dip))))
     if mad > FRAME_DIP_MAD:
@@ -1274,6 +1277,56 @@ def _check_field_frame(acc, mag):
                       "sensor): the magnetometer's axes may not be the accelerometer's (an axis flipped, x and y "
                       "swapped, NED against ENU; both sensors take one body frame), or the field is disturbed most "
                       "of the time", UserWarning, stacklevel=4)
+    return mad > FRAME_DIP_MAD
+
+
+#: the field-turn check (``_check_field_turn``): windows of this length (s) over which the gyro turns the field by more
+#: than this share of its size (rad, about 3 deg) count; at least this many of them; a median cosine between the
+#: field's turn and the gyro's at or below this warns (0.75 to 0.998 on the ten BROAD trials, 0.75 beside a magnet
+#: fixed 1 cm off; -0.05 to -0.97 there with a field axis flipped or x and y swapped, -0.98 turning about gravity alone
+#: with a field axis flipped or swapped or the gyro's z flipped, at 25 to 1000 Hz)
+TURN_WINDOW_S, TURN_MIN, TURN_MIN_WINDOWS, TURN_COSINE = 0.2, 0.05, 20, 0.2
+
+
+def _check_field_turn(gyr, mag, rate_hz):
+    """Warn when the field does not turn in the body frame as the gyro turns it (``-w x m``): over the windows of
+    :data:`TURN_WINDOW_S` that turn it by more than :data:`TURN_MIN`, the median cosine between the field's change and
+    the change the gyro predicts is at most :data:`TURN_COSINE` (a median: one impossible rate does not sway it).
+    Catches a magnetometer (or gyro) axis of another sign or order turning about gravity alone (a ground robot: 22 to
+    113 deg RMS off in heading, where the dip and the gyro-gravity checks see nothing); cosines are of directions, so
+    units do not matter.  Returns whether it warned.
+
+    Parameters
+    ----------
+    gyr, mag : ndarray (N, 3)
+        Body rates (rad/s) and field readings (any unit), one row a sample (NaN rows leave their windows out).
+    rate_hz : float
+        Sample rate (Hz).
+    """
+    import warnings
+
+    w = max(3, round(TURN_WINDOW_S * rate_hz))
+    n = (len(gyr) - 1) // w * w
+    if n < w * TURN_MIN_WINDOWS:
+        return False
+    with np.errstate(invalid="ignore", over="ignore"):
+        predicted = -np.cross(gyr[:n], mag[:n]).reshape(-1, w, 3).sum(axis=1) / rate_hz
+        measured = mag[w:n + 1:w] - mag[0:n:w]
+        size = np.linalg.norm(mag[0:n:w], axis=1)
+        keep = ((np.linalg.norm(predicted, axis=1) > TURN_MIN * size) & np.isfinite(measured).all(axis=1)
+                & np.isfinite(predicted).all(axis=1))
+        if keep.sum() < TURN_MIN_WINDOWS:
+            return False
+        p, m = predicted[keep], measured[keep]
+        cosine = float(np.median((p * m).sum(axis=1) / (np.linalg.norm(p, axis=1) * np.linalg.norm(m, axis=1))))
+    if not cosine <= TURN_COSINE:
+        return False
+    warnings.warn(f"mag: the field turns in the sensor frame otherwise than the gyro turns it (median cosine of their "
+                  f"turns {cosine:.2g}, about 1 when their axes agree): an axis of the magnetometer or of the gyro of "
+                  "another sign or order than the accelerometer's (an axis flipped, x and y swapped, NED against ENU; "
+                  "all three sensors take one body frame), or the field is disturbed most of the time", UserWarning,
+                  stacklevel=4)
+    return True
 
 
 #: the share of the rows of :meth:`AttitudeFilter.run` without a rate but with another sensor's reading, next to a row
