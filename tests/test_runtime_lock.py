@@ -204,3 +204,123 @@ def test_a_reading_a_tick_early_moves_the_phase_one_tick():
             rt.step(accelerometer=0.0, **({"gps": 1.0} if k in fixes else {}))
     moves = [k for k in range(1, 220) if phases[k] != (phases[k - 1] + 1) % 100]
     assert moves == [33, 68] and phases[33] == 34 and phases[68] == 68 and rt.phase == 220 % 100 and rt.counts == {}
+
+
+# ---------------------------------------------------------------- Runtime.run locks as step does
+def position_rows(n=1000, seed=4):
+    """The issue's rows through the position example: a 50 Hz accelerometer, a 1 Hz GPS at tick 17
+    of each 50 (the table reads it at phase 0), NaN between its fixes."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.02
+    pos = 2.0 * (1.0 - np.cos(0.4 * t))  # from rest at 0, as the filter starts
+    acc = 0.32 * np.cos(0.4 * t) + 0.05 + 0.006 * rng.standard_normal(n)  # a 0.05 m/s^2 bias
+    gps = np.full(n, np.nan)
+    gps[17::50] = pos[17::50] + 0.5 * rng.standard_normal(len(gps[17::50]))
+    return {"accelerometer": acc, "gps": gps}
+
+
+def same_state(a, b, tol=1e-12):
+    """``a.state() == b.state()``, the state floats to ``tol``."""
+    sa, sb = a.state(), b.state()
+    xa, xb = np.array(sa.pop("x")), np.array(sb.pop("x"))
+    return sa == sb and np.max(np.abs(xa - xb)) <= tol
+
+
+@pytest.fixture(scope="module")
+def position():
+    return cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+
+
+def lock_cases(heading, position):
+    return [(heading, heading_rows(7, 37, n=2000)[0]), (heading, heading_rows(3, 37, n=2000)[0]),
+            (position, position_rows())]
+
+
+def posterior_states(rt, rows):
+    """Each step's posterior states from the priors a step loop went through, another way than
+    run forms them: ``x[k + 1] = F x+[k] + B u[k]`` (filter form, ``Kp = F L``), so ``x+[k]`` is
+    ``F^-1 (x[k + 1] - B u[k])``; with the estimates ``step`` returned."""
+    p, est, priors = len(rt.inputs), [], []
+    for r in rows:
+        est.append(rt.step(**{k: v for k, v in r.items() if not np.isnan(v)}))
+        priors.append(rt.x)
+    u = np.array([[r[name] for name in rt.inputs] for r in rows]).reshape(len(rows), p)
+    xs = np.linalg.solve(rt.F, (np.array(priors) - u @ rt.B.T).T).T
+    return np.array(est), xs
+
+
+def recorded(call):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = call()
+    return out, [(str(w.message), w.filename) for w in caught]
+
+
+def assert_same(a, b, tol=1e-12, angle=False):
+    d = np.asarray(a) - np.asarray(b)
+    if angle:
+        d[..., 0] = wrap(d[..., 0])
+    assert np.max(np.abs(d)) <= tol, np.max(np.abs(d))
+
+
+def test_run_gives_what_a_step_loop_gives(heading, position):
+    """The common offset, the own offsets (compass counted and warned of) and the issue's GPS at
+    tick 17 of each 50: run, with or without states, equals stepping the rows on fresh runtimes
+    (estimates, posterior states, counts, state() afterwards) and warns as the steps do, at this
+    file's line; a GPS used at every fix moves the estimate where run used none before."""
+    for table, data in lock_cases(heading, position):
+        rows = [dict(zip(data, r, strict=True)) for r in zip(*data.values(), strict=True)]
+        angle = bool(table.wrap_angle)
+        ref = Runtime(table)
+        (est, xs), warned = recorded(lambda ref=ref, rows=rows: posterior_states(ref, rows))
+        for states in (False, True):
+            rt = Runtime(table)
+            out, got = recorded(lambda rt=rt, states=states, data=data: rt.run(data, states=states))
+            assert [m for m, _ in got] == [m for m, _ in warned] and all(f == __file__ for _, f in got)
+            assert_same(out[0] if states else out, est, angle=angle)
+            if states:
+                assert_same(out[1], xs, tol=1e-9, angle=angle)  # (the reference's solve rounds)
+                assert_same(out[1][:, 0], out[0], tol=0)
+            assert rt.counts == ref.counts and same_state(rt, ref)
+    issue = {"accelerometer": np.zeros(200), "gps": np.where(np.arange(200) % 50 == 17, 1.0, np.nan)}
+    rt, fixed = Runtime(position), Runtime(position, lock=False)
+    with pytest.warns(UserWarning, match="lock=False"):
+        lost = fixed.run(issue)
+    assert 0.2 < rt.run(issue)[-1] <= 1.0 and lost[-1] == 0.0 and rt.counts == {}  # every fix used, none before
+    assert fixed.counts == {"unscheduled": {"gps": 4}}
+
+
+def test_split_runs_equal_one_run_and_the_steps(heading, position):
+    """run(a) then run(b) equals one run(a + b) and the step loop, split before the first slow
+    reading, after the lock has moved (b then runs on the vectorised paths) and mid-stretch."""
+    for table, data in lock_cases(heading, position):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ref = Runtime(table)
+            est = np.array(stepped(ref, data))
+            whole = Runtime(table)
+            one = whole.run(data)
+            for cut in (5, 140, 1234):
+                rt = Runtime(table)
+                parts = [rt.run({k: v[:cut] for k, v in data.items()}), rt.run({k: v[cut:] for k, v in data.items()})]
+                assert_same(np.concatenate(parts), est, angle=bool(table.wrap_angle))
+                assert rt.counts == ref.counts == whole.counts and same_state(rt, ref) and same_state(whole, ref)
+        assert_same(one, est, angle=bool(table.wrap_angle))
+
+
+def test_aligned_run_keeps_the_vectorised_path(heading, position, monkeypatch):
+    """Readings on the schedule never reach the steps: run gives bit for bit what the fixed
+    schedule (lock=False) gives, and the stepped path is not taken."""
+    taken = []
+    monkeypatch.setattr(Runtime, "_run_stepped", lambda self, *a: taken.append(len(a[0])))
+    aligned = heading_rows(0, 0, n=3000)[0]
+    gps = position_rows()
+    gps["gps"] = np.roll(gps["gps"], -17)
+    for table, data in ((heading, aligned), (position, gps)):
+        for states in (False, True):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                a, b = Runtime(table).run(data, states=states), Runtime(table, lock=False).run(data, states=states)
+            for x, y in zip(*((a, b) if states else ([a], [b])), strict=True):
+                np.testing.assert_array_equal(x, y)
+    assert taken == []

@@ -270,8 +270,8 @@ class Runtime:
         :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, which uses every reading as it
         arrives).  ``lock=False`` keeps the fixed schedule, as the generated C does (its
         manual lock is ``st.phase = <PREFIX>_PHASE_<NAME>``); readings off it are still counted
-        and warned of.  Phase-aligned readings run alike either way.  :meth:`run` always runs
-        the table's schedule from the current phase (a log with arrivals of its own:
+        and warned of.  Phase-aligned readings run alike either way.  :meth:`run` gives what
+        stepping the same rows gives, the lock included (a log with time stamps:
         :func:`cfdesign.logs.run_log`).
     warn : bool, optional
         Warn of readings without a gain as above (default True); False for a caller that reports
@@ -572,13 +572,17 @@ class Runtime:
     def run(self, readings: dict, *, states: bool = False):
         """Run on whole arrays; the state carries over between calls.
 
-        The table's schedule runs from the current phase: no lock (``lock`` is :meth:`step`'s);
-        readings off it are counted and warned of once per sensor, as :meth:`step` does them.
+        Gives what stepping the same rows through :meth:`step` gives, the phase lock included
+        (``lock``): the estimates, the states, :attr:`counts`, the warnings and :meth:`state`
+        afterwards.
 
-        The work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
+        Where every usable reading is on the schedule from the current phase (the common case)
+        the work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
         single-rate table) over every stretch where each scheduled measurement is present; the
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
-        numbers.
+        numbers.  Arrays holding a usable reading off that schedule run step by step through
+        :meth:`step` (about a microsecond a row), which locks the phase to them where one shift
+        places them; with ``lock=False`` they are counted and warned of as :meth:`step` does.
 
         Parameters
         ----------
@@ -614,7 +618,8 @@ class Runtime:
         """
         before, self._read = self._lock.state(), {}
         out = self._run(readings, states)
-        self._lock.ran(before, len(out[0] if states else out), self._read)  # the lock's ticks went on
+        if self._read is not None:  # the batch paths: the lock's ticks go on (the steps moved them)
+            self._lock.ran(before, len(out[0] if states else out), self._read)
         return out
 
     def _run(self, readings, states):
@@ -632,7 +637,10 @@ class Runtime:
         active = self._active[(self.phase + np.arange(N)) % self.period]
         finite = usable(y)
         self._count("rejected", ~finite & ~np.isnan(y))
-        self._unscheduled(finite, active)
+        off = finite & ~active
+        if self.lock and off.any():  # readings off the schedule: the steps lock to them
+            return self._run_stepped(u, np.where(finite, y, np.nan), states)
+        self._unscheduled(finite, active, off)
         y = np.where(active & finite, y, np.nan)  # NaN: not read at this tick
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
         if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
@@ -709,19 +717,29 @@ class Runtime:
         self._count("rejected_inputs", bad & ~np.isnan(u))
         return held(u, bad, self.u_last)
 
-    def _unscheduled(self, finite, active):
-        """Count and warn of the usable readings ``finite`` where ``active`` has no gain; note for
-        the lock whether each sensor's last reading had one."""
-        off = finite & ~active
+    def _unscheduled(self, finite, active, off):
+        """Count and warn of the usable readings ``off`` (of ``finite``) where ``active`` has no
+        gain (``lock=False``, or a table that never reads the sensor); note for the lock the ticks
+        of each sensor's last reading with a gain and last without, as the steps would."""
         self._count("unscheduled", off)
         phase = self.phase
         for i in np.flatnonzero(off.any(axis=0)):
             k = int(np.argmax(off[:, i]))
-            self._lock.warn(i, (phase + k) % self.period, "Runtime.run runs the table's schedule from the "
-                            "current phase; Runtime.step locks the phase to the arrivals", stacklevel=5)
-        for i in np.flatnonzero(finite.any(axis=0)):  # its last reading: ticks before the end, had a gain
-            age = int(np.argmax(finite[::-1, i]))
-            self._read[int(i)] = (age + 1, bool(active[len(finite) - 1 - age, i]))
+            self._lock.warn(i, (phase + k) % self.period, self._lock.fixed(), stacklevel=5)
+        on = finite & active
+        for i in np.flatnonzero(finite.any(axis=0)):  # ticks before the end of its last reading with(out) a gain
+            self._read[int(i)] = tuple(int(np.argmax(m[::-1, i])) + 1 if m[:, i].any() else None for m in (on, off))
+
+    def _run_stepped(self, u, y, states):
+        """:meth:`run` by :meth:`step`, which applies the lock, counts and warns (inputs held and
+        readings usable or NaN already); the lock's ticks advance with the steps."""
+        self._read = None
+        lock = self._lock
+        lock.stacklevel = 8  # at the caller of run: warn, unscheduled, the step, _run_loop, here, _run, run
+        try:
+            return self._run_loop(u, y, states)
+        finally:
+            lock.stacklevel = 4
 
     def _count(self, what, mask):
         if mask.any():
@@ -765,16 +783,19 @@ class Runtime:
     def _run_loop(self, u, y, states):
         """Step by step (inputs held and readings cleaned already by :meth:`run`)."""
         N = len(u)
-        if not states:  # the compiled step
+        if not states:  # the compiled step, called by map (no frame between it and this one)
             step = self._step_values
-            return np.array([step(*row) for row in np.hstack([u, y]).tolist()], dtype=float).reshape(N)
+            return np.array(list(map(step, *np.hstack([u, y]).T.tolist())), dtype=float).reshape(N)
         # the compiled step advances the state; the output states are formed from the priors it
-        # went through afterwards, all at once (:meth:`_advance` a step: 90 us, this: 3 us)
-        phases = (self.phase + np.arange(N)) % self.period
+        # went through afterwards, all at once (:meth:`_advance` a step: 90 us, this: 3 us), at
+        # the phases the steps ran at (the lock may move one inside a step: read after it)
         prior, S, n, step = np.empty((N, self.n)), self._S, self.n, self._step_values
+        after = [0] * N
         for k, row in enumerate(np.hstack([u, y]).tolist()):
             prior[k] = S[:n]
             step(*row)
+            after[k] = S[n]
+        phases = (np.array(after, dtype=np.intp) - 1) % self.period
         xs = prior
         if self.posterior:
             e = self._innovations(prior, y, phases)

@@ -68,6 +68,8 @@ class PhaseLock:
         self.spacing = [self.period / max(len(ph), 1) for ph, _ in patterns]  # ticks between readings
         self.enabled = bool(enabled) and self.period > 1
         self.warned = set() if warn else set(self.names)  # no warning: as if each sensor had had its one
+        #: the frames from the warning to the user's call: ``step`` (``Runtime.run`` sets it while it steps)
+        self.stacklevel = 4
         self.last = [None] * len(self.names)
         self.reset()
 
@@ -115,17 +117,26 @@ class PhaseLock:
             no shift places it, the reading is counted and (once per sensor) warned of.
         """
         tick = self.tick()
-        why, new = self._placed(i, phase, tick) if self.enabled else (
-            "Runtime(lock=False) keeps the schedule fixed" if self.period > 1 else "the table never reads it", None)
+        why, new = self._placed(i, phase, tick) if self.enabled else (self.fixed(), None)
         if new is None:
             self.ON[i], self.last[i] = None, tick
             self.UNS[i] += 1
-            self.warn(i, phase, why)
+            self.warn(i, phase, why, self.stacklevel)
             return -1
         self.moved(phase, new)
         self.S[self.n] = new
         self.ON[i] = tick + new - phase  # placed: a later sensor's relock in this step must keep it
         return new
+
+    def fixed(self) -> str:
+        """Why a reading off the schedule has no gain when the phase cannot move.
+
+        Returns
+        -------
+        str
+            ``lock=False`` named, or (a single-rate table) that the table never reads the sensor.
+        """
+        return "Runtime(lock=False) keeps the schedule fixed" if self.period > 1 else "the table never reads it"
 
     def _placed(self, i, phase, tick):
         """``(why not, None)`` or ``('', new phase)``: the shift of the whole schedule that puts
@@ -234,12 +245,16 @@ class PhaseLock:
         ticks : int
             The steps run.
         read : dict
-            ``{i: (ticks before the next step, had a gain)}`` of each sensor's last reading in them.
+            ``{i: (ticks before the next step of its last reading with a gain, of its last without)}``
+            (None where it had no such reading in them), for each sensor read in them.
         """
         aged = {key: {n: t + ticks for n, t in d.items()} for key, d in before.items()}
-        for i, (age, gained) in read.items():
+        for i, (on, off) in read.items():  # as the steps keep them: a reading without a gain clears "on"
             name = self.names[i]
-            for d in aged.values():
-                d.pop(name, None)
-            aged["on" if gained else "off"][name] = age
+            if off is not None:
+                aged["off"][name] = off
+            if on is not None and (off is None or on < off):
+                aged["on"][name] = on
+            else:
+                aged["on"].pop(name, None)
         self._aged(aged)
