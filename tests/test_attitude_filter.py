@@ -97,8 +97,8 @@ EXPONENTS = st.sampled_from([-320.0, -1.0, 0.0, 1.0, 99.0, 101.0, 155.0, 200.0, 
 MAGNITUDE = st.builds(lambda sign, exp: sign * 10.0 ** exp, st.sampled_from([-1.0, 1.0]), EXPONENTS)
 
 
-# an edited rest-noise estimate (the state's gyro deviation at rest) is warned of by the filter, as it should be
-@pytest.mark.filterwarnings("ignore:gyr. at rest the gyro is about:UserWarning")
+# an edited rest-noise estimate (the state's gyro or accelerometer deviation at rest) is warned of, as it should be
+@pytest.mark.filterwarnings("ignore:(gyr|acc). at rest the .* is about:UserWarning")
 @FUZZ
 @given(edits=st.dictionaries(st.sampled_from(STATE_FIELDS), MAGNITUDE | st.sampled_from([0.0, 0.5, 1.0, 2.0, 3.0]),
                              min_size=1, max_size=8), nine=st.booleans())

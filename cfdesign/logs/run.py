@@ -509,7 +509,8 @@ class _Runner:
                 from ..designer import gains_for_schedule
 
                 table = gains_for_schedule(self.table, self.table.schedule.shifted(dict(seg.offsets)))
-            self.runtimes[key] = self._Runtime(table, output=self.output, warn=False)  # counts: our notes
+            # the log path places the phase itself (its lock, per stretch): the runtime neither relocks nor warns
+            self.runtimes[key] = self._Runtime(table, output=self.output, lock=False, warn=False)
         return self.runtimes[key]
 
     def _phase(self, seg, tick):
