@@ -324,3 +324,29 @@ def test_aligned_run_keeps_the_vectorised_path(heading, position, monkeypatch):
             for x, y in zip(*((a, b) if states else ([a], [b])), strict=True):
                 np.testing.assert_array_equal(x, y)
     assert taken == []
+
+
+def test_a_slow_value_repeated_every_tick_runs_the_fixed_schedule_in_run(monkeypatch):
+    """A 1 Hz GPS's value given at every tick (held and repeated) is refused by the lock one repeat
+    at a time; run keeps the vectorised fixed schedule for it (2.5 us a row by steps), counts the
+    repeats and says why once, with the numbers of lock=False.  Given only at its arrivals
+    (sinusoid_readings(arrivals=True)) nothing is off the schedule."""
+    from cfdesign.sim.signals import sinusoid_readings
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    every = sinusoid_readings(table, 1000)
+    rt = Runtime(table)
+    monkeypatch.setattr(rt, "_run_stepped", lambda *a: pytest.fail("stepped a sensor given every tick"))
+    with pytest.warns(UserWarning, match=r"gps: .*given more often than the table reads it") as caught:
+        est = rt.run(every)
+    assert len(caught) == 1 and rt.counts == {"unscheduled": {"gps": 980}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        np.testing.assert_array_equal(est, Runtime(table, lock=False).run(every))
+    arrivals = sinusoid_readings(table, 1000, arrivals=True)
+    assert np.flatnonzero(~np.isnan(arrivals["gps"])).tolist() == list(range(0, 1000, 50))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        quiet = Runtime(table)
+        quiet.run(arrivals)
+    assert quiet.counts == {}

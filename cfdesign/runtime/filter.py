@@ -582,7 +582,10 @@ class Runtime:
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
         numbers.  Arrays holding a usable reading off that schedule run step by step through
         :meth:`step` (about a microsecond a row), which locks the phase to them where one shift
-        places them; with ``lock=False`` they are counted and warned of as :meth:`step` does.
+        places them; with ``lock=False`` they are counted and warned of as :meth:`step` does.  A
+        sensor given more often than the table reads it, by more than half again (a value held
+        and repeated every tick), runs on the fixed schedule, its extra readings counted and
+        warned of (the steps would refuse them one by one, at 2.5 us a step).
 
         Parameters
         ----------
@@ -638,9 +641,10 @@ class Runtime:
         finite = usable(y)
         self._count("rejected", ~finite & ~np.isnan(y))
         off = finite & ~active
-        if self.lock and off.any():  # readings off the schedule: the steps lock to them
+        faster = self._faster(finite)
+        if self.lock and (off & ~faster).any():  # readings off the schedule: the steps lock to them
             return self._run_stepped(u, np.where(finite, y, np.nan), states)
-        self._unscheduled(finite, active, off)
+        self._unscheduled(finite, active, off, faster)
         y = np.where(active & finite, y, np.nan)  # NaN: not read at this tick
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
         if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
@@ -717,15 +721,26 @@ class Runtime:
         self._count("rejected_inputs", bad & ~np.isnan(u))
         return held(u, bad, self.u_last)
 
-    def _unscheduled(self, finite, active, off):
+    def _faster(self, finite):
+        """Per measurement: given more often than the table reads it, by more than half again (a held
+        value repeated every tick, a 10 Hz compass into a table of 1 Hz).  The lock would refuse such
+        readings one by one, each a step of its Python rule (a 1 Hz GPS given every tick of 200,000:
+        2.5 us a step instead of 0.7), so :meth:`run` runs them on the fixed schedule, counted."""
+        expected = len(finite) * self._active.mean(axis=0)
+        return np.broadcast_to(finite.sum(axis=0) > 1.5 * expected + 1, finite.shape)
+
+    def _unscheduled(self, finite, active, off, faster):
         """Count and warn of the usable readings ``off`` (of ``finite``) where ``active`` has no
-        gain (``lock=False``, or a table that never reads the sensor); note for the lock the ticks
-        of each sensor's last reading with a gain and last without, as the steps would."""
+        gain (``lock=False``, a table that never reads the sensor, or one given ``faster`` than the
+        table reads it); note for the lock the ticks of each sensor's last reading with a gain and
+        last without, as the steps would."""
         self._count("unscheduled", off)
         phase = self.phase
         for i in np.flatnonzero(off.any(axis=0)):
             k = int(np.argmax(off[:, i]))
-            self._lock.warn(i, (phase + k) % self.period, self._lock.fixed(), stacklevel=5)
+            why = ("it is given more often than the table reads it (a value held and repeated?)"
+                   if self.lock and faster[0, i] else self._lock.fixed())
+            self._lock.warn(i, (phase + k) % self.period, why, stacklevel=5)
         on = finite & active
         for i in np.flatnonzero(finite.any(axis=0)):  # ticks before the end of its last reading with(out) a gain
             self._read[int(i)] = tuple(int(np.argmax(m[::-1, i])) + 1 if m[:, i].any() else None for m in (on, off))

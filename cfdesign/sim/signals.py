@@ -131,7 +131,7 @@ def integrated_noise(noise: WhiteNoise, rate_hz: float) -> WhiteNoise:
 
 
 def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None = None,
-                      missing: float = 0.0) -> dict:
+                      missing: float = 0.0, arrivals: bool = False) -> dict:
     """Test readings for any gain table: a slow sinusoid through every sensor, plus noise.
 
     Each sensor reads the sinusoid's derivative of its order (angle, rate, acceleration, jerk) plus
@@ -151,6 +151,11 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
         Amplitude of the sinusoid (default 4 rad or 50 m).
     missing : float
         Fraction of the samples set to NaN.
+    arrivals : bool
+        Each measurement only at the ticks where the table's schedule reads it, NaN between (a
+        1 Hz GPS once a second, as a stream or a gapped log delivers it); default: every sensor
+        at every tick (the readings off the schedule then have no gain, and the runtime counts
+        and warns of them).
 
     Returns
     -------
@@ -169,5 +174,7 @@ def sinusoid_readings(table, n: int, *, seed: int = 0, amplitude: float | None =
             values = wrap(values)
         if missing:
             values[rng.random(n) < missing] = np.nan
+        if arrivals and s.role == "measurement":
+            values[~table.schedule.mask()[np.arange(n) % table.period, s.index]] = np.nan
         data[s.name] = values
     return data
