@@ -804,8 +804,8 @@ class _Runner:
         back on the table's (to :attr:`~cfdesign.runtime.arrivals.MissedReadings.RTOL`): the
         table's fixed gains are those of every reading present, and after an outage they kept a
         small gain on the readings that came back (or, with a sensor gone, on the one left) -
-        3.9 times the RMS error of the Kalman filter over the same readings on a simulated log
-        whose odometry stopped early beside a compass.  Returns the output states and their predicted standard
+        1.27 times the RMS error of the Kalman filter over the same readings on the log of
+        ``tests/test_logs.py`` whose odometry drops out and stops (docs/logs.md).  Returns the output states and their predicted standard
         deviations; the bridging filter is carried from segment to segment and block to block."""
         from ..runtime.arrivals import ArrivalKalman, MissedReadings
         from ..runtime.filter import usable
