@@ -805,8 +805,9 @@ class _Runner:
         table's fixed gains are those of every reading present, and after an outage they kept a
         small gain on the readings that came back (or, with a sensor gone, on the one left) -
         1.27 times the RMS error of the Kalman filter over the same readings on the log of
-        ``tests/test_logs.py`` whose odometry drops out and stops (docs/logs.md).  Returns the output states and their predicted standard
-        deviations; the bridging filter is carried from segment to segment and block to block."""
+        ``tests/test_logs.py`` whose odometry drops out and stops (docs/logs.md).  Returns the
+        output states and their predicted standard deviations; the bridging filter is carried
+        from segment to segment and block to block."""
         from ..runtime.arrivals import ArrivalKalman, MissedReadings
         from ..runtime.filter import usable
 
