@@ -328,7 +328,7 @@ def test_aligned_run_keeps_the_vectorised_path(heading, position, monkeypatch):
 
 def test_a_slow_value_repeated_every_tick_runs_the_fixed_schedule_in_run(monkeypatch):
     """A 1 Hz GPS's value given at every tick (held and repeated) is refused by the lock one repeat
-    at a time; run keeps the vectorised fixed schedule for it (2.5 us a row by steps), counts the
+    at a time; run keeps the vectorised fixed schedule for it (1.5 us a row by steps), counts the
     repeats and says why once, with the numbers of lock=False.  Given only at its arrivals
     (sinusoid_readings(arrivals=True)) nothing is off the schedule."""
     from cfdesign.sim.signals import sinusoid_readings

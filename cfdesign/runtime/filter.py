@@ -585,7 +585,7 @@ class Runtime:
         places them; with ``lock=False`` they are counted and warned of as :meth:`step` does.  A
         sensor given more often than the table reads it, by more than half again (a value held
         and repeated every tick), runs on the fixed schedule, its extra readings counted and
-        warned of (the steps would refuse them one by one, at 2.5 us a step).
+        warned of (the steps would refuse them one by one, at 1.5 us a step against 0.65).
 
         Parameters
         ----------
@@ -725,7 +725,7 @@ class Runtime:
         """Per measurement: given more often than the table reads it, by more than half again (a held
         value repeated every tick, a 10 Hz compass into a table of 1 Hz).  The lock would refuse such
         readings one by one, each a step of its Python rule (a 1 Hz GPS given every tick of 200,000:
-        2.5 us a step instead of 0.7), so :meth:`run` runs them on the fixed schedule, counted."""
+        1.5 us a step instead of 0.65), so :meth:`run` runs them on the fixed schedule, counted."""
         expected = len(finite) * self._active.mean(axis=0)
         return np.broadcast_to(finite.sum(axis=0) > 1.5 * expected + 1, finite.shape)
 

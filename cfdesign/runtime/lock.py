@@ -117,11 +117,12 @@ class PhaseLock:
             no shift places it, the reading is counted and (once per sensor) warned of.
         """
         tick = self.tick()
-        why, new = self._placed(i, phase, tick) if self.enabled else (self.fixed(), None)
+        why, new = self._placed(i, phase, tick) if self.enabled else (self.fixed, None)
         if new is None:
             self.ON[i], self.last[i] = None, tick
             self.UNS[i] += 1
-            self.warn(i, phase, why, self.stacklevel)
+            if self.names[i] not in self.warned:  # the reason is worded only for the one warning
+                self.warn(i, phase, why(), self.stacklevel)
             return -1
         self.moved(phase, new)
         self.S[self.n] = new
@@ -139,13 +140,16 @@ class PhaseLock:
         return "Runtime(lock=False) keeps the schedule fixed" if self.period > 1 else "the table never reads it"
 
     def _placed(self, i, phase, tick):
-        """``(why not, None)`` or ``('', new phase)``: the shift of the whole schedule that puts
-        reading ``i`` at ``phase`` on its phases and keeps the sensors read on schedule on theirs."""
+        """``(why not, None)`` or ``(None, new phase)``: the shift of the whole schedule that puts
+        reading ``i`` at ``phase`` on its phases and keeps the sensors read on schedule on theirs;
+        ``why not`` words the reason when called (a value repeated every tick is refused at every
+        tick, the reason warned of once)."""
         name = self.names[i]
-        before = max((t for t in (self.ON[i], self.last[i]) if t is not None), default=None)
+        on_tick, last = self.ON[i], self.last[i]
+        before = on_tick if last is None else last if on_tick is None else max(on_tick, last)
         if before is not None and tick - before < self.spacing[i] / 2:
-            return (f"it came {tick - before} ticks after its last reading, where the table reads it every "
-                    f"{self.spacing[i]:g}: faster than designed", None)
+            return (lambda: f"it came {tick - before} ticks after its last reading, where the table reads it "
+                            f"every {self.spacing[i]:g}: faster than designed"), None
         on = {self.names[j]: 0 for j, t in enumerate(self.ON)
               if t is not None and j != i and tick - t <= LOCK_STALE_READINGS * self.spacing[j]}
         step = self.steps[name]
@@ -154,9 +158,9 @@ class PhaseLock:
         for offset in sorted({(phase - p) % step for p in self.phases[i]}, key=lambda o: (min(o, step - o), o)):
             c = rotation({**on, name: offset}, self.steps, self.period)
             if c is not None:
-                return "", (phase - c) % self.period
-        return (f"no shift of the whole schedule puts it on its phases and keeps {', '.join(on)} on theirs: "
-                f"the sensors arrive at offsets of their own", None)
+                return None, (phase - c) % self.period
+        return (lambda: f"no shift of the whole schedule puts it on its phases and keeps {', '.join(on)} on "
+                        "theirs: the sensors arrive at offsets of their own"), None
 
     def warn(self, i, phase, why, stacklevel=4):
         """Warn once per sensor that a reading had no gain and was not used.
