@@ -123,6 +123,27 @@ def test_readings_in_other_units_than_the_table_s_are_named(heading, columns, na
     assert all("other units than the table's (degrees for radians" in n for n in notes)
 
 
+def test_a_gps_in_degrees_of_latitude_or_longitude_is_named_as_such():
+    """A GPS column in degrees of longitude fed to a position table (metres) ran 1,100 times its
+    predicted error with a note that spoke of degrees for radians; the note now names the slips of
+    what the sensor reads: degrees of latitude or longitude, feet, mm for metres."""
+    import cfdesign
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    rng = np.random.default_rng(1)
+    n = 50 * 600
+    t = np.arange(n) / 50
+    x = 200 * np.sin(2 * np.pi * t / 300) + 2.0 * t
+    acc = -200 * (2 * np.pi / 300) ** 2 * np.sin(2 * np.pi * t / 300) + 0.00588 * rng.standard_normal(n)
+    gps = np.where(np.arange(n) % 50 == 0, x + 3.16 * rng.standard_normal(n), np.nan)
+    log = pd.DataFrame({"time": t, "accelerometer": acc, "gps": gps})
+    assert not any("predicted standard deviations" in n for n in run_log(table, log).notes)
+    log["gps"] = 11.57 + gps / (111_320 * np.cos(np.radians(48.1)))
+    notes = [n for n in run_log(table, log).notes if "predicted standard deviations" in n]
+    assert len(notes) == 1 and notes[0].startswith("gps:"), notes
+    assert "(degrees of latitude or longitude for metres, feet, mm)" in notes[0]
+
+
 def test_readings_noisier_than_the_design_are_named_with_their_figures(heading):
     """Readings in the right unit but far noisier than the design file says (an accelerometer's
     angle on a moving vehicle: BROAD's slow translation, 25 times its static noise) had the note

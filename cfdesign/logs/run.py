@@ -246,7 +246,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(
         cols, table, lock.rate_hz)
     notes += joined.notes() if joined is not None else []
-    notes += lock.notes + _far_note(far) + [n for n in [runner.start_note(table.sample_time_s),
+    notes += lock.notes + _far_note(far, table) + [n for n in [runner.start_note(table.sample_time_s),
                                                         runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
     notes += _model_note(*writer.steady(), writer.steady_rows, startup)
@@ -303,15 +303,30 @@ def _far(table, readings, states, stds, counts):
         c[3] += float(np.sum(var))
 
 
-def _far_note(counts) -> list:
+def _far_note(counts, table) -> list:
     """The notes of :func:`_far`'s counts: the sensors most of whose readings disagree, with
-    their RMS distance from the estimate against the one predicted."""
+    their RMS distance from the estimate against the one predicted, and the unit mix-ups likely
+    for what each reads (:func:`_unit_slips`)."""
     return [f"{name}: {far} of its {n} readings lie more than {FAR_SIGMA:g} predicted standard deviations from "
             f"the estimate (RMS {math.sqrt(sq / n):.3g}, {math.sqrt(sq / var):.3g} times the {math.sqrt(var / n):.3g} "
-            f"predicted): its column, or an input's, may be in other units than the table's (degrees for "
-            f"radians, mrad/s), of another sign or of another sensor, or noisier than the design file says (an "
-            f"error that is not white counts: an accelerometer's angle while the vehicle accelerates; see the "
+            f"predicted): its column, or an input's, may be in other units than the table's "
+            f"({_unit_slips(table, name)}), of another sign or of another sensor, or noisier than the design file says "
+            f"(an error that is not white counts: an accelerometer's angle while the vehicle accelerates; see the "
             f"noise guide)" for name, (far, n, sq, var) in counts.items() if n and far > FAR_SHARE * n]
+
+
+def _unit_slips(table, name) -> str:
+    """The unit mix-ups a note of :func:`_far_note` names for the measurement sensor ``name``, by the
+    unit of the state it reads (:meth:`~cfdesign.gains.GainTable.state_units`): a GPS in degrees of
+    latitude and longitude fed as metres ran 1,100 times its predicted error with a note that spoke
+    of radians."""
+    s = next(s for s in table.measurements if s.name == name)
+    unit = table.state_units()[int(np.argmax(np.abs(table.H[s.index])))]
+    slips = {"m": "degrees of latitude or longitude for metres, feet, mm", "m/s": "km/h, knots, ft/s for m/s",
+             "m/s²": "g for m/s²"}
+    if unit in slips:
+        return slips[unit]
+    return "degrees for radians, mrad/s" if unit.startswith("rad") or not unit else f"another unit for {unit}"
 
 
 def _model_note(settled, predicted, rows, startup) -> list:
