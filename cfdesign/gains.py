@@ -697,6 +697,32 @@ class GainTable:
         return (f"<GainTable {self.name!r}: {self.structure}, {timing}, period {self.period}, "
                 f"output {self.output}; states {', '.join(self.states)}; sensors {ports}>")
 
+    def _family(self):
+        """The quantity family of a designer's chain (a key of :data:`DERIVATIVE_NAMES`), from the
+        name of state 0; None for a table of other names."""
+        return next((f for f, names in DERIVATIVE_NAMES.items() if self.states and self.states[0] == names[0]), None)
+
+    def sensor_units(self) -> dict:
+        """The unit of what each sensor reads, where the state names tell the quantity (as
+        :meth:`state_units`): the quantity's unit per second to the power of the sensor's
+        derivative order (a gyro of a heading table reads rad/s, a GPS of a position table m).
+
+        Returns
+        -------
+        dict
+            ``{sensor: unit}`` in the order of ``sensors``; ``''`` for every sensor of a table
+            whose states have other names (a user's own, ``x0``, ...).
+
+        Examples
+        --------
+        >>> import cfdesign
+        >>> cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position"))).sensor_units()
+        {'accelerometer': 'm/s²', 'gps': 'm'}
+        """
+        family = self._family()
+        return {s.name: _FAMILY_UNITS[family] + _PER_SECOND[s.order]
+                if family is not None and s.order < len(_PER_SECOND) else "" for s in self.sensors}
+
     def state_units(self) -> tuple:
         """The unit of every state, where the state names tell it (``''`` where they do not).
 
@@ -718,7 +744,7 @@ class GainTable:
         >>> cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position"))).state_units()
         ('m', 'm/s', 'm/s²')
         """
-        family = next((f for f, names in DERIVATIVE_NAMES.items() if self.states and self.states[0] == names[0]), None)
+        family = self._family()
         if family is None:
             return ("",) * len(self.states)
         orders = {s.name: s.order for s in self.sensors}

@@ -330,3 +330,23 @@ def test_one_file_given_twice_is_named_as_such(heading, tmp_path, cli, monkeypat
     code, _, err = cli("run", "g.json", "imu.csv", "--join", "com.csv", "-o", "com.csv")
     assert code == 2 and "the output com.csv is joined file 1 com.csv: one file for both, one would replace" in err
     assert not (tmp_path / "est.csv").exists()
+
+
+def test_a_joined_file_in_degrees_is_read_in_them_once(heading, tmp_path):
+    """A compass file in degrees (a row of units under its header, or its column named so and
+    mapped) gives the estimates of the same file in radians: its readings converted once (scaled
+    both as the joined file was read and as the merged rows were, the compass ran 4 mrad off)."""
+    imu, odo, com = heading_files(n=800, seed=6)
+    odo = odo.rename(columns={"t": "time"})
+    imu.to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.to_csv(tmp_path / "rad.csv", index=False)
+    expected = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "rad.csv"]).estimates
+    deg = com.assign(compass=np.degrees(com["compass"]))
+    rows = deg.to_csv(index=False, float_format="%.17g", lineterminator="\n").partition("\n")[2]
+    (tmp_path / "row.csv").write_text("time,compass\ns,deg\n" + rows)
+    deg.rename(columns={"compass": "compass [deg]"}).to_csv(tmp_path / "named.csv", index=False, float_format="%.17g")
+    for name, mapping in (("row.csv", None), ("named.csv", {"compass": "compass [deg]"})):
+        got = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / name], mapping=mapping)
+        assert any("is in deg: read as rad" in n for n in got.notes), got.notes
+        assert np.allclose(got.estimates["heading"], expected["heading"], rtol=0, atol=1e-12)

@@ -451,8 +451,8 @@ def test_comment_lines_before_the_header_and_numpy_savetxt_headers(heading, tmp_
 
 def test_columns_named_with_their_units(heading, tmp_path, cli):
     """A time column named with its unit (``Time (ms)``, ``t [sec]``) is the time, in that unit (it
-    was no time column: every row one tick); a sensor's column named with a unit is not taken in
-    silence (its unit may not be the table's): the error gives the --map that takes it."""
+    was no time column: every row one tick); a sensor's column named with a unit cfdesign does not
+    know is not taken in silence: the error gives the --map that takes it as it is."""
     log, _ = heading_log(0, 0, n=500)
     expected = run_log(heading, log).estimates["heading"].to_numpy()
     ms = log.assign(time=(log["time"] * 1000).round(3)).rename(columns={"time": "Time (ms)"})
@@ -464,12 +464,52 @@ def test_columns_named_with_their_units(heading, tmp_path, cli):
     assert np.allclose(run_log(heading, mislabelled, time_unit="ms").estimates["heading"], expected, rtol=0, atol=1e-12)
     with pytest.raises(DataError, match=r"base rate is 0.1\d* Hz .* --time-unit ms is given"):
         run_log(heading, mislabelled)
-    log.rename(columns={"gyro": "gyro [rad/s]"}).to_csv(tmp_path / "units.csv", index=False)
+    log.rename(columns={"gyro": "gyro [LSB]"}).to_csv(tmp_path / "units.csv", index=False)
     table = heading.save(tmp_path / "g.json")
     code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv")
-    assert code == 2 and "mapped where it is the table's: --map \"gyro=gyro [rad/s]\"" in err, err
-    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv", "--map", "gyro=gyro [rad/s]")
+    assert code == 2 and "not taken in silence: --map \"gyro=gyro [LSB]\" reads it as it is" in err, err
+    code, _, err = cli("run", table, tmp_path / "units.csv", "-o", tmp_path / "e.csv", "--map", "gyro=gyro [LSB]")
+    assert code == 0 and "'LSB' is no unit cfdesign knows; read as it is, in the table's rad/s" in err, err
+    assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name, unit, factor, said", [("gyro [rad/s]", None, 1.0, None),
+                                                      ("Gyro (deg/s)", None, 180 / np.pi, "deg/s"),
+                                                      ("gyro [dps]", None, 180 / np.pi, "dps"),
+                                                      ("gyro", "mrad/s", 1000.0, "mrad/s"),
+                                                      ("gyro", "°/s", 180 / np.pi, "°/s"), ("gyro", "-", 1.0, None)])
+def test_a_sensor_column_in_a_unit_of_its_own_is_read_in_it(heading, tmp_path, cli, name, unit, factor, said):
+    """A gyro logged in deg/s (named so, ``gyro [deg/s]``, or by a row of units under the header) was
+    either refused as a missing column or, mapped or under a row of units, read as rad/s in silence: 57
+    times too fast.  A column whose unit cfdesign knows is now read in it, converted to the unit the
+    table's sensor reads, with a note; the estimates equal those of the log in rad/s."""
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    other = log.assign(gyro=log["gyro"] * factor).rename(columns={"gyro": name})
+    text = other.to_csv(index=False, float_format="%.17g", lineterminator="\n")
+    if unit is not None:
+        head, _, rows = text.partition("\n")
+        text = head + "\n" + ",".join(unit if c == "gyro" else "" for c in other.columns) + "\n" + rows
+    (tmp_path / "log.csv").write_text(text, encoding="utf-8")
+    code, _, err = cli("run", heading.save(tmp_path / "g.json"), tmp_path / "log.csv", "-o", tmp_path / "e.csv")
     assert code == 0, err
+    assert np.allclose(pd.read_csv(tmp_path / "e.csv")["heading"], expected, rtol=0, atol=1e-9)
+    assert (f"is in {said}: read as rad/s" in err) == (said is not None), err
+    assert "no unit cfdesign knows" not in err, err
+
+
+def test_a_column_in_a_unit_of_another_quantity_is_refused(heading):
+    """A sensor's or reference's column whose unit is of another quantity than the table reads there
+    (a gyro in m/s, a reference heading in m) is refused naming both units, not read."""
+    log, truth = heading_log(0, 0, n=500)
+    with pytest.raises(DataError, match=r"column 'gyro \[m/s\]' is in m/s, but the table's sensor gyro reads rad/s"):
+        run_log(heading, log.rename(columns={"gyro": "gyro [m/s]"}))
+    with pytest.raises(DataError, match=r"column 'truth \[m\]' is in m, but the table's reference for heading "
+                                        r"reads rad"):
+        run_log(heading, log.assign(**{"truth [m]": truth}), reference="truth [m]")
+    converted = run_log(heading, log.assign(**{"truth [deg]": np.degrees(truth)}), reference="truth [deg]")
+    assert converted.rms["heading"] == pytest.approx(run_log(heading, log.assign(truth=truth),
+                                                             reference="truth").rms["heading"], rel=1e-12)
 
 
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):

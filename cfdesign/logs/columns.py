@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -47,6 +47,8 @@ class _Columns:
     extra: list            # passed through
     time_unit: str = "s"     # of a numeric time column (TIME_UNITS)
     lines: object = None     # _Lines: the file line of each row (after the header, the comments before it, blank lines)
+    scales: dict = field(default_factory=dict)  # column -> factor into the table's unit (its own unit given)
+    notes: list = field(default_factory=list)   # on those units
 
     @property
     def time_scale(self) -> float:
@@ -134,7 +136,7 @@ _THOUSANDS = re.compile(r"[-+]?[0-9]{1,3}(?:(?:,[0-9]{3})+\.[0-9]*|(?:\.[0-9]{3}
                         r"|(?:[' \u00a0\u202f][0-9]{3})+(?:[.,][0-9]*)?)")
 
 
-def _numeric(df, columns, source, where, time=None, time_scale=1.0):
+def _numeric(df, columns, source, where, time=None, time_scale=1.0, scales=None):
     """The columns as float arrays; a cell that is not a number is an error naming where it is
     (``where(i)``: row ``i`` of ``df`` for a message, ``cfdesign.logs.read._Lines.at``:
     ``line N`` of a text log, ``row N`` of a Parquet log).
@@ -143,7 +145,17 @@ def _numeric(df, columns, source, where, time=None, time_scale=1.0):
     in a CSV: ``2024-05-01T12:00:00.010``): they become seconds since 1970-01-01 UTC (a date
     without a time zone is taken as UTC; only differences matter); durations (a timedelta
     column) become seconds.  Numbers in the ``time`` column are multiplied by ``time_scale``
-    (seconds per unit: milliseconds, nanoseconds ...)."""
+    (seconds per unit: milliseconds, nanoseconds ...), and those of a column of ``scales``
+    (``{column: factor}``, :attr:`_Columns.scales`) by its factor."""
+    out = _numbers_of(df, columns, source, where, time, time_scale)
+    for c, factor in (scales or {}).items():
+        if c in out:
+            out[c] = out[c] * factor
+    return out
+
+
+def _numbers_of(df, columns, source, where, time, time_scale):
+    """:func:`_numeric` before ``scales``."""
     pd = _pandas()
     out = {}
     for c in columns:

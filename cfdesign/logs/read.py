@@ -79,9 +79,11 @@ def _unique(header, source) -> list:
 
 
 def _columns(table, header, source, time=None, mapping=None, reference=None, time_unit=None,
-             lines=None, units=None, listing=None) -> _Columns:
+             lines=None, units=None, listing=None, joined_units=None) -> _Columns:
     """Which of ``header``'s columns feeds what; ``listing``: the columns a message on a missing one
-    lists (every file's, of a log joined from several: ``cfdesign.logs.join.joined_header``)."""
+    lists (every file's, of a log joined from several: ``cfdesign.logs.join.joined_header``);
+    ``units`` the row of units under the main file's header, ``joined_units`` those of the joined
+    files (``{column: unit}``: of the sensors' columns only, :func:`_scales`)."""
     header = _unique(header, source)
     if mapping is not None and not isinstance(mapping, dict):  # a list of pairs gave dict()'s raw ValueError
         raise CfdesignError(f"mapping must be a dict {{sensor: column}}, got {type(mapping).__name__} {mapping!r:.80}")
@@ -95,6 +97,11 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         like = [h for h in header if h.lower() == s.lower()]
         if s not in mapping and c not in header and len(like) == 1:
             sensors[s] = like[0]
+        # or with a unit cfdesign knows ('gyro [deg/s]'): read in it (_scales)
+        named = [h for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()
+                 and _known_unit(_unit(h)[1])]
+        if s not in mapping and sensors[s] not in header and len(named) == 1:
+            sensors[s] = named[0]
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
         # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
@@ -106,7 +113,8 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                             f"has no header; add a first line naming its columns ("
                             f"{', '.join(['time', *sensors.values()])})")
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {listing or _listed(header)}); "
-                        + (f"columns named with a unit are mapped where it is the table's: {hint}" if like else
+                        + (f"a column named with a unit cfdesign does not know is not taken in silence: {hint} "
+                           "reads it as it is, in the table's units" if like else
                            "the header is one column: cells are separated by commas, semicolons or tabs, or by "
                            "spaces where the first row has as many cells"
                            if len(header) == 1 else
@@ -127,8 +135,65 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         raise DataError(f"{source}: column {time!r} is both the time and sensor {s} "
                         "(--time COLUMN, --map SENSOR=COLUMN)")
     refs = _references(table, reference, header, source)
+    scales, notes = _scales(table, sensors, refs, {**(joined_units or {}), **(units or {})}, source)
     used = {time, *sensors.values()}  # a reference column is passed through as well
-    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, lines or _Lines())
+    return _Columns(sensors, time, refs, [h for h in header if h not in used], time_unit, lines or _Lines(),
+                    scales, notes)
+
+
+def _known_unit(text) -> bool:
+    """Whether :func:`~cfdesign.units.parse_unit` reads ``text``."""
+    from ..errors import SpecError
+    from ..units import parse_unit
+
+    try:
+        parse_unit(text)
+    except SpecError:
+        return False
+    return True
+
+
+#: what a row of units (or a name) may write for a column without one
+_NO_UNIT = {"", "none", "n/a", "na", "unitless", "dimensionless"}
+
+
+def _scales(table, sensors, refs, units, source) -> tuple:
+    """``({column: factor}, notes)``: the factor that takes each sensor or reference column whose
+    unit is given (by its name, ``gyro [deg/s]``, or by the row of ``units`` under a CSV's header)
+    into the unit the table reads there (:meth:`~cfdesign.gains.GainTable.sensor_units`,
+    :meth:`~cfdesign.gains.GainTable.state_units`), where the two differ, with a note on each;
+    a note on a column whose unit :func:`~cfdesign.units.parse_unit` does not know (read as it
+    is).  A gyro logged in deg/s and read as rad/s had run 57 times too fast.
+
+    Raises
+    ------
+    DataError
+        A column whose unit is of another quantity than the table reads there (``m/s`` for rad/s).
+    """
+    from ..units import parse_unit
+
+    reads = table.sensor_units()
+    state_units = dict(zip(table.states, table.state_units(), strict=True))
+    targets = [(c, f"sensor {s}", reads[s]) for s, c in sensors.items()]
+    targets += [(c, f"reference for {st}", state_units[st]) for st, c in refs.items()]
+    scales, notes, seen = {}, [], set()
+    for column, what, unit in targets:
+        text = _unit(column)[1] or str((units or {}).get(column, "")).strip(" []()")
+        if not unit or column in seen or text.strip("-\u2013\u2014 ").lower() in _NO_UNIT:
+            continue
+        seen.add(column)
+        if not _known_unit(text):
+            notes.append(f"column {column!r}: {text!r} is no unit cfdesign knows; read as it is, in the "
+                         f"table's {unit}")
+            continue
+        (scale, dim), (base, want) = parse_unit(text), parse_unit(unit)
+        if dim != want:
+            raise DataError(f"{source}: column {column!r} is in {text}, but the table's {what} reads {unit} "
+                            f"(another quantity): map the right column with --map SENSOR=COLUMN, or check its unit")
+        if abs(scale / base - 1.0) > 1e-12:
+            scales[column] = scale / base
+            notes.append(f"column {column!r} is in {text}: read as {unit} (times {scale / base:.6g})")
+    return scales, notes
 
 
 def _references(table, reference, header, source) -> dict:
@@ -333,8 +398,8 @@ def _units_note(path, source) -> list:
     line = 2 + fmt.get("skiprows", 0)
     if [u.strip() for u in fmt["_units"]] == _header(path):  # the header written twice: no units
         return [f"{source} line {line} repeats the header and is not read"]
-    return [f"{source} line {line} ({_listed(fmt['_units'], 80)}) is taken as the columns' "
-            "units and not read; the readings are used as they are, in the units the table was designed in"]
+    return [f"{source} line {line} ({_listed(fmt['_units'], 80)}) is taken as the columns' units and not read: "
+            "a sensor's or reference's column in a known unit other than the table's is converted (a note says so)"]
 
 
 def _tail_note(path, source) -> list:

@@ -178,7 +178,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     # beside PX4's timestamp in us)
     named = join and _time_unit(source, None, time_unit) and _named_unit(time or time_column(header), units)
     cols = _columns(table, header, source, time, mapping, reference, None if named else time_unit, lines, units,
-                    listing)
+                    listing, {c: u for p in join for c, u in _row_units(p).items()} if join else None)
     _check_output_names(table, cols, std, source)
     joined = None
     if join:
@@ -219,7 +219,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         pending = None  # the rows of a block's last tick: the next block may hold more rows of that tick
         for block in blocks():
             values = _numeric(block, cols.numeric, source, lambda i, start=place.rows: cols.lines.at(start + i),
-                              cols.time, cols.time_scale)
+                              cols.time, cols.time_scale, cols.scales)
             ticks = place.ticks(values)
             if pending is not None:
                 pd = _pandas()
@@ -246,6 +246,7 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
     notes = (_units_note(data, source) + _tail_note(data, source) if frame is None else []) + _time_note(
         cols, table, lock.rate_hz)
     notes += joined.notes() if joined is not None else []
+    notes += cols.notes
     notes += lock.notes + _far_note(far, table) + [n for n in [runner.start_note(table.sample_time_s),
                                                         runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
@@ -317,11 +318,10 @@ def _far_note(counts, table) -> list:
 
 def _unit_slips(table, name) -> str:
     """The unit mix-ups a note of :func:`_far_note` names for the measurement sensor ``name``, by the
-    unit of the state it reads (:meth:`~cfdesign.gains.GainTable.state_units`): a GPS in degrees of
+    unit of what it reads (:meth:`~cfdesign.gains.GainTable.sensor_units`): a GPS in degrees of
     latitude and longitude fed as metres ran 1,100 times its predicted error with a note that spoke
     of radians."""
-    s = next(s for s in table.measurements if s.name == name)
-    unit = table.state_units()[int(np.argmax(np.abs(table.H[s.index])))]
+    unit = table.sensor_units()[name]
     slips = {"m": "degrees of latitude or longitude for metres, feet, mm", "m/s": "km/h, knots, ft/s for m/s",
              "m/s²": "g for m/s²"}
     if unit in slips:

@@ -242,7 +242,8 @@ def _lock(table, blocks, cols, source, types=False):
         if types:
             schemas.append(_arrow_types(block[cols.extra]))
         values = _numeric(block, [c for c in cols.read if c == cols.time or c in cols.sensors.values()], source,
-                          lambda i, start=place.rows: cols.lines.at(start + i), cols.time, cols.time_scale)
+                          lambda i, start=place.rows: cols.lines.at(start + i), cols.time, cols.time_scale,
+                          cols.scales)
         if cols.time is not None and block[cols.time].dtype == np.float32:
             _check_float32_time(values[cols.time], cols.time, table.sample_time_s, source, cols.time_scale)
         first_row = place.rows
