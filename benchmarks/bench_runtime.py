@@ -2,6 +2,7 @@
 
 Run by hand from the repository root:  python benchmarks/bench_runtime.py [--samples N] [--c-steps M]
 Accuracy of the generated C alone (section 6):  python benchmarks/bench_runtime.py --c-agreement [--long]
+The phase lock alone (section 7):  python benchmarks/bench_runtime.py --lock
 
 On the robot-heading DCKF3 table of Carreira et al. (the "dckf3" example: single rate, heading
 wrapped) and the multirate position table (period 50), with 1,000,000 samples of a slow
@@ -42,6 +43,12 @@ sinusoid plus noise:
    in float, with and without the phase lock of ``docs/guide/c-export.md``, against the truth;
    with ``--long`` (minutes) also (e) float over 10 million steps of a turning heading and of a
    position 5 km from the origin, against the double runtime.
+7. ``--lock`` (alone; seconds): the streaming step's phase lock on the rows of
+   ``tests/test_runtime_lock.py`` (100 Hz gyro, 10 Hz odometry, 1 Hz compass; 8,000 rows, RMS
+   after the first 2,000): the whole schedule 37 ticks late, locked and with ``lock=False``,
+   beside the aligned rows; sensors at offsets of their own through the locked step and through
+   ``ArrivalKalman.step`` with the time of a tick of each (process time, best of 3); and
+   ``Runtime.run`` on 200,000 rows late by 37 ticks beside the same rows aligned.
 
 Prints figures only; no assertions on time.
 """
@@ -679,6 +686,38 @@ def agreement(long):
         print(f"  {what:<30} {how:<32} {figure}")
 
 
+# ---------------------------------------------------------------------- (7) lock
+def lock_rows():
+    """Section 7: RMS error and cost of the locked step, ``lock=False`` and ``ArrivalKalman``."""
+    sys.path.insert(0, str(AGREEMENT_DRIVER.parents[1]))
+    from test_runtime_lock import HEADING, heading_rows, rms
+
+    from cfdesign.runtime.arrivals import ArrivalKalman
+    from cfdesign.spec import parse_spec
+
+    table = cfdesign.design(parse_spec(HEADING))
+    (aligned, psi), late, own = heading_rows(0, 0), heading_rows(7, 37)[0], heading_rows(3, 37)[0]
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for label, rows, make in (("aligned", aligned, lambda: Runtime(table)),
+                                  ("37 ticks late", late, lambda: Runtime(table)),
+                                  ("37 ticks late, lock=False", late, lambda: Runtime(table, lock=False)),
+                                  ("own offsets, step", own, lambda: Runtime(table)),
+                                  ("own offsets, ArrivalKalman.step", own, lambda: ArrivalKalman(table))):
+            ticks = [{k: v for k, v in zip(rows, r, strict=True) if not np.isnan(v)}
+                     for r in zip(*rows.values(), strict=True)]  # the tests' stepped() calls, built untimed
+            t, est = cpu_timed(lambda ticks=ticks, make=make: [f.step(**r) for f in [make()] for r in ticks])
+            out.append((label, f"RMS {rms(est, psi):.5f} rad", f"{1e6 * t / len(psi):.2g} us a tick"))
+        big, big_late = (heading_rows(o, c, n=200_000)[0] for o, c in ((0, 0), (7, 37)))
+        for label, rows in (("run, 200,000 rows aligned", big), ("run, 200,000 rows 37 ticks late", big_late)):
+            t, _ = cpu_timed(lambda rows=rows: Runtime(table).run(rows))
+            out.append((label, f"{t:.3g} s", f"{1e6 * t / 200_000:.2g} us a row"))
+    print("7. the streaming step's phase lock (heading 100/10/1 Hz, tests/test_runtime_lock.py's rows)")
+    for what, figure, cost in out:
+        print(f"  {what:<34} {figure:<18} {cost}")
+
+
 # ---------------------------------------------------------------------- report
 def print_section(title, results):
     print(f"\n{title}")
@@ -702,10 +741,14 @@ def main(argv=None):
     parser.add_argument("--c-steps", type=int, default=10_000_000, help="steps of the C timing loop")
     parser.add_argument("--c-agreement", action="store_true",
                         help="run only section 6: the generated C's agreement with the Python runtime")
+    parser.add_argument("--lock", action="store_true", help="run only section 7: the streaming step's phase lock")
     parser.add_argument("--long", action="store_true", help="section 6: add the 10-million-step float runs")
     args = parser.parse_args(argv)
     if args.c_agreement:
         agreement(args.long)
+        return 0
+    if args.lock:
+        lock_rows()
         return 0
     N = args.samples
     print(f"cfdesign {cfdesign.__version__} runtime benchmark: {N:,} samples (Python), {args.c_steps:,} steps (C)")
