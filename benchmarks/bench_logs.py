@@ -1,6 +1,7 @@
 """Running tables on logs: speed against the plainest pipeline, memory on a big log, a fleet on Dask.
 
     python benchmarks/bench_logs.py [--rows 1000000] [--big-rows 10000000] [--logs 8] [--fleet]
+    python benchmarks/bench_logs.py --bridging        # section 5 alone (seconds)
 
 Prints, from one run:
 
@@ -23,6 +24,11 @@ Prints, from one run:
    0.5 % fast.  The ratio is to ``Runtime.run`` on the readings of (a) in memory, as many rows
    (the batch baseline, measured in the same run); the time of reading and writing the CSV
    alone (pandas) is shown beside each.
+5. ``--bridging`` alone (accuracy, not speed): the RMS error of a table's fixed gains over logs
+   with missed readings, over that of the Kalman filter of its model over the readings that do
+   arrive (``ArrivalKalman``, which ``run_log`` bridges such stretches with), and ``run_log``'s
+   own: the 100/10/1 Hz heading log of ``tests/test_logs.py`` whose odometry drops out and stops
+   (the test's seeds) and a 100 Hz IMU with a 3 Hz GPS that loses runs of 1 to 10 fixes.
 """
 
 from __future__ import annotations
@@ -38,6 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
+GPS3 = {"name": "imu 100 Hz + gps 3 Hz", "structure": "position", "gain_form": "filter", "sensors": {
+    "accelerometer": {"rate_hz": 100.0, "noise": {"std": 0.05}, "bias": {"model": "random_walk", "density": 1e-3}},
+    "gps": {"rate_hz": 3.0, "noise": {"std": 2.0}}}}
 HEADING = {"name": "heading 100/10/1 Hz", "structure": "dckf3", "wrap_angle": True, "sensors": {
     "gyro": {"rate_hz": 100.0, "noise": {"std": 0.01}, "bias": {"model": "random_walk", "density": 1e-4}},
     "odometry": {"rate_hz": 10.0, "noise": {"std": 0.005}},
@@ -207,6 +216,67 @@ def fleets(table_path, tmp, logs, sizes, repeat):
                 g.unlink()
 
 
+def dropped_heading(table, n=15_000):
+    """The log of ``tests/test_logs.py``'s bridging test: odometry losing runs of 1 to 6
+    readings that stops for good at 100 s, a compass that starts at 40 s (truth, readings)."""
+    from cfdesign.sim.gaussian import model_log
+
+    x, readings = model_log(table, n, seed=7)
+    odo, rng = readings["odometry"], np.random.default_rng(5)
+    for start in range(300, 9000, 600):
+        odo[start:start + 10 * int(rng.integers(1, 7))] = np.nan
+    odo[10_000:] = np.nan
+    readings["compass"][:4_000] = np.nan
+    return x, readings
+
+
+def dropped_gps(table, n=60_000):
+    """A 100 Hz IMU and a 3 Hz GPS (10 minutes) losing a run of 1 to 10 fixes every 20 s."""
+    from cfdesign.sim.gaussian import model_log
+
+    x, readings = model_log(table, n, seed=7)
+    gps, rng = readings["gps"], np.random.default_rng(5)
+    for start in range(1000, n - 2000, 2000):
+        gps[start:start + 34 * int(rng.integers(1, 11))] = np.nan  # 3 fixes every 100 ticks
+    return x, readings
+
+
+def bridging(start=3000):
+    """Section 5: fixed gains and run_log over missed readings, against the Kalman filter over the arrivals."""
+    import pandas as pd
+
+    import cfdesign
+    from cfdesign.linear import wrap
+    from cfdesign.logs import run_log
+    from cfdesign.runtime import Runtime
+    from cfdesign.runtime.arrivals import ArrivalKalman
+    from cfdesign.spec import parse_spec
+
+    print("\n5. RMS error over missed readings (after the first 30 s), over the Kalman filter's over the arrivals:")
+    for spec, log in ((HEADING, dropped_heading), (GPS3, dropped_gps)):
+        table = cfdesign.design(parse_spec(spec))
+        x, readings = log(table)
+        first = readings[table.measurements[0].name]
+        x0 = [first[np.isfinite(first)][0]] + [0.0] * (len(table.F) - 1)
+        y = np.column_stack([readings[s.name] for s in table.measurements])
+        u = np.column_stack([readings[s.name] for s in table.inputs])
+        kf = ArrivalKalman(table, x0=x0).run(u, y)[0][:, 0]
+        fixed = Runtime(table, x0=x0).run(readings)
+        frame = pd.DataFrame({"time": np.arange(len(x)) * table.sample_time_s, **readings})
+        ours = run_log(table, frame).estimates[table.states[0]].to_numpy()
+
+        def rms(est, x=x, table=table):
+            err = est[start:] - x[start:, 0]
+            return float(np.sqrt(np.mean((wrap(err) if table.wrap_angle else err) ** 2)))
+
+        missed = {s.name: int(np.isnan(readings[s.name][table.schedule.mask()[np.arange(len(x)) % table.period,
+                                                                                 s.index]]).sum())
+                  for s in table.measurements}
+        print(f"   {table.name} ({len(x):,} ticks, scheduled readings missed: {missed}): the Kalman filter "
+              f"{rms(kf):.3g}; the table's fixed gains {rms(fixed) / rms(kf):.2f} times it; run_log "
+              f"{rms(ours) / rms(kf):.3f} times it")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rows", type=int, default=1_000_000)
@@ -217,8 +287,13 @@ def main(argv=None):
     ap.add_argument("--path-rows", type=int, default=1_000_000)
     ap.add_argument("--paths", action="store_true", help="run only section 4 (the paths a log can take)")
     ap.add_argument("--fleet", action="store_true", help="run only section 3 (a fleet on 1 and 2 workers)")
+    ap.add_argument("--bridging", action="store_true",
+                    help="run only section 5 (fixed gains over missed readings against the Kalman filter)")
     ap.add_argument("--repeat", type=int, default=2, help="sections 3 and 4: the best of this many runs")
     args = ap.parse_args(argv)
+    if args.bridging:
+        bridging()
+        return
 
     import cfdesign
     from cfdesign.spec import parse_spec

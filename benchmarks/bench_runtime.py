@@ -1,6 +1,8 @@
 """Speed of the Python runtime and of the generated C filter, each beside a baseline.
 
 Run by hand from the repository root:  python benchmarks/bench_runtime.py [--samples N] [--c-steps M]
+Accuracy of the generated C alone (section 6):  python benchmarks/bench_runtime.py --c-agreement [--long]
+The phase lock alone (section 7):  python benchmarks/bench_runtime.py --lock
 
 On the robot-heading DCKF3 table of Carreira et al. (the "dckf3" example: single rate, heading
 wrapped) and the multirate position table (period 50), with 1,000,000 samples of a slow
@@ -32,6 +34,22 @@ sinusoid plus noise:
    ``estimate_attitude`` call on 1,000 samples in a fresh process (it designs the channels'
    default gains; target < 0.5 s, no sympy).
 
+6. ``--c-agreement`` (alone; seconds): the generated C against the Python runtime, built with the
+   tests' driver (``tests/fixtures/codegen_driver.c.in``): (a) double built with other compilers
+   and options (``-ffast-math``, contraction, x87) on the tests' signal, 2 % of the readings
+   missing and passed as ``<PREFIX>_MISSING``; (b) whether a NaN reading survives ``-O3
+   -ffast-math``; (c) float, max error over max|estimate|; (d) an hour of the position example
+   (50 Hz IMU, 1 Hz GPS whose clock runs 200 ppm slow, each fix seen on the tick after it arrives)
+   in float, with and without the phase lock of ``docs/guide/c-export.md``, against the truth;
+   with ``--long`` (minutes) also (e) float over 10 million steps of a turning heading and of a
+   position 5 km from the origin, against the double runtime.
+7. ``--lock`` (alone; seconds): the streaming step's phase lock on the rows of
+   ``tests/test_runtime_lock.py`` (100 Hz gyro, 10 Hz odometry, 1 Hz compass; 8,000 rows, RMS
+   after the first 2,000): the whole schedule 37 ticks late, locked and with ``lock=False``,
+   beside the aligned rows; sensors at offsets of their own through the locked step and through
+   ``ArrivalKalman.step`` with the time of a tick of each (process time, best of 3); and
+   ``Runtime.run`` on 200,000 rows late by 37 ticks beside the same rows aligned.
+
 Prints figures only; no assertions on time.
 """
 
@@ -56,6 +74,7 @@ from scipy.signal import lfilter
 
 import cfdesign
 from cfdesign.codegen import write_c
+from cfdesign.linear import startup_steps
 from cfdesign.runtime import Runtime, wrap
 from cfdesign.sim.signals import sinusoid_readings
 
@@ -447,6 +466,258 @@ def c_rows(table, data, steps, folder, t_python_step):
                                                                 f"{t_python_step * 1e9 / step:,.0f} x the C step")]
 
 
+# ---------------------------------------------------------------------- (6) C agreement
+#: the tests' C driver: rows of doubles in, one estimate per row out
+AGREEMENT_DRIVER = Path(__file__).resolve().parents[1] / "tests" / "fixtures" / "codegen_driver.c.in"
+#: a missing reading, as the driver passes it with -DDRIVER_MARK_MISSING (no NaN: -ffast-math)
+MARK = -1e301
+
+
+def c_estimates(table, data, folder, precision="double", cflags=("-std=c99", "-O2"), cc="cc"):
+    """Generate ``table``'s C, compile it with the tests' driver (``cflags``, compiler ``cc``) and
+    run it on ``data``'s rows; the C's estimates, one per row."""
+    folder.mkdir(parents=True, exist_ok=True)
+    prefix = write_c(table, folder, precision=precision)[0].name.removesuffix("_gains.h")
+    template = Template(AGREEMENT_DRIVER.read_text())
+    (folder / "driver.c").write_text(template.substitute(prefix=prefix, PREFIX=prefix.upper()))
+    exe = folder / "driver"
+    subprocess.run([shutil.which(cc), *cflags, "-o", str(exe), str(folder / "driver.c"),
+                    str(folder / f"{prefix}_filter.c"), "-lm"], check=True, capture_output=True, text=True)
+    np.column_stack(columns(table, data)).astype(np.float64).tofile(folder / "in.bin")
+    subprocess.run([str(exe), str(folder / "in.bin"), str(folder / "out.bin")], check=True)
+    return np.fromfile(folder / "out.bin", dtype=np.float64)
+
+
+def max_error(table, a, b) -> float:
+    """max |a - b|, headings modulo 2 pi; NaN when either has a NaN."""
+    diff = wrap(a - b) if table.wrap_angle else a - b
+    return float(np.max(np.abs(diff))) if np.isfinite(diff).all() else math.nan
+
+
+def option_rows(tables, folder):
+    """(a), (b), (c): the double C under other options, NaN under fast-math, and float."""
+    builds = [("gcc", "-std=c99 -O2"), ("gcc", "-std=c99 -O2 -ffast-math"), ("gcc", "-std=gnu11 -O2 -march=native"),
+              ("gcc", "-std=c99 -O2 -mfpmath=387"), ("clang", "-std=c99 -O2"), ("clang", "-std=c99 -O3 -ffast-math")]
+    out = []
+    for name, table in tables.items():
+        data = sinusoid_readings(table, 100_000, seed=1, missing=0.02, amplitude=1.5e4 if name == "position" else None)
+        rt = Runtime(table, lock=False)                       # the C's fixed schedule
+        names = rt.inputs + rt.measurements
+        with warnings.catch_warnings():                       # every sensor every tick, as the tests
+            warnings.simplefilter("ignore")
+            py = np.array([rt.step(**{n: data[n][k] for n in names}) for k in range(100_000)])
+        unit, size = "rad" if table.wrap_angle else "m", np.max(np.abs(py))
+        marked = {k: np.where(np.isnan(v), MARK, v) for k, v in data.items()}
+        for cc, flags in builds:
+            if shutil.which(cc) is None:
+                continue
+            c = c_estimates(table, marked, folder / name, cflags=[*flags.split(), "-DDRIVER_MARK_MISSING"], cc=cc)
+            err = max_error(table, c, py)
+            out.append((f"(a) {name} double", f"{cc} {flags}", f"max |C - Python| {err:.2g} {unit} "
+                        f"({err / size:.2g} of max|estimate| {size:.3g} {unit}); bit for bit: {err == 0}"))
+        for cc in ("gcc", "clang"):
+            if shutil.which(cc) is not None:
+                c = c_estimates(table, data, folder / name, cflags=["-std=c99", "-O3", "-ffast-math"], cc=cc)
+                out.append((f"(b) {name} NaN readings", f"{cc} -O3 -ffast-math",
+                            f"{np.count_nonzero(~np.isfinite(c)):,} of {len(c):,} estimates not finite"))
+        data = sinusoid_readings(table, 100_000, seed=1, missing=0.02)  # the tests' signal
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            py = Runtime(table, lock=False).run(data)
+        c = c_estimates(table, data, folder / name, precision="float")
+        out.append((f"(c) {name} float", "gcc -std=c99 -O2", f"max |C - Python| "
+                    f"{max_error(table, c, py) / np.max(np.abs(py)):.2g} x max|estimate| (the tests' signal)"))
+    return out
+
+
+def sensor_specs(example) -> dict:
+    """``{name: SensorSpec}`` of a built-in example's design file (noise and bias)."""
+    return {s.name: s for s in cfdesign.load_spec(cfdesign.example_path(example)).sensors}
+
+
+def memory_rows(folder):
+    """(c) continued: the float error of the two long-memory tables of ``tests/test_codegen.py``
+    (its tables, signals and closed-loop response norms ``||h||_2``, ``||h||_1``) over the rounding
+    figure ``8 eps_f max|estimate| ||h||_2``; and ``||h||_2`` of the DCKF3 example."""
+    import tomllib
+
+    sys.path.insert(0, str(AGREEMENT_DRIVER.parents[1]))
+    from test_codegen import CKF3_200HZ, TWO_COMPASSES, memory, memory_1
+
+    from cfdesign.discretize import discretize_table
+    from cfdesign.spec import parse_spec
+
+    dckf3 = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("dckf3")))
+    out = [("(c) dckf3", "||h||_2", f"{memory(dckf3):.2g}")]
+    two = cfdesign.design(parse_spec(tomllib.loads(TWO_COMPASSES)))
+    ckf3 = discretize_table(cfdesign.design(parse_spec(tomllib.loads(CKF3_200HZ))), 200.0)
+    n, rng = 30_000, np.random.default_rng(3)                  # the drifting position of the test
+    t = np.arange(n) / 200.0
+    v = 1000.0 + 5.0 * np.sin(0.05 * t)
+    drift = {"acceleration": np.gradient(v, t) + 0.04 * rng.standard_normal(n),
+             "velocity": v + 0.01 * rng.standard_normal(n),
+             "position": np.concatenate([[0.0], np.cumsum(v[:-1] / 200.0)]) + 0.05 * rng.standard_normal(n)}
+    for name, table, data in (("two compasses", two, sinusoid_readings(two, 20_000, seed=1, missing=0.02)),
+                              ("ckf3 200 Hz", ckf3, drift)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            py = Runtime(table, lock=False).run(data)
+        c = c_estimates(table, data, folder / "memory", precision="float")
+        err, size, h2 = max_error(table, c, py), np.max(np.abs(py)), memory(table)
+        out.append((f"(c) {name} float", f"||h||_2 {h2:.2g}, ||h||_1 {memory_1(table):.2g}",
+                    f"max |C - Python| {err / size:.2g} x max|estimate| ({size:.3g}), "
+                    f"{err / (8 * 2.0**-24 * size * h2):.2g} x 8 eps_f max|estimate| ||h||_2"))
+    return out
+
+
+def gps_clock_hour(table, seed=0):
+    """An hour of the position example at 50 Hz: the truth oscillating 200 m around 5 km, the
+    accelerometer with its design file's noise and bias random walk, a 1 Hz GPS whose fix ``j``
+    is the position at ``50.01 j`` ticks (200 ppm slow) with its noise, seen on the tick after.
+    Returns the readings, the true position and the ticks of the fixes."""
+    rng = np.random.default_rng(seed)
+    T, n, w = table.sample_time_s, 180_000, 2 * np.pi / 600.0
+    t = np.arange(n) * T
+    acc, gps = sensor_specs("position").values()
+    bias = np.cumsum(acc.bias.density * math.sqrt(T) * rng.standard_normal(n))
+    fix_time = np.arange(int(n / 50.01)) * 50.01 * T
+    ticks = np.ceil(fix_time / T - 1e-9).astype(int)
+    fixes = np.full(n, np.nan)
+    fixes[ticks] = 5200.0 - 200.0 * np.cos(w * fix_time) + gps.noise.std * rng.standard_normal(len(ticks))
+    acceleration = 200.0 * w**2 * np.cos(w * t) + bias + acc.noise.std * rng.standard_normal(n)
+    return {"accelerometer": acceleration, "gps": fixes}, 5200.0 - 200.0 * np.cos(w * t), ticks
+
+
+def gps_clock_rows(table, folder):
+    """(d): float C, an hour of a 200 ppm GPS clock, with and without the manual phase lock."""
+    readings, truth, ticks = gps_clock_hour(table)
+    start = [f"-DDRIVER_X0={float(readings['gps'][0])!r}"]
+    lock = ["-DDRIVER_LOCK=POSITION_Y_GPS", "-DDRIVER_LOCK_PHASE=POSITION_PHASE_GPS"]
+    settled = slice(30_000, None)                             # after the first 10 minutes
+    phases = ticks % table.period
+    out = [("(d) position, 1 h", "fix phases", f"{np.count_nonzero(phases[1:] == 0)} of the {len(ticks) - 1} later "
+            f"fixes at phase 0 (the second at phase {phases[1]})")]
+    for label, flags in (("no lock", start), ("st.phase locked", start + lock)):
+        c = c_estimates(table, readings, folder / "clock", precision="float", cflags=["-std=c99", "-O2", *flags])
+        err = c - truth
+        out.append(("(d) position, 1 h, float", label, f"error after 10 min: max {np.max(np.abs(err[settled])):.3g} m, "
+                    f"RMS {np.sqrt(np.mean(err[settled] ** 2)):.3g} m, at the end {err[-1]:.3g} m "
+                    f"(predicted std {table.predicted_std:.2f} m)"))
+    return out
+
+
+def long_heading(table, n, seed=0):
+    """``n`` steps of a heading turning at 0.1-0.5 rad/s (wrapped), readings with the design
+    file's noise and a gyro bias random walk, 2 % missing."""
+    rng = np.random.default_rng(seed)
+    T = table.sample_time_s
+    t = np.arange(n) * T
+    rate = 0.3 + 0.2 * np.sin(2 * np.pi * t / 300.0)
+    psi = np.concatenate([[0.0], np.cumsum(rate[:-1]) * T])
+    sensors = sensor_specs("dckf3")
+    bias = np.cumsum(sensors["gyro"].bias.density * math.sqrt(T) * rng.standard_normal(n))
+    data = {"gyro": rate + bias + sensors["gyro"].noise.std * rng.standard_normal(n)}
+    for name in ("compass", "odometry"):
+        data[name] = wrap(psi + sensors[name].noise.std * rng.standard_normal(n))
+    for v in data.values():
+        v[rng.random(n) < 0.02] = np.nan
+    return data, psi
+
+
+def long_position(table, n, seed=0):
+    """``n`` steps of a position oscillating 200 m around 5 km, the example's sensors, 2 % of the
+    readings missing, the GPS at its schedule's ticks."""
+    rng = np.random.default_rng(seed)
+    T, w = table.sample_time_s, 2 * np.pi / 600.0
+    t = np.arange(n) * T
+    acc, gps = sensor_specs("position").values()
+    bias = np.cumsum(acc.bias.density * math.sqrt(T) * rng.standard_normal(n))
+    data = {"accelerometer": 200.0 * w**2 * np.cos(w * t) + bias + acc.noise.std * rng.standard_normal(n),
+            "gps": 5200.0 - 200.0 * np.cos(w * t) + gps.noise.std * rng.standard_normal(n)}
+    data["gps"][np.arange(n) % table.period != 0] = np.nan
+    for v in data.values():
+        v[rng.random(n) < 0.02] = np.nan
+    return data
+
+
+def long_rows(tables, folder, n=10_000_000):
+    """(e): float C against the double runtime over ``n`` steps, after the start-up; the position
+    also about a local origin (the first fix subtracted from the readings, added back)."""
+    out = []
+    heading, position = tables["dckf3"], tables["position"]
+    data, psi = long_heading(heading, n)
+    out.append(long_row(heading, data, folder, f"{n:,} steps, {psi[-1] / (2 * np.pi):,.0f} turns"))
+    data = long_position(position, n)
+    out.append(long_row(position, data, folder, f"{n:,} steps"))
+    origin = data["gps"][np.isfinite(data["gps"])][0]
+    local = {**data, "gps": data["gps"] - origin}
+    out.append(long_row(position, local, folder, f"{n:,} steps, local origin {origin:.1f} m", offset=origin))
+    return out
+
+
+def long_row(table, data, folder, label, offset=0.0):
+    """One row of (e): max and RMS |float C - double runtime| after the start-up, and the
+    max over the first 10^6 and over the last 5 10^6 steps."""
+    n = len(next(iter(data.values())))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        py = Runtime(table, lock=False).run(data) + offset
+    c = c_estimates(table, data, folder / "long", precision="float") + offset
+    diff = np.abs(wrap(c - py) if table.wrap_angle else c - py)
+    skip = math.ceil(startup_steps(table.F, table.H, table.K, table.gain_form))
+    unit = "rad" if table.wrap_angle else "m"
+    return (f"(e) {table.structure} float", label,
+            f"after the first {skip:,} steps: max {np.max(diff[skip:]):.2g} {unit}, RMS "
+            f"{np.sqrt(np.mean(diff[skip:] ** 2)):.2g} {unit}; max over steps {skip:,}-10^6 "
+            f"{np.max(diff[skip:1_000_000]):.2g}, over the last 5 10^6 {np.max(diff[n - 5_000_000:]):.2g}")
+
+
+def agreement(long):
+    """Section 6: print the C-against-Python figures."""
+    tables = {name: cfdesign.design(cfdesign.load_spec(cfdesign.example_path(name))) for name in EXAMPLES}
+    print(f"6. generated C against the Python runtime (cc: {compiler_version()}, clang: "
+          f"{compiler_version('clang')})")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        rows = option_rows(tables, folder) + memory_rows(folder) + gps_clock_rows(tables["position"], folder)
+        if long:
+            rows += long_rows(tables, folder)
+    for what, how, figure in rows:
+        print(f"  {what:<30} {how:<32} {figure}")
+
+
+# ---------------------------------------------------------------------- (7) lock
+def lock_rows():
+    """Section 7: RMS error and cost of the locked step, ``lock=False`` and ``ArrivalKalman``."""
+    sys.path.insert(0, str(AGREEMENT_DRIVER.parents[1]))
+    from test_runtime_lock import HEADING, heading_rows, rms
+
+    from cfdesign.runtime.arrivals import ArrivalKalman
+    from cfdesign.spec import parse_spec
+
+    table = cfdesign.design(parse_spec(HEADING))
+    (aligned, psi), late, own = heading_rows(0, 0), heading_rows(7, 37)[0], heading_rows(3, 37)[0]
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for label, rows, make in (("aligned", aligned, lambda: Runtime(table)),
+                                  ("37 ticks late", late, lambda: Runtime(table)),
+                                  ("37 ticks late, lock=False", late, lambda: Runtime(table, lock=False)),
+                                  ("own offsets, step", own, lambda: Runtime(table)),
+                                  ("own offsets, ArrivalKalman.step", own, lambda: ArrivalKalman(table))):
+            ticks = [{k: v for k, v in zip(rows, r, strict=True) if not np.isnan(v)}
+                     for r in zip(*rows.values(), strict=True)]  # the tests' stepped() calls, built untimed
+            t, est = cpu_timed(lambda ticks=ticks, make=make: [f.step(**r) for f in [make()] for r in ticks])
+            out.append((label, f"RMS {rms(est, psi):.5f} rad", f"{1e6 * t / len(psi):.2g} us a tick"))
+        big, big_late = (heading_rows(o, c, n=200_000)[0] for o, c in ((0, 0), (7, 37)))
+        for label, rows in (("run, 200,000 rows aligned", big), ("run, 200,000 rows 37 ticks late", big_late)):
+            t, _ = cpu_timed(lambda rows=rows: Runtime(table).run(rows))
+            out.append((label, f"{t:.3g} s", f"{1e6 * t / 200_000:.2g} us a row"))
+    print("7. the streaming step's phase lock (heading 100/10/1 Hz, tests/test_runtime_lock.py's rows)")
+    for what, figure, cost in out:
+        print(f"  {what:<34} {figure:<18} {cost}")
+
+
 # ---------------------------------------------------------------------- report
 def print_section(title, results):
     print(f"\n{title}")
@@ -457,8 +728,8 @@ def print_section(title, results):
             print(f"  {label if k == 0 else '':<24} {what:<38} {rate_text:>11}  {note}")
 
 
-def compiler_version():
-    cc = shutil.which("cc")
+def compiler_version(name="cc"):
+    cc = shutil.which(name)
     if cc is None:
         return "none"
     return subprocess.run([cc, "--version"], check=False, capture_output=True, text=True).stdout.splitlines()[0]
@@ -468,7 +739,17 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=1_000_000, help="samples for the Python figures")
     parser.add_argument("--c-steps", type=int, default=10_000_000, help="steps of the C timing loop")
+    parser.add_argument("--c-agreement", action="store_true",
+                        help="run only section 6: the generated C's agreement with the Python runtime")
+    parser.add_argument("--lock", action="store_true", help="run only section 7: the streaming step's phase lock")
+    parser.add_argument("--long", action="store_true", help="section 6: add the 10-million-step float runs")
     args = parser.parse_args(argv)
+    if args.c_agreement:
+        agreement(args.long)
+        return 0
+    if args.lock:
+        lock_rows()
+        return 0
     N = args.samples
     print(f"cfdesign {cfdesign.__version__} runtime benchmark: {N:,} samples (Python), {args.c_steps:,} steps (C)")
     print("BLAS threads: OPENBLAS_NUM_THREADS=" + os.environ.get("OPENBLAS_NUM_THREADS", "unset (library default)"))

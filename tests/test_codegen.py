@@ -197,7 +197,7 @@ def test_float_error_is_within_the_rounding_bound_of_a_long_memory_heading_table
 
 @needs_cc
 def test_float_error_of_a_drifting_position_is_within_the_coherent_rounding_bound(tmp_path):
-    """A 200 Hz CKF3 (discretised) whose position drifts to 5e4 m: the increment T v added to the
+    """A 200 Hz CKF3 (discretised) whose position drifts to 1.5e5 m: the increment T v added to the
     position every step varies slowly against its ulp, so the float roundings repeat step after
     step and add up over the filter's memory instead of averaging out.  The error stays within
     the worst-case 8 eps_f max|estimate| ||h||_1; the random-rounding figure with ||h||_2 does not
@@ -212,7 +212,7 @@ def test_float_error_of_a_drifting_position_is_within_the_coherent_rounding_boun
     n = 30_000
     t = np.arange(n) / 200.0
     rng = np.random.default_rng(3)
-    v = 1000.0 + 5.0 * np.sin(0.05 * t)                          # m/s: the position reaches 3e4 m
+    v = 1000.0 + 5.0 * np.sin(0.05 * t)                          # m/s: the position reaches 1.5e5 m
     p = np.concatenate([[0.0], np.cumsum(v[:-1] / 200.0)])
     data = {"acceleration": np.gradient(v, t) + 0.04 * rng.standard_normal(n),
             "velocity": v + 0.01 * rng.standard_normal(n), "position": p + 0.05 * rng.standard_normal(n)}

@@ -33,24 +33,25 @@ Agreement with the Python runtime, as ``tests/test_codegen.py`` checks it (100,0
 a slow sinusoid plus noise with 2 % missing readings; the DCKF3 example of Carreira et al. ("dckf3") with the
 heading crossing +-pi, compared modulo 2 pi; the multirate position table, period 50):
 
-* ``precision='double'``: ``max |C - Python| <= 1e-12`` required; measured 2.7e-15 rad
-  (robot heading) and 0, bit-identical (position), with gcc -O2 on x86-64.  This assumes
+* ``precision='double'``: ``max |C - Python| <= 1e-12`` required; measured 0, bit-identical
+  (robot heading and position), with GCC 12 and Clang 14 -O2 on x86-64.  This assumes
   IEEE double arithmetic without extended precision or contraction into fused
   multiply-adds (the default with ``-std=c99``); with ``-ffast-math`` or on x87 the agreement is
-  to rounding (measured 2e-14 relative), and missing readings must be ``<PREFIX>_MISSING``, not NaN
-  or inf (Clang 14 ``-O3 -ffast-math`` let a NaN reading into the state).
+  to rounding (measured at most 1.6e-14 relative), and missing readings must be ``<PREFIX>_MISSING``,
+  not NaN or inf (Clang 14 ``-O3 -ffast-math`` let a NaN reading into the state).
 * ``precision='float'``: single-precision rounding; the documented bound is
-  ``max |C - Python| <= 2e-6 x max |estimate|`` for the robot heading (measured 3.3e-7 x,
-  1.05e-6 rad) and ``<= 1e-4 x max |estimate|`` for the position (measured 2.0e-5 x,
-  1.4e-3 m on a +-67 m estimate: the float position state, ulp 7.6e-6 m at 64 m, is
-  integrated at 50 Hz between 1 Hz GPS fixes).  Other tables: the float error grows with the
-  filter's memory, within ``8 x 2**-24 x max |estimate| x ||h||_1`` (``||h||_1``: the sum of ``|h_k|``,
+  ``max |C - Python| <= 2e-6 x max |estimate|`` for the robot heading (measured 1.9e-7 x)
+  and ``<= 1e-4 x max |estimate|`` for the position (measured 1.9e-5 x: the float position
+  state, ulp 7.6e-6 m at 64 m, is integrated at 50 Hz between 1 Hz GPS fixes).  Other tables:
+  the float error grows with the filter's memory, within ``8 x 2**-24 x max |estimate| x ||h||_1``
+  (``||h||_1``: the sum of ``|h_k|``,
   ``h`` the closed loop's response of the estimate to a unit error in the state; roundings that
   repeat step after step, as when a slowly varying increment is added to a large position, add up
   over it).  Where the roundings average out the error is nearer ``8 x 2**-24 x max |estimate| x
   ||h||_2`` (``||h||_2`` 4.7 for the robot heading, 300 for a 50 Hz gyro with 10 Hz and 5 Hz
   compasses, measured ``3.3e-6 x max |estimate|`` there); a 200 Hz CKF3 whose position drifts to
-  5e4 m exceeds that figure 2 to 4 times (``||h||_2`` 22, ``||h||_1`` 1000).
+  1.5e5 m exceeds that figure 2.9 times (``||h||_2`` 22, ``||h||_1`` 1000).  Every figure measured
+  here: ``python benchmarks/bench_runtime.py --c-agreement``.
 
 Every generated file compiles clean under :data:`~cfdesign.codegen.c99.STRICT_CFLAGS` (C99) and
 :data:`~cfdesign.codegen.c99.STRICT_CXXFLAGS` (C++11), the warning sets the C export promises; every name
