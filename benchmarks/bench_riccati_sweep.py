@@ -27,8 +27,9 @@ our and scipy's relative residuals (80-bit long double), verdict:
 * ``pass (ill-cond)``: error above 1e-10 but below 10 * condition * eps, and reported (a warning, or
   the result's ``forward_error`` within a factor 10 of it);
 * ``refused ok``: no stabilising solution exists and we raised a cfdesign error or flagged the
-  solution marginal; ``refused ok (boundary)``: a pencil eigenvalue lies within 1e-12 (relative)
-  of the boundary, so the float data's solution, if any, is not determined in double precision;
+  solution marginal; ``refused ok (boundary)``: a pencil eigenvalue lies within sqrt(eps) (relative)
+  of the boundary, where rounding the data alone can put it (a boundary eigenvalue is double), and
+  we refused with a cfdesign error or flagged the solution marginal;
 * ``refused (ill-cond)``: AccuracyError where our condition estimate exceeds 1/eps;
 * ``marginal (flagged)``: returned with ``marginal=True`` and a warning;
 * ``WRONG``: anything else (a wrong answer, a wrong refusal, a raw exception).
@@ -88,7 +89,9 @@ def reference(kind, A, B, Q, R, X_closed, starts):
     if n <= 12:
         X, boundary = pencil_reference(kind, A, B, Q, R)
         scale = 1.0 if kind == "dare" else max(1.0, np.abs(np.linalg.eigvals(A)).max())
-        if boundary <= 1e-12 * scale:  # a pencil eigenvalue within rounding of the boundary: either outcome
+        # a boundary eigenvalue of the pencil is double (lam and its mirror image meet), so rounding the
+        # data by eps moves it by about sqrt(eps): within that, refusing and solving are both right
+        if boundary <= np.sqrt(EPS) * scale:
             return X, None, f"pencil {boundary:.1e}"
         return X, X is not None, f"pencil {boundary:.1e}"
     if isinstance(X_closed, str):
