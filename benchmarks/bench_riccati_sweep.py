@@ -95,7 +95,9 @@ def reference(kind, A, B, Q, R, X_closed, starts):
             return X, None, f"pencil {boundary:.1e}"
         return X, X is not None, f"pencil {boundary:.1e}"
     if isinstance(X_closed, str):
-        return br.butterworth_chain_solution(n), True, "closed form"
+        from test_riccati import butterworth_chain_solution
+
+        return butterworth_chain_solution(n), True, "closed form"
     if X_closed is not None:
         return X_closed, True, "closed form"
     start = next((X for X in starts if X is not None and br._stabilising(kind, A, B, R, X)), None)
