@@ -495,8 +495,9 @@ def bench_sweep(path):
     return rows
 
 
-def lifted_periodic_reference(A, C, Q, R):
-    """P[0..N-1] of the periodic filter from the lifted (monodromy) DARE, solved by scipy.
+def lifted_periodic_reference(A, C, Q, R, solver=None):
+    """P[0..N-1] of the periodic filter from the lifted (monodromy) DARE, solved by scipy (or ``solver``,
+    called as ``solver(A, B, Q, R, S)`` and returning a result with ``.X``, e.g. cfdesign's dare).
 
     Over one period ``x[N] = Phi x[0] + w`` and the period's measurements ``y = Gamma x[0] + v``,
     where ``v`` holds the process noise that reached each measurement, so ``w`` and ``v`` are
@@ -523,7 +524,10 @@ def lifted_periodic_reference(A, C, Q, R):
             V[off[a]:off[a + 1], off[b]:off[b + 1]] = blk + (R[j] if j == h else 0)
         for i in range(j):
             S[:, off[a]:off[a + 1]] += trans[N][i + 1] @ Q[i] @ trans[j][i + 1].T @ C[j].T
-    P = [sla.solve_discrete_are(trans[N][0].T, Gam.T, W, V, s=S)]
+    if solver is None:
+        P = [sla.solve_discrete_are(trans[N][0].T, Gam.T, W, V, s=S)]
+    else:
+        P = [solver(trans[N][0].T, Gam.T, W, V, S).X]
     for k in range(N - 1):
         Pk = P[-1]
         if C[k].shape[0]:  # Joseph form
