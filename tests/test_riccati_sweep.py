@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import riccati_sweep_cases as rc
 
-from cfdesign.errors import NoStabilisingSolutionError, NotDetectableError
+from cfdesign.errors import AccuracyError, NoStabilisingSolutionError, NotDetectableError
 from cfdesign.riccati import care, dare, periodic_dare
 
 
@@ -80,6 +80,18 @@ def test_carex_2_6_small_eps_is_refused_as_the_float_data_have_no_solution():
         care(A, B, Q, R)
     A, B, Q, R, _ = rc.carex_2_6(1e-6)  # solvable (Q still positive definite)
     assert _rel(care(A, B, Q, R).X, rc.pencil_reference("care", A, B, Q, R)[0]) <= 1e-10
+
+
+def test_a_large_eigenvalue_off_the_axis_is_not_named_on_the_boundary():
+    """CAREX 2.6 at eps = 1e-11 has a stabilising solution (the pencil reference finds it), which
+    scipy and the sign-function estimate both miss.  The boundary check had named the real
+    eigenvalue s = 612 "on the stability boundary" (its tolerance, sqrt(eps) times the pencil's norm
+    of 1e12, was 1.5e4): now the distance is also measured against the eigenvalue's size, and the
+    refusal is an accuracy error, not the claim that no solution exists."""
+    A, B, Q, R, _ = rc.carex_2_6(1e-11)
+    assert rc.pencil_reference("care", A, B, Q, R)[0] is not None
+    with pytest.raises(AccuracyError, match="could not compute an accurate stabilising CARE solution"):
+        care(A, B, Q, R)
 
 
 RANDOM = [(kind, cls, n, seed) for kind in ("care", "dare")
