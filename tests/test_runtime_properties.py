@@ -55,3 +55,31 @@ def test_a_reading_refused_before_a_relock_in_its_step_is_counted_once_and_not_u
     moved = {k: v.copy() for k, v in glitch.items()}
     moved["compass"][201] = 1.0  # the reading counted as not used changes nothing
     np.testing.assert_array_equal(step_rows(Runtime(heading, warn=False), moved)[0], est)
+
+
+def test_a_held_value_from_an_off_phase_tick_runs_as_the_steps_do():
+    """A 1 Hz GPS value held and repeated every tick from tick 17 (phase 0 reads it): the steps lock
+    to its first reading and refuse every repeat; run judged the sensor "given too often" by its
+    count over the whole call and kept the unlocked schedule (1.30 m from the steps, one count
+    more, phase 0 against 33), and a run cut in pieces judged each piece alike.  Now the readings
+    the lock would refuse as faster (each less than half the spacing after the last) are found
+    reading by reading: the first steps and locks, the repeats stay vectorised."""
+    from cfdesign.sim.signals import sinusoid_readings
+
+    table = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("position")))
+    data = sinusoid_readings(table, 2000)
+    data["gps"][:17] = np.nan
+    ref = Runtime(table)
+    with pytest.warns(UserWarning, match="faster than designed") as stepped_warnings:
+        est, _ = step_rows(ref, data)
+    rt = Runtime(table)
+    with pytest.warns(UserWarning) as run_warnings:
+        out = rt.run(data)
+    assert [str(w.message) for w in run_warnings] == [str(w.message) for w in stepped_warnings]
+    np.testing.assert_allclose(out, est, rtol=0, atol=1e-12 * np.abs(est).max())
+    assert rt.counts == ref.counts == {"unscheduled": {"gps": 1943}} and rt.state()["lock"] == ref.state()["lock"]
+    assert rt.phase == ref.phase == 33
+    pieces = Runtime(table, warn=False)
+    cut = np.concatenate([pieces.run({k: v[i:i + 20] for k, v in data.items()}) for i in range(0, 2000, 20)])
+    np.testing.assert_allclose(cut, out, rtol=0, atol=1e-12 * np.abs(est).max())
+    assert pieces.counts == rt.counts and pieces.phase == 33
