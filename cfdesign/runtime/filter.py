@@ -651,7 +651,7 @@ class Runtime:
 
     def _placeable(self, finite):
         """Where a usable reading is off the schedule from the current phase and the lock would not
-        refuse it as faster than designed (:meth:`PhaseLock.gaps <cfdesign.runtime.lock.PhaseLock.gaps>`):
+        refuse it as faster than designed (:meth:`PhaseLock.faster <cfdesign.runtime.lock.PhaseLock.faster>`):
         the readings that may move the phase.  Without them the steps run the fixed schedule,
         whatever the phase lock (a value held and repeated every tick is refused at each repeat)."""
         if not self.lock:

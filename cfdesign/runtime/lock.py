@@ -175,7 +175,7 @@ class PhaseLock:
         ndarray of bool, shape (N, m)
             Readings refused as faster (False where there is none).
         """
-        return self.gaps(finite) < 0.5 * np.array(self.spacing)
+        return self.gaps(finite) < 0.5 * np.array(self.spacing)  # the first test of _placed, for every reading
 
     def gaps(self, finite):
         """Ticks from each usable reading back to the sensor's last one (inf for its first).
