@@ -337,7 +337,7 @@ def test_a_slow_value_repeated_every_tick_runs_the_fixed_schedule_in_run(monkeyp
     every = sinusoid_readings(table, 1000)
     rt = Runtime(table)
     monkeypatch.setattr(rt, "_run_stepped", lambda *a: pytest.fail("stepped a sensor given every tick"))
-    with pytest.warns(UserWarning, match=r"gps: .*given more often than the table reads it") as caught:
+    with pytest.warns(UserWarning, match=r"gps: .*faster than designed \(a value held and repeated\?\)") as caught:
         est = rt.run(every)
     assert len(caught) == 1 and rt.counts == {"unscheduled": {"gps": 980}}
     with warnings.catch_warnings():

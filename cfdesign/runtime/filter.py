@@ -580,12 +580,14 @@ class Runtime:
         the work is vectorised (the lifted form over blocks, or the sensors' IIR bands for a
         single-rate table) over every stretch where each scheduled measurement is present; the
         few steps where one is missing run through :meth:`step`'s recursion.  Both give the same
-        numbers.  Arrays holding a usable reading off that schedule run step by step through
-        :meth:`step` (about a microsecond a row), which locks the phase to them where one shift
-        places them; with ``lock=False`` they are counted and warned of as :meth:`step` does.  A
-        sensor given more often than the table reads it, by more than half again (a value held
-        and repeated every tick), runs on the fixed schedule, its extra readings counted and
-        warned of (the steps would refuse them one by one, at 1.5 us a step against 0.65).
+        numbers.  The rows up to the last usable reading off that schedule that the lock may place
+        run step by step through :meth:`step` (about a microsecond a row), which locks the phase
+        to them where one shift places them, and the rows after it go on as above from the phase
+        reached.  Readings off the schedule that the lock refuses whatever the phase (with
+        ``lock=False``; or faster than designed: a value held and repeated every tick, each repeat
+        less than half the sensor's spacing after the last) stay on the vectorised paths, counted
+        and warned of as :meth:`step` does (the steps would refuse them one by one, at 1.5 us a
+        step against 0.65).
 
         Parameters
         ----------
@@ -619,48 +621,68 @@ class Runtime:
         UserWarning
             A usable reading at a phase without a gain (once per runtime and sensor; counted).
         """
-        before, self._read = self._lock.state(), {}
-        out = self._run(readings, states)
-        if self._read is not None:  # the batch paths: the lock's ticks go on (the steps moved them)
-            self._lock.ran(before, len(out[0] if states else out), self._read)
-        return out
+        return self._run(readings, states)
 
     def _run(self, readings, states):
-        """:meth:`run`, its tick count left to it."""
+        """:meth:`run`: readings the lock may place stepped, the rest on the fixed schedule."""
         cols = self._columns(readings)
-        if not states and self.period == 1 and self.n <= _SMALL and len(cols[0]) and all(map(_clean, cols)):
+        N = len(cols[0])
+        if not states and self.period == 1 and self.n <= _SMALL and N and all(map(_clean, cols)):
+            before = self._lock.state()
             out = self._run_clean(cols)  # the common case: every reading present, single rate
             if out is not None:
+                self._lock.ran(before, N, {})
                 return out
         u, y = self._split(cols)
-        N = len(u)
         if N == 0:
             return (np.empty(0), np.empty((0, self.n))) if states else np.empty(0)
         u = self._held_inputs(u)
-        active = self._active[(self.phase + np.arange(N)) % self.period]
         finite = usable(y)
         self._count("rejected", ~finite & ~np.isnan(y))
-        off = finite & ~active
-        faster = self._faster(finite)
-        if self.lock and (off & ~faster).any():  # readings off the schedule: the steps lock to them
-            return self._run_stepped(u, np.where(finite, y, np.nan), states)
-        self._unscheduled(finite, active, off, faster)
-        y = np.where(active & finite, y, np.nan)  # NaN: not read at this tick
+        y = np.where(finite, y, np.nan)
+        pieces, start = [], 0
+        while start < N:  # step through the last reading the lock may place, then go on from the phase reached
+            free = np.flatnonzero(self._placeable(finite[start:]).any(axis=1))
+            stop = start + int(free[-1]) + 1 if free.size else N
+            run = self._run_stepped if free.size else self._run_fixed
+            pieces.append(run(u[start:stop], y[start:stop], states))
+            start = stop
+        return _joined(pieces, states)
+
+    def _placeable(self, finite):
+        """Where a usable reading is off the schedule from the current phase and the lock would not
+        refuse it as faster than designed (:meth:`PhaseLock.faster <cfdesign.runtime.lock.PhaseLock.faster>`):
+        the readings that may move the phase.  Without them the steps run the fixed schedule,
+        whatever the phase lock (a value held and repeated every tick is refused at each repeat)."""
+        if not self.lock:
+            return np.zeros_like(finite)
+        off = finite & ~self._active[(self.phase + np.arange(len(finite))) % self.period]
+        return off & ~self._lock.faster(finite) if off.any() else off
+
+    def _run_fixed(self, u, y, states):
+        """Rows without a reading the lock may place (inputs held, readings usable or NaN): the
+        fixed schedule, the readings off it counted and warned of as the steps would; vectorised
+        over every stretch where each scheduled measurement is present, step by step where one is
+        missing.  The lock's ticks go on after them (:meth:`PhaseLock.ran
+        <cfdesign.runtime.lock.PhaseLock.ran>`)."""
+        N, finite = len(u), ~np.isnan(y)
+        before = self._lock.state()
+        active = self._active[(self.phase + np.arange(N)) % self.period]
+        read = self._unscheduled(finite, active)
+        y = np.where(active, y, np.nan)  # NaN: not read at this tick
         irregular = np.flatnonzero((active & ~finite).any(axis=1))
         if len(irregular) > max(16, N // 50):  # gaps everywhere: one loop
-            return self._run_loop(u, y, states)
-        pieces, start = [], 0
-        for k in [*irregular, N]:
-            if k > start:
-                pieces.append(self._run_regular(u[start:k], y[start:k], states))
-            if k < N:
-                pieces.append(self._run_loop(u[k:k + 1], y[k:k + 1], states))
-            start = k + 1
-        if len(pieces) == 1:
-            return pieces[0]
-        if states:
-            return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
-        return np.concatenate(pieces)
+            pieces = [self._run_loop(u, y, states)]
+        else:
+            pieces, start = [], 0
+            for k in [*irregular, N]:
+                if k > start:
+                    pieces.append(self._run_regular(u[start:k], y[start:k], states))
+                if k < N:
+                    pieces.append(self._run_loop(u[k:k + 1], y[k:k + 1], states))
+                start = k + 1
+        self._lock.ran(before, N, read)
+        return _joined(pieces, states)
 
     def _run_clean(self, cols):
         """Single-rate, every reading present and usable: the sensors' IIR bands on the columns
@@ -721,34 +743,33 @@ class Runtime:
         self._count("rejected_inputs", bad & ~np.isnan(u))
         return held(u, bad, self.u_last)
 
-    def _faster(self, finite):
-        """Per measurement: given more often than the table reads it, by more than half again (a held
-        value repeated every tick, a 10 Hz compass into a table of 1 Hz).  The lock would refuse such
-        readings one by one, each a step of its Python rule (a 1 Hz GPS given every tick of 200,000:
-        1.5 us a step instead of 0.65), so :meth:`run` runs them on the fixed schedule, counted."""
-        expected = len(finite) * self._active.mean(axis=0)
-        return np.broadcast_to(finite.sum(axis=0) > 1.5 * expected + 1, finite.shape)
+    def _unscheduled(self, finite, active) -> dict:
+        """Count and warn of the usable readings (``finite``) where ``active`` has no gain, as the
+        steps would at a phase that does not move (``lock=False``, a table that never reads the
+        sensor, or readings the lock refuses as faster than designed), the warnings in the order
+        of their rows.
 
-    def _unscheduled(self, finite, active, off, faster):
-        """Count and warn of the usable readings ``off`` (of ``finite``) where ``active`` has no
-        gain (``lock=False``, a table that never reads the sensor, or one given ``faster`` than the
-        table reads it); note for the lock the ticks of each sensor's last reading with a gain and
-        last without, as the steps would."""
+        Returns
+        -------
+        dict
+            For :meth:`PhaseLock.ran <cfdesign.runtime.lock.PhaseLock.ran>`: ``{i: (ticks before
+            the end of its last reading with a gain, of its last without)}`` per sensor read.
+        """
+        off = finite & ~active
         self._count("unscheduled", off)
-        phase = self.phase
-        for i in np.flatnonzero(off.any(axis=0)):
-            k = int(np.argmax(off[:, i]))
-            why = ("it is given more often than the table reads it (a value held and repeated?)"
-                   if self.lock and faster[0, i] else self._lock.fixed())
-            self._lock.warn(i, (phase + k) % self.period, why, stacklevel=5)
+        phase, lock = self.phase, self._lock
+        gaps = lock.gaps(finite) if self.lock and off.any() else None
+        first = {int(i): int(np.argmax(off[:, i])) for i in np.flatnonzero(off.any(axis=0))}
+        for i, k in sorted(first.items(), key=lambda item: (item[1], item[0])):
+            why = lock.too_soon(i, int(gaps[k, i])) if gaps is not None else lock.fixed()
+            lock.warn(i, (phase + k) % self.period, why, stacklevel=6)  # warn, here, _run_fixed, _run, run
         on = finite & active
-        for i in np.flatnonzero(finite.any(axis=0)):  # ticks before the end of its last reading with(out) a gain
-            self._read[int(i)] = tuple(int(np.argmax(m[::-1, i])) + 1 if m[:, i].any() else None for m in (on, off))
+        return {int(i): tuple(int(np.argmax(m[::-1, i])) + 1 if m[:, i].any() else None for m in (on, off))
+                for i in np.flatnonzero(finite.any(axis=0))}
 
     def _run_stepped(self, u, y, states):
         """:meth:`run` by :meth:`step`, which applies the lock, counts and warns (inputs held and
         readings usable or NaN already); the lock's ticks advance with the steps."""
-        self._read = None
         lock = self._lock
         lock.stacklevel = 8  # at the caller of run: warn, unscheduled, the step, _run_loop, here, _run, run
         try:
@@ -897,6 +918,15 @@ class Runtime:
             if seen.size:
                 y[seen, i] = _unwrap(y[seen, i], float(self.H[i] @ self.x))
         return y
+
+
+def _joined(pieces, states):
+    """The estimates (and, ``states``, the output states) of consecutive pieces of a run as one."""
+    if len(pieces) == 1:
+        return pieces[0]
+    if states:
+        return np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces])
+    return np.concatenate(pieces)
 
 
 def _case_hint(missing, readings) -> str:

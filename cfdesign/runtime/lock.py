@@ -23,6 +23,8 @@ from __future__ import annotations
 import numbers
 import warnings
 
+import numpy as np
+
 from ..errors import CfdesignError
 from ..timing import _pattern, rotation
 
@@ -139,6 +141,63 @@ class PhaseLock:
         """
         return "Runtime(lock=False) keeps the schedule fixed" if self.period > 1 else "the table never reads it"
 
+    def too_soon(self, i: int, gap: int) -> str:
+        """Why a reading ``gap`` ticks after the sensor's last one is refused (for the warning).
+
+        Parameters
+        ----------
+        i : int
+            The measurement's row of ``H``.
+        gap : int
+            Ticks since its last usable reading (fewer than half its designed spacing).
+
+        Returns
+        -------
+        str
+            The gap against the spacing the table reads the sensor at.
+        """
+        return (f"it came {gap} ticks after its last reading, where the table reads it every {self.spacing[i]:g}: "
+                "faster than designed (a value held and repeated?)")
+
+    def faster(self, finite):
+        """Where the rule refuses a reading as faster than designed, whatever the phase: it comes
+        less than half the sensor's designed spacing after its last usable reading (of these rows,
+        or before them as the lock holds it).  Readings off the schedule that are all such run on
+        the fixed schedule (``Runtime.run``: a value held and repeated every tick stays vectorised).
+
+        Parameters
+        ----------
+        finite : ndarray of bool, shape (N, m)
+            Where each measurement has a usable reading, from the next step on.
+
+        Returns
+        -------
+        ndarray of bool, shape (N, m)
+            Readings refused as faster (False where there is none).
+        """
+        return self.gaps(finite) < 0.5 * np.array(self.spacing)  # the first test of _placed, for every reading
+
+    def gaps(self, finite):
+        """Ticks from each usable reading back to the sensor's last one (inf for its first).
+
+        Parameters
+        ----------
+        finite : ndarray of bool, shape (N, m)
+            Where each measurement has a usable reading, from the next step on (the phase not
+            moving in between).
+
+        Returns
+        -------
+        ndarray, shape (N, m)
+            The gaps (ticks) at the readings, inf elsewhere and at a sensor's first reading.
+        """
+        now, out = self.tick(), np.full(finite.shape, np.inf)
+        for i in np.flatnonzero(finite.any(axis=0)):
+            rows = np.flatnonzero(finite[:, i])
+            held = [t - now for t in (self.ON[i], self.last[i]) if t is not None]
+            out[rows, i] = np.diff(rows, prepend=max(held) if held else -np.inf)
+        return out
+
     def _placed(self, i, phase, tick):
         """``(why not, None)`` or ``(None, new phase)``: the shift of the whole schedule that puts
         reading ``i`` at ``phase`` on its phases and keeps the sensors read on schedule on theirs;
@@ -148,8 +207,7 @@ class PhaseLock:
         on_tick, last = self.ON[i], self.last[i]
         before = on_tick if last is None else last if on_tick is None else max(on_tick, last)
         if before is not None and tick - before < self.spacing[i] / 2:
-            return (lambda: f"it came {tick - before} ticks after its last reading, where the table reads it "
-                            f"every {self.spacing[i]:g}: faster than designed"), None
+            return (lambda: self.too_soon(i, tick - before)), None
         on = {self.names[j]: 0 for j, t in enumerate(self.ON)
               if t is not None and j != i and tick - t <= LOCK_STALE_READINGS * self.spacing[j]}
         step = self.steps[name]

@@ -155,7 +155,8 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
     lock : callable
         ``lock(i, phase)`` for a usable reading of measurement ``i`` at a phase without a gain
         for it (:meth:`cfdesign.runtime.lock.PhaseLock.unscheduled`): the phase to run the step at
-        instead (it has set it; the step runs again there with the readings as received), or -1
+        instead (it has set it; the step runs again there with the readings as received, those of
+        earlier rows it refused or rejected as missing: each reading is used or counted once), or -1
         (it has counted the reading).
 
     Returns
@@ -273,8 +274,10 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
                 add("        else:")
                 add(f"            {N['ph2']} = {N['LOCK']}({i}, {ph})")
                 add(f"            if {N['ph2']} >= 0:")
-                # the readings as received: those before row i rejected here (counted) as NaN
-                again = us + [f"({ys[j]} if {oks[p + j]} else {N['NAN']})" for j in range(i)] + ys[i:]
+                # the readings as received, those before row i already counted here as NaN: rejected
+                # (not ok) or refused by the lock (no gain at this phase: a reading used at the new
+                # phase as well would be counted and used, one refused again counted twice)
+                again = us + [f"({ys[j]} if {oks[p + j]} and {A_}[{j}] else {N['NAN']})" for j in range(i)] + ys[i:]
                 add(f"                return {N['step_values']}({', '.join(again)})")
         add(f"    elif {ys[i]} == {ys[i]}:")
         add(f"        {REJ_}[{p + i}] += 1")
