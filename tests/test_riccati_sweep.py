@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 import pytest
 import riccati_sweep_cases as rc
+import scipy.linalg as sla
 
 from cfdesign.errors import AccuracyError, NoStabilisingSolutionError, NotDetectableError
 from cfdesign.riccati import care, dare, periodic_dare
@@ -83,15 +84,36 @@ def test_carex_2_6_small_eps_is_refused_as_the_float_data_have_no_solution():
 
 
 def test_a_large_eigenvalue_off_the_axis_is_not_named_on_the_boundary():
-    """CAREX 2.6 at eps = 1e-11 has a stabilising solution (the pencil reference finds it), which
-    scipy and the sign-function estimate both miss.  The boundary check had named the real
-    eigenvalue s = 612 "on the stability boundary" (its tolerance, sqrt(eps) times the pencil's norm
-    of 1e12, was 1.5e4): now the distance is also measured against the eigenvalue's size, and the
-    refusal is an accuracy error, not the claim that no solution exists."""
+    """CAREX 2.6 at eps = 1e-11 has a stabilising solution (the pencil reference finds it; closed-loop
+    eigenvalues from -1e11 to -582).  The boundary check had named the real eigenvalue s = 612 "on the
+    stability boundary" (its tolerance, sqrt(eps) times the pencil's norm of 1e12, was 1.5e4): now the
+    distance is also measured against the eigenvalue's size.  scipy refuses the data after balancing its
+    pencil ("eigenvalues too close to the imaginary axis") and the sign function does not converge; scipy
+    without balancing is 2e-9 from the solution, and Newton's method takes it to the reference."""
     A, B, Q, R, _ = rc.carex_2_6(1e-11)
-    assert rc.pencil_reference("care", A, B, Q, R)[0] is not None
-    with pytest.raises(AccuracyError, match="could not compute an accurate stabilising CARE solution"):
-        care(A, B, Q, R)
+    ref = rc.pencil_reference("care", A, B, Q, R)[0]
+    assert ref is not None
+    with pytest.raises(np.linalg.LinAlgError):
+        sla.solve_continuous_are(A, B, Q, R)  # balanced, as the first estimate
+    sol = care(A, B, Q, R)
+    assert sol.method == "schur-unbalanced" and not sol.marginal
+    assert _rel(sol.X, ref) <= max(1e-10, 10 * sol.condition * np.finfo(float).eps)
+    assert _stabilising("care", A, B, sol.K)
+
+
+def test_a_refusal_says_x_is_undetermined_only_when_the_condition_says_so():
+    """CAREX 2.8 at eps = 1e6: the sign-function estimate is wrong in every digit and Newton's method stalls
+    there at a condition estimate of 9e4, far below 1/eps; that shows a bad start, not an undetermined X, so
+    the refusal must not claim the latter (it did).  (The solution exists and Newton's method keeps it,
+    rounded, at a relative residual of 2e-17, but no first estimate reaches it yet.)"""
+    A, B, Q, R, _ = rc.carex_2_8(1e6)
+    try:
+        sol = care(A, B, Q, R)
+    except AccuracyError as exc:
+        assert "every first estimate failed" in str(exc) and "not determined" not in str(exc)
+    else:  # once an estimate reaches it: the reference's accuracy, as far as the condition allows
+        ref = rc.pencil_reference("care", A, B, Q, R)[0]
+        assert _rel(sol.X, ref) <= max(1e-10, 10 * sol.condition * np.finfo(float).eps) and not sol.marginal
 
 
 RANDOM = [(kind, cls, n, seed) for kind in ("care", "dare")

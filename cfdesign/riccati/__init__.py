@@ -31,7 +31,7 @@ refinement, lyapunov, extended
 stability
     Certification of the closed loop.
 fallbacks
-    First estimates: scipy, the matrix sign function, structure-preserving doubling.
+    First estimates: scipy, the matrix sign function, structure-preserving doubling, scipy unbalanced.
 problem
     The validated data of one equation and the algebra the stages share.
 """

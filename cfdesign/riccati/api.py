@@ -4,7 +4,7 @@ Every solver
 
 1. validates its data (shapes, finiteness, symmetry) with messages that name the matrix;
 2. takes scipy's Schur / QZ solution as a first estimate (a matrix-sign or doubling
-   fallback where scipy fails), then refines it by Newton's method (Kleinman for the CARE,
+   fallback where scipy fails, then scipy without balancing), then refines it by Newton's method (Kleinman for the CARE,
    Hewer for the DARE) with the residual evaluated in double-double arithmetic;
 3. certifies the closed loop and returns a frozen, named result;
 4. when no certified stabilising solution comes out (or only a marginal one), runs the PBH
@@ -24,7 +24,7 @@ import scipy.linalg as sla
 from ..blas import small_problem
 from ..errors import AccuracyError, NoStabilisingSolutionError, RiccatiError
 from .fallbacks import estimates, pencil_boundary
-from .problem import TINY, Problem, complexify, herm, realify
+from .problem import EPS, TINY, Problem, complexify, herm, realify
 from .refinement import MAX_NEWTON, Evaluation, newton_refine
 from .results import ContinuousKalmanGains, DiscreteKalmanGains, RiccatiSolution, frozen
 from .stability import Stability, stability
@@ -282,7 +282,8 @@ class _Candidate:
 def _best_candidate(p: Problem, refine, rtol):
     """First estimate that refines to an accurate, (marginally) stabilising solution.
 
-    Returns ``(candidate, stability, relative residual)``, or ``(None, what was tried)``.
+    Returns ``(candidate, stability, relative residual)``, or ``(None, what was tried)``: one
+    ``(description, condition estimate)`` per estimate, the condition None unless Newton stalled.
     """
     seen = []
     for X0, method in estimates(p):
@@ -298,10 +299,11 @@ def _best_candidate(p: Problem, refine, rtol):
             return _Candidate(X, ev, steps, fwd, method), st, rel_res
         what = f"relative residual {rel_res:.3g}" if rel_res > rtol else (
             "not stabilising" if st.status == "unstable" else "marginal")
+        cond = None
         if not fwd <= _UNCONVERGED:  # Newton stalls: its correction is a sizeable part of X
             cond = st.omega_inv_norm * ev.theta / max(np.linalg.norm(X), TINY)
             what += f", Newton's correction {fwd:.2g} of X, condition estimate {cond:.2g}"
-        seen.append(f"{method}: {what}")
+        seen.append((f"{method}: {what}", cond))
     return None, seen
 
 
@@ -316,11 +318,15 @@ def _no_solution(p: Problem, seen):
         raise NoStabilisingSolutionError(
             f"no stabilising solution: the {pencil} pencil has an eigenvalue on the stability boundary "
             f"({fmt_mode(p.kind, lam)}); the closed loop would be marginal at best")
-    tried = "; ".join(seen) if seen else "every solver failed"
-    why = ""
-    if seen and all("Newton's correction" in s for s in seen):
+    tried = "; ".join(what for what, _ in seen) if seen else "every solver failed"
+    # "not determined" only when every estimate says so: Newton stalls and the condition estimate there is
+    # at least 1 / eps.  A stall at a smaller estimate (CAREX 2.8 at eps = 1e6: 9e4 at the sign-function
+    # estimate, 2.5e16 at the solution) only shows that the estimate was too far from the solution.
+    why = ": every first estimate failed to refine to one"
+    if seen and all(cond is not None and cond * EPS >= 1 for _, cond in seen):
         why = (": the equation is too ill-conditioned for double precision (Newton's method on the double-double "
-               "residual does not converge from any estimate: X is not determined to any digit)")
+               "residual does not converge from any estimate, where the condition estimate is at least 1/eps: "
+               "X is not determined to any digit)")
     raise AccuracyError(f"could not compute an accurate stabilising {p.kind.upper()} solution{why} ({tried})")
 
 

@@ -155,7 +155,18 @@ def dare_doubling(p: Problem):
 
 
 def estimates(p: Problem):
-    """First estimates of the solution: scipy's Schur/QZ solver, then the fallback.
+    """First estimates of the solution: scipy's Schur/QZ solver, the fallback, then scipy unbalanced.
+
+    Lazy: an estimate is computed only when the caller asks for the next one (the previous
+    ones failed), so a problem the first estimate solves pays for nothing else.
+
+    scipy balances the Hamiltonian / symplectic pencil by a symplectic diagonal similarity
+    (a state scaling found from ``|H| + |J|``; ``G`` is not scaled against ``Q``) and then
+    refuses when its stable basis fails a symmetry test.  On graded data the balancing can
+    cost the digits that test needs: CAREX 2.6 at eps = 1e-11 (``R = 1e-11 I``, closed-loop
+    eigenvalues from -1e11 to -582) is refused with it ("eigenvalues too close to the
+    imaginary axis") and solved without it (first estimate 2e-9 from the solution, which
+    Newton's method then reaches).  Hence the last attempt, ``balanced=False``.
 
     Parameters
     ----------
@@ -167,11 +178,12 @@ def estimates(p: Problem):
     X : ndarray, shape (n, n)
         A finite Hermitian estimate.
     method : str
-        ``schur``, ``sign`` (CARE) or ``doubling`` (DARE).
+        ``schur``, ``sign`` (CARE) or ``doubling`` (DARE), ``schur-unbalanced``.
     """
     solver = sla.solve_continuous_are if p.kind == "care" else sla.solve_discrete_are
     attempts = (("schur", lambda: solver(p.A, p.B, p.Q, p.R, e=p.E, s=p.S)),
-                ("sign", lambda: sign_solution(p)) if p.kind == "care" else ("doubling", lambda: dare_doubling(p)))
+                ("sign", lambda: sign_solution(p)) if p.kind == "care" else ("doubling", lambda: dare_doubling(p)),
+                ("schur-unbalanced", lambda: solver(p.A, p.B, p.Q, p.R, e=p.E, s=p.S, balanced=False)))
     for method, attempt in attempts:
         try:
             with warnings.catch_warnings(), np.errstate(all="ignore"):

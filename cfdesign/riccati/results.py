@@ -78,7 +78,7 @@ class RiccatiSolution:
         uncertainty; ``X`` is then the maximal (almost stabilising) solution, not a
         stabilising one.
     method : str
-        How the first estimate was obtained ('schur' for scipy, 'sign', 'doubling').
+        How the first estimate was obtained ('schur' for scipy, 'sign', 'doubling', 'schur-unbalanced').
     warnings : tuple of str
         Everything a user should know about this solution (also issued as RuntimeWarning).
     """
