@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 import cfdesign
 from cfdesign.linear import wrap
 from cfdesign.runtime import Runtime
+from cfdesign.runtime import filter as runtime_filter
 from cfdesign.runtime.arrivals import ArrivalKalman
 from cfdesign.spec import parse_spec
 from cfdesign.timing import _pattern, rotation
@@ -185,6 +186,84 @@ def test_run_is_the_step_loop_whole_in_pieces_and_restored(tables, c, cuts):
     assert close(np.concatenate(outs), est, table)
     assert summed(r.counts for r in runtimes) == ref.counts
     assert rt.state()["lock"] == ref.state()["lock"] and rt.phase == ref.phase
+
+
+@FEW
+@given(cases, st.lists(st.floats(0, 1), max_size=2))
+def test_run_moving_between_steps_and_the_fixed_schedule_is_the_step_loop(tables, c, cuts):
+    """The stretches between readings the lock may place run on the fixed schedule from one
+    period on (``_FIXED_PERIODS`` 1, not 40), the placeable readings stepped two at most at a time
+    (``_CHAIN``) and found one window reading at a time: so every arrival pattern moves between the
+    steps and the vectorised paths many times in a few hundred rows, and still gives what the step
+    loop gives (estimates to 1e-12, counts, warnings, lock state, phase), whole or cut into runs."""
+    table = tables[c[0]]
+    data, _ = case(table, c[2], c[3], c[1], c[4])
+    ref = Runtime(table)
+    (est, _), warned = recorded(lambda: step_rows(ref, data))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(runtime_filter, "_FIXED_PERIODS", 1)
+        patch.setattr(runtime_filter, "_CHAIN", 2)
+        patch.setattr(runtime_filter._Placeable, "WINDOW", 1)
+        rt = Runtime(table)
+        out, got = recorded(lambda: rt.run(data, states=c[3] % 2 == 1))
+        out = out[0] if c[3] % 2 == 1 else out
+        assert close(out, est, table) and got == warned
+        assert rt.counts == ref.counts and rt.state()["lock"] == ref.state()["lock"] and rt.phase == ref.phase
+        pieces, outs, start = Runtime(table, warn=False), [], 0
+        for stop in [*sorted(int(f * c[2]) for f in cuts), c[2]]:
+            outs.append(pieces.run({k: v[start:stop] for k, v in data.items()}))
+            start = stop
+        assert close(np.concatenate(outs), est, table)
+        assert pieces.counts == ref.counts and pieces.state()["lock"] == ref.state()["lock"]
+
+
+def settling_cases(tables):
+    """Long arrays whose slow readings are off the schedule from phase 0 and settle, then move:
+    the heading's odometry and compass 37 ticks late, 63 from row 5000 (the whole schedule moved),
+    the compass silent from 9400 and back from 10000 at 93 (odometry still at 3 of 10: placed);
+    the position's GPS 17 ticks late, 29 from row 3000, its value held and repeated every tick
+    from 5500 (each repeat refused as faster).  Each settled stretch is longer than the steps' share
+    (``_FIXED_PERIODS`` periods)."""
+    heading, position = tables[0], tables[1]
+    rng = np.random.default_rng(5)
+    u, _, Y = simulate(heading, 14000, rng)
+    rows = np.arange(14000)
+    at = {"odometry": np.where(rows < 5000, rows % 10 == 7, rows % 10 == 3),
+          "compass": np.where(rows < 5000, rows % 100 == 37,
+                              np.where(rows < 9400, rows % 100 == 63, (rows >= 10000) & (rows % 100 == 93)))}
+    data = {"gyro": u[:, 0]}
+    data.update({s.name: wrap(np.where(at[s.name], Y[:, i], np.nan)) for i, s in enumerate(heading.measurements)})
+    yield heading, data
+    u, _, Y = simulate(position, 7500, rng)
+    rows = np.arange(7500)
+    y = np.where(np.where(rows < 3000, rows % 50 == 17, rows % 50 == 29), Y[:, 0], np.nan)
+    y[5500:] = y[5479]  # (row 5479: a fix)
+    yield position, {"accelerometer": u[:, 0], "gps": y}
+
+
+def test_run_goes_back_to_the_vectorised_path_once_the_lock_has_settled(tables, monkeypatch):
+    """Slow readings off the schedule from phase 0, the offset changing mid-array, a sensor silent
+    then back at another phase, a value held after settling (:func:`settling_cases`): run steps
+    only the rows up to each reading that moves the phase and runs the rest on the vectorised
+    fixed schedule (fewer than 3 % of the rows stepped; before, every row up to the last reading
+    the lock may place), giving what the step loop gives, whole and in pieces."""
+    stepped, step = [], Runtime._run_stepped
+    monkeypatch.setattr(Runtime, "_run_stepped", lambda self, u, *a: stepped.append(len(u)) or step(self, u, *a))
+    for table, data in settling_cases(tables):
+        ref = Runtime(table)
+        (est, ran), warned = recorded(lambda ref=ref, data=data: step_rows(ref, data))
+        assert len(set(((ran - np.arange(len(ran))) % table.period).tolist())) >= 3  # phase 0, moved twice or more
+        stepped.clear()
+        rt = Runtime(table)
+        out, got = recorded(lambda rt=rt, data=data: rt.run(data))
+        assert 0 < sum(stepped) < 0.03 * len(est)
+        assert close(out, est, table) and got == warned
+        assert rt.counts == ref.counts and rt.state()["lock"] == ref.state()["lock"] and rt.phase == ref.phase
+        pieces = Runtime(table, warn=False)
+        cut = np.concatenate([pieces.run({k: v[a:a + 2500] for k, v in data.items()})
+                              for a in range(0, len(est), 2500)])
+        assert close(cut, est, table)
+        assert pieces.counts == ref.counts and pieces.state()["lock"] == ref.state()["lock"]
 
 
 def summed(counts):

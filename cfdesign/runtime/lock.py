@@ -162,8 +162,9 @@ class PhaseLock:
     def faster(self, finite):
         """Where the rule refuses a reading as faster than designed, whatever the phase: it comes
         less than half the sensor's designed spacing after its last usable reading (of these rows,
-        or before them as the lock holds it).  Readings off the schedule that are all such run on
-        the fixed schedule (``Runtime.run``: a value held and repeated every tick stays vectorised).
+        or before them as the lock holds it).  The gaps do not move with the phase, so ``Runtime.run``
+        finds these once per call; the readings off the schedule that are all such run on the fixed
+        schedule (a value held and repeated every tick stays vectorised).
 
         Parameters
         ----------
