@@ -467,3 +467,20 @@ def test_reprs_name_the_table_and_stay_short_whatever_the_period(position):
     assert repr(rt).startswith(f"<Runtime of {position.name!r}: output posterior, phase 1 of 50")
     continuous = cfdesign.design(cfdesign.load_spec(cfdesign.example_path("cf3")))
     assert ", continuous, period 1, output prior;" in repr(continuous)   # no gain form: it has none
+
+
+@pytest.mark.parametrize("Phi", [np.array([[0.9, 0.01], [-0.01, 0.95]]), np.array([[0.99999, 1e-3], [0.0, 0.99999]]),
+                                 np.array([[1.0, 0.01], [0.0, 1.0]]), np.diag([0.999999, 0.999998, 0.5])])
+@pytest.mark.parametrize("P", [1, 5, 9, 4097])
+def test_block_boundary_states_equal_the_recursion(Phi, P):
+    """The lifted batch path's states at the start of every block (a doubling scan over the blocks)
+    equal the plain recursion ``X[p+1] = Phi X[p] + C[p]``, also for a double pole at 0.99999 and an
+    uncorrected double integrator (a Jordan block at 1), where the direct form of lfilter drifted."""
+    from cfdesign.runtime.filter import _boundary_states
+
+    rng = np.random.default_rng(P)
+    C, x0 = rng.standard_normal((P, len(Phi))), rng.standard_normal(len(Phi))
+    want, x = np.empty((P, len(Phi))), x0
+    for p in range(P):
+        want[p], x = x, Phi @ x + C[p]
+    assert np.max(np.abs(_boundary_states(Phi, C, x0) - want)) <= 1e-12 * max(1.0, np.max(np.abs(want)))
