@@ -1,6 +1,6 @@
 r"""The Python runtime: run a designed filter (a GainTable) on sensor readings.
 
-numpy only; scipy.signal.lfilter is imported lazily by the fast batch path.  Every phase
+numpy only; scipy.signal.lfilter is imported lazily by the single-rate batch path.  Every phase
 ``k`` (base-rate steps modulo the period) runs the one recursion of :mod:`cfdesign.linear`,
 
 .. math::
@@ -251,7 +251,7 @@ class Runtime:
 
     Every step runs the recursion of the module docstring with the table's gain for the
     current phase; the estimate is state 0 (the common quantity, in its unit: rad for a
-    heading, m for a position).  numpy only (scipy's ``lfilter`` in the batch path).
+    heading, m for a position).  numpy only (scipy's ``lfilter`` in the single-rate batch path).
 
     Parameters
     ----------
@@ -848,8 +848,8 @@ class Runtime:
         return xs[:, 0].copy(), xs
 
     def _run_vectorised(self, u, y, states, read=None):
-        """Blocked form of the recursion: block-boundary states by ``lfilter`` on the lifted
-        system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
+        """Blocked form of the recursion: block-boundary states by a doubling scan
+        (:func:`_boundary_states`) of the lifted system ``x[(p+1)L] = A^L x[pL] + c[p]``, then the ``L`` phases of every block at
         once, vectorised over the blocks (``L`` a multiple of the period).  The readings of the
         quantity and the state run relative to the state's quantity at the start (the offset
         direction of ``_offset_direction``), so the rounding scales with their spread over
