@@ -512,6 +512,15 @@ def test_a_column_in_a_unit_of_another_quantity_is_refused(heading):
                                                              reference="truth").rms["heading"], rel=1e-12)
 
 
+def test_the_header_written_twice_is_no_row_of_units(heading, tmp_path):
+    """A header written twice (its second line not read) gave each sensor a note that its own name was no
+    unit cfdesign knows."""
+    lines = heading_log(0, 0, n=200)[0].to_csv(index=False).splitlines()
+    (tmp_path / "top.csv").write_text("\n".join([lines[0], *lines]) + "\n")
+    notes = run_log(heading, tmp_path / "top.csv").notes
+    assert not any("no unit" in n or "read as" in n for n in notes), notes
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")

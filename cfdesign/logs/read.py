@@ -382,10 +382,14 @@ def _tail(path) -> tuple:
 
 
 def _row_units(path) -> dict:
-    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``."""
+    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``
+    (also for the header written twice: each sensor's name was noted as a unit cfdesign does not know)."""
     kind = _kind(path)
     units = None if kind == "parquet" else _csv_format(path, kind).get("_units")
-    return dict(zip(_header(path), units, strict=False)) if units else {}
+    header = _header(path)
+    if not units or [u.strip() for u in units] == header:
+        return {}
+    return dict(zip(header, units, strict=False))
 
 
 def _units_note(path, source) -> list:
