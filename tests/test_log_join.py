@@ -350,3 +350,18 @@ def test_a_joined_file_in_degrees_is_read_in_them_once(heading, tmp_path):
         got = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / name], mapping=mapping)
         assert any("is in deg: read as rad" in n for n in got.notes), got.notes
         assert np.allclose(got.estimates["heading"], expected["heading"], rtol=0, atol=1e-12)
+
+
+def test_a_joined_column_named_with_its_unit_is_taken_as_in_one_file(heading, tmp_path):
+    """A joined compass file's ``compass [deg]`` is the compass's as it is in the main file (it was a
+    missing column unless mapped: a joined file found a sensor's column by its name and its case only)."""
+    imu, odo, com = heading_files(n=400, seed=6)
+    imu.to_csv(tmp_path / "imu.csv", index=False)
+    odo.to_csv(tmp_path / "odo.csv", index=False)
+    com.to_csv(tmp_path / "rad.csv", index=False)
+    com.assign(compass=np.degrees(com["compass"])).rename(columns={"compass": "compass [deg]"}).to_csv(
+        tmp_path / "deg.csv", index=False, float_format="%.17g")
+    expected = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "rad.csv"]).estimates
+    got = run_log(heading, tmp_path / "imu.csv", join=[tmp_path / "odo.csv", tmp_path / "deg.csv"])
+    assert "column 'compass [deg]' is in deg: read as rad (times 0.0174533)" in got.notes, got.notes
+    assert np.allclose(got.estimates["heading"], expected["heading"], rtol=0, atol=1e-12)

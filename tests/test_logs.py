@@ -512,6 +512,72 @@ def test_a_column_in_a_unit_of_another_quantity_is_refused(heading):
                                                              reference="truth").rms["heading"], rel=1e-12)
 
 
+
+def test_a_column_by_its_unit_is_taken_only_where_it_can_be_converted(heading):
+    """A column named with a unit is the sensor's only where cfdesign converts it: a table whose state
+    names do not tell what its gyro reads took ``gyro [deg/s]`` and ran it as it is, 57 times too fast
+    with no note on its unit (it is refused with the --map that reads it as it is); two such columns
+    for one sensor were called units cfdesign does not know, with a --map for each."""
+    import dataclasses
+
+    log, _ = heading_log(0, 0, n=300)
+    own = dataclasses.replace(heading, states=("psi", "b"))
+    deg = log.assign(gyro=np.degrees(log["gyro"])).rename(columns={"gyro": "gyro [deg/s]"})
+    with pytest.raises(DataError, match=r"state names do not tell what its sensor reads\) is not taken in "
+                                        r"silence: --map \"gyro=gyro \[deg/s\]\" reads it as it is"):
+        run_log(own, deg)
+    mapped = run_log(own, deg, mapping={"gyro": "gyro [deg/s]"}, reference="truth")
+    assert "column 'gyro [deg/s]': 'deg/s' is not converted: the table's state names do not tell what its sensor " \
+           "gyro reads; read as it is, in the table's units" in mapped.notes, mapped.notes
+    assert run_log(heading, deg).estimates["heading"].to_numpy() == pytest.approx(
+        run_log(heading, log).estimates["heading"].to_numpy(), abs=1e-9)
+    both = log.rename(columns={"gyro": "gyro [rad/s]"}).assign(**{"Gyro (dps)": np.degrees(log["gyro"])})
+    with pytest.raises(DataError, match=r"sensor gyro has 2 columns named with a unit \(gyro \[rad/s\], Gyro "
+                                        r"\(dps\)\): --map \"gyro=COLUMN\" takes one$"):
+        run_log(heading, both)
+
+
+def test_a_column_of_two_uses_is_checked_for_both_and_its_units_agree(heading, tmp_path):
+    """A column that feeds a sensor and a reference (or two references) was checked against the first
+    only: a gyro in deg/s given as the heading's reference ran; it is refused naming the reference and
+    --reference.  A column named in one unit over a row of units giving another is refused (either may
+    be wrong), one given twice alike is read once; a row's unit in brackets around brackets
+    (``(mrad/(s))``) lost its last one and was read as it is."""
+    log, truth = heading_log(0, 0, n=300)
+    deg = log.assign(gyro=np.degrees(log["gyro"])).rename(columns={"gyro": "gyro [deg/s]"})
+    with pytest.raises(DataError, match=r"'gyro \[deg/s\]' is in deg/s, but the table's reference for heading "
+                                        r"reads rad \(another quantity\): give the right column with --reference"):
+        run_log(heading, deg, reference="gyro [deg/s]")
+    with pytest.raises(DataError, match=r"reference for gyro_correction reads rad/s"):
+        run_log(heading, log.assign(**{"truth [deg]": np.degrees(truth)}),
+                reference=["truth [deg]", "gyro_correction=truth [deg]"])
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    for name, cell, factor in (("gyro [deg/s]", "rad/s", None), ("gyro [deg/s]", "dps", 180 / np.pi),
+                               ("gyro", "(mrad/(s))", 1000.0)):
+        text = log.assign(gyro=log["gyro"] * (factor or 1)).rename(columns={"gyro": name}).to_csv(
+            index=False, float_format="%.17g", lineterminator="\n")
+        head, _, rows = text.partition("\n")
+        units = ",".join(cell if c == "gyro" else "" for c in log.columns)
+        (tmp_path / "u.csv").write_text(f"{head}\n{units}\n{rows}", encoding="utf-8")
+        if factor is None:
+            with pytest.raises(DataError, match=r"'gyro \[deg/s\]' is named in deg/s but the row of units gives "
+                                                r"it rad/s"):
+                run_log(heading, tmp_path / "u.csv")
+            continue
+        got = run_log(heading, tmp_path / "u.csv")
+        assert np.allclose(got.estimates["heading"], expected, rtol=0, atol=1e-9)
+        assert sum("read as rad/s" in n for n in got.notes) == 1, got.notes
+
+
+def test_the_header_written_twice_is_no_row_of_units(heading, tmp_path):
+    """A header written twice (its second line not read) gave each sensor a note that its own name was no
+    unit cfdesign knows."""
+    lines = heading_log(0, 0, n=200)[0].to_csv(index=False).splitlines()
+    (tmp_path / "top.csv").write_text("\n".join([lines[0], *lines]) + "\n")
+    notes = run_log(heading, tmp_path / "top.csv").notes
+    assert not any("no unit" in n or "read as" in n for n in notes), notes
+
+
 def test_spreadsheet_exports_and_extra_columns(heading, tmp_path):
     log, _ = heading_log(0, 0, n=500)
     text = log.to_csv(index=False, lineterminator="\r\n")

@@ -78,13 +78,27 @@ def _unit(name) -> tuple:
     """``(name, unit)`` of a column named with its unit (``gyro [rad/s]``, ``time (ms)``, or a unit of
     time after an underscore: ``time_ms``), else ``(name, None)``; a unit of time as
     :data:`TIME_UNITS` names it (``sec`` is ``s``)."""
-    m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(([^)]*)\))", str(name).strip())
+    m = re.fullmatch(r"(.*?)\s*(?:\[([^\]]*)\]|\(((?:[^()]|\([^()]*\))*)\))", str(name).strip())
     if not (m and m.group(1)):
         m = re.fullmatch(r"(.+?)_([^_]+)", str(name).strip())
         unit = _UNIT_NAMES.get(m.group(2).lower()) if m else None
         return (m.group(1), unit) if unit else (name, None)
     unit = (m.group(2) if m.group(2) is not None else m.group(3)).strip()
     return m.group(1), _UNIT_NAMES.get(unit.lower(), unit)
+
+
+def _bare_unit(cell) -> str:
+    """A cell of a row of units without the spaces and the one pair of brackets around it (``[deg/s]``,
+    ``(m/(s^2))``; the brackets stripped one by one left ``m/(s^2`` of the last, a unit no longer)."""
+    text = str(cell).strip()
+    if len(text) < 2 or (text[0], text[-1]) not in (("[", "]"), ("(", ")")):
+        return text
+    depth = 0
+    for c in text[1:-1]:  # '(m/s)/(s)' is no pair around it
+        depth += {"(": 1, ")": -1}.get(c, 0)
+        if depth < 0:
+            return text
+    return text[1:-1].strip() if depth == 0 else text
 
 
 def _time_with_unit(name):
@@ -119,7 +133,7 @@ def _named_unit(time, units=None):
         return None
     if time == ROS_TIME:
         return "ns"
-    named = _unit(time)[1] or _UNIT_NAMES.get((units or {}).get(time, "").strip(" []()").lower())
+    named = _unit(time)[1] or _UNIT_NAMES.get(_bare_unit((units or {}).get(time, "")).lower())
     return named if named in TIME_UNITS else None
 
 

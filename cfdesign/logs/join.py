@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import DataError
 from .columns import TIME_UNITS, _listed, _named_unit, _numeric, _pandas, _time_unit
-from .read import _header, _lines, _row_units, _unique, read_log, time_column
+from .read import _header, _lines, _row_units, _unique, read_log, sensor_column, time_column
 
 
 def joined_header(table, header, source, paths, *, time=None, mapping=None, reference=None) -> tuple:
@@ -59,11 +59,12 @@ def joined_header(table, header, source, paths, *, time=None, mapping=None, refe
     files = [(source, [str(h).strip() for h in header], None), *((p, h, times[p]) for p, h in headers.items())]
     mapping = mapping if isinstance(mapping, dict) else {}
     items = [reference] if isinstance(reference, str) else reference if isinstance(reference, (list, tuple)) else []
-    wanted = [(mapping.get(s, s), s not in mapping) for s in table.sensor_names()]
-    wanted += [(str(r).partition("=")[2] or str(r), False) for r in items if isinstance(r, str)]
+    reads = table.sensor_units()
+    wanted = [(mapping.get(s, s), reads[s] if s not in mapping else None) for s in table.sensor_names()]
+    wanted += [(str(r).partition("=")[2] or str(r), None) for r in items if isinstance(r, str)]
     used, missing = {p: [] for p in paths}, []
-    for name, any_case in dict.fromkeys(wanted):
-        found = [(f, c) for f, h, t in files for c in [_found(name, h, any_case, t)] if c is not None]
+    for name, reads in dict.fromkeys(wanted):
+        found = [(f, c) for f, h, t in files for c in [_found(name, h, reads, t)] if c is not None]
         missing += [] if found else [name]
         if len(found) > 1:
             raise DataError(f"column {name!r} is in both {found[0][0]} and {found[1][0]}: each column a run uses "
@@ -78,13 +79,13 @@ def joined_header(table, header, source, paths, *, time=None, mapping=None, refe
     return [*header, *(c for cols in used.values() for c in cols)], used, listing
 
 
-def _found(name, header, any_case, time):
-    """The column of ``header`` that is ``name`` (or, with ``any_case``, its one column named so in
-    another case), not the file's ``time``; else None."""
-    if name in header and name != time:
-        return name
-    like = [h for h in header if h.lower() == name.lower() and h != time]
-    return like[0] if any_case and len(like) == 1 else None
+def _found(name, header, reads, time):
+    """The column of ``header`` that is ``name``, not the file's ``time``; or, for a sensor's own name
+    (``reads``: the unit it reads, :func:`~cfdesign.logs.read.sensor_column`), the one its name
+    takes in another case or with a unit; else None."""
+    if reads is None:
+        return name if name in header and name != time else None
+    return sensor_column(name, header, reads, time)
 
 
 def _time_of(path, header, time):

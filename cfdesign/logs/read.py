@@ -21,6 +21,7 @@ from .columns import (
     ROS_TIME,
     TIME_COLUMNS,
     TIME_UNITS,
+    _bare_unit,
     _Columns,
     _first_line,
     _listed,
@@ -93,28 +94,28 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
         raise DataError(f"--map {unknown[0]}: {table.name} has no sensor {unknown[0]!r} "
                         f"(sensors: {', '.join(table.sensor_names())})")
     sensors = {s: mapping.get(s, s) for s in table.sensor_names()}
-    for s, c in sensors.items():  # a sensor's name in another case ('Gyro', 'GYRO'), as the time column's
-        like = [h for h in header if h.lower() == s.lower()]
-        if s not in mapping and c not in header and len(like) == 1:
-            sensors[s] = like[0]
-        # or with a unit cfdesign knows ('gyro [deg/s]'): read in it (_scales)
-        named = [h for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()
-                 and _known_unit(_unit(h)[1])]
-        if s not in mapping and sensors[s] not in header and len(named) == 1:
-            sensors[s] = named[0]
+    reads = table.sensor_units()
+    for s, c in sensors.items():
+        if s not in mapping and c not in header:
+            sensors[s] = sensor_column(s, header, reads[s]) or c
     missing = [f"{c} (sensor {s})" if c != s else c for s, c in sensors.items() if c not in header]
     if missing:
-        # a column named with its unit ('gyro [rad/s]') is not taken in silence: its unit may not be the table's
-        like = [(s, h) for s, c in sensors.items() if c not in header and s not in mapping
-                for h in header if _unit(h)[1] is not None and _unit(h)[0].lower() == s.lower()]
-        hint = " ".join(f'--map "{s}={h}"' for s, h in like)
+        # a column named with a unit cfdesign cannot convert ('gyro [LSB]') is not taken in silence
+        like = {s: _named(s, header) for s, c in sensors.items() if c not in header and s not in mapping}
+        like = {s: names for s, names in like.items() if names}
+        twice = next(((s, names) for s, names in like.items() if len(names) > 1), None)
+        if twice is not None:  # 'gyro [deg/s]' and 'gyro [rad/s]': the hint gave two --map for one sensor
+            raise DataError(f"{source}: sensor {twice[0]} has {len(twice[1])} columns named with a unit "
+                            f"({', '.join(twice[1])}): --map \"{twice[0]}=COLUMN\" takes one")
+        hint = " ".join(f'--map "{s}={names[0]}"' for s, names in like.items())
         if not like and _numbers_only(header):  # the first row of a file without a header read as one
             raise DataError(f"{source}: the header holds numbers ({_listed(header)}), not column names: the log "
                             f"has no header; add a first line naming its columns ("
                             f"{', '.join(['time', *sensors.values()])})")
         raise DataError(f"{source}: missing column(s) {', '.join(missing)} (columns: {listing or _listed(header)}); "
-                        + (f"a column named with a unit cfdesign does not know is not taken in silence: {hint} "
-                           "reads it as it is, in the table's units" if like else
+                        + ("a column named with a unit cfdesign cannot convert (one it does not know, or a table "
+                           "whose state names do not tell what its sensor reads) is not taken in silence: "
+                           f"{hint} reads it as it is, in the table's units" if like else
                            "the header is one column: cells are separated by commas, semicolons or tabs, or by "
                            "spaces where the first row has as many cells"
                            if len(header) == 1 else
@@ -141,6 +142,45 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
                     scales, notes)
 
 
+def _named(sensor, header) -> list:
+    """The columns of ``header`` named ``sensor`` (in any case) with a unit: ``gyro [deg/s]``, ``Gyro (dps)``."""
+    return [h for h in header if _unit(h)[1] is not None and str(_unit(h)[0]).lower() == sensor.lower()]
+
+
+def sensor_column(sensor, header, reads, time=None):
+    """The column of ``header`` a sensor takes by its name (no ``--map`` for it): its name, else its
+    one column named so in another case (``Gyro``), else its one column named so with a unit
+    cfdesign converts to what the sensor reads (``gyro [deg/s]``, :func:`_scales`); the one rule
+    of a log and of its joined files (a joined ``compass [deg]`` was missing where the main file's
+    was taken).  A table whose state names do not tell what the sensor reads (``reads`` ``''``)
+    takes no column by its unit: it would be read as it is (deg/s as rad/s).
+
+    Parameters
+    ----------
+    sensor : str
+        The sensor's name.
+    header : list of str
+        The file's column names.
+    reads : str
+        The unit the table's sensor reads (:meth:`~cfdesign.gains.GainTable.sensor_units`), or ``''``.
+    time : str, optional
+        The file's time column, never a sensor's.
+
+    Returns
+    -------
+    str or None
+        The column, or None (none, or more than one).
+    """
+    header = [h for h in header if h != time]
+    if sensor in header:
+        return sensor
+    like = [h for h in header if h.lower() == sensor.lower()]
+    if len(like) == 1:
+        return like[0]
+    named = [h for h in _named(sensor, header) if reads and _known_unit(_unit(h)[1])]
+    return named[0] if len(named) == 1 else None
+
+
 def _known_unit(text) -> bool:
     """Whether :func:`~cfdesign.units.parse_unit` reads ``text``."""
     from ..errors import SpecError
@@ -162,38 +202,80 @@ def _scales(table, sensors, refs, units, source) -> tuple:
     unit is given (by its name, ``gyro [deg/s]``, or by the row of ``units`` under a CSV's header)
     into the unit the table reads there (:meth:`~cfdesign.gains.GainTable.sensor_units`,
     :meth:`~cfdesign.gains.GainTable.state_units`), where the two differ, with a note on each;
-    a note on a column whose unit :func:`~cfdesign.units.parse_unit` does not know (read as it
-    is).  A gyro logged in deg/s and read as rad/s had run 57 times too fast.
+    a note on a column read as it is: its unit one :func:`~cfdesign.units.parse_unit` does not
+    know, or the table's state names do not tell what it reads there.  A gyro logged in deg/s and
+    read as rad/s had run 57 times too fast.  A column that feeds two things (a sensor and a
+    reference) is checked against both and scaled once.
 
     Raises
     ------
     DataError
-        A column whose unit is of another quantity than the table reads there (``m/s`` for rad/s).
+        A column whose unit is of another quantity than the table reads there (``m/s`` for rad/s),
+        or whose name and row of units give two units.
     """
-    from ..units import parse_unit
-
     reads = table.sensor_units()
     state_units = dict(zip(table.states, table.state_units(), strict=True))
     targets = [(c, f"sensor {s}", reads[s]) for s, c in sensors.items()]
     targets += [(c, f"reference for {st}", state_units[st]) for st, c in refs.items()]
     scales, notes, seen = {}, [], set()
     for column, what, unit in targets:
-        text = _unit(column)[1] or str((units or {}).get(column, "")).strip(" []()")
-        if not unit or column in seen or text.strip("-\u2013\u2014 ").lower() in _NO_UNIT:
+        text = _given_unit(column, units, source)
+        if text is None:
             continue
-        seen.add(column)
-        if not _known_unit(text):
-            notes.append(f"column {column!r}: {text!r} is no unit cfdesign knows; read as it is, in the "
-                         f"table's {unit}")
+        first, _ = column not in seen, seen.add(column)
+        if not unit or not _known_unit(text):
+            cause = ("is no unit cfdesign knows" if unit else
+                     f"is not converted: the table's state names do not tell what its {what} reads")
+            notes += [f"column {column!r}: {text!r} {cause}; read as it is, in the table's {unit or 'units'}"
+                      ] if first else []
             continue
-        (scale, dim), (base, want) = parse_unit(text), parse_unit(unit)
-        if dim != want:
-            raise DataError(f"{source}: column {column!r} is in {text}, but the table's {what} reads {unit} "
-                            f"(another quantity): map the right column with --map SENSOR=COLUMN, or check its unit")
-        if abs(scale / base - 1.0) > 1e-12:
-            scales[column] = scale / base
-            notes.append(f"column {column!r} is in {text}: read as {unit} (times {scale / base:.6g})")
+        factor = _factor(column, text, unit, what, source)
+        if first and abs(factor - 1.0) > 1e-12:
+            scales[column] = factor
+            notes.append(f"column {column!r} is in {text}: read as {unit} (times {factor:.6g})")
     return scales, notes
+
+
+def _given_unit(column, units, source):
+    """The unit a column's name (``gyro [deg/s]``) or the row of ``units`` under its CSV's header
+    gives it, or None (none, or one of :data:`_NO_UNIT`).
+
+    Raises
+    ------
+    DataError
+        The name and the row give two units (``gyro [deg/s]`` over ``rad/s``): which one the numbers
+        are in is not known.
+    """
+    from ..units import parse_unit
+
+    named, row = _unit(column)[1], _bare_unit((units or {}).get(column, ""))
+    named, row = [u if u is not None and u.strip("-\u2013\u2014 ").lower() not in _NO_UNIT else None
+                  for u in (named, row)]
+    if named and row and _known_unit(named) and _known_unit(row):
+        (a, dim_a), (b, dim_b) = parse_unit(named), parse_unit(row)
+        if dim_a != dim_b or abs(a / b - 1.0) > 1e-12:
+            raise DataError(f"{source}: column {column!r} is named in {named} but the row of units gives it {row}: "
+                            "correct the one that is wrong")
+    return named or row
+
+
+def _factor(column, text, unit, what, source) -> float:
+    """The factor from the column's unit ``text`` to the table's ``unit`` of ``what`` (``sensor gyro``,
+    ``reference for heading``).
+
+    Raises
+    ------
+    DataError
+        The two are units of other quantities.
+    """
+    from ..units import parse_unit
+
+    (scale, dim), (base, want) = parse_unit(text), parse_unit(unit)
+    if dim != want:
+        option = "--map SENSOR=COLUMN" if what.startswith("sensor") else "--reference STATE=COLUMN"
+        raise DataError(f"{source}: column {column!r} is in {text}, but the table's {what} reads {unit} "
+                        f"(another quantity): give the right column with {option}, or check its unit")
+    return scale / base
 
 
 def _references(table, reference, header, source) -> dict:
@@ -382,10 +464,14 @@ def _tail(path) -> tuple:
 
 
 def _row_units(path) -> dict:
-    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``."""
+    """``{column: unit}`` of the row of units under a CSV's header (:func:`_csv_format`), or ``{}``
+    (also for the header written twice: each sensor's name was noted as a unit cfdesign does not know)."""
     kind = _kind(path)
     units = None if kind == "parquet" else _csv_format(path, kind).get("_units")
-    return dict(zip(_header(path), units, strict=False)) if units else {}
+    header = _header(path)
+    if not units or [u.strip() for u in units] == header:
+        return {}
+    return dict(zip(header, units, strict=False))
 
 
 def _units_note(path, source) -> list:
