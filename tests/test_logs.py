@@ -2258,3 +2258,15 @@ def test_the_progress_bar_is_drawn_on_a_terminal_only(heading, monkeypatch, term
     run_log(heading, log, progress=True)
     drawn = sys.stderr.getvalue()
     assert ("400/400" in drawn and "row" in drawn) if terminal else "\r" not in drawn and "row/s" not in drawn
+
+
+def test_a_dataframe_s_column_names_are_read_as_a_file_s_header(heading):
+    """A DataFrame whose column names carry spaces (`` gyro [deg/s] ``, ``compass ``) had raised a
+    raw KeyError; its names are stripped as a CSV header's are, and a name that then repeats
+    another is refused as a duplicate."""
+    log, _ = heading_log(0, 0, n=500)
+    expected = run_log(heading, log).estimates["heading"].to_numpy()
+    spaced = log.assign(gyro=np.degrees(log["gyro"])).rename(columns={"gyro": " gyro [deg/s] ", "compass": "compass "})
+    assert np.allclose(run_log(heading, spaced).estimates["heading"], expected, rtol=0, atol=1e-12)
+    with pytest.raises(DataError, match=r"duplicate column\(s\) gyro"):
+        run_log(heading, log.assign(**{"gyro ": log["gyro"]}))

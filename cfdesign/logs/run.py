@@ -388,6 +388,8 @@ def _source(data, source, time=None):
         if time is None and not any(_time_name(c) for c in data.columns) and (
                 named or isinstance(index, pd.DatetimeIndex)):
             data = data.reset_index(names=str(index.name) if index.name is not None else "time")
+        if any(not isinstance(c, str) or c != c.strip() for c in data.columns):  # read as a file's header is
+            data = data.rename(columns=lambda c: str(c).strip())  # (' gyro [deg/s]' was a raw KeyError)
         return data, source or "log"
     return None, source or str(data)
 
