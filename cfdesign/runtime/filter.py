@@ -850,8 +850,8 @@ class Runtime:
     def _run_vectorised(self, u, y, states, read=None):
         """Blocked form of the recursion: block-boundary states by a doubling scan
         (:func:`_boundary_states`) of the lifted system ``x[(p+1)L] = A^L x[pL] + c[p]``, then
-        the ``L`` phases of every block at once, vectorised over the blocks (``L`` a multiple of the period).  The readings of the
-        quantity and the state run relative to the state's quantity at the start (the offset
+        the ``L`` phases of every block at once, vectorised over the blocks (``L`` a multiple of
+        the period).  The readings of the quantity and the state run relative to the state's quantity at the start (the offset
         direction of ``_offset_direction``), so the rounding scales with their spread over
         the stretch, not with their size.
 
