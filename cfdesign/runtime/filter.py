@@ -851,9 +851,9 @@ class Runtime:
         """Blocked form of the recursion: block-boundary states by a doubling scan
         (:func:`_boundary_states`) of the lifted system ``x[(p+1)L] = A^L x[pL] + c[p]``, then
         the ``L`` phases of every block at once, vectorised over the blocks (``L`` a multiple of
-        the period).  The readings of the quantity and the state run relative to the state's quantity at the start (the offset
-        direction of ``_offset_direction``), so the rounding scales with their spread over
-        the stretch, not with their size.
+        the period).  The readings of the quantity and the state run relative to the state's
+        quantity at the start (the offset direction of ``_offset_direction``), so the rounding
+        scales with their spread over the stretch, not with their size.
 
         ``read`` (angle tables): where the angle readings are; returns None, the runtime
         unchanged, when an angle innovation is not within pi there (:meth:`_run_regular`)."""
