@@ -136,8 +136,8 @@ class Innovations:
         """A note per sensor whose innovations are more than :data:`CONSISTENCY_RATIO` times their
         predicted std or less than its inverse, over :data:`CONSISTENCY_READINGS` readings at least;
         one too large is left to the note that already names the sensor (``named``: those whose
-        readings mostly lie far from the estimate, named by the run's note on them).  ``slips(table, name)`` names the unit mix-ups likely
-        for what the sensor reads."""
+        readings mostly lie far from the estimate, named by the run's note on them).
+        ``slips(table, name)`` names the unit mix-ups likely for what the sensor reads."""
         units = table.sensor_units()
         ratios, noise, out = self.ratios(), self.noise(), []
         for name, ratio in ratios.items():
