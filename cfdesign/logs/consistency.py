@@ -21,7 +21,6 @@ so the median is known to :data:`BIN_DECADES` of a decade of ``nu^2 / S``.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -180,11 +179,12 @@ def noise_shares(table) -> dict:
 
     n, m = len(table.F), len(table.measurements)
     mask, H = table.schedule.mask(), np.asarray(table.H, dtype=float)
-    out = {}
+    one, out = MissedReadings(table, "prior"), {}
+    one.Q = np.zeros((n, n))  # the table's gains without process noise ...
     for s in table.measurements:
-        R = np.zeros((m, m))
-        R[s.index, s.index] = 1.0
-        one = MissedReadings(dataclasses.replace(table, Q=np.zeros((n, n)), R=R), "prior")
+        one.R = np.zeros((m, m))  # this sensor's noise alone, unit variance
+        one.R[s.index, s.index] = 1.0
+        one._cache = {}
         ticks = [one._tick(k, mask[k]) for k in range(table.period)]  # P <- M P M' + N at each phase
         Phi, S = np.eye(n), np.zeros((n, n))
         for M, N, _, _ in ticks:

@@ -628,38 +628,60 @@ class _Runner:
         prediction of a tick is the output state of the one before moved on by the model with its
         held inputs, ``F x+ + B u`` (what every gain form runs), or the output itself when that is
         the prediction; the log's first tick has none."""
-        from ..runtime.filter import held, usable
+        from ..runtime.filter import usable
 
         table, N = self.table, len(out)
-        ins = table.inputs
-        u = np.column_stack([dense[s.name] for s in ins]) if ins else np.zeros((N, 0))
-        bad = ~usable(u)
-        u = held(u, bad, self.before[1] if self.before is not None else np.zeros(len(ins))) if bad.any() else u
-        before, self.before = self.before, (out[-1].copy(), u[-1].copy())
+        before = self.before
+        prior = before[1] if before is not None else np.zeros(len(table.inputs))  # the inputs held before
         if self.innovations is None:
+            self.before = (out[-1].copy(), self._held(dense, np.array([N - 1]), prior)[0])
             return
-        y = np.column_stack([dense[s.name] for s in table.measurements])
-        used = usable(y) & np.isfinite(hph)
-        at = np.flatnonzero(used.any(axis=1) & self.steady(first + np.arange(N), self.startup))
+        ms = table.measurements
+        read = np.zeros(N, dtype=bool)
+        for s in ms:
+            read |= ~np.isnan(dense[s.name])
+        at = np.flatnonzero(read)
+        y = np.column_stack([dense[s.name][at] for s in ms])
+        used = usable(y) & np.isfinite(hph[at])
+        keep = used.any(axis=1) & self.steady(first + at, self.startup)
+        if self.output != "prior" and before is None:
+            keep &= at > 0
+        at, y, used = at[keep], y[keep], used[keep]
+        u_in = self._held(dense, np.append(at - 1, N - 1), prior)
+        self.before = (out[-1].copy(), u_in[-1])
         if self.output == "prior":
             x = out[at]
         else:
-            if before is None:
-                at = at[at > 0]
-            prev = np.flatnonzero(at == 0)
-            x_out, u_in = out[at - 1], u[at - 1]
-            if prev.size:
-                x_out[prev], u_in[prev] = before
+            x_out, u_in = out[at - 1], u_in[:-1]
+            if at.size and at[0] == 0:
+                x_out[0], u_in[0] = before
             x = x_out @ np.asarray(table.F, dtype=float).T + u_in @ np.asarray(table.B, dtype=float).T
-        H = np.asarray(table.H, dtype=float)
-        nu = y[at] - x @ H.T
-        for i, s in enumerate(table.measurements):
+        nu = y - x @ np.asarray(table.H, dtype=float).T
+        for i, s in enumerate(ms):
             if table.wrap_angle and s.order == 0:
                 nu[:, i] = wrap(nu[:, i])
-        used = used[at]
         nu[~used] = 0.0
         v = np.where(used, hph[at], 0.0)
         self.innovations.add(nu, v + np.diag(np.asarray(table.R, dtype=float)), v, used)
+
+    def _held(self, dense, at, prior):
+        """``(len(at), p)``: the inputs of ``dense`` held as the runtime holds them (a missing or
+        rejected one is its last usable value; ``prior`` those held at the tick before ``dense``) at
+        the indices ``at`` (-1: that tick before)."""
+        from ..runtime.filter import usable
+
+        ins, out = self.table.inputs, np.empty((len(at), len(self.table.inputs)))
+        for j, s in enumerate(ins):
+            col = dense[s.name]
+            out[:, j] = col[np.maximum(at, 0)]
+            out[at < 0, j] = prior[j]
+            if usable(out[at >= 0, j]).all():  # each its own last usable value
+                continue
+            good = usable(col)
+            last = np.maximum.accumulate(np.where(good, np.arange(len(col)), -1))[np.maximum(at, 0)]
+            last[at < 0] = -1
+            out[:, j] = np.where(last >= 0, col[np.maximum(last, 0)], prior[j])
+        return out
 
     def settled(self, ticks, startup):
         """Whether each of ``ticks`` is after the start-up (``startup`` ticks) of the log and of the
