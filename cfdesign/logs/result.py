@@ -57,6 +57,23 @@ class LogResult:
         The pauses after which the first state started again from the first direct reading
         (it disagreed with the state carried over): their start-up is left out of
         ``rms_settled``; that of a pause carried over is not.
+    consistency : dict
+        ``{sensor: ratio}`` per measurement sensor read after the start-ups (of the log and of
+        every pause): how large its innovations (the reading less the one-step prediction, ``y - H
+        x``) are against their predicted std (``sqrt(H P H' + R)``: ``P`` the prior covariance of
+        the gains that ran, ``R`` the sensor's noise in the design file), robustly:
+        ``sqrt(median(nu^2 / S) / 0.4549)`` (0.4549 is the median of chi-square with one degree
+        of freedom; :mod:`cfdesign.logs.consistency`).  About 1 on a log that follows the design;
+        below 1/3 the design file over-states the sensor's noise (or gives it in other units:
+        degrees for radians, 57 times), above 3 the sensor is noisier than it says (a note
+        either way).  Empty for a table without a noise model.
+    consistency_rms : dict
+        ``{sensor: sqrt(mean(nu^2 / S))}``: the same, not robust (a few outliers raise it).
+    noise_estimate : dict
+        ``{sensor: std}`` in the sensor's unit: about its noise as the log has it, the
+        innovations' variance less the share the design predicts of the estimate's error in it
+        (:meth:`Innovations.noise <cfdesign.logs.consistency.Innovations.noise>`): a figure for
+        the design file where ``consistency`` is far from 1.
     """
 
     estimates: object
@@ -72,6 +89,9 @@ class LogResult:
     settled_samples: int = 0
     pauses: int = 0
     restarts: int = 0
+    consistency: dict = field(default_factory=dict)
+    consistency_rms: dict = field(default_factory=dict)
+    noise_estimate: dict = field(default_factory=dict)
 
     @property
     def without_gain(self) -> int:
@@ -88,8 +108,10 @@ class LogResult:
             (over every row), ``rms_settled_<state>`` (after the start-up, ``startup_s``) and
             ``predicted_std_<state>``, what the settled figure should come to for this log
             (``predicted_std``: missed readings and recomputed gains make it differ from log to log),
-            then ``notes``: the log's notes (what ``cfdesign run`` prints for one log: a cut last
-            line, offsets found, gains recomputed), joined by a vertical bar.
+            ``consistency_<sensor>`` for each measurement sensor read after the start-up
+            (``consistency``: 1 where the log follows the design's noise figures), then ``notes``:
+            the log's notes (what ``cfdesign run`` prints for one log: a cut last line, offsets
+            found, gains recomputed), joined by a vertical bar.
         """
         row = {"log": self.source, "samples": self.samples, "readings_not_used": self.without_gain}
         for k, v in self.rms.items():
@@ -97,5 +119,6 @@ class LogResult:
                         f"predicted_std_{k}": self.predicted_std.get(k, math.nan)})
         if self.rms:
             row["startup_s"] = self.startup_s
+        row.update({f"consistency_{k}": v for k, v in self.consistency.items()})
         row["notes"] = " | ".join(self.notes)
         return row

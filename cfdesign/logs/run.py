@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import itertools
 import math
 import numbers
@@ -30,6 +31,7 @@ from .columns import (
     _time_unit,
     _unit,
 )
+from .consistency import Innovations
 from .join import _Join, joined_header
 from .plot import plot_log
 from .read import (
@@ -196,13 +198,13 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         raise CfdesignError(f"start must be 'reading' or 'zero', got {start!r}")
     if plot is not None:  # before any work: a plot that cannot be written stops nothing half-way
         _check_plot_target(plot)
+    startup = _startup_ticks(table)
     runner = _Runner(table, lock, "prior" if prediction else None, start == "reading",
-                     covariances=bool(std or cols.references), first_reading=first)
+                     covariances=bool(std or cols.references), first_reading=first, startup=startup)
     if parquet and whole is not None:
         types = _arrow_types(whole[cols.extra])
     writer = _Writer(output, keep=output is None or plot is not None, types=types)
     place = _Pass(table, cols, source, grid=grid, rephased=rephased)  # ticks where the first pass put them
-    startup = _startup_ticks(table)
     far = {}  # sensor -> [readings far from the estimate, readings] (_far)
 
     def run_rows(block, values, ticks):
@@ -247,14 +249,25 @@ def run_log(table, data, *, output=None, time=None, mapping=None, reference=None
         cols, table, lock.rate_hz)
     notes += joined.notes() if joined is not None else []
     notes += cols.notes
-    notes += lock.notes + _far_note(far, table) + [n for n in [runner.start_note(table.sample_time_s),
-                                                        runner.pause_note(table.sample_time_s)] if n]
+    notes += lock.notes + _far_note(far, table)
+    if runner.innovations is not None:
+        notes += runner.innovations.notes(table, _unit_slips, named=_far_names(far))
+    notes += [n for n in [runner.start_note(table.sample_time_s), runner.pause_note(table.sample_time_s)] if n]
     settled, predicted = writer.settled()
     notes += _model_note(*writer.steady(), writer.steady_rows, startup)
     return LogResult(est if output is None else None, n_rows, _rms(writer.errors), runner.counts, notes,
                      Path(output) if output else None, source, settled, predicted,
                      startup * table.sample_time_s if cols.references else math.nan, writer.settled_rows,
-                     len(runner.pauses), len(runner.restarts) - (runner.start_tick is not None))
+                     len(runner.pauses), len(runner.restarts) - (runner.start_tick is not None),
+                     *_consistency(runner.innovations))
+
+
+def _consistency(innovations) -> tuple:
+    """``(consistency, consistency_rms, noise_estimate)`` of :class:`LogResult` from the run's
+    :class:`~cfdesign.logs.consistency.Innovations` (empty without a noise model)."""
+    if innovations is None:
+        return {}, {}, {}
+    return innovations.ratios(), innovations.rms_ratios(), innovations.noise()
 
 
 def _check_bounded(table, states, ticks, source):
@@ -302,6 +315,11 @@ def _far(table, readings, states, stds, counts):
         c[1] += int(ok.sum())
         c[2] += float(np.sum(r ** 2))
         c[3] += float(np.sum(var))
+
+
+def _far_names(counts) -> set:
+    """The sensors :func:`_far_note` names."""
+    return {name for name, (far, n, _, _) in counts.items() if n and far > FAR_SHARE * n}
 
 
 def _far_note(counts, table) -> list:
@@ -491,7 +509,7 @@ RESTART_GATE = 3.0
 class _Runner:
     """Runs the blocks of ticks through the table (or its re-locked variants), state carried."""
 
-    def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None):
+    def __init__(self, table, lock, output, from_reading=True, covariances=False, first_reading=None, startup=0):
         from ..runtime import Runtime
         from ..timing import PAUSE_TICKS
 
@@ -517,6 +535,9 @@ class _Runner:
         # before it move onto it, as after a pause (nearer, it is the start, a few ticks' turn off)
         self.late_start = bool(from_reading and first_reading and first_reading[0] > PAUSE_TICKS)
         self.start_tick = None  # and the tick of that reading, once run
+        self.startup = startup  # ticks of a start-up: the innovations of those after one are checked
+        self.innovations = Innovations(table) if table.R is not None else None
+        self.before = None  # (output state, held inputs) of the tick before next_tick (:meth:`_innovate`)
 
     def _runtime(self, seg):
         key = (seg.rotation, seg.offsets) if seg.offsets else ("rotation",)
@@ -589,7 +610,8 @@ class _Runner:
                 part = {name: v[a - first:b - first] for name, v in dense.items()}
                 parts.append(self._run_arrivals(part, a, b - 1) if self.lock.varying
                              else self._run_segments(part, a, b - 1))
-        out, phases, stds = (np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        out, phases, stds, hph = (np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+        self._innovate(dense, out, hph, first)
         F = self.table.F
         if np.array_equal(F[:, 0], np.eye(len(F))[0]):  # state 0 feeds no other state: a shift of it stays
             for e, r, delta, std in shifts:  # the ticks from the pause's end to the reading, moved onto it
@@ -600,6 +622,68 @@ class _Runner:
         self.next_tick = last + 1
         self.last_out, self.last_phase, self.last_std = out[-1].copy(), phases[-1], stds[-1].copy()
         return out[ticks - first], phases[ticks - first], stds[ticks - first]
+
+    def _innovate(self, dense, out, hph, first):
+        """Add the innovations of ticks ``first..`` (``dense``'s readings, ``out`` the output states,
+        ``hph`` the prior ``H P H'`` of the gains that ran, NaN where they use no reading) after the
+        start-up of the log and of every pause (:meth:`steady`) to :attr:`innovations`.  The
+        prediction of a tick is the output state of the one before moved on by the model with its
+        held inputs, ``F x+ + B u`` (what every gain form runs), or the output itself when that is
+        the prediction; the log's first tick has none."""
+        from ..runtime.filter import usable
+
+        table, N = self.table, len(out)
+        before = self.before
+        prior = before[1] if before is not None else np.zeros(len(table.inputs))  # the inputs held before
+        if self.innovations is None:
+            self.before = (out[-1].copy(), self._held(dense, np.array([N - 1]), prior)[0])
+            return
+        ms = table.measurements
+        read = np.zeros(N, dtype=bool)
+        for s in ms:
+            read |= ~np.isnan(dense[s.name])
+        at = np.flatnonzero(read)
+        y = np.column_stack([dense[s.name][at] for s in ms])
+        used = usable(y) & np.isfinite(hph[at])
+        keep = used.any(axis=1) & self.steady(first + at, self.startup)
+        if self.output != "prior" and before is None:
+            keep &= at > 0
+        at, y, used = at[keep], y[keep], used[keep]
+        u_in = self._held(dense, np.append(at - 1, N - 1), prior)
+        self.before = (out[-1].copy(), u_in[-1])
+        if self.output == "prior":
+            x = out[at]
+        else:
+            x_out, u_in = out[at - 1], u_in[:-1]
+            if at.size and at[0] == 0:
+                x_out[0], u_in[0] = before
+            x = x_out @ np.asarray(table.F, dtype=float).T + u_in @ np.asarray(table.B, dtype=float).T
+        nu = y - x @ np.asarray(table.H, dtype=float).T
+        for i, s in enumerate(ms):
+            if table.wrap_angle and s.order == 0:
+                nu[:, i] = wrap(nu[:, i])
+        nu[~used] = 0.0
+        v = np.where(used, hph[at], 0.0)
+        self.innovations.add(nu, v + np.diag(np.asarray(table.R, dtype=float)), v, used)
+
+    def _held(self, dense, at, prior):
+        """``(len(at), p)``: the inputs of ``dense`` held as the runtime holds them (a missing or
+        rejected one is its last usable value; ``prior`` those held at the tick before ``dense``) at
+        the indices ``at`` (-1: that tick before)."""
+        from ..runtime.filter import usable
+
+        ins, out = self.table.inputs, np.empty((len(at), len(self.table.inputs)))
+        for j, s in enumerate(ins):
+            col = dense[s.name]
+            out[:, j] = col[np.maximum(at, 0)]
+            out[at < 0, j] = prior[j]
+            if usable(out[at >= 0, j]).all():  # each its own last usable value
+                continue
+            good = usable(col)
+            last = np.maximum.accumulate(np.where(good, np.arange(len(col)), -1))[np.maximum(at, 0)]
+            last[at < 0] = -1
+            out[:, j] = np.where(last >= 0, col[np.maximum(last, 0)], prior[j])
+        return out
 
     def settled(self, ticks, startup):
         """Whether each of ``ticks`` is after the start-up (``startup`` ticks) of the log and of the
@@ -771,17 +855,15 @@ class _Runner:
         """Ticks ``first..last`` through the Kalman filter over the actual arrivals
         (:class:`~cfdesign.runtime.arrivals.ArrivalKalman`), its state carried between blocks."""
         if not hasattr(self, "_arrivals"):
-            from ..runtime.arrivals import ArrivalKalman
-
-            self._arrivals = ArrivalKalman(self.table, self.output, self.x)
+            self._arrivals = _kalman()(self.table, self.output, self.x)
         kf = self._arrivals
         N = last - first + 1
         u = np.column_stack([dense[s.name] for s in self.table.inputs]) if self.table.inputs else np.zeros((N, 0))
         y = np.column_stack([dense[s.name] for s in self.table.measurements])
         kf.counts = {}
-        out, stds = kf.run(u, y)
+        out, stds, hph = kf.run_priors(u, y)
         _merge(self.counts, kf.counts)
-        return out, np.arange(first, last + 1) % self.table.period, stds
+        return out, np.arange(first, last + 1) % self.table.period, stds, hph
 
     def _run_segments(self, dense, first, last):
         """Ticks ``first..last`` through the table's segments (:class:`~cfdesign.timing.Lock`)."""
@@ -789,6 +871,7 @@ class _Runner:
         out = np.empty((last - first + 1, n))
         phases = np.empty(last - first + 1, dtype=np.int64)
         stds = np.empty((last - first + 1, n))
+        hph = np.empty((last - first + 1, len(self.table.measurements)))
         for seg in self.lock.segments:
             a, b = max(seg.start, first), min(seg.stop, last + 1)
             if a >= b:
@@ -801,17 +884,19 @@ class _Runner:
             part = {k: v[a - first:b - first] for k, v in dense.items()}
             phases[a - first:b - first] = (rt.phase + np.arange(b - a)) % rt.period
             if self.kalman:
-                out[a - first:b - first], stds[a - first:b - first] = self._run_bridged(rt, part)
+                out[a - first:b - first], stds[a - first:b - first], hph[a - first:b - first] = \
+                    self._run_bridged(rt, part)
             else:
                 _, xs = rt.run(part, states=True)
                 out[a - first:b - first] = xs
                 stds[a - first:b - first] = self._std(rt)[phases[a - first:b - first]]
+                hph[a - first:b - first] = self._hph(rt)[phases[a - first:b - first]]
                 if self.covariances:
                     stds[a - first:b - first] = self._missed(rt, part, phases[a - first:b - first],
                                                              stds[a - first:b - first])
             self.x, self.u_last = rt.x.copy(), rt.u_last.copy()
             _merge(self.counts, rt.counts)
-        return out, phases, stds
+        return out, phases, stds, hph
 
     def _run_bridged(self, rt, part):
         """A segment of a table with Kalman gains: its own (vectorised) gains wherever every
@@ -823,9 +908,10 @@ class _Runner:
         small gain on the readings that came back (or, with a sensor gone, on the one left) -
         1.27 times the RMS error of the Kalman filter over the same readings on the log of
         ``tests/test_logs.py`` whose odometry drops out and stops (docs/logs.md).  Returns the
-        output states and their predicted standard deviations; the bridging filter is carried
-        from segment to segment and block to block."""
-        from ..runtime.arrivals import ArrivalKalman, MissedReadings
+        output states, their predicted standard deviations and the prior ``H P H'`` of each
+        reading (:meth:`_hph`); the bridging filter is carried from segment to segment and block to
+        block."""
+        from ..runtime.arrivals import MissedReadings
         from ..runtime.filter import usable
 
         table, N, n = rt.table, len(next(iter(part.values()))), rt.table.F.shape[0]
@@ -833,8 +919,8 @@ class _Runner:
         ms = table.measurements
         present = np.column_stack([usable(part[s.name]) for s in ms])
         missed = (table.schedule.mask()[phases] & ~present).any(axis=1)
-        std = self._std(rt)
-        out, stds = np.empty((N, n)), np.empty((N, n))
+        std, var = self._std(rt), self._hph(rt)
+        out, stds, hph = np.empty((N, n)), np.empty((N, n)), np.empty((N, len(ms)))
         every = rt.period * -(-16 // rt.period)  # the covariance compared with the table's every whole period
         if self.bridge is not None:  # carried on from the last call, with the state as it was left (or restarted)
             self.bridge.x, self.bridge.u_last = rt.x.copy(), rt.u_last.copy()
@@ -845,23 +931,23 @@ class _Runner:
                 m = i + int(np.argmax(missed[i:])) if missed[i:].any() else N
                 if m > i:
                     _, out[i:m] = rt.run({k: v[i:m] for k, v in part.items()}, states=True)
-                    stds[i:m] = std[phases[i:m]]
+                    stds[i:m], hph[i:m] = std[phases[i:m]], var[phases[i:m]]
                 if m == N:
                     break
-                kf = self.bridge = ArrivalKalman(table, rt.output, rt.x)
+                kf = self.bridge = _kalman()(table, rt.output, rt.x)
                 kf.P, kf.u_last = np.array(table.P[phases[m]], dtype=float), rt.u_last.copy()
                 i = m
             j = min(N, i + every)
             u = np.column_stack([part[s.name][i:j] for s in table.inputs]) if table.inputs else np.zeros((j - i, 0))
             kf.counts = {}
-            out[i:j], stds[i:j] = kf.run(u, np.column_stack([part[s.name][i:j] for s in ms]))
+            out[i:j], stds[i:j], hph[i:j] = kf.run_priors(u, np.column_stack([part[s.name][i:j] for s in ms]))
             _merge(self.counts, kf.counts)
             rt.x, rt.u_last, rt.phase = kf.x.copy(), kf.u_last.copy(), int((phases[j - 1] + 1) % rt.period)
             ref = np.asarray(table.P[rt.phase], dtype=float)
             if not missed[i:j].any() and np.max(np.abs(kf.P - ref)) <= MissedReadings.RTOL * np.max(np.diag(ref)):
                 self.bridge = None  # back on the table's gains
             i = j
-        return out, stds
+        return out, stds, hph
 
     def _missed(self, rt, part, phases, base):
         """``base`` (the table's standard deviations) where every scheduled reading was present;
@@ -891,6 +977,18 @@ class _Runner:
             rt._log_std = np.sqrt(np.maximum(np.array([np.diag(P) for P in covs]), 0.0))
         return rt._log_std
 
+    def _hph(self, rt):
+        """``(period, m)``: ``H P H'`` of every measurement row at each phase of ``rt``'s table (its
+        prior covariance ``P``), NaN where the table has no gain for it.  Where readings were missed,
+        a table without Kalman gains keeps this figure (its grown covariance is not followed here:
+        the few readings after an outage weigh little in a median)."""
+        if not hasattr(rt, "_log_hph"):
+            t = rt.table
+            H = np.asarray(t.H, dtype=float)
+            var = np.einsum("ij,pjk,ik->pi", H, np.asarray(t.P, dtype=float), H)
+            rt._log_hph = np.where(t.schedule.mask(), var, np.nan)
+        return rt._log_hph
+
     def _start(self, dense):
         """The quantity from the first reading of a sensor whose row of H picks it (state 0): the
         log's (``first_reading``, found by the first pass over every block) or, without it, the
@@ -915,6 +1013,37 @@ class _Runner:
                 _merge(self.counts, {"same_tick": {name: twice}})
             dense[name] = arr
         return dense
+
+
+@functools.cache
+def _kalman():
+    """:class:`~cfdesign.runtime.arrivals.ArrivalKalman` that also gives the prior ``H P H'`` of
+    every reading it uses (``run_priors``): the innovation check of the ticks it runs."""
+    from ..runtime.arrivals import ArrivalKalman
+
+    class _Kalman(ArrivalKalman):
+        def __init__(self, table, output=None, x0=None):
+            super().__init__(table, output, x0)
+            self.priors = []
+
+        def _update(self, x, P, y, rows):
+            self.priors.append(((self.H @ P) * self.H).sum(axis=1))
+            return super()._update(x, P, y, rows)
+
+        def run_priors(self, u, y):
+            """:meth:`run`, and ``(N, m)`` ``H P H'`` of the prior at each tick that reads
+            (NaN elsewhere)."""
+            from ..runtime.filter import usable
+
+            self.priors = []
+            states, stds = self.run(u, y)
+            hph = np.full(np.shape(y), np.nan)
+            read = np.flatnonzero(usable(y).any(axis=1))
+            if len(read) == len(self.priors) and len(read):  # else no check of these ticks
+                hph[read] = np.array(self.priors)
+            return states, stds, hph
+
+    return _Kalman
 
 
 def _after(ticks, startup, starts):
