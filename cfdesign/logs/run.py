@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
 import itertools
 import math
 import numbers
@@ -861,7 +860,7 @@ class _Runner:
         u = np.column_stack([dense[s.name] for s in self.table.inputs]) if self.table.inputs else np.zeros((N, 0))
         y = np.column_stack([dense[s.name] for s in self.table.measurements])
         kf.counts = {}
-        out, stds, hph = kf.run_priors(u, y)
+        out, stds, hph = kf.run(u, y, priors=True)
         _merge(self.counts, kf.counts)
         return out, np.arange(first, last + 1) % self.table.period, stds, hph
 
@@ -940,7 +939,7 @@ class _Runner:
             j = min(N, i + every)
             u = np.column_stack([part[s.name][i:j] for s in table.inputs]) if table.inputs else np.zeros((j - i, 0))
             kf.counts = {}
-            out[i:j], stds[i:j], hph[i:j] = kf.run_priors(u, np.column_stack([part[s.name][i:j] for s in ms]))
+            out[i:j], stds[i:j], hph[i:j] = kf.run(u, np.column_stack([part[s.name][i:j] for s in ms]), priors=True)
             _merge(self.counts, kf.counts)
             rt.x, rt.u_last, rt.phase = kf.x.copy(), kf.u_last.copy(), int((phases[j - 1] + 1) % rt.period)
             ref = np.asarray(table.P[rt.phase], dtype=float)
@@ -1015,35 +1014,11 @@ class _Runner:
         return dense
 
 
-@functools.cache
 def _kalman():
-    """:class:`~cfdesign.runtime.arrivals.ArrivalKalman` that also gives the prior ``H P H'`` of
-    every reading it uses (``run_priors``): the innovation check of the ticks it runs."""
+    """:class:`~cfdesign.runtime.arrivals.ArrivalKalman` (imported when a log needs it)."""
     from ..runtime.arrivals import ArrivalKalman
 
-    class _Kalman(ArrivalKalman):
-        def __init__(self, table, output=None, x0=None):
-            super().__init__(table, output, x0)
-            self.priors = []
-
-        def _update(self, x, P, y, rows):
-            self.priors.append(((self.H @ P) * self.H).sum(axis=1))
-            return super()._update(x, P, y, rows)
-
-        def run_priors(self, u, y):
-            """:meth:`run`, and ``(N, m)`` ``H P H'`` of the prior at each tick that reads
-            (NaN elsewhere)."""
-            from ..runtime.filter import usable
-
-            self.priors = []
-            states, stds = self.run(u, y)
-            hph = np.full(np.shape(y), np.nan)
-            read = np.flatnonzero(usable(y).any(axis=1))
-            if len(read) == len(self.priors) and len(read):  # else no check of these ticks
-                hph[read] = np.array(self.priors)
-            return states, stds, hph
-
-    return _Kalman
+    return ArrivalKalman
 
 
 def _after(ticks, startup, starts):

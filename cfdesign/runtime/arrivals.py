@@ -144,7 +144,7 @@ class ArrivalKalman:
         states, _ = self.run(np.array([row[:p]]).reshape(1, p), np.array([row[p:]]).reshape(1, -1))
         return float(states[0, 0])
 
-    def run(self, u, y):
+    def run(self, u, y, *, priors=False):
         """Run the ticks of ``u`` (inputs, NaN where missing) and ``y`` (readings, NaN where none).
 
         Parameters
@@ -153,6 +153,10 @@ class ArrivalKalman:
             Inputs per tick, in the order of the table's inputs.
         y : ndarray, shape (N, m)
             Measurements per tick, in the order of the table's measurements.
+        priors : bool
+            Also return the prior variance of every measurement at the ticks that read, the
+            ``H P H'`` of the innovation's predicted variance ``H P H' + R`` (an innovation
+            consistency check: :mod:`cfdesign.logs.consistency`).
 
         Returns
         -------
@@ -160,6 +164,9 @@ class ArrivalKalman:
             The output state of every tick.
         stds : ndarray, shape (N, n)
             The predicted standard deviation of every state of the output, per tick.
+        hph : ndarray, shape (N, m)
+            Only with ``priors=True``: the diagonal of ``H P H'`` of the prior at each tick that
+            reads (NaN at the others).
 
         Raises
         ------
@@ -171,10 +178,13 @@ class ArrivalKalman:
         states, stds = np.empty((N, self.n)), np.empty((N, self.n))
         seen = ~np.isnan(y)
         read = np.flatnonzero(seen.any(axis=1)).tolist()
+        hph = np.full(y.shape, np.nan) if priors else None
         x, P = self.x, self.P
         if not read or read[0]:  # the ticks before the first reading
             x, P = self._coast(x, P, u[:read[0] if read else N], states, stds)
         for e, end in zip(read, [*read[1:], N][:len(read)], strict=True):  # a tick that reads, those up to the next
+            if hph is not None:
+                hph[e] = ((self.H @ P) * self.H).sum(axis=1)
             x_post, P_post = self._update(x, P, y[e], seen[e])
             x_next, P_next = self._coast(x_post, P_post, u[e:end], states[e:end], stds[e:end])
             if not self.posterior:
@@ -185,7 +195,7 @@ class ArrivalKalman:
         self.x, self.P = x, 0.5 * (P + P.T)
         if N:
             self.u_last = u[-1].copy()
-        return states, stds
+        return (states, stds, hph) if priors else (states, stds)
 
     def _coast(self, x, P, u, states, stds):
         """Ticks from one with state ``x`` and covariance ``P`` (after its readings) on, with inputs
