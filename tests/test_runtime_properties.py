@@ -22,7 +22,7 @@ from cfdesign.spec import parse_spec
 from cfdesign.timing import _pattern, rotation
 
 KINDS = ("aligned", "common", "own", "jitter", "dropout", "silent", "held")
-FEW = settings(max_examples=12, derandomize=True, deadline=None, database=None)
+FEW = settings(max_examples=8, derandomize=True, deadline=None, database=None)
 
 
 def position_spec(imu_hz, gps_hz):
