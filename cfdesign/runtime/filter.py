@@ -357,8 +357,7 @@ class Runtime:
         self._lock = PhaseLock(table, self._S, self._uns, self._on, lock, warn)
         self.lock = self._lock.enabled
         self.step, self._step_values, self.step_source = compile_step(
-            table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown,
-            self._on, self._lock.unscheduled)
+            table, self.output, READING_LIMIT, self._S, self._U, self._rej, self._uns, self._unknown, self._lock)
         self.reset()
 
     def _unknown(self, readings):
@@ -524,7 +523,9 @@ class Runtime:
         step for the three-sensor heading filter.  A reading at a phase without a gain calls
         the lock (:class:`~cfdesign.runtime.lock.PhaseLock`), which may move :attr:`phase` and run
         the step again there; phase-aligned readings never do, so they cost and give what
-        ``lock=False`` and the generated C do.
+        ``lock=False`` and the generated C do.  A repeat of a value held and given every tick,
+        refused by the lock as faster than designed once warned of, the step counts itself by one
+        comparison of ticks, as the lock would.
         """
         raise NotImplementedError  # replaced per table in __init__ (cfdesign.runtime.step)
 

@@ -15,11 +15,14 @@ sensor, naming :class:`~cfdesign.runtime.arrivals.ArrivalKalman`, the filter tha
 reading as it arrives.
 
 Steps of phase-aligned readings never call it: their cost and numbers are those of the fixed
-schedule (and of the generated C, which has no lock: ``docs/guide/c-export.md``).
+schedule (and of the generated C, which has no lock: ``docs/guide/c-export.md``).  Nor do the
+repeats of a value held and given every tick once the sensor has been warned of: the step refuses
+a reading before :attr:`PhaseLock.soon` (faster than designed) and counts it as the rule does.
 """
 
 from __future__ import annotations
 
+import math
 import numbers
 import warnings
 
@@ -68,17 +71,24 @@ class PhaseLock:
         self.phases = [set(ph.tolist()) for ph, _ in patterns]
         self.steps = {name: step for name, (_, step) in zip(self.names, patterns, strict=True)}
         self.spacing = [self.period / max(len(ph), 1) for ph, _ in patterns]  # ticks between readings
+        #: ticks after its last usable reading from which a sensor's reading is not faster than designed
+        self.half = [math.ceil(s / 2) for s in self.spacing]
         self.enabled = bool(enabled) and self.period > 1
         self.warned = set() if warn else set(self.names)  # no warning: as if each sensor had had its one
         #: the frames from the warning to the user's call: ``step`` (``Runtime.run`` sets it while it steps)
         self.stacklevel = 4
         self.last = [None] * len(self.names)
+        #: per sensor, the tick before which its reading is refused as faster than designed with nothing
+        #: to say (warned of already): the compiled step counts those itself, without :meth:`unscheduled`
+        #: (-inf: none known; at most its last usable reading's tick + ``half``, the rule's first test)
+        self.soon = [-math.inf] * len(self.names)
         self.reset()
 
     def reset(self):
         """No reading seen: every sensor free to be placed."""
         self.ON[:] = [None] * len(self.ON)
         self.last[:] = [None] * len(self.names)  # tick of each sensor's last reading without a gain
+        self.soon[:] = [-math.inf] * len(self.names)
 
     def tick(self) -> int:
         """The tick of the next step.
@@ -98,7 +108,7 @@ class PhaseLock:
         old, new : int
             The phase before and after.
         """
-        for held in (self.ON, self.last):
+        for held in (self.ON, self.last, self.soon):
             held[:] = [None if t is None else t + new - old for t in held]
 
     # ------------------------------------------------------------------ the rule
@@ -125,6 +135,8 @@ class PhaseLock:
             self.UNS[i] += 1
             if self.names[i] not in self.warned:  # the reason is worded only for the one warning
                 self.warn(i, phase, why(), self.stacklevel)
+            if self.enabled:  # a reading of it before this is refused by the rule's first test
+                self.soon[i] = tick + self.half[i]
             return -1
         self.moved(phase, new)
         self.S[self.n] = new
@@ -176,7 +188,7 @@ class PhaseLock:
         ndarray of bool, shape (N, m)
             Readings refused as faster (False where there is none).
         """
-        return self.gaps(finite) < 0.5 * np.array(self.spacing)  # the first test of _placed, for every reading
+        return self.gaps(finite) < np.array(self.half)  # the first test of _placed, for every reading
 
     def gaps(self, finite):
         """Ticks from each usable reading back to the sensor's last one (inf for its first).
@@ -207,7 +219,7 @@ class PhaseLock:
         name = self.names[i]
         on_tick, last = self.ON[i], self.last[i]
         before = on_tick if last is None else last if on_tick is None else max(on_tick, last)
-        if before is not None and tick - before < self.spacing[i] / 2:
+        if before is not None and tick - before < self.half[i]:  # (whole ticks: less than half the spacing)
             return (lambda: self.too_soon(i, tick - before)), None
         on = {self.names[j]: 0 for j, t in enumerate(self.ON)
               if t is not None and j != i and tick - t <= LOCK_STALE_READINGS * self.spacing[j]}
@@ -297,6 +309,10 @@ class PhaseLock:
         now = self.tick()
         for key, held in (("on", self.ON), ("off", self.last)):
             held[:] = [now - int(ages[key][n]) if n in ages[key] else None for n in self.names]
+        for i, name in enumerate(self.names):
+            before = [t for t in (self.ON[i], self.last[i]) if t is not None]
+            known = self.enabled and before and name in self.warned
+            self.soon[i] = max(before) + self.half[i] if known else -math.inf
 
     def ran(self, before: dict, ticks: int, read: dict):
         """Go on after steps of the batch path (``Runtime.run``, which sets the phase as it goes).

@@ -119,7 +119,7 @@ def _compiled(source: str, filename: str):
     return compile(source, filename, "exec")
 
 
-def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, lock):
+def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, lock):
     """The streaming step of one table as straight-line Python, bound to the state lists given.
 
     ``step(sensor=value, ...)`` takes the readings by the sensors' names (a sensor left out has
@@ -146,18 +146,20 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
         missing), inputs then measurements.
     UNS : list of int
         Per-measurement counters of readings at a phase the schedule does not read (``lock``
-        counts them).
+        counts them, and the step those it refuses as faster than designed).
     unknown : callable
         Called with the unknown keyword readings; it raises.
-    ON : list
-        Per measurement, set to the tick of a reading of it that has a gain (multirate tables:
-        ``S[n + 1] * period + phase``).
-    lock : callable
-        ``lock(i, phase)`` for a usable reading of measurement ``i`` at a phase without a gain
-        for it (:meth:`cfdesign.runtime.lock.PhaseLock.unscheduled`): the phase to run the step at
-        instead (it has set it; the step runs again there with the readings as received, those of
-        earlier rows it refused or rejected as missing: each reading is used or counted once), or -1
-        (it has counted the reading).
+    lock : PhaseLock
+        The runtime's :class:`~cfdesign.runtime.lock.PhaseLock` over ``S`` and ``UNS``.  The step
+        sets ``lock.ON[i]`` to the tick of a reading of measurement ``i`` that has a gain
+        (multirate tables: ``S[n + 1] * period + phase``).  A usable reading at a phase without a
+        gain for it, at a tick before ``lock.soon[i]`` (faster than designed, warned of already),
+        the step counts as :meth:`~cfdesign.runtime.lock.PhaseLock.unscheduled` would refuse it
+        (``ON[i]`` None, ``last[i]`` and ``soon[i]`` moved on); any other it passes to
+        ``lock.unscheduled(i, phase)``: the phase to run the step at instead (it has set it; the
+        step runs again there with the readings as received, those of earlier rows it refused or
+        rejected as missing: each reading is used or counted once), or -1 (it has counted the
+        reading).
 
     Returns
     -------
@@ -206,7 +208,8 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
         taken.add(name)
         return name
 
-    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "ON", "LOCK", "ph2", "step_values", "WRAP", "NAN",
+    N = {key: fresh(key) for key in ("S", "U", "REJ", "UNS", "ON", "LAST", "SOON", "LOCK", "ph2", "tick",
+                                     "step_values", "WRAP", "NAN",
                                      "UNKNOWN", "KP", "LP",
                                      "AC", "K", "A", "L", "ph", "est", "unknown", "make", "AS_FLOAT", "REALS",
                                      "type", "float", "OverflowError")}
@@ -272,13 +275,22 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
             if not single:  # no gain at this phase: the lock moves the phase and steps again, or counts it
                 add(f"            {N['ON']}[{i}] = {S_}[{n + 1}] * {P} + {ph}")  # the tick of its reading
                 add("        else:")
-                add(f"            {N['ph2']} = {N['LOCK']}({i}, {ph})")
-                add(f"            if {N['ph2']} >= 0:")
+                # a value held and repeated (faster than designed, warned of): counted as the lock refuses it
+                tick = N["tick"]
+                add(f"            {tick} = {S_}[{n + 1}] * {P} + {ph}")
+                add(f"            if {tick} < {N['SOON']}[{i}]:")
+                add(f"                {N['ON']}[{i}] = None")
+                add(f"                {N['LAST']}[{i}] = {tick}")
+                add(f"                {UNS_}[{i}] += 1")
+                add(f"                {N['SOON']}[{i}] = {tick} + {int(lock.half[i])}")
+                add("            else:")
+                add(f"                {N['ph2']} = {N['LOCK']}({i}, {ph})")
+                add(f"                if {N['ph2']} >= 0:")
                 # the readings as received, those before row i already counted here as NaN: rejected
                 # (not ok) or refused by the lock (no gain at this phase: a reading used at the new
                 # phase as well would be counted and used, one refused again counted twice)
                 again = us + [f"({ys[j]} if {oks[p + j]} and {A_}[{j}] else {N['NAN']})" for j in range(i)] + ys[i:]
-                add(f"                return {N['step_values']}({', '.join(again)})")
+                add(f"                    return {N['step_values']}({', '.join(again)})")
         add(f"    elif {ys[i]} == {ys[i]}:")
         add(f"        {REJ_}[{p + i}] += 1")
     if posterior:
@@ -320,7 +332,7 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
     keywords = ", ".join(f"{name}={N['NAN']}" for name in names)
     rename = "".join(f"        {v} = {name}\n" for v, name in zip(us + ys, names, strict=True))
     unknown_ = N["unknown"]
-    source = (f"def {N['make']}({S_}, {U_}, {REJ_}, {UNS_}, {N['ON']}, {N['LOCK']}):\n"
+    source = (f"def {N['make']}({S_}, {U_}, {REJ_}, {UNS_}, {N['ON']}, {N['LAST']}, {N['SOON']}, {N['LOCK']}):\n"
               f"    def step({keywords + ', ' if names else ''}**{unknown_}):\n"
               f"        if {unknown_}:\n            {N['UNKNOWN']}({unknown_})\n{rename}{body}\n"
               f"    def {N['step_values']}({', '.join(us + ys)}):\n{body}\n"
@@ -342,5 +354,5 @@ def compile_step(table, output: str, limit: float, S, U, REJ, UNS, unknown, ON, 
     filename = f"<cfdesign step of a {n}-state table>"
     code = _compiled(source, filename) if len(source) <= _CACHED_SOURCE else compile(source, filename, "exec")
     exec(code, namespace)
-    step, step_values = namespace[N["make"]](S, U, REJ, UNS, ON, lock)
+    step, step_values = namespace[N["make"]](S, U, REJ, UNS, lock.ON, lock.last, lock.soon, lock.unscheduled)
     return step, step_values, source
