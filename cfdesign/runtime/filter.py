@@ -599,7 +599,7 @@ class Runtime:
         the phase (with ``lock=False``; or faster than designed: a value held and repeated every
         tick, each repeat less than half the sensor's spacing after the last) stay on the
         vectorised paths, counted and warned of as :meth:`step` does (the steps would refuse them
-        one by one, at 1.5 us a step against 0.65).
+        one by one, at 0.75 us a step against 0.65).
 
         Parameters
         ----------
