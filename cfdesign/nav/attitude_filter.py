@@ -1592,7 +1592,10 @@ def _lagged(a, v, x, T, k1, k2, carry) -> tuple:
     a += T * x
     v = carry * v + T * a
     c = k2 * v
-    return _clip(a - c, STATE_LIMIT), _clip(v - k1 * v, STATE_LIMIT), _clip(c / T, 1.0)
+    a, v, m = a - c, v - k1 * v, c / T
+    if -STATE_LIMIT <= a <= STATE_LIMIT and -STATE_LIMIT <= v <= STATE_LIMIT and -1.0 <= m <= 1.0:
+        return a, v, m                                  # the common case, without the three calls
+    return _clip(a, STATE_LIMIT), _clip(v, STATE_LIMIT), _clip(m, 1.0)
 
 
 def _clip(x, limit) -> float:
