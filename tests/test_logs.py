@@ -513,6 +513,19 @@ def test_a_column_in_a_unit_of_another_quantity_is_refused(heading):
 
 
 
+def test_a_sensor_s_own_clock_after_an_underscore_is_no_unit_of_its_readings(heading):
+    """``compass_us`` (the compass's own timestamp in us) with no ``compass`` column had been taken as the
+    compass in microseconds and refused as not radians; it is a missing compass, and mapped it is read as it
+    is, without a note on units (a unit after an underscore is a time column's only)."""
+    log, _ = heading_log(0, 0, n=300)
+    clock = log.rename(columns={"compass": "compass_us"})
+    with pytest.raises(DataError, match=r"missing column\(s\) compass \(columns: .*compass_us"):
+        run_log(heading, clock)
+    mapped = run_log(heading, clock, mapping={"compass": "compass_us"})
+    assert not any("compass_us" in n for n in mapped.notes), mapped.notes
+    assert mapped.estimates["heading"].to_numpy() == pytest.approx(run_log(heading, log).estimates["heading"], abs=0)
+
+
 def test_a_column_by_its_unit_is_taken_only_where_it_can_be_converted(heading):
     """A column named with a unit is the sensor's only where cfdesign converts it: a table whose state
     names do not tell what its gyro reads took ``gyro [deg/s]`` and ran it as it is, 57 times too fast

@@ -144,7 +144,14 @@ def _columns(table, header, source, time=None, mapping=None, reference=None, tim
 
 def _named(sensor, header) -> list:
     """The columns of ``header`` named ``sensor`` (in any case) with a unit: ``gyro [deg/s]``, ``Gyro (dps)``."""
-    return [h for h in header if _unit(h)[1] is not None and str(_unit(h)[0]).lower() == sensor.lower()]
+    return [h for h in header if _bracket_unit(h) is not None and str(_unit(h)[0]).lower() == sensor.lower()]
+
+
+def _bracket_unit(name):
+    """The unit a column's name gives in brackets (``gyro [deg/s]``, ``gyro (dps)``), or None: a unit of time
+    after an underscore (:func:`~cfdesign.logs.columns._unit`'s ``time_ms``) names a time column's only (a GPS's
+    own clock ``gps_us`` had been taken for the GPS's readings in microseconds, and refused as not metres)."""
+    return _unit(name)[1] if str(name).strip().endswith(("]", ")")) else None
 
 
 def sensor_column(sensor, header, reads, time=None):
@@ -248,7 +255,7 @@ def _given_unit(column, units, source):
     """
     from ..units import parse_unit
 
-    named, row = _unit(column)[1], _bare_unit((units or {}).get(column, ""))
+    named, row = _bracket_unit(column), _bare_unit((units or {}).get(column, ""))
     named, row = [u if u is not None and u.strip("-\u2013\u2014 ").lower() not in _NO_UNIT else None
                   for u in (named, row)]
     if named and row and _known_unit(named) and _known_unit(row):
