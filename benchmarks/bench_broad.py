@@ -35,6 +35,7 @@ Run::
 
     python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--proxies [WORDS]]
                                      [--only ours9d,vqf]
+    python benchmarks/bench_broad.py --accel-angle
 
 ``--ablation``: ours9d with each mechanism off (parameters of AttitudeParams), mean and per
 trial.  ``--loo``: leave-one-out over the constants tuned on these trials: for each held-out
@@ -43,6 +44,11 @@ scored on the held-out trial (the other constants at their defaults).  ``--rever
 trial played backwards, a motion none of the filters was tuned on (time reversal keeps the
 specific force and the field, negates the body rate; the reference moves by one sample so
 that each estimate is scored against the attitude after its gyro sample, as forwards).
+
+``--accel-angle``: only the accelerometer's pitch as the angle sensor of a ``cf2`` tilt design (the
+figures of ``docs/guide/noise-and-crossover.md``, "An angle from the accelerometer"): its noise at rest
+(trial 01's first 31 s), its error in the motion of trial 10, and a pitch filter's predicted std against
+its error after the start-up, with the angle's figure at rest and in motion.
 
 ``--proxies``: the ten trials turned into recordings none of the filters was tuned on (see
 ``PROXIES``: another mounting of the sensor, other sample rates, a noisier, biased or mis-scaled
@@ -156,6 +162,7 @@ ABLATION = [
     ("no acceleration-disturbance designs", {"accel_rejection": False}),
     ("tilt from the instantaneous accelerometer", {"inertial_tilt": False}),
     ("no start-up from the bias prior (DARE gains)", {"gyro_bias_std0": 0.0}),
+    ("no shock clipping (accel_shock_sigma 1e15)", {"accel_shock_sigma": 1e15}),
 ]
 
 #: constants tuned on the ten trials, the grids --loo searches (factors of the default)
@@ -615,6 +622,89 @@ def leave_one_out(files, jobs):
               f"leave-one-out {np.mean(held):.3f}; factor picked per fold {picks} (best on all ten: {best})")
 
 
+#: standard gravity for the accelerometer's angle, m/s²
+GRAVITY = 9.81
+#: seconds of trial 01's opening rest whose accelerometer x axis gives the angle's noise at rest
+ANGLE_REST_S = 31.0
+
+
+def accel_pitch(acc):
+    """The pitch read from the specific force, ``atan2(-a_x, sqrt(a_y² + a_z²))``, rad."""
+    return np.arctan2(-acc[:, 0], np.hypot(acc[:, 1], acc[:, 2]))
+
+
+def reference_pitch(ref):
+    """The reference's pitch (body -> ENU), by the same formula on gravity in the body frame; NaN rows stay NaN."""
+    R = rot.to_matrix(ref)
+    return np.arctan2(-R[:, 2, 0], np.hypot(R[:, 2, 1], R[:, 2, 2]))
+
+
+def _rms(x):
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x ** 2)))
+
+
+def pitch_run(d, gyro_density, angle_density):
+    """A ``cf2`` pitch filter (gyro y as the angle's rate, bias density 1e-5 rad/s/√s) run on trial ``d`` by
+    :func:`cfdesign.logs.run_log` against the reference pitch: (predicted std, RMS after the start-up, start-up s,
+    log length s)."""
+    import warnings
+
+    import pandas as pd
+
+    import cfdesign
+    from cfdesign.logs import run_log
+    from cfdesign.spec import parse_spec
+
+    sensors = {"gyro": {"port": "rate", "rate_hz": d["rate"], "noise": {"density": gyro_density},
+                        "bias": {"model": "random_walk", "density": 1e-5}},
+               "accelerometer": {"port": "angle", "rate_hz": d["rate"], "noise": {"density": angle_density}}}
+    table = cfdesign.design(parse_spec({"name": "pitch", "structure": "cf2", "order": 2, "discrete": True,
+                                        "sensors": sensors}))
+    t = np.arange(len(d["acc"])) / d["rate"]
+    log = pd.DataFrame({"time": t, "gyro": d["gyr"][:, 1], "accelerometer": accel_pitch(d["acc"]),
+                        "truth": reference_pitch(d["ref"])}).dropna(subset=["truth"]).reset_index(drop=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = run_log(table, log, reference="truth")
+    state = next(iter(r.rms_settled))
+    return r.predicted_std[state], r.rms_settled[state], r.startup_s, float(log["time"].iloc[-1])
+
+
+def accel_angle(files):
+    """The accelerometer's pitch as a tilt design's angle sensor (docs/guide/noise-and-crossover.md): its noise at
+    rest (trial 01), its error in motion (trial 10), and a ``cf2`` pitch filter's prediction against its error."""
+    from cfdesign import identify_noise
+
+    trials = {p.stem[:2]: p for p in files}
+    if not {"01", "03", "10"} <= set(trials):
+        print("\n--accel-angle needs trials 01, 03 and 10")
+        return
+    d1, d10 = load_trial(trials["01"]), load_trial(trials["10"])
+    rest = slice(0, round(ANGLE_REST_S * d1["rate"]))
+    n_acc = identify_noise(d1["acc"][rest, 0], d1["rate"], "acc_x").white_density
+    n_gyro = identify_noise(d1["gyr"][rest, 1], d1["rate"], "gyr_y").white_density
+    n_angle = n_acc / GRAVITY
+    at_rest = _rms(accel_pitch(d1["acc"][rest]) - reference_pitch(d1["ref"][rest]))
+    print(f"\nAccelerometer pitch as an angle sensor: trial 01's first {ANGLE_REST_S:g} s at rest gave N_ax = "
+          f"{n_acc:.3g} m/s²/√Hz, N_theta = {n_angle:.2g} rad/√Hz: {n_angle * np.sqrt(d1['rate']):.2g} rad a reading "
+          f"at {d1['rate']:.4g} Hz; the angle {at_rest:.2g}"
+          f" rad RMS off the reference there (gyro y N = {n_gyro:.2g} rad/s/√Hz)")
+    err10 = accel_pitch(d10["acc"]) - reference_pitch(d10["ref"])
+    moving = _rms(err10[d10["movement"]])
+    print(f"  trial 10, over its motion: the accelerometer's pitch {moving:.3g} rad RMS off the reference, "
+          f"{moving / (n_angle * np.sqrt(d1['rate'])):.0f} times its figure at rest")
+    for label, density in (("at rest", n_angle), ("in motion", moving / np.sqrt(d10["rate"]))):
+        pred, rms, startup, length = pitch_run(d10, n_gyro, density)
+        print(f"  cf2 pitch on trial 10, angle figure {label} {density:.2g} rad/√Hz: predicted std {pred:.3g} rad, "
+              f"RMS after the start-up {rms:.3g} rad ({rms / pred:.0f} times); "
+              f"start-up {startup:.0f} s of {length:.0f} s")
+    for key in ("01", "03"):
+        d = load_trial(trials[key])
+        _, rms, _, _ = pitch_run(d, n_gyro, n_angle)
+        print(f"  cf2 pitch (angle figure at rest) on slow rotation trial {key}: {rms:.2g} rad RMS after the start-up")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA, help="folder of BROAD .mat trials")
@@ -623,6 +713,8 @@ def main(argv=None):
     parser.add_argument("--loo", action="store_true", help="also the leave-one-out check of the tuned constants")
     parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation, --loo and --proxies")
     parser.add_argument("--reversed", action="store_true", help="also the table of every trial played backwards")
+    parser.add_argument("--accel-angle", action="store_true",
+                        help="only the accelerometer's pitch as a tilt design's angle sensor (trials 01, 03, 10)")
     parser.add_argument("--proxies", nargs="?", const="", metavar="WORDS",
                         help="also ours9d, ours6d, VQF and Madgwick on proxies of unseen recordings (PROXIES); "
                              "WORDS (comma-separated) keeps the proxies whose name contains one of them")
@@ -640,6 +732,9 @@ def main(argv=None):
     if proxies == []:
         print(f"--proxies: no proxy matches {args.proxies!r}; the proxies are: {'; '.join(PROXIES)}", file=sys.stderr)
         return 2
+    if args.accel_angle:
+        accel_angle(files)
+        return 0
     main_table(files, names)
     if args.reversed:
         print()

@@ -152,3 +152,16 @@ def test_long_proxies_play_the_motion_twice(trial):
         out = proxy(d)
         assert 1.5 * 40 * RATE <= np.sum(out["movement"]) <= 2 * 40 * RATE
         assert len(out["gyr"]) > 1.5 * len(d["gyr"])
+
+
+def test_the_accelerometer_pitch_and_the_reference_pitch_agree_on_exact_gravity():
+    """``--accel-angle`` compares the pitch read from the specific force with the reference's: on gravity turned
+    exactly into the body frame of any attitude (pitch within ±80°) the two are the same angle, and that angle is
+    the Euler pitch of the attitude."""
+    rng = np.random.default_rng(4)
+    euler = np.column_stack([rng.uniform(-3, 3, 200), rng.uniform(-1.4, 1.4, 200), rng.uniform(-3, 3, 200)])
+    q = rot.from_euler(euler)
+    acc = rot.rotate(rot.conjugate(q), np.array([0.0, 0.0, GRAVITY]))
+    np.testing.assert_allclose(bench.accel_pitch(acc), bench.reference_pitch(q), atol=1e-12)
+    np.testing.assert_allclose(bench.reference_pitch(q), rot.to_euler(q)[:, 1], atol=1e-12)
+    assert np.isnan(bench.reference_pitch(np.full((2, 4), np.nan))).all()
