@@ -57,7 +57,9 @@ the motion, with no rest to learn the gyro bias from; and BROAD's categories the
 breaks in the motion, trials of 240-360 s, an office field that varies with the position, a gyro
 bias step; and transforms that must not change the figures: resampled to 100, 50, 25 Hz or up to
 1000 Hz, a vertical gyro bias of 0.03 or 0.06 rad/s, a gyro 4 times noisier than the default density,
-the field's dip turned to 0, -60 and 82 deg, the recording started 30 s or 60 s in), ours9d, ours6d,
+the field's dip turned to 0, -60 and 82 deg, the recording started 30 s or 60 s in, started upside
+down or on its side, a gyro bias of 0.03 rad/s about x; and units the filter cannot fully undo: the
+field normalised sample by sample, the specific force in g), ours9d, ours6d,
 VQF and Madgwick on each: mean total and inclination RMSE per proxy,
 the trials where ours9d's total is worse than Madgwick's, and ours9d's wins against VQF in total
 and in inclination. ``--proxies WORDS`` keeps the proxies whose name contains one of the
@@ -203,10 +205,11 @@ def reversed_trial(d, bias=None):
     return out
 
 
-def rotated_trial(d):
-    """The sensor mounted otherwise: every reading turned by a fixed rotation ``R`` (the new body
-    frame is ``R`` times the old), the reference ``q ⊗ R⁻¹``."""
-    r = rot.from_rotation_vector(np.radians(120.0) * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0))
+def rotated_trial(d, angle_deg=120.0, axis=(1.0, 2.0, 3.0)):
+    """The sensor mounted otherwise: every reading turned by a fixed rotation ``R`` of ``angle_deg`` about
+    ``axis`` (the new body frame is ``R`` times the old), the reference ``q ⊗ R⁻¹``."""
+    axis = np.asarray(axis, dtype=float)
+    r = rot.from_rotation_vector(np.radians(angle_deg) * axis / np.linalg.norm(axis))
     out = dict(d)
     for key in ("gyr", "acc", "mag"):
         out[key] = np.ascontiguousarray(rot.rotate(np.tile(r, (len(d[key]), 1)), d[key]))
@@ -264,6 +267,14 @@ def resampled_trial(d, rate):
     return out
 
 
+def normalised_field_trial(d):
+    """The field normalised sample by sample (unit vectors, as some loggers write it): its direction kept,
+    its norm, which the disturbance check reads, lost."""
+    out = dict(d)
+    out["mag"] = np.ascontiguousarray(d["mag"] / np.linalg.norm(d["mag"], axis=1, keepdims=True))
+    return out
+
+
 def dip_trial(d, turn_deg):
     """The trial in a field of another dip: every field reading turned, in ENU through the reference, by
     ``turn_deg`` about east (positive: towards the horizontal; 67 from BROAD's 67 deg makes it 0) and back
@@ -277,13 +288,15 @@ def dip_trial(d, turn_deg):
     return out
 
 
-def modified_trial(d, noise=None, gyr_bias=None, gyr_scale=1.0, mag_scale=1.0, hard_iron=None, seed=0):
+def modified_trial(d, noise=None, gyr_bias=None, gyr_scale=1.0, mag_scale=1.0, hard_iron=None, seed=0,
+                   acc_scale=1.0):
     """The trial's readings altered as another sensor would give them: extra white noise (stds of
-    gyr, acc, mag per sample), a constant gyro bias (rad/s), a gyro scale factor, the field in
-    other units (``mag_scale``) or with a hard-iron offset (body frame, the field's unit)."""
+    gyr, acc, mag per sample), a constant gyro bias (rad/s), a gyro scale factor, the specific force
+    (``acc_scale``) or the field (``mag_scale``) in other units, or a hard-iron offset (body frame, the
+    field's unit)."""
     out = dict(d)
     rng = np.random.default_rng(seed)
-    gyr, acc, mag = d["gyr"] * gyr_scale, d["acc"].copy(), d["mag"] * mag_scale
+    gyr, acc, mag = d["gyr"] * gyr_scale, d["acc"] * acc_scale, d["mag"] * mag_scale
     if gyr_bias is not None:
         gyr = gyr + np.asarray(gyr_bias)
     if noise is not None:
@@ -505,6 +518,11 @@ PROXIES = {
     f"no rest: from 1 s before the motion ({CONVERGE_S:g} s unscored)": lambda d: trimmed_trial(d, -1.0),
     f"no rest, gyro bias (1, -1.5, 0.5) deg/s ({CONVERGE_S:g} s unscored)": lambda d: modified_trial(
         trimmed_trial(d, -1.0), gyr_bias=np.radians([1.0, -1.5, 0.5])),
+    "units: field normalised sample by sample": normalised_field_trial,
+    "units: specific force in g": lambda d: modified_trial(d, acc_scale=1.0 / 9.81),
+    "start upside down (turned 180 deg about x)": lambda d: rotated_trial(d, 180.0, (1.0, 0.0, 0.0)),
+    "start on its side (turned 90 deg about x)": lambda d: rotated_trial(d, 90.0, (1.0, 0.0, 0.0)),
+    "gyro bias 0.03 rad/s about x": lambda d: modified_trial(d, gyr_bias=(0.03, 0.0, 0.0)),
 }
 
 
