@@ -533,12 +533,14 @@ def _proxy_score(args):
 
 
 def proxy_scores(files, names, jobs, proxies=None):
-    """``{proxy: {filter: (len(files), 3) array}}`` of (total, heading, inclination) RMSE, in parallel."""
+    """``(proxy, {filter: (len(files), 3) array})`` of (total, heading, inclination) RMSE per proxy, in parallel,
+    yielded as each proxy is done."""
     proxies = list(PROXIES) if proxies is None else proxies
-    tasks = [(path, proxy, name) for proxy in proxies for name in names for path in files]
     with ProcessPoolExecutor(jobs) as pool:
-        flat = np.array(list(pool.map(_proxy_score, tasks))).reshape(len(proxies), len(names), len(files), 3)
-    return {proxy: dict(zip(names, flat[i], strict=True)) for i, proxy in enumerate(proxies)}
+        for proxy in proxies:
+            tasks = [(path, proxy, name) for name in names for path in files]
+            flat = np.array(list(pool.map(_proxy_score, tasks))).reshape(len(names), len(files), 3)
+            yield proxy, dict(zip(names, flat, strict=True))
 
 
 def select_proxies(spec):
@@ -547,13 +549,16 @@ def select_proxies(spec):
     return [p for p in PROXIES if not words or any(w in p.lower() for w in words)]
 
 
-def proxy_table(files, jobs, proxies=None):
-    names = available(["ours9d", "ours6d", "vqf", "madgwick"])
-    scores = proxy_scores(files, names, jobs, proxies)
+def proxy_table(files, jobs, proxies=None, only=None):
+    """Print the proxies' table (each row as its proxy is done) for ours9d, ours6d, VQF and Madgwick, or those of
+    them in ``only``; return ``{proxy: {filter: (len(files), 3) array}}``."""
+    names = available([n for n in ("ours9d", "ours6d", "vqf", "madgwick") if only is None or n in only])
+    scores = {}
     print("\nProxies of unseen recordings: mean total / inclination RMSE (deg) over the ten trials; trials where "
           "ours9d's total is worse than Madgwick's; trials where ours9d beats VQF (total, inclination)")
     print("proxy".ljust(42) + "".join(f"{n:>12}" for n in names) + "   worse than Madgwick / beats VQF")
-    for proxy, by_name in scores.items():
+    for proxy, by_name in proxy_scores(files, names, jobs, proxies):
+        scores[proxy] = by_name
         row = proxy[:41].ljust(42) + "".join(f"{by_name[n][:, 0].mean():6.2f}/{by_name[n][:, 2].mean():5.2f}"
                                              for n in names)
         if {"ours9d", "vqf", "madgwick"} <= set(names):
@@ -734,8 +739,8 @@ def main(argv=None):
     parser.add_argument("--accel-angle", action="store_true",
                         help="only the accelerometer's pitch as a tilt design's angle sensor (trials 01, 03, 10)")
     parser.add_argument("--proxies", nargs="?", const="", metavar="WORDS",
-                        help="also ours9d, ours6d, VQF and Madgwick on proxies of unseen recordings (PROXIES); "
-                             "WORDS (comma-separated) keeps the proxies whose name contains one of them")
+                        help="also ours9d, ours6d, VQF and Madgwick (those in --only) on proxies of unseen recordings "
+                             "(PROXIES); WORDS (comma-separated) keeps the proxies whose name contains one of them")
     args = parser.parse_args(argv)
     files = sorted(args.data.glob("*.mat"))
     if not files:
@@ -758,7 +763,7 @@ def main(argv=None):
         print()
         main_table(files, names, reverse=True)
     if args.proxies is not None:
-        proxy_table(files, args.jobs, proxies)
+        proxy_table(files, args.jobs, proxies, args.only.split(",") if args.only else None)
     if args.ablation:
         ablation(files, args.jobs)
     if args.loo:
