@@ -35,6 +35,7 @@ Run::
 
     python benchmarks/bench_broad.py [--data PATH] [--ablation] [--loo] [--reversed] [--proxies [WORDS]]
                                      [--only ours9d,vqf]
+    python benchmarks/bench_broad.py --accel-angle
 
 ``--ablation``: ours9d with each mechanism off (parameters of AttitudeParams), mean and per
 trial.  ``--loo``: leave-one-out over the constants tuned on these trials: for each held-out
@@ -44,6 +45,11 @@ trial played backwards, a motion none of the filters was tuned on (time reversal
 specific force and the field, negates the body rate; the reference moves by one sample so
 that each estimate is scored against the attitude after its gyro sample, as forwards).
 
+``--accel-angle``: only the accelerometer's pitch as the angle sensor of a ``cf2`` tilt design (the
+figures of ``docs/guide/noise-and-crossover.md``, "An angle from the accelerometer"): its noise at rest
+(trial 01's first 31 s), its error in the motion of trial 10, and a pitch filter's predicted std against
+its error after the start-up, with the angle's figure at rest and in motion.
+
 ``--proxies``: the ten trials turned into recordings none of the filters was tuned on (see
 ``PROXIES``: another mounting of the sensor, other sample rates, a noisier, biased or mis-scaled
 gyro, the field in Gauss or with a hard-iron offset, time reversal, starts 10 s and 30 s into
@@ -51,7 +57,9 @@ the motion, with no rest to learn the gyro bias from; and BROAD's categories the
 breaks in the motion, trials of 240-360 s, an office field that varies with the position, a gyro
 bias step; and transforms that must not change the figures: resampled to 100, 50, 25 Hz or up to
 1000 Hz, a vertical gyro bias of 0.03 or 0.06 rad/s, a gyro 4 times noisier than the default density,
-the field's dip turned to 0, -60 and 82 deg, the recording started 30 s or 60 s in), ours9d, ours6d,
+the field's dip turned to 0, -60 and 82 deg, the recording started 30 s or 60 s in, started upside
+down or on its side, a gyro bias of 0.03 rad/s about x; and units the filter cannot fully undo: the
+field normalised sample by sample, the specific force in g), ours9d, ours6d,
 VQF and Madgwick on each: mean total and inclination RMSE per proxy,
 the trials where ours9d's total is worse than Madgwick's, and ours9d's wins against VQF in total
 and in inclination. ``--proxies WORDS`` keeps the proxies whose name contains one of the
@@ -156,6 +164,7 @@ ABLATION = [
     ("no acceleration-disturbance designs", {"accel_rejection": False}),
     ("tilt from the instantaneous accelerometer", {"inertial_tilt": False}),
     ("no start-up from the bias prior (DARE gains)", {"gyro_bias_std0": 0.0}),
+    ("no shock clipping (accel_shock_sigma 1e15)", {"accel_shock_sigma": 1e15}),
 ]
 
 #: constants tuned on the ten trials, the grids --loo searches (factors of the default)
@@ -196,10 +205,11 @@ def reversed_trial(d, bias=None):
     return out
 
 
-def rotated_trial(d):
-    """The sensor mounted otherwise: every reading turned by a fixed rotation ``R`` (the new body
-    frame is ``R`` times the old), the reference ``q ⊗ R⁻¹``."""
-    r = rot.from_rotation_vector(np.radians(120.0) * np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0))
+def rotated_trial(d, angle_deg=120.0, axis=(1.0, 2.0, 3.0)):
+    """The sensor mounted otherwise: every reading turned by a fixed rotation ``R`` of ``angle_deg`` about
+    ``axis`` (the new body frame is ``R`` times the old), the reference ``q ⊗ R⁻¹``."""
+    axis = np.asarray(axis, dtype=float)
+    r = rot.from_rotation_vector(np.radians(angle_deg) * axis / np.linalg.norm(axis))
     out = dict(d)
     for key in ("gyr", "acc", "mag"):
         out[key] = np.ascontiguousarray(rot.rotate(np.tile(r, (len(d[key]), 1)), d[key]))
@@ -257,6 +267,14 @@ def resampled_trial(d, rate):
     return out
 
 
+def normalised_field_trial(d):
+    """The field normalised sample by sample (unit vectors, as some loggers write it): its direction kept,
+    its norm, which the disturbance check reads, lost."""
+    out = dict(d)
+    out["mag"] = np.ascontiguousarray(d["mag"] / np.linalg.norm(d["mag"], axis=1, keepdims=True))
+    return out
+
+
 def dip_trial(d, turn_deg):
     """The trial in a field of another dip: every field reading turned, in ENU through the reference, by
     ``turn_deg`` about east (positive: towards the horizontal; 67 from BROAD's 67 deg makes it 0) and back
@@ -270,13 +288,15 @@ def dip_trial(d, turn_deg):
     return out
 
 
-def modified_trial(d, noise=None, gyr_bias=None, gyr_scale=1.0, mag_scale=1.0, hard_iron=None, seed=0):
+def modified_trial(d, noise=None, gyr_bias=None, gyr_scale=1.0, mag_scale=1.0, hard_iron=None, seed=0,
+                   acc_scale=1.0):
     """The trial's readings altered as another sensor would give them: extra white noise (stds of
-    gyr, acc, mag per sample), a constant gyro bias (rad/s), a gyro scale factor, the field in
-    other units (``mag_scale``) or with a hard-iron offset (body frame, the field's unit)."""
+    gyr, acc, mag per sample), a constant gyro bias (rad/s), a gyro scale factor, the specific force
+    (``acc_scale``) or the field (``mag_scale``) in other units, or a hard-iron offset (body frame, the
+    field's unit)."""
     out = dict(d)
     rng = np.random.default_rng(seed)
-    gyr, acc, mag = d["gyr"] * gyr_scale, d["acc"].copy(), d["mag"] * mag_scale
+    gyr, acc, mag = d["gyr"] * gyr_scale, d["acc"] * acc_scale, d["mag"] * mag_scale
     if gyr_bias is not None:
         gyr = gyr + np.asarray(gyr_bias)
     if noise is not None:
@@ -498,6 +518,11 @@ PROXIES = {
     f"no rest: from 1 s before the motion ({CONVERGE_S:g} s unscored)": lambda d: trimmed_trial(d, -1.0),
     f"no rest, gyro bias (1, -1.5, 0.5) deg/s ({CONVERGE_S:g} s unscored)": lambda d: modified_trial(
         trimmed_trial(d, -1.0), gyr_bias=np.radians([1.0, -1.5, 0.5])),
+    "units: field normalised sample by sample": normalised_field_trial,
+    "units: specific force in g": lambda d: modified_trial(d, acc_scale=1.0 / 9.81),
+    "start upside down (turned 180 deg about x)": lambda d: rotated_trial(d, 180.0, (1.0, 0.0, 0.0)),
+    "start on its side (turned 90 deg about x)": lambda d: rotated_trial(d, 90.0, (1.0, 0.0, 0.0)),
+    "gyro bias 0.03 rad/s about x": lambda d: modified_trial(d, gyr_bias=(0.03, 0.0, 0.0)),
 }
 
 
@@ -508,12 +533,14 @@ def _proxy_score(args):
 
 
 def proxy_scores(files, names, jobs, proxies=None):
-    """``{proxy: {filter: (len(files), 3) array}}`` of (total, heading, inclination) RMSE, in parallel."""
+    """``(proxy, {filter: (len(files), 3) array})`` of (total, heading, inclination) RMSE per proxy, in parallel,
+    yielded as each proxy is done."""
     proxies = list(PROXIES) if proxies is None else proxies
-    tasks = [(path, proxy, name) for proxy in proxies for name in names for path in files]
     with ProcessPoolExecutor(jobs) as pool:
-        flat = np.array(list(pool.map(_proxy_score, tasks))).reshape(len(proxies), len(names), len(files), 3)
-    return {proxy: dict(zip(names, flat[i], strict=True)) for i, proxy in enumerate(proxies)}
+        for proxy in proxies:
+            tasks = [(path, proxy, name) for name in names for path in files]
+            flat = np.array(list(pool.map(_proxy_score, tasks))).reshape(len(names), len(files), 3)
+            yield proxy, dict(zip(names, flat, strict=True))
 
 
 def select_proxies(spec):
@@ -522,13 +549,16 @@ def select_proxies(spec):
     return [p for p in PROXIES if not words or any(w in p.lower() for w in words)]
 
 
-def proxy_table(files, jobs, proxies=None):
-    names = available(["ours9d", "ours6d", "vqf", "madgwick"])
-    scores = proxy_scores(files, names, jobs, proxies)
+def proxy_table(files, jobs, proxies=None, only=None):
+    """Print the proxies' table (each row as its proxy is done) for ours9d, ours6d, VQF and Madgwick, or those of
+    them in ``only``; return ``{proxy: {filter: (len(files), 3) array}}``."""
+    names = available([n for n in ("ours9d", "ours6d", "vqf", "madgwick") if only is None or n in only])
+    scores = {}
     print("\nProxies of unseen recordings: mean total / inclination RMSE (deg) over the ten trials; trials where "
           "ours9d's total is worse than Madgwick's; trials where ours9d beats VQF (total, inclination)")
     print("proxy".ljust(42) + "".join(f"{n:>12}" for n in names) + "   worse than Madgwick / beats VQF")
-    for proxy, by_name in scores.items():
+    for proxy, by_name in proxy_scores(files, names, jobs, proxies):
+        scores[proxy] = by_name
         row = proxy[:41].ljust(42) + "".join(f"{by_name[n][:, 0].mean():6.2f}/{by_name[n][:, 2].mean():5.2f}"
                                              for n in names)
         if {"ours9d", "vqf", "madgwick"} <= set(names):
@@ -615,6 +645,89 @@ def leave_one_out(files, jobs):
               f"leave-one-out {np.mean(held):.3f}; factor picked per fold {picks} (best on all ten: {best})")
 
 
+#: standard gravity for the accelerometer's angle, m/s²
+GRAVITY = 9.81
+#: seconds of trial 01's opening rest whose accelerometer x axis gives the angle's noise at rest
+ANGLE_REST_S = 31.0
+
+
+def accel_pitch(acc):
+    """The pitch read from the specific force, ``atan2(-a_x, sqrt(a_y² + a_z²))``, rad."""
+    return np.arctan2(-acc[:, 0], np.hypot(acc[:, 1], acc[:, 2]))
+
+
+def reference_pitch(ref):
+    """The reference's pitch (body -> ENU), by the same formula on gravity in the body frame; NaN rows stay NaN."""
+    R = rot.to_matrix(ref)
+    return np.arctan2(-R[:, 2, 0], np.hypot(R[:, 2, 1], R[:, 2, 2]))
+
+
+def _rms(x):
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x ** 2)))
+
+
+def pitch_run(d, gyro_density, angle_density):
+    """A ``cf2`` pitch filter (gyro y as the angle's rate, bias density 1e-5 rad/s/√s) run on trial ``d`` by
+    :func:`cfdesign.logs.run_log` against the reference pitch: (predicted std, RMS after the start-up, start-up s,
+    log length s)."""
+    import warnings
+
+    import pandas as pd
+
+    import cfdesign
+    from cfdesign.logs import run_log
+    from cfdesign.spec import parse_spec
+
+    sensors = {"gyro": {"port": "rate", "rate_hz": d["rate"], "noise": {"density": gyro_density},
+                        "bias": {"model": "random_walk", "density": 1e-5}},
+               "accelerometer": {"port": "angle", "rate_hz": d["rate"], "noise": {"density": angle_density}}}
+    table = cfdesign.design(parse_spec({"name": "pitch", "structure": "cf2", "order": 2, "discrete": True,
+                                        "sensors": sensors}))
+    t = np.arange(len(d["acc"])) / d["rate"]
+    log = pd.DataFrame({"time": t, "gyro": d["gyr"][:, 1], "accelerometer": accel_pitch(d["acc"]),
+                        "truth": reference_pitch(d["ref"])}).dropna(subset=["truth"]).reset_index(drop=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        r = run_log(table, log, reference="truth")
+    state = next(iter(r.rms_settled))
+    return r.predicted_std[state], r.rms_settled[state], r.startup_s, float(log["time"].iloc[-1])
+
+
+def accel_angle(files):
+    """The accelerometer's pitch as a tilt design's angle sensor (docs/guide/noise-and-crossover.md): its noise at
+    rest (trial 01), its error in motion (trial 10), and a ``cf2`` pitch filter's prediction against its error."""
+    from cfdesign import identify_noise
+
+    trials = {p.stem[:2]: p for p in files}
+    if not {"01", "03", "10"} <= set(trials):
+        print("\n--accel-angle needs trials 01, 03 and 10")
+        return
+    d1, d10 = load_trial(trials["01"]), load_trial(trials["10"])
+    rest = slice(0, round(ANGLE_REST_S * d1["rate"]))
+    n_acc = identify_noise(d1["acc"][rest, 0], d1["rate"], "acc_x").white_density
+    n_gyro = identify_noise(d1["gyr"][rest, 1], d1["rate"], "gyr_y").white_density
+    n_angle = n_acc / GRAVITY
+    at_rest = _rms(accel_pitch(d1["acc"][rest]) - reference_pitch(d1["ref"][rest]))
+    print(f"\nAccelerometer pitch as an angle sensor: trial 01's first {ANGLE_REST_S:g} s at rest gave N_ax = "
+          f"{n_acc:.3g} m/s²/√Hz, N_theta = {n_angle:.2g} rad/√Hz: {n_angle * np.sqrt(d1['rate']):.2g} rad a reading "
+          f"at {d1['rate']:.4g} Hz; the angle {at_rest:.2g}"
+          f" rad RMS off the reference there (gyro y N = {n_gyro:.2g} rad/s/√Hz)")
+    err10 = accel_pitch(d10["acc"]) - reference_pitch(d10["ref"])
+    moving = _rms(err10[d10["movement"]])
+    print(f"  trial 10, over its motion: the accelerometer's pitch {moving:.3g} rad RMS off the reference, "
+          f"{moving / (n_angle * np.sqrt(d1['rate'])):.0f} times its figure at rest")
+    for label, density in (("at rest", n_angle), ("in motion", moving / np.sqrt(d10["rate"]))):
+        pred, rms, startup, length = pitch_run(d10, n_gyro, density)
+        print(f"  cf2 pitch on trial 10, angle figure {label} {density:.2g} rad/√Hz: predicted std {pred:.3g} rad, "
+              f"RMS after the start-up {rms:.3g} rad ({rms / pred:.0f} times); "
+              f"start-up {startup:.0f} s of {length:.0f} s")
+    for key in ("01", "03"):
+        d = load_trial(trials[key])
+        _, rms, _, _ = pitch_run(d, n_gyro, n_angle)
+        print(f"  cf2 pitch (angle figure at rest) on slow rotation trial {key}: {rms:.2g} rad RMS after the start-up")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=DATA, help="folder of BROAD .mat trials")
@@ -623,9 +736,11 @@ def main(argv=None):
     parser.add_argument("--loo", action="store_true", help="also the leave-one-out check of the tuned constants")
     parser.add_argument("--jobs", type=int, default=2, help="processes for --ablation, --loo and --proxies")
     parser.add_argument("--reversed", action="store_true", help="also the table of every trial played backwards")
+    parser.add_argument("--accel-angle", action="store_true",
+                        help="only the accelerometer's pitch as a tilt design's angle sensor (trials 01, 03, 10)")
     parser.add_argument("--proxies", nargs="?", const="", metavar="WORDS",
-                        help="also ours9d, ours6d, VQF and Madgwick on proxies of unseen recordings (PROXIES); "
-                             "WORDS (comma-separated) keeps the proxies whose name contains one of them")
+                        help="also ours9d, ours6d, VQF and Madgwick (those in --only) on proxies of unseen recordings "
+                             "(PROXIES); WORDS (comma-separated) keeps the proxies whose name contains one of them")
     args = parser.parse_args(argv)
     files = sorted(args.data.glob("*.mat"))
     if not files:
@@ -640,12 +755,15 @@ def main(argv=None):
     if proxies == []:
         print(f"--proxies: no proxy matches {args.proxies!r}; the proxies are: {'; '.join(PROXIES)}", file=sys.stderr)
         return 2
+    if args.accel_angle:
+        accel_angle(files)
+        return 0
     main_table(files, names)
     if args.reversed:
         print()
         main_table(files, names, reverse=True)
     if args.proxies is not None:
-        proxy_table(files, args.jobs, proxies)
+        proxy_table(files, args.jobs, proxies, args.only.split(",") if args.only else None)
     if args.ablation:
         ablation(files, args.jobs)
     if args.loo:

@@ -152,3 +152,38 @@ def test_long_proxies_play_the_motion_twice(trial):
         out = proxy(d)
         assert 1.5 * 40 * RATE <= np.sum(out["movement"]) <= 2 * 40 * RATE
         assert len(out["gyr"]) > 1.5 * len(d["gyr"])
+
+
+def test_the_accelerometer_pitch_and_the_reference_pitch_agree_on_exact_gravity():
+    """``--accel-angle`` compares the pitch read from the specific force with the reference's: on gravity turned
+    exactly into the body frame of any attitude (pitch within ±80°) the two are the same angle, and that angle is
+    the Euler pitch of the attitude."""
+    rng = np.random.default_rng(4)
+    euler = np.column_stack([rng.uniform(-3, 3, 200), rng.uniform(-1.4, 1.4, 200), rng.uniform(-3, 3, 200)])
+    q = rot.from_euler(euler)
+    acc = rot.rotate(rot.conjugate(q), np.array([0.0, 0.0, GRAVITY]))
+    np.testing.assert_allclose(bench.accel_pitch(acc), bench.reference_pitch(q), atol=1e-12)
+    np.testing.assert_allclose(bench.reference_pitch(q), rot.to_euler(q)[:, 1], atol=1e-12)
+    assert np.isnan(bench.reference_pitch(np.full((2, 4), np.nan))).all()
+
+
+@pytest.mark.parametrize(("angle", "axis"),
+                         [(180.0, (1.0, 0.0, 0.0)), (90.0, (1.0, 0.0, 0.0)), (120.0, (1.0, 2.0, 3.0))])
+def test_a_remounted_proxy_reads_the_same_in_enu(angle, axis, trial):
+    """Turning every reading by a mounting ``R`` and the reference by ``R⁻¹`` leaves what the readings say about
+    the world (each turned into ENU by its reference) as it was."""
+    out = bench.rotated_trial(trial, angle, axis)
+    for key in ("gyr", "acc", "mag"):
+        np.testing.assert_allclose(enu(out, key)[0], enu(trial, key)[0], atol=1e-9)
+
+
+def test_the_unit_proxies_keep_the_directions_and_change_the_norms(trial):
+    """The field normalised sample by sample keeps each reading's direction at norm 1; the specific force in g
+    is the reading over 9.81."""
+    unit = bench.PROXIES["units: field normalised sample by sample"](trial)
+    np.testing.assert_allclose(np.linalg.norm(unit["mag"], axis=1), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(unit["mag"] * np.linalg.norm(trial["mag"], axis=1, keepdims=True), trial["mag"],
+                               rtol=1e-12)
+    in_g = bench.PROXIES["units: specific force in g"](trial)
+    np.testing.assert_allclose(in_g["acc"] * 9.81, trial["acc"], rtol=1e-12)
+    np.testing.assert_array_equal(in_g["gyr"], trial["gyr"])
