@@ -201,7 +201,9 @@ def noise_shares(table) -> dict:
 
 
 def _fixed_point(A, S):
-    """``P = A P A' + S`` for a stable ``A``, by doubling: ``sum_k A^k S A^k'``."""
+    """``P = A P A' + S`` for a stable ``A``, by doubling (Smith's iteration): ``sum_k A^k S A^k'``.
+    numpy only: the project's Stein solver (:func:`cfdesign.riccati.lyapunov.stein`) would import
+    scipy.linalg and the Riccati package, 0.16 s of every ``cfdesign run``, for a few small solves."""
     P = S.copy()
     for _ in range(64):
         step = A @ P @ A.T
